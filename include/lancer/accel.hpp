@@ -1,0 +1,80 @@
+// The one interface every acceleration structure implements (build / closest hit / any hit / stats / memory).
+// Virtual dispatch happens once per batch of rays, never per node.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "lancer/ray.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer {
+
+enum class TriangleTest {
+    MollerTrumbore,  // Moller & Trumbore 1997 (seeds 003, 004): fast, may leak through shared edges
+    Watertight,      // Woop, Benthin & Wald 2013: no ray passes between two triangles that share an edge
+};
+
+struct BuildOptions {
+    TriangleTest triangle_test = TriangleTest::MollerTrumbore;
+};
+
+// Statistics of a built structure (seed 003's counts; every field a structure does not have stays 0).
+struct AccelStats {
+    double build_ms = 0.0;
+    std::size_t primitives = 0;
+    std::size_t nodes = 0;  // inner nodes and leaves, or cells
+    std::size_t leaves = 0;
+    std::size_t empty_leaves = 0;
+    std::size_t references = 0;  // primitive references stored in leaves (duplicates included)
+    int max_depth = 0;
+    double mean_depth = 0.0;
+    double mean_refs_per_leaf = 0.0;
+    std::size_t max_refs_per_leaf = 0;
+    double sah_cost = 0.0;
+    std::vector<std::pair<std::string, std::size_t>> memory_by_array;  // bytes, trace-time arrays only
+};
+
+// Per-ray work counters, summed over a batch. Structures count only when handed a non-null pointer, and the
+// counting code is a template branch chosen once per batch, so the fast path pays nothing.
+struct TraversalCounters {
+    std::uint64_t rays = 0;
+    std::uint64_t nodes_visited = 0;  // inner nodes, leaves or cells entered
+    std::uint64_t prims_tested = 0;
+
+    TraversalCounters& operator+=(const TraversalCounters& o) {
+        rays += o.rays, nodes_visited += o.nodes_visited, prims_tested += o.prims_tested;
+        return *this;
+    }
+};
+
+class Accel {
+public:
+    virtual ~Accel() = default;
+
+    [[nodiscard]] virtual std::string_view name() const = 0;
+    // The structure may keep the spans of `geometry`: the caller keeps them alive and unchanged.
+    virtual void build(const Geometry& geometry, const BuildOptions& options) = 0;
+    // Closest hit of each ray in [tnear, tfar]; hits.size() == rays.size(). Invalid rays miss (is_valid).
+    virtual void intersect(std::span<const Ray> rays, std::span<Hit> hits,
+                           TraversalCounters* counters = nullptr) const = 0;
+    // Any hit in [tnear, tfar]: occluded[i] = 1 when ray i hits something, 0 otherwise.
+    virtual void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                          TraversalCounters* counters = nullptr) const = 0;
+    [[nodiscard]] virtual AccelStats stats() const = 0;
+    // Bytes the structure itself needs at trace time, the geometry it was built on excluded.
+    [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
+};
+
+// The names `--accel` accepts, in the order `lancer bench --accel all` measures them.
+[[nodiscard]] std::vector<std::string_view> accel_names();
+// A new, unbuilt structure; throws std::invalid_argument naming the known structures for an unknown name.
+[[nodiscard]] std::unique_ptr<Accel> make_accel(std::string_view name);
+
+}  // namespace lancer

@@ -1,0 +1,27 @@
+// Primary-ray generation for the pinhole camera (seed 004; shared/bench/VIEWS.md).
+#pragma once
+
+#include "lancer/ray.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer {
+
+class PinholeCamera {
+public:
+    explicit PinholeCamera(const Camera& camera);
+
+    // The ray through film position (film_x, film_y) in pixels: x from 0 (left edge) to width, y from 0 (top
+    // edge) to height; the centre of pixel (i, j) is (i + 0.5, j + 0.5). Unit direction, tnear 0, tfar inf:
+    //   u = (2 film_x / W - 1) tan(fov / 2) (W / H),  v = (1 - 2 film_y / H) tan(fov / 2),
+    //   direction = normalize(f + u x + v y).
+    [[nodiscard]] Ray generate(float film_x, float film_y) const;
+    [[nodiscard]] int width() const { return width_; }
+    [[nodiscard]] int height() const { return height_; }
+
+private:
+    Vec3f eye_, forward_, right_, up_;
+    float tan_half_fov_, aspect_;
+    int width_, height_;
+};
+
+}  // namespace lancer

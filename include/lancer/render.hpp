@@ -1,0 +1,51 @@
+// The renderer: tiles of pixels over oneTBB threads, one closest-hit batch per tile.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "lancer/accel.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer {
+
+enum class ShadingMode {
+    Flat,    // the paper's Figure 5 look: material colour times |cos| between geometric normal and ray
+    Normal,  // shading normal mapped from [-1, 1] to [0, 1]
+    Depth,   // distance along the ray, near = white, far = black, misses black
+};
+
+struct RenderOptions {
+    ShadingMode mode = ShadingMode::Flat;
+    int threads = 0;        // 0: all hardware threads
+    int tile_size = 16;     // pixels per tile side
+    bool progress = false;  // a progress line on stderr (the CLI turns it on when stderr is a terminal)
+};
+
+// Linear RGB, row-major, top row first.
+struct Image {
+    int width = 0;
+    int height = 0;
+    std::vector<Vec3f> pixels;
+
+    Image() = default;
+    Image(int w, int h) : width(w), height(h), pixels(static_cast<std::size_t>(w) * static_cast<std::size_t>(h)) {}
+    [[nodiscard]] Vec3f& at(int x, int y) { return pixels[static_cast<std::size_t>(y) * width + x]; }
+    [[nodiscard]] const Vec3f& at(int x, int y) const { return pixels[static_cast<std::size_t>(y) * width + x]; }
+};
+
+struct RenderStats {
+    double trace_ms = 0.0;
+    std::uint64_t primary_rays = 0;
+};
+
+// Renders `camera`'s view. `accel` must have been built on `geometry`, which was made from `scene`;
+// the scene's infinite planes are tested beside the structure.
+[[nodiscard]] Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
+                           const Camera& camera, const RenderOptions& options, RenderStats* stats = nullptr);
+
+// 8-bit sRGB PNG (libpng). Throws std::runtime_error with the path and the reason on failure.
+void write_png(const Image& image, const std::filesystem::path& file);
+
+}  // namespace lancer

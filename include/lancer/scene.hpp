@@ -1,0 +1,136 @@
+// The scene: triangle meshes, spheres, infinite planes, materials, lights and a camera, as the loaders fill it.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "lancer/box.hpp"
+#include "lancer/vec.hpp"
+
+namespace lancer {
+
+// 36 bytes: the three vertices in file order (the hit's barycentrics refer to this order).
+struct Triangle {
+    Vec3f v0, v1, v2;
+
+    [[nodiscard]] Box3f bounds() const {
+        Box3f box;
+        box.extend(v0), box.extend(v1), box.extend(v2);
+        return box;
+    }
+    // Right-handed, not normalised: (v1 - v0) x (v2 - v0).
+    [[nodiscard]] Vec3f geometric_normal() const { return cross(v1 - v0, v2 - v0); }
+};
+
+struct Sphere {
+    Vec3f center;
+    float radius = 1.0f;
+    std::uint32_t material = 0;
+
+    [[nodiscard]] Box3f bounds() const { return {center - Vec3f(radius), center + Vec3f(radius)}; }
+};
+
+// The plane x . normal = offset with a unit normal (seed 004, "intersection rayon-plan").
+// Planes are unbounded, so no acceleration structure holds them: the scene tests them one by one.
+struct Plane {
+    Vec3f normal{0.0f, 1.0f, 0.0f};
+    float offset = 0.0f;
+    std::uint32_t material = 0;
+    bool checkered = false;  // alternate the material's colour with its darkened copy on a unit grid
+};
+
+// One surface description that covers the seed-003 .dsc material and the NFF `f` line.
+// Whitted's model (seed 003 4.3): I = Ia + kd sum(N.L) + ks S + kt T.
+struct Material {
+    Vec3f color{0.8f};
+    float kd = 1.0f;          // diffuse weight
+    float ks = 0.0f;          // specular weight: mirror ray and highlight
+    float shininess = 0.0f;   // Phong exponent, 0 = no highlight
+    float kt = 0.0f;          // transmission weight
+    float ior = 1.0f;         // index of refraction
+    bool two_sided = false;   // NFF: transmissive surfaces have two sides
+};
+
+struct Light {
+    Vec3f position;
+    Vec3f color{1.0f};
+};
+
+// The pinhole camera of seed 004 and of shared/bench/VIEWS.md.
+struct Camera {
+    Vec3f eye;
+    Vec3f look_at;
+    Vec3f up{0.0f, 1.0f, 0.0f};
+    float vertical_fov_degrees = 45.0f;  // full angle between the top and bottom film edges
+    int width = 1024;
+    int height = 1024;
+};
+
+struct TriangleMesh {
+    std::string name;
+    std::vector<Vec3f> positions;
+    std::vector<std::uint32_t> indices;         // three per triangle, each < positions.size()
+    std::vector<Vec3f> normals;                 // empty, or one per position (smooth shading)
+    std::vector<std::uint32_t> material_ids;    // empty (every triangle uses `material`), or one per triangle
+    std::uint32_t material = 0;
+
+    [[nodiscard]] std::size_t triangle_count() const { return indices.size() / 3; }
+    [[nodiscard]] Triangle triangle(std::size_t i) const {
+        return {positions[indices[3 * i]], positions[indices[3 * i + 1]], positions[indices[3 * i + 2]]};
+    }
+    [[nodiscard]] std::uint32_t material_of(std::size_t i) const {
+        return material_ids.empty() ? material : material_ids[i];
+    }
+};
+
+// What an acceleration structure is built over. Global primitive numbering: triangles first, in mesh order
+// then file order, [0, T); then spheres, [T, T + S). The spans must outlive the structure built on them.
+struct Geometry {
+    std::span<const Triangle> triangles;
+    std::span<const Sphere> spheres;
+
+    [[nodiscard]] std::size_t size() const { return triangles.size() + spheres.size(); }
+    [[nodiscard]] Box3f bounds() const;
+};
+
+struct Scene {
+    std::vector<TriangleMesh> meshes;
+    std::vector<Sphere> spheres;
+    std::vector<Plane> planes;
+    std::vector<Material> materials;  // indexed by the primitives' material ids; never empty after loading
+    std::vector<Light> lights;
+    std::optional<Camera> camera;
+    Vec3f background{0.0f};
+    Vec3f ambient{0.1f};
+
+    [[nodiscard]] std::size_t triangle_count() const;
+    // Bounds of the bounded primitives (meshes and spheres); planes are infinite.
+    [[nodiscard]] Box3f bounds() const;
+};
+
+// The scene flattened for the structures: one triangle array, the spheres, and the way back from a global
+// triangle index to its mesh. Built once after loading.
+class SceneGeometry {
+public:
+    explicit SceneGeometry(const Scene& scene);
+
+    [[nodiscard]] Geometry view() const { return {triangles_, spheres_}; }
+    // Mesh index and triangle index inside that mesh of a global triangle index (< triangle count).
+    [[nodiscard]] std::pair<std::size_t, std::size_t> locate_triangle(std::size_t global_index) const;
+    [[nodiscard]] std::size_t triangle_count() const { return triangles_.size(); }
+
+private:
+    std::vector<Triangle> triangles_;
+    std::vector<Sphere> spheres_;
+    std::vector<std::size_t> mesh_first_triangle_;  // prefix offsets, one per mesh plus the total
+};
+
+// The camera of shared/bench/VIEWS.md for a mesh alone: 45 degrees, looking down -z at the box centre from
+// 1.05 r / sin(fov / 2), r the half diagonal.
+[[nodiscard]] Camera canonical_view(const Box3f& bounds, int width = 1024, int height = 1024);
+
+}  // namespace lancer

@@ -1,0 +1,23 @@
+// The oracle: every ray against every primitive. Every other structure is tested against it.
+#pragma once
+
+#include "lancer/accel.hpp"
+
+namespace lancer {
+
+class BruteAccel final : public Accel {
+public:
+    [[nodiscard]] std::string_view name() const override { return "brute"; }
+    void build(const Geometry& geometry, const BuildOptions& options) override;
+    void intersect(std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters) const override;
+    void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                  TraversalCounters* counters) const override;
+    [[nodiscard]] AccelStats stats() const override;
+    [[nodiscard]] std::size_t memory_bytes() const override { return 0; }
+
+private:
+    Geometry geometry_;
+    BuildOptions options_;
+};
+
+}  // namespace lancer

@@ -1,0 +1,64 @@
+// What every structure does at a leaf: test one primitive of the global numbering against a ray, and the
+// once-per-batch dispatch of the policies that shape the hot loop (style habit 2).
+#pragma once
+
+#include <cstdint>
+
+#include "core/intersect.hpp"
+#include "lancer/accel.hpp"
+
+namespace lancer {
+
+// A ray with what its triangle test precomputes from it (the watertight shear, for instance).
+template <class TriangleTestT>
+struct PreparedRay {
+    Ray ray;
+    typename TriangleTestT::RayData triangle_data;
+
+    explicit PreparedRay(const Ray& r) : ray(r), triangle_data(r) {}
+};
+
+// Tests primitive `prim` (triangles first, then spheres) against the ray within [ray.tnear, best.t] for a
+// closest hit; on a closer hit (ties by index, see closer()) overwrites `best` and returns true.
+template <class TriangleTestT>
+inline bool intersect_primitive(const Geometry& geometry, std::uint32_t prim,
+                                const PreparedRay<TriangleTestT>& prepared, Hit& best) {
+    TriangleHit candidate;
+    const float tfar = best.hit() ? best.t : prepared.ray.tfar;
+    bool found;
+    if (prim < geometry.triangles.size()) {
+        found = TriangleTestT::intersect(prepared.triangle_data, geometry.triangles[prim], prepared.ray.tnear,
+                                         tfar, candidate);
+    } else {
+        found = intersect_sphere(prepared.ray, geometry.spheres[prim - geometry.triangles.size()],
+                                 prepared.ray.tnear, tfar, candidate);
+    }
+    if (!found || !closer(candidate.t, static_cast<std::int32_t>(prim), best)) return false;
+    best = {candidate.t, static_cast<std::int32_t>(prim), candidate.u, candidate.v};
+    return true;
+}
+
+// Any hit in [tnear, tfar].
+template <class TriangleTestT>
+inline bool occludes(const Geometry& geometry, std::uint32_t prim, const PreparedRay<TriangleTestT>& prepared) {
+    TriangleHit candidate;
+    if (prim < geometry.triangles.size()) {
+        return TriangleTestT::intersect(prepared.triangle_data, geometry.triangles[prim], prepared.ray.tnear,
+                                        prepared.ray.tfar, candidate);
+    }
+    return intersect_sphere(prepared.ray, geometry.spheres[prim - geometry.triangles.size()], prepared.ray.tnear,
+                            prepared.ray.tfar, candidate);
+}
+
+// Calls body.template operator()<TriangleTestT, kCount>() with the policies chosen at run time, once.
+template <class Body>
+inline void dispatch_policies(TriangleTest test, bool count, Body&& body) {
+    if (test == TriangleTest::Watertight) {
+        count ? body.template operator()<Watertight, true>() : body.template operator()<Watertight, false>();
+    } else {
+        count ? body.template operator()<MollerTrumbore, true>()
+              : body.template operator()<MollerTrumbore, false>();
+    }
+}
+
+}  // namespace lancer

@@ -1,0 +1,42 @@
+// The table of structures behind `--accel NAME`.
+#include <functional>
+#include <stdexcept>
+#include <string>
+
+#include "accel/brute.hpp"
+#include "lancer/accel.hpp"
+
+namespace lancer {
+namespace {
+
+struct Entry {
+    std::string_view name;
+    std::function<std::unique_ptr<Accel>()> make;
+};
+
+const std::vector<Entry>& registry() {
+    static const std::vector<Entry> entries = {
+        {"brute", [] { return std::make_unique<BruteAccel>(); }},
+    };
+    return entries;
+}
+
+}  // namespace
+
+std::vector<std::string_view> accel_names() {
+    std::vector<std::string_view> names;
+    for (const Entry& entry : registry()) names.push_back(entry.name);
+    return names;
+}
+
+std::unique_ptr<Accel> make_accel(std::string_view name) {
+    for (const Entry& entry : registry()) {
+        if (entry.name == name) return entry.make();
+    }
+    std::string known;
+    for (const Entry& entry : registry()) known += (known.empty() ? "" : ", ") + std::string(entry.name);
+    throw std::invalid_argument("unknown acceleration structure '" + std::string(name) + "' (known: " + known +
+                                ")");
+}
+
+}  // namespace lancer

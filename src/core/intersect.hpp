@@ -1,0 +1,200 @@
+// Ray-primitive kernels: slab test, Moller-Trumbore, watertight triangle, sphere, plane.
+// Every kernel accepts a hit only for t in [tnear, tfar] (docs/numerical-contract.md) and rejects NaN
+// intermediate values by writing each acceptance test so that a NaN comparison fails it.
+#pragma once
+
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "lancer/box.hpp"
+#include "lancer/ray.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer {
+
+// Bound on the relative rounding error of n chained fp32 operations (pbrt-v4, section 6.8.1).
+[[nodiscard]] constexpr float gamma_bound(int n) {
+    constexpr float half_ulp = std::numeric_limits<float>::epsilon() * 0.5f;
+    return (static_cast<float>(n) * half_ulp) / (1.0f - static_cast<float>(n) * half_ulp);
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Slab test (Kay & Kajiya 1986; seed 004 "boîtes englobantes").
+// The reciprocal direction of a zero component is +-inf; when the origin also lies on that slab plane the
+// product is NaN. std::fmin/fmax drop a NaN operand, so that slab counts as unbounded: the ray runs inside
+// the plane of a face and is kept (conservative, never a missed box).
+struct SlabRay {
+    Vec3f origin;
+    Vec3f inv_direction;
+
+    explicit SlabRay(const Ray& ray)
+        : origin(ray.origin),
+          inv_direction(1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z) {}
+};
+
+// On success [t_entry, t_exit] is the part of [tnear, tfar] inside the box. t_exit is widened by
+// 1 + 2 gamma(3) so that rounding never misses a box whose face a hit lies on (pbrt-v4, Bounds3::IntersectP).
+[[nodiscard]] inline bool intersect_box(const SlabRay& ray, const Box3f& box, float tnear, float tfar,
+                                        float& t_entry, float& t_exit) {
+    float t0 = tnear, t1 = tfar;
+    for (int axis = 0; axis < 3; ++axis) {
+        float near_plane = (box.lo[axis] - ray.origin[axis]) * ray.inv_direction[axis];
+        float far_plane = (box.hi[axis] - ray.origin[axis]) * ray.inv_direction[axis];
+        float slab_near = std::fmin(near_plane, far_plane);
+        float slab_far = std::fmax(near_plane, far_plane) * (1.0f + 2.0f * gamma_bound(3));
+        t0 = std::fmax(t0, slab_near);
+        t1 = std::fmin(t1, slab_far);
+    }
+    t_entry = t0, t_exit = t1;
+    return t0 <= t1;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+struct TriangleHit {
+    float t, u, v;
+};
+
+// Moller & Trumbore 1997, as written in seed 003 section 3:
+// [t u v] = 1 / ((D x E2) . E1) [((T x E1) . E2), ((D x E2) . T), ((T x E1) . D)], T = O - V0.
+struct MollerTrumbore {
+    struct RayData {
+        Vec3f origin, direction;
+        explicit RayData(const Ray& ray) : origin(ray.origin), direction(ray.direction) {}
+    };
+
+    [[nodiscard]] static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
+                                        TriangleHit& out) {
+        const Vec3f e1 = tri.v1 - tri.v0;
+        const Vec3f e2 = tri.v2 - tri.v0;
+        const Vec3f p = cross(ray.direction, e2);
+        const float det = dot(p, e1);
+        if (det == 0.0f) return false;  // ray parallel to the triangle's plane, or degenerate triangle
+        const float inv_det = 1.0f / det;
+        const Vec3f to_origin = ray.origin - tri.v0;
+        const float u = dot(to_origin, p) * inv_det;
+        if (!(u >= 0.0f && u <= 1.0f)) return false;
+        const Vec3f q = cross(to_origin, e1);
+        const float v = dot(ray.direction, q) * inv_det;
+        if (!(v >= 0.0f && u + v <= 1.0f)) return false;
+        const float t = dot(e2, q) * inv_det;
+        if (!(t >= tnear && t <= tfar)) return false;
+        out = {t, u, v};
+        return true;
+    }
+};
+
+// Woop, Benthin & Wald, "Watertight Ray/Triangle Intersection", JCGT 2013. The vertices are moved into a
+// ray space where the ray is the +z axis through the origin; the 2D edge functions of a shared edge are then
+// evaluated from the same two transformed vertices by both triangles, so their signs agree exactly and no
+// ray passes between them. Edge functions that come out exactly zero are recomputed in double (section 3.1).
+// This relies on -ffp-contract=off (set for the whole project): a fused multiply-add would round the two
+// products of an edge function differently in the two triangles.
+struct Watertight {
+    struct RayData {
+        Vec3f origin;
+        int kx, ky, kz;              // kz: the dominant axis of the direction
+        float shear_x, shear_y, shear_z;
+
+        explicit RayData(const Ray& ray) : origin(ray.origin) {
+            kz = max_axis(abs(ray.direction));
+            kx = kz == 2 ? 0 : kz + 1;
+            ky = kx == 2 ? 0 : kx + 1;
+            // Keep the winding: swap x and y when the dominant component is negative.
+            if (ray.direction[kz] < 0.0f) std::swap(kx, ky);
+            shear_x = ray.direction[kx] / ray.direction[kz];
+            shear_y = ray.direction[ky] / ray.direction[kz];
+            shear_z = 1.0f / ray.direction[kz];
+        }
+    };
+
+    [[nodiscard]] static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
+                                        TriangleHit& out) {
+        const Vec3f a = tri.v0 - ray.origin;
+        const Vec3f b = tri.v1 - ray.origin;
+        const Vec3f c = tri.v2 - ray.origin;
+        const float ax = a[ray.kx] - ray.shear_x * a[ray.kz], ay = a[ray.ky] - ray.shear_y * a[ray.kz];
+        const float bx = b[ray.kx] - ray.shear_x * b[ray.kz], by = b[ray.ky] - ray.shear_y * b[ray.kz];
+        const float cx = c[ray.kx] - ray.shear_x * c[ray.kz], cy = c[ray.ky] - ray.shear_y * c[ray.kz];
+
+        // Edge function of the edge opposite each vertex: its weight in the hit point.
+        float w0 = bx * cy - by * cx;
+        float w1 = cx * ay - cy * ax;
+        float w2 = ax * by - ay * bx;
+        if (w0 == 0.0f || w1 == 0.0f || w2 == 0.0f) {
+            w0 = static_cast<float>(double(bx) * double(cy) - double(by) * double(cx));
+            w1 = static_cast<float>(double(cx) * double(ay) - double(cy) * double(ax));
+            w2 = static_cast<float>(double(ax) * double(by) - double(ay) * double(bx));
+        }
+        if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
+        const float det = w0 + w1 + w2;
+        if (det == 0.0f) return false;
+
+        const float az = ray.shear_z * a[ray.kz], bz = ray.shear_z * b[ray.kz], cz = ray.shear_z * c[ray.kz];
+        const float inv_det = 1.0f / det;
+        const float t = (w0 * az + w1 * bz + w2 * cz) * inv_det;
+        if (!(t >= tnear && t <= tfar)) return false;
+        out = {t, w1 * inv_det, w2 * inv_det};
+        return true;
+    }
+};
+
+// ---------------------------------------------------------------------------------------------------------
+// Ray-sphere (seed 004): t^2 d.d + 2t d.(o - c) + |o - c|^2 - r^2 = 0, solved with the discriminant of
+// Haines et al., "Precision Improvements for Ray/Sphere Intersection" (Ray Tracing Gems, ch. 7), which
+// stays accurate far from the sphere, and the stable root pair q / a, c / q. The nearer root in
+// [tnear, tfar] wins; the far one answers rays that start inside. (u, v) = (azimuth / 2pi, polar / pi).
+[[nodiscard]] inline bool intersect_sphere(const Ray& ray, const Sphere& sphere, float tnear, float tfar,
+                                           TriangleHit& out) {
+    if (!(sphere.radius > 0.0f)) return false;
+    const Vec3f f = ray.origin - sphere.center;
+    const float a = dot(ray.direction, ray.direction);
+    const float half_b = dot(f, ray.direction);
+    const Vec3f closest_offset = f - (half_b / a) * ray.direction;
+    const float r2 = sphere.radius * sphere.radius;
+    const float discriminant = a * (r2 - dot(closest_offset, closest_offset));
+    if (!(discriminant >= 0.0f)) return false;
+    const float c = dot(f, f) - r2;
+    const float q = -(half_b + std::copysign(std::sqrt(discriminant), half_b));
+    float t_near_root = c / q, t_far_root = q / a;
+    if (t_near_root > t_far_root) std::swap(t_near_root, t_far_root);
+    float t;
+    if (t_near_root >= tnear && t_near_root <= tfar) {
+        t = t_near_root;
+    } else if (t_far_root >= tnear && t_far_root <= tfar) {
+        t = t_far_root;
+    } else {
+        return false;  // also rejects the NaN of c / q when q == 0 (ray from the centre, tangent)
+    }
+    const Vec3f local = ray.origin + t * ray.direction - sphere.center;
+    const float azimuth = std::atan2(local.y, local.x);
+    const float polar = std::acos(std::clamp(local.z / sphere.radius, -1.0f, 1.0f));
+    out = {t, (azimuth < 0.0f ? azimuth + 2.0f * std::numbers::pi_v<float> : azimuth) /
+                  (2.0f * std::numbers::pi_v<float>),
+           polar / std::numbers::pi_v<float>};
+    return true;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Ray-plane, t = (D - o.n) / (d.n), with the four cases of seed 004.
+enum class PlaneCase {
+    Parallel,  // d.n = 0 and the origin off the plane: t infinite, no hit
+    InPlane,   // d.n = 0 and the origin on the plane: t undefined, counted as no hit
+    Behind,    // t < tnear: the plane is behind the ray's start
+    Ahead,     // t >= tnear: the plane is in front (a hit when t <= tfar too)
+};
+
+[[nodiscard]] inline PlaneCase classify_plane(const Ray& ray, const Plane& plane, float tnear, float& t) {
+    const float denominator = dot(ray.direction, plane.normal);
+    const float numerator = plane.offset - dot(ray.origin, plane.normal);
+    if (denominator == 0.0f) return numerator == 0.0f ? PlaneCase::InPlane : PlaneCase::Parallel;
+    t = numerator / denominator;
+    return t >= tnear ? PlaneCase::Ahead : PlaneCase::Behind;
+}
+
+[[nodiscard]] inline bool intersect_plane(const Ray& ray, const Plane& plane, float tnear, float tfar,
+                                          float& t) {
+    return classify_plane(ray, plane, tnear, t) == PlaneCase::Ahead && t <= tfar;
+}
+
+}  // namespace lancer
