@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -55,21 +56,38 @@ struct TraversalCounters {
 };
 
 class Accel {
-public:
+  public:
     virtual ~Accel() = default;
 
     [[nodiscard]] virtual std::string_view name() const = 0;
     // The structure may keep the spans of `geometry`: the caller keeps them alive and unchanged.
     virtual void build(const Geometry& geometry, const BuildOptions& options) = 0;
     // Closest hit of each ray in [tnear, tfar]; hits.size() == rays.size(). Invalid rays miss (is_valid).
-    virtual void intersect(std::span<const Ray> rays, std::span<Hit> hits,
-                           TraversalCounters* counters = nullptr) const = 0;
+    void intersect(std::span<const Ray> rays, std::span<Hit> hits,
+                   TraversalCounters* counters = nullptr) const {
+        check_batch(rays.size(), hits.size());
+        intersect_batch(rays, hits, counters);
+    }
     // Any hit in [tnear, tfar]: occluded[i] = 1 when ray i hits something, 0 otherwise.
-    virtual void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                          TraversalCounters* counters = nullptr) const = 0;
+    void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                  TraversalCounters* counters = nullptr) const {
+        check_batch(rays.size(), occluded.size());
+        occluded_batch(rays, occluded, counters);
+    }
     [[nodiscard]] virtual AccelStats stats() const = 0;
     // Bytes the structure itself needs at trace time, the geometry it was built on excluded.
     [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
+
+  protected:
+    virtual void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                 TraversalCounters* counters) const = 0;
+    virtual void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                                TraversalCounters* counters) const = 0;
+
+  private:
+    static void check_batch(std::size_t ray_count, std::size_t answer_count) {
+        if (ray_count != answer_count) throw std::invalid_argument("Accel: one answer slot per ray expected");
+    }
 };
 
 // The names `--accel` accepts, in the order `lancer bench --accel all` measures them.

@@ -7,7 +7,7 @@
 namespace lancer {
 
 class PinholeCamera {
-public:
+  public:
     explicit PinholeCamera(const Camera& camera);
 
     // The ray through film position (film_x, film_y) in pixels: x from 0 (left edge) to width, y from 0 (top
@@ -18,7 +18,7 @@ public:
     [[nodiscard]] int width() const { return width_; }
     [[nodiscard]] int height() const { return height_; }
 
-private:
+  private:
     Vec3f eye_, forward_, right_, up_;
     float tan_half_fov_, aspect_;
     int width_, height_;

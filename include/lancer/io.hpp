@@ -12,14 +12,14 @@
 namespace lancer {
 
 class LoadError : public std::runtime_error {
-public:
+  public:
     // line = 0 when the error is not tied to a line (missing file, binary formats).
     LoadError(std::filesystem::path file, std::size_t line, const std::string& message);
 
     [[nodiscard]] const std::filesystem::path& file() const { return file_; }
     [[nodiscard]] std::size_t line() const { return line_; }
 
-private:
+  private:
     std::filesystem::path file_;
     std::size_t line_;
 };

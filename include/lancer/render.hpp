@@ -30,9 +30,12 @@ struct Image {
     std::vector<Vec3f> pixels;
 
     Image() = default;
-    Image(int w, int h) : width(w), height(h), pixels(static_cast<std::size_t>(w) * static_cast<std::size_t>(h)) {}
+    Image(int w, int h)
+        : width(w), height(h), pixels(static_cast<std::size_t>(w) * static_cast<std::size_t>(h)) {}
     [[nodiscard]] Vec3f& at(int x, int y) { return pixels[static_cast<std::size_t>(y) * width + x]; }
-    [[nodiscard]] const Vec3f& at(int x, int y) const { return pixels[static_cast<std::size_t>(y) * width + x]; }
+    [[nodiscard]] const Vec3f& at(int x, int y) const {
+        return pixels[static_cast<std::size_t>(y) * width + x];
+    }
 };
 
 struct RenderStats {

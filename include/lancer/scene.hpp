@@ -1,4 +1,5 @@
-// The scene: triangle meshes, spheres, infinite planes, materials, lights and a camera, as the loaders fill it.
+// The scene: triangle meshes, spheres, infinite planes, materials, lights and a camera, as the loaders fill
+// it.
 #pragma once
 
 #include <cstddef>
@@ -47,12 +48,12 @@ struct Plane {
 // Whitted's model (seed 003 4.3): I = Ia + kd sum(N.L) + ks S + kt T.
 struct Material {
     Vec3f color{0.8f};
-    float kd = 1.0f;          // diffuse weight
-    float ks = 0.0f;          // specular weight: mirror ray and highlight
-    float shininess = 0.0f;   // Phong exponent, 0 = no highlight
-    float kt = 0.0f;          // transmission weight
-    float ior = 1.0f;         // index of refraction
-    bool two_sided = false;   // NFF: transmissive surfaces have two sides
+    float kd = 1.0f;         // diffuse weight
+    float ks = 0.0f;         // specular weight: mirror ray and highlight
+    float shininess = 0.0f;  // Phong exponent, 0 = no highlight
+    float kt = 0.0f;         // transmission weight
+    float ior = 1.0f;        // index of refraction
+    bool two_sided = false;  // NFF: transmissive surfaces have two sides
 };
 
 struct Light {
@@ -73,9 +74,9 @@ struct Camera {
 struct TriangleMesh {
     std::string name;
     std::vector<Vec3f> positions;
-    std::vector<std::uint32_t> indices;         // three per triangle, each < positions.size()
-    std::vector<Vec3f> normals;                 // empty, or one per position (smooth shading)
-    std::vector<std::uint32_t> material_ids;    // empty (every triangle uses `material`), or one per triangle
+    std::vector<std::uint32_t> indices;       // three per triangle, each < positions.size()
+    std::vector<Vec3f> normals;               // empty, or one per position (smooth shading)
+    std::vector<std::uint32_t> material_ids;  // empty (every triangle uses `material`), or one per triangle
     std::uint32_t material = 0;
 
     [[nodiscard]] std::size_t triangle_count() const { return indices.size() / 3; }
@@ -115,7 +116,7 @@ struct Scene {
 // The scene flattened for the structures: one triangle array, the spheres, and the way back from a global
 // triangle index to its mesh. Built once after loading.
 class SceneGeometry {
-public:
+  public:
     explicit SceneGeometry(const Scene& scene);
 
     [[nodiscard]] Geometry view() const { return {triangles_, spheres_}; }
@@ -123,7 +124,7 @@ public:
     [[nodiscard]] std::pair<std::size_t, std::size_t> locate_triangle(std::size_t global_index) const;
     [[nodiscard]] std::size_t triangle_count() const { return triangles_.size(); }
 
-private:
+  private:
     std::vector<Triangle> triangles_;
     std::vector<Sphere> spheres_;
     std::vector<std::size_t> mesh_first_triangle_;  // prefix offsets, one per mesh plus the total

@@ -33,29 +33,55 @@ struct Vec3f {
     constexpr bool operator==(const Vec3f&) const = default;
 };
 
-[[nodiscard]] constexpr Vec3f operator+(Vec3f a, Vec3f b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-[[nodiscard]] constexpr Vec3f operator-(Vec3f a, Vec3f b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-[[nodiscard]] constexpr Vec3f operator-(Vec3f a) { return {-a.x, -a.y, -a.z}; }
-[[nodiscard]] constexpr Vec3f operator*(Vec3f a, float s) { return {a.x * s, a.y * s, a.z * s}; }
-[[nodiscard]] constexpr Vec3f operator*(float s, Vec3f a) { return a * s; }
-[[nodiscard]] constexpr Vec3f operator*(Vec3f a, Vec3f b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
-[[nodiscard]] constexpr Vec3f operator/(Vec3f a, float s) { return {a.x / s, a.y / s, a.z / s}; }
+[[nodiscard]] constexpr Vec3f operator+(Vec3f a, Vec3f b) {
+    return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+[[nodiscard]] constexpr Vec3f operator-(Vec3f a, Vec3f b) {
+    return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+[[nodiscard]] constexpr Vec3f operator-(Vec3f a) {
+    return {-a.x, -a.y, -a.z};
+}
+[[nodiscard]] constexpr Vec3f operator*(Vec3f a, float s) {
+    return {a.x * s, a.y * s, a.z * s};
+}
+[[nodiscard]] constexpr Vec3f operator*(float s, Vec3f a) {
+    return a * s;
+}
+[[nodiscard]] constexpr Vec3f operator*(Vec3f a, Vec3f b) {
+    return {a.x * b.x, a.y * b.y, a.z * b.z};
+}
+[[nodiscard]] constexpr Vec3f operator/(Vec3f a, float s) {
+    return {a.x / s, a.y / s, a.z / s};
+}
 
-[[nodiscard]] constexpr float dot(Vec3f a, Vec3f b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+[[nodiscard]] constexpr float dot(Vec3f a, Vec3f b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 [[nodiscard]] constexpr Vec3f cross(Vec3f a, Vec3f b) {
     return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-[[nodiscard]] inline float length(Vec3f a) { return std::sqrt(dot(a, a)); }
-[[nodiscard]] inline Vec3f normalize(Vec3f a) { return a / length(a); }
+[[nodiscard]] inline float length(Vec3f a) {
+    return std::sqrt(dot(a, a));
+}
+[[nodiscard]] inline Vec3f normalize(Vec3f a) {
+    return a / length(a);
+}
 [[nodiscard]] constexpr Vec3f min(Vec3f a, Vec3f b) {
     return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
 }
 [[nodiscard]] constexpr Vec3f max(Vec3f a, Vec3f b) {
     return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
 }
-[[nodiscard]] inline Vec3f abs(Vec3f a) { return {std::fabs(a.x), std::fabs(a.y), std::fabs(a.z)}; }
-[[nodiscard]] constexpr float max_component(Vec3f a) { return std::max(a.x, std::max(a.y, a.z)); }
-[[nodiscard]] constexpr int max_axis(Vec3f a) { return a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2); }
+[[nodiscard]] inline Vec3f abs(Vec3f a) {
+    return {std::fabs(a.x), std::fabs(a.y), std::fabs(a.z)};
+}
+[[nodiscard]] constexpr float max_component(Vec3f a) {
+    return std::max(a.x, std::max(a.y, a.z));
+}
+[[nodiscard]] constexpr int max_axis(Vec3f a) {
+    return a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+}
 [[nodiscard]] inline bool is_finite(Vec3f a) {
     return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
 }

@@ -1,6 +1,6 @@
 #include "accel/brute.hpp"
 
-#include <cassert>
+#include <algorithm>
 
 #include "accel/primitive_test.hpp"
 
@@ -11,8 +11,8 @@ void BruteAccel::build(const Geometry& geometry, const BuildOptions& options) {
     options_ = options;
 }
 
-void BruteAccel::intersect(std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters) const {
-    assert(rays.size() == hits.size());
+void BruteAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                 TraversalCounters* counters) const {
     dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         const auto prim_count = static_cast<std::uint32_t>(geometry_.size());
         for (std::size_t i = 0; i < rays.size(); ++i) {
@@ -28,9 +28,8 @@ void BruteAccel::intersect(std::span<const Ray> rays, std::span<Hit> hits, Trave
     });
 }
 
-void BruteAccel::occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                          TraversalCounters* counters) const {
-    assert(rays.size() == occluded.size());
+void BruteAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                                TraversalCounters* counters) const {
     dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         const auto prim_count = static_cast<std::uint32_t>(geometry_.size());
         for (std::size_t i = 0; i < rays.size(); ++i) {
@@ -38,7 +37,8 @@ void BruteAccel::occluded(std::span<const Ray> rays, std::span<std::uint8_t> occ
             if (!is_valid(rays[i])) continue;
             const PreparedRay<TriangleTestT> prepared(rays[i]);
             std::uint32_t prim = 0;
-            while (prim < prim_count && !occludes(geometry_, prim, prepared)) ++prim;
+            while (prim < prim_count && !occludes(geometry_, prim, prepared))
+                ++prim;
             occluded[i] = prim < prim_count ? 1 : 0;
             if constexpr (kCount) counters->prims_tested += std::min(prim + 1, prim_count);
         }

@@ -40,14 +40,15 @@ inline bool intersect_primitive(const Geometry& geometry, std::uint32_t prim,
 
 // Any hit in [tnear, tfar].
 template <class TriangleTestT>
-inline bool occludes(const Geometry& geometry, std::uint32_t prim, const PreparedRay<TriangleTestT>& prepared) {
+inline bool occludes(const Geometry& geometry, std::uint32_t prim,
+                     const PreparedRay<TriangleTestT>& prepared) {
     TriangleHit candidate;
     if (prim < geometry.triangles.size()) {
         return TriangleTestT::intersect(prepared.triangle_data, geometry.triangles[prim], prepared.ray.tnear,
                                         prepared.ray.tfar, candidate);
     }
-    return intersect_sphere(prepared.ray, geometry.spheres[prim - geometry.triangles.size()], prepared.ray.tnear,
-                            prepared.ray.tfar, candidate);
+    return intersect_sphere(prepared.ray, geometry.spheres[prim - geometry.triangles.size()],
+                            prepared.ray.tnear, prepared.ray.tfar, candidate);
 }
 
 // Calls body.template operator()<TriangleTestT, kCount>() with the policies chosen at run time, once.

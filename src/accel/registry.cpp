@@ -25,7 +25,8 @@ const std::vector<Entry>& registry() {
 
 std::vector<std::string_view> accel_names() {
     std::vector<std::string_view> names;
-    for (const Entry& entry : registry()) names.push_back(entry.name);
+    for (const Entry& entry : registry())
+        names.push_back(entry.name);
     return names;
 }
 
@@ -34,9 +35,10 @@ std::unique_ptr<Accel> make_accel(std::string_view name) {
         if (entry.name == name) return entry.make();
     }
     std::string known;
-    for (const Entry& entry : registry()) known += (known.empty() ? "" : ", ") + std::string(entry.name);
-    throw std::invalid_argument("unknown acceleration structure '" + std::string(name) + "' (known: " + known +
-                                ")");
+    for (const Entry& entry : registry())
+        known += (known.empty() ? "" : ", ") + std::string(entry.name);
+    throw std::invalid_argument("unknown acceleration structure '" + std::string(name) +
+                                "' (known: " + known + ")");
 }
 
 }  // namespace lancer

@@ -21,9 +21,9 @@ namespace lancer {
 
 // ---------------------------------------------------------------------------------------------------------
 // Slab test (Kay & Kajiya 1986; seed 004 "boîtes englobantes").
-// The reciprocal direction of a zero component is +-inf; when the origin also lies on that slab plane the
-// product is NaN. std::fmin/fmax drop a NaN operand, so that slab counts as unbounded: the ray runs inside
-// the plane of a face and is kept (conservative, never a missed box).
+// The reciprocal direction of a zero component is +-inf; when the origin also lies on that slab's plane
+// the product is 0 * inf = NaN. The ray then runs inside the plane of a face, within the closed slab, so
+// that slab is unbounded: boxes are closed, and a ray along a face never loses the box.
 struct SlabRay {
     Vec3f origin;
     Vec3f inv_direction;
@@ -41,10 +41,11 @@ struct SlabRay {
     for (int axis = 0; axis < 3; ++axis) {
         float near_plane = (box.lo[axis] - ray.origin[axis]) * ray.inv_direction[axis];
         float far_plane = (box.hi[axis] - ray.origin[axis]) * ray.inv_direction[axis];
-        float slab_near = std::fmin(near_plane, far_plane);
-        float slab_far = std::fmax(near_plane, far_plane) * (1.0f + 2.0f * gamma_bound(3));
-        t0 = std::fmax(t0, slab_near);
-        t1 = std::fmin(t1, slab_far);
+        float slab_near = std::min(near_plane, far_plane);
+        float slab_far = std::max(near_plane, far_plane) * (1.0f + 2.0f * gamma_bound(3));
+        if (std::isnan(near_plane) || std::isnan(far_plane)) slab_near = -kInfinity, slab_far = kInfinity;
+        t0 = std::max(t0, slab_near);
+        t1 = std::min(t1, slab_far);
     }
     t_entry = t0, t_exit = t1;
     return t0 <= t1;
@@ -52,7 +53,7 @@ struct SlabRay {
 
 // ---------------------------------------------------------------------------------------------------------
 struct TriangleHit {
-    float t, u, v;
+    float t = 0.0f, u = 0.0f, v = 0.0f;
 };
 
 // Moller & Trumbore 1997, as written in seed 003 section 3:
@@ -93,7 +94,7 @@ struct MollerTrumbore {
 struct Watertight {
     struct RayData {
         Vec3f origin;
-        int kx, ky, kz;              // kz: the dominant axis of the direction
+        int kx, ky, kz;  // kz: the dominant axis of the direction
         float shear_x, shear_y, shear_z;
 
         explicit RayData(const Ray& ray) : origin(ray.origin) {
@@ -169,8 +170,9 @@ struct Watertight {
     const Vec3f local = ray.origin + t * ray.direction - sphere.center;
     const float azimuth = std::atan2(local.y, local.x);
     const float polar = std::acos(std::clamp(local.z / sphere.radius, -1.0f, 1.0f));
-    out = {t, (azimuth < 0.0f ? azimuth + 2.0f * std::numbers::pi_v<float> : azimuth) /
-                  (2.0f * std::numbers::pi_v<float>),
+    out = {t,
+           (azimuth < 0.0f ? azimuth + 2.0f * std::numbers::pi_v<float> : azimuth) /
+               (2.0f * std::numbers::pi_v<float>),
            polar / std::numbers::pi_v<float>};
     return true;
 }

@@ -8,23 +8,28 @@ namespace lancer {
 
 Box3f Geometry::bounds() const {
     Box3f box;
-    for (const Triangle& tri : triangles) box.extend(tri.bounds());
-    for (const Sphere& sphere : spheres) box.extend(sphere.bounds());
+    for (const Triangle& tri : triangles)
+        box.extend(tri.bounds());
+    for (const Sphere& sphere : spheres)
+        box.extend(sphere.bounds());
     return box;
 }
 
 std::size_t Scene::triangle_count() const {
     std::size_t count = 0;
-    for (const TriangleMesh& mesh : meshes) count += mesh.triangle_count();
+    for (const TriangleMesh& mesh : meshes)
+        count += mesh.triangle_count();
     return count;
 }
 
 Box3f Scene::bounds() const {
     Box3f box;
     for (const TriangleMesh& mesh : meshes) {
-        for (std::uint32_t index : mesh.indices) box.extend(mesh.positions[index]);
+        for (std::uint32_t index : mesh.indices)
+            box.extend(mesh.positions[index]);
     }
-    for (const Sphere& sphere : spheres) box.extend(sphere.bounds());
+    for (const Sphere& sphere : spheres)
+        box.extend(sphere.bounds());
     return box;
 }
 
@@ -33,14 +38,16 @@ SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
     mesh_first_triangle_.reserve(scene.meshes.size() + 1);
     for (const TriangleMesh& mesh : scene.meshes) {
         mesh_first_triangle_.push_back(triangles_.size());
-        for (std::size_t i = 0; i < mesh.triangle_count(); ++i) triangles_.push_back(mesh.triangle(i));
+        for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
+            triangles_.push_back(mesh.triangle(i));
     }
     mesh_first_triangle_.push_back(triangles_.size());
 }
 
 std::pair<std::size_t, std::size_t> SceneGeometry::locate_triangle(std::size_t global_index) const {
     // The last mesh whose first triangle is <= global_index (empty meshes share their successor's start).
-    const auto after = std::upper_bound(mesh_first_triangle_.begin(), mesh_first_triangle_.end() - 1, global_index);
+    const auto after =
+        std::upper_bound(mesh_first_triangle_.begin(), mesh_first_triangle_.end() - 1, global_index);
     const auto mesh = static_cast<std::size_t>(after - mesh_first_triangle_.begin()) - 1;
     return {mesh, global_index - mesh_first_triangle_[mesh]};
 }

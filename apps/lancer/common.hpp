@@ -1,0 +1,57 @@
+// What the subcommands share: loading with timing, building a structure with timing, parallel batches,
+// and the error type that maps to exit code 2.
+#pragma once
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+
+#include "lancer/accel.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer::cli {
+
+// Bad input from the user (a file, a flag value): printed on stderr, exit code 2.
+class InputError : public std::runtime_error {
+  public:
+    using std::runtime_error::runtime_error;
+};
+
+class Stopwatch {
+  public:
+    [[nodiscard]] double elapsed_ms() const {
+        return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_).count();
+    }
+
+  private:
+    std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
+struct LoadedScene {
+    Scene scene;
+    double load_ms = 0.0;
+};
+
+[[nodiscard]] LoadedScene load_timed(const std::filesystem::path& file);
+
+struct BuiltAccel {
+    std::unique_ptr<Accel> accel;
+    double build_ms = 0.0;
+};
+
+// Throws InputError for an unknown structure name.
+[[nodiscard]] BuiltAccel build_timed(const std::string& name, const Geometry& geometry,
+                                     const BuildOptions& options);
+
+// Closest hits of all rays, in chunks over `threads` oneTBB threads (0 = all).
+void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads);
+
+[[nodiscard]] bool stderr_is_terminal();
+
+// "1024x768" -> {1024, 768}; throws InputError otherwise.
+[[nodiscard]] std::pair<int, int> parse_size(const std::string& text);
+
+}  // namespace lancer::cli

@@ -1,0 +1,56 @@
+// lancer info FILE: what a file holds once loaded.
+#include <fmt/core.h>
+
+#include <memory>
+
+#include "commands.hpp"
+#include "common.hpp"
+
+namespace lancer::cli {
+namespace {
+
+void run(const std::string& file) {
+    const LoadedScene loaded = load_timed(file);
+    const Scene& scene = loaded.scene;
+    std::size_t vertices = 0, meshes_with_normals = 0;
+    for (const TriangleMesh& mesh : scene.meshes) {
+        vertices += mesh.positions.size();
+        meshes_with_normals += mesh.normals.empty() ? 0 : 1;
+    }
+    fmt::print("file        {}\n", file);
+    fmt::print("load        {:.1f} ms\n", loaded.load_ms);
+    fmt::print("meshes      {} ({} with vertex normals)\n", scene.meshes.size(), meshes_with_normals);
+    fmt::print("triangles   {}\n", scene.triangle_count());
+    fmt::print("vertices    {}\n", vertices);
+    fmt::print("spheres     {}\n", scene.spheres.size());
+    fmt::print("planes      {}\n", scene.planes.size());
+    fmt::print("materials   {}\n", scene.materials.size());
+    fmt::print("lights      {}\n", scene.lights.size());
+    const Box3f bounds = scene.bounds();
+    if (bounds.empty()) {
+        fmt::print("bounds      empty\n");
+    } else {
+        fmt::print("bounds      ({:g}, {:g}, {:g}) - ({:g}, {:g}, {:g})\n", bounds.lo.x, bounds.lo.y,
+                   bounds.lo.z, bounds.hi.x, bounds.hi.y, bounds.hi.z);
+    }
+    if (scene.camera) {
+        const Camera& camera = *scene.camera;
+        fmt::print("camera      eye ({:g}, {:g}, {:g}) at ({:g}, {:g}, {:g}) fov {:g} deg, {}x{}\n",
+                   camera.eye.x, camera.eye.y, camera.eye.z, camera.look_at.x, camera.look_at.y,
+                   camera.look_at.z, camera.vertical_fov_degrees, camera.width, camera.height);
+    } else {
+        fmt::print("camera      none (renders use the canonical view of shared/bench/VIEWS.md)\n");
+    }
+}
+
+}  // namespace
+
+void add_info_command(CLI::App& app) {
+    auto file = std::make_shared<std::string>();
+    CLI::App* command =
+        app.add_subcommand("info", "Counts, bounds, materials, lights and load time of a file");
+    command->add_option("file", *file, "Mesh or scene file")->required();
+    command->callback([file] { run(*file); });
+}
+
+}  // namespace lancer::cli

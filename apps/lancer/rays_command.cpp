@@ -1,0 +1,89 @@
+// lancer rays MESH --rays RAYS --hits HITS: batch closest-hit queries for tools and tests.
+// RAYS: raw little-endian float32, 8 per ray (ox oy oz dx dy dz tnear tfar) = lancer::Ray.
+// HITS: 16 bytes per ray (float32 t, int32 primitive, float32 u, float32 v) = lancer::Hit.
+#include <fmt/core.h>
+
+#include <bit>
+#include <fstream>
+#include <memory>
+#include <vector>
+
+#include "commands.hpp"
+#include "common.hpp"
+
+namespace lancer::cli {
+namespace {
+
+static_assert(std::endian::native == std::endian::little,
+              "RAYS and HITS files are little-endian and read by memcpy: add byte swapping for this target");
+
+struct RaysOptions {
+    std::string scene_file;
+    std::string rays_file;
+    std::string hits_file;
+    std::string accel = "brute";
+    int threads = 0;
+    bool watertight = false;
+};
+
+std::vector<Ray> read_rays(const std::string& path) {
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
+    if (!in) throw InputError(path + ": cannot open the rays file");
+    const auto bytes = static_cast<std::size_t>(in.tellg());
+    if (bytes % sizeof(Ray) != 0) {
+        throw InputError(
+            fmt::format("{}: {} bytes is not a whole number of 32-byte rays (8 float32 each)", path, bytes));
+    }
+    std::vector<Ray> rays(bytes / sizeof(Ray));
+    in.seekg(0);
+    if (!in.read(reinterpret_cast<char*>(rays.data()), static_cast<std::streamsize>(bytes))) {
+        throw InputError(path + ": read error");
+    }
+    return rays;
+}
+
+void write_hits(const std::string& path, const std::vector<Hit>& hits) {
+    std::ofstream out(path, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(hits.data()),
+              static_cast<std::streamsize>(hits.size() * sizeof(Hit)));
+    if (!out) throw InputError(path + ": cannot write the hits file");
+}
+
+void run(const RaysOptions& options) {
+    const LoadedScene loaded = load_timed(options.scene_file);
+    const SceneGeometry geometry(loaded.scene);
+    const std::vector<Ray> rays = read_rays(options.rays_file);
+    BuildOptions build_options;
+    build_options.triangle_test =
+        options.watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore;
+    const BuiltAccel built = build_timed(options.accel, geometry.view(), build_options);
+
+    std::vector<Hit> hits(rays.size());
+    Stopwatch watch;
+    intersect_parallel(*built.accel, rays, hits, options.threads);
+    const double trace_ms = watch.elapsed_ms();
+    write_hits(options.hits_file, hits);
+
+    std::size_t hit_count = 0;
+    for (const Hit& hit : hits)
+        hit_count += hit.hit() ? 1 : 0;
+    fmt::print(stderr, "rays: {} rays, {} hits, accel {} (build {:.1f} ms), trace {:.1f} ms\n", rays.size(),
+               hit_count, options.accel, built.build_ms, trace_ms);
+}
+
+}  // namespace
+
+void add_rays_command(CLI::App& app) {
+    auto options = std::make_shared<RaysOptions>();
+    CLI::App* command =
+        app.add_subcommand("rays", "Closest hits of a binary batch of rays (formats in README)");
+    command->add_option("scene", options->scene_file, "Mesh or scene file")->required();
+    command->add_option("--rays", options->rays_file, "Input: float32 x 8 per ray")->required();
+    command->add_option("--hits", options->hits_file, "Output: 16 bytes per ray")->required();
+    command->add_option("--accel", options->accel, "Acceleration structure")->capture_default_str();
+    command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
+    command->add_flag("--watertight", options->watertight, "Watertight triangle test (Woop et al. 2013)");
+    command->callback([options] { run(*options); });
+}
+
+}  // namespace lancer::cli

@@ -1,0 +1,75 @@
+// lancer render [SCENE]: renders a scene (the authored default scene when none is given) to PNG.
+#include <fmt/core.h>
+
+#include <map>
+#include <memory>
+
+#include "commands.hpp"
+#include "common.hpp"
+#include "lancer/render.hpp"
+
+namespace lancer::cli {
+namespace {
+
+struct RenderCommandOptions {
+    std::string scene_file = LANCER_DEFAULT_SCENE;
+    std::string output = "render.png";
+    std::string size;
+    ShadingMode mode = ShadingMode::Flat;
+    std::string accel = "brute";
+    int threads = 0;
+    bool watertight = false;
+};
+
+void run(const RenderCommandOptions& options) {
+    const LoadedScene loaded = load_timed(options.scene_file);
+    const Scene& scene = loaded.scene;
+    const SceneGeometry geometry(scene);
+    BuildOptions build_options;
+    build_options.triangle_test =
+        options.watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore;
+    const BuiltAccel built = build_timed(options.accel, geometry.view(), build_options);
+
+    Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds());
+    if (!options.size.empty()) std::tie(camera.width, camera.height) = parse_size(options.size);
+
+    RenderOptions render_options;
+    render_options.mode = options.mode;
+    render_options.threads = options.threads;
+    render_options.progress = stderr_is_terminal();
+    RenderStats stats;
+    const Image image = render(scene, geometry, *built.accel, camera, render_options, &stats);
+    try {
+        write_png(image, options.output);
+    } catch (const std::runtime_error& error) {
+        throw InputError(error.what());
+    }
+
+    const double mrays_per_s = static_cast<double>(stats.primary_rays) / (stats.trace_ms * 1e3);
+    fmt::print("{}: {}x{}, {} triangles, {} spheres, {} planes\n", options.scene_file, image.width,
+               image.height, scene.triangle_count(), scene.spheres.size(), scene.planes.size());
+    fmt::print("load {:.1f} ms, accel {} build {:.1f} ms, trace {:.1f} ms, {:.2f} Mrays/s\n", loaded.load_ms,
+               options.accel, built.build_ms, stats.trace_ms, mrays_per_s);
+    fmt::print("wrote {}\n", options.output);
+}
+
+}  // namespace
+
+void add_render_command(CLI::App& app) {
+    auto options = std::make_shared<RenderCommandOptions>();
+    CLI::App* command = app.add_subcommand("render", "Render a scene to PNG");
+    command->add_option("scene", options->scene_file,
+                        "Scene or mesh file (default: the authored demo scene)");
+    command->add_option("-o,--output", options->output, "PNG file to write")->capture_default_str();
+    command->add_option("--size", options->size, "Image size WIDTHxHEIGHT (default: the scene's camera)");
+    const std::map<std::string, ShadingMode> modes = {
+        {"flat", ShadingMode::Flat}, {"normal", ShadingMode::Normal}, {"depth", ShadingMode::Depth}};
+    command->add_option("--mode", options->mode, "Shading: flat, normal or depth")
+        ->transform(CLI::CheckedTransformer(modes, CLI::ignore_case));
+    command->add_option("--accel", options->accel, "Acceleration structure")->capture_default_str();
+    command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
+    command->add_flag("--watertight", options->watertight, "Watertight triangle test (Woop et al. 2013)");
+    command->callback([options] { run(*options); });
+}
+
+}  // namespace lancer::cli

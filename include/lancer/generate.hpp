@@ -1,0 +1,17 @@
+// Procedural meshes: closed, watertight test objects and stand-ins for the Stanford meshes when absent.
+#pragma once
+
+#include "lancer/scene.hpp"
+
+namespace lancer {
+
+// Subdivided icosahedron projected on the sphere: 20 * 4^subdivisions triangles, closed (every edge shared
+// by exactly two triangles, vertices shared by index), outward counter-clockwise winding, vertex normals.
+[[nodiscard]] TriangleMesh make_icosphere(int subdivisions, Vec3f center = Vec3f(0.0f), float radius = 1.0f);
+
+// A (p, q) torus knot swept by a circle: a closed tube of 2 * segments * sides triangles with vertex
+// normals. About 70k, 350k and 870k triangles for segments = 1750, 8750, 21800 with 20 sides.
+[[nodiscard]] TriangleMesh make_torus_knot(int segments, int sides, int p = 2, int q = 3,
+                                           float tube_radius = 0.15f);
+
+}  // namespace lancer

@@ -1,0 +1,31 @@
+// Adversarial ray sets every structure is checked on against the brute-force oracle (style habit 5).
+#pragma once
+
+#include <random>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "lancer/ray.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer::testing {
+
+struct RaySet {
+    std::string name;
+    std::vector<Ray> rays;
+};
+
+// Random rays with origins inside and outside the (enlarged) box, random directions.
+RaySet random_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed);
+// Rays aimed exactly at triangle vertices and at points along edges, from random origins.
+RaySet vertex_and_edge_rays(std::span<const Triangle> triangles, std::size_t count, std::uint32_t seed);
+// Axis-parallel rays and rays with one or two zero direction components, some starting on box faces.
+RaySet axis_parallel_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed);
+// Rays with tnear > 0 and finite tfar cutting the interval around the surface.
+RaySet clipped_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed);
+// NaN, infinite, zero-direction, tnear > tfar, denormal directions: all must miss, except denormal ones
+// which are valid and must agree with the oracle.
+RaySet hostile_rays(const Box3f& bounds);
+
+}  // namespace lancer::testing

@@ -1,0 +1,150 @@
+// The lancer executable end to end: the RAYS/HITS round trip, exit code 2 with a clear message on bad
+// input, and renders that produce a PNG.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "lancer/ray.hpp"
+
+namespace lancer {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+    int exit_code;
+    std::string output;  // stdout and stderr together
+};
+
+class Cli : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        dir_ = fs::temp_directory_path() /
+               ("lancer_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+        fs::create_directories(dir_);
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+
+    fs::path write(const std::string& name, const std::string& text) const {
+        const fs::path path = dir_ / name;
+        std::ofstream(path, std::ios::binary) << text;
+        return path;
+    }
+
+    Result run(const std::string& arguments) const {
+        const fs::path log = dir_ / "log.txt";
+        const std::string command =
+            std::string(LANCER_EXECUTABLE) + " " + arguments + " >" + log.string() + " 2>&1";
+        const int status = std::system(command.c_str());
+        std::ostringstream text;
+        text << std::ifstream(log).rdbuf();
+        return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
+    }
+
+    fs::path dir_;
+};
+
+// A quad (fan-triangulated into triangles 0 and 1) and a triangle (2) behind it.
+const char* kMesh =
+    "OFF\n"
+    "7 2 0\n"
+    "0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+    "0 0 -1\n2 0 -1\n0 2 -1\n"
+    "4 0 1 2 3\n"
+    "3 4 5 6\n";
+
+TEST_F(Cli, RaysRoundTripMatchesTheLibrary) {
+    const fs::path mesh = write("mesh.off", kMesh);
+    std::vector<Ray> rays = {
+        {{0.7f, 0.2f, 1.0f}, {0, 0, -1}, 0.0f, kInfinity},  // triangle 0 of the fan (0 1 2)
+        {{0.2f, 0.7f, 1.0f}, {0, 0, -1}, 0.0f, kInfinity},  // triangle 1 of the fan (0 2 3)
+        {{1.5f, 0.2f, 1.0f}, {0, 0, -1}, 0.0f, kInfinity},  // beside the quad: the triangle behind
+        {{1.5f, 1.5f, 1.0f}, {0, 0, -1}, 0.0f, kInfinity},  // miss
+        {{0.7f, 0.2f, 1.0f}, {0, 0, 0}, 0.0f, kInfinity},   // zero direction: miss
+        {{0.7f, 0.2f, 1.0f}, {0, 0, -1}, 3.0f, 2.0f},       // tnear > tfar: miss
+    };
+    const fs::path rays_file = dir_ / "rays.bin";
+    std::ofstream(rays_file, std::ios::binary)
+        .write(reinterpret_cast<const char*>(rays.data()),
+               static_cast<std::streamsize>(rays.size() * sizeof(Ray)));
+    const fs::path hits_file = dir_ / "hits.bin";
+
+    for (const char* extra : {"", " --watertight"}) {
+        const Result result = run("rays " + mesh.string() + " --rays " + rays_file.string() + " --hits " +
+                                  hits_file.string() + extra);
+        ASSERT_EQ(result.exit_code, 0) << result.output;
+        std::vector<Hit> hits(rays.size());
+        std::ifstream in(hits_file, std::ios::binary);
+        in.read(reinterpret_cast<char*>(hits.data()),
+                static_cast<std::streamsize>(hits.size() * sizeof(Hit)));
+        ASSERT_EQ(in.gcount(), static_cast<std::streamsize>(hits.size() * sizeof(Hit)));
+
+        EXPECT_EQ(hits[0].prim, 0);
+        EXPECT_FLOAT_EQ(hits[0].t, 1.0f);
+        EXPECT_FLOAT_EQ(hits[0].u, 0.5f);  // (0.7, 0.2) = 0.3 v0 + 0.5 v1 + 0.2 v2 of triangle (0 1 2)
+        EXPECT_FLOAT_EQ(hits[0].v, 0.2f);
+        EXPECT_EQ(hits[1].prim, 1);
+        EXPECT_EQ(hits[2].prim, 2);
+        EXPECT_FLOAT_EQ(hits[2].t, 2.0f);
+        for (int i = 3; i < 6; ++i) {
+            EXPECT_EQ(hits[static_cast<std::size_t>(i)].prim, -1);
+            EXPECT_EQ(hits[static_cast<std::size_t>(i)].t, kInfinity);
+        }
+    }
+}
+
+TEST_F(Cli, BadInputExitsWithTwoAndSaysWhere) {
+    const fs::path broken = write("broken.off", "OFF\n3 1 0\n0 0 0\n1 0 x\n0 1 0\n3 0 1 2\n");
+    const fs::path rays = write("rays.bin", std::string(33, '\0'));
+    const fs::path good = write("good.off", kMesh);
+    const fs::path hits = dir_ / "hits.bin";
+
+    Result result = run("info " + broken.string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("broken.off:4"), std::string::npos) << result.output;
+
+    result = run("info " + (dir_ / "missing.off").string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("missing.off"), std::string::npos) << result.output;
+
+    result = run("rays " + good.string() + " --rays " + rays.string() + " --hits " + hits.string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("32-byte"), std::string::npos) << result.output;
+
+    result = run("render " + good.string() + " --accel nope -o " + (dir_ / "x.png").string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("brute"), std::string::npos) << result.output;
+
+    result = run("render " + good.string() + " --size 12 -o " + (dir_ / "x.png").string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("WIDTHxHEIGHT"), std::string::npos) << result.output;
+
+    result = run("render " + good.string() + " --mode sepia");
+    EXPECT_EQ(result.exit_code, 2);
+}
+
+TEST_F(Cli, RenderWritesAPngAndReportsItsWork) {
+    const fs::path mesh = write("mesh.off", kMesh);
+    const fs::path png = dir_ / "out.png";
+    const Result result = run("render " + mesh.string() + " --size 40x30 --mode normal -o " + png.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("40x30"), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find("Mrays/s"), std::string::npos) << result.output;
+    std::ifstream in(png, std::ios::binary);
+    char signature[8] = {};
+    in.read(signature, 8);
+    EXPECT_EQ(std::string(signature + 1, 3), "PNG");
+}
+
+TEST_F(Cli, InfoCountsTrianglesAfterFanTriangulation) {
+    const Result result = run("info " + write("mesh.off", kMesh).string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("triangles   3"), std::string::npos) << result.output;
+}
+
+}  // namespace
+}  // namespace lancer

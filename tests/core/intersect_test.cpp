@@ -1,0 +1,226 @@
+// Kernels against analytic cases: slab test, Moller-Trumbore, watertight, sphere, the four ray-plane cases.
+#include "core/intersect.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace lancer {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+Ray make_ray(Vec3f origin, Vec3f direction, float tnear = 0.0f, float tfar = kInfinity) {
+    return {origin, direction, tnear, tfar};
+}
+
+// A right triangle in the z = 0 plane: v0 at the origin, v1 on x, v2 on y.
+const Triangle kTriangle{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+
+template <class Test>
+bool hit_triangle(const Ray& ray, const Triangle& tri, TriangleHit& out) {
+    return Test::intersect(typename Test::RayData(ray), tri, ray.tnear, ray.tfar, out);
+}
+
+template <class Test>
+class TriangleTestSuite : public ::testing::Test {};
+using TriangleTests = ::testing::Types<MollerTrumbore, Watertight>;
+TYPED_TEST_SUITE(TriangleTestSuite, TriangleTests);
+
+TYPED_TEST(TriangleTestSuite, HitsInteriorWithBarycentricsOfFileOrder) {
+    TriangleHit hit;
+    ASSERT_TRUE(hit_triangle<TypeParam>(make_ray({0.25f, 0.5f, 2.0f}, {0, 0, -1}), kTriangle, hit));
+    EXPECT_FLOAT_EQ(hit.t, 2.0f);
+    // p = (1 - u - v) v0 + u v1 + v v2 = (u, v, 0).
+    EXPECT_FLOAT_EQ(hit.u, 0.25f);
+    EXPECT_FLOAT_EQ(hit.v, 0.5f);
+}
+
+TYPED_TEST(TriangleTestSuite, HitsFromBehindAndWithUnnormalisedDirection) {
+    TriangleHit hit;
+    ASSERT_TRUE(hit_triangle<TypeParam>(make_ray({0.1f, 0.1f, -3.0f}, {0, 0, 2}), kTriangle, hit));
+    EXPECT_FLOAT_EQ(hit.t, 1.5f);  // t in multiples of the direction
+}
+
+TYPED_TEST(TriangleTestSuite, MissesOutside) {
+    TriangleHit hit;
+    EXPECT_FALSE(hit_triangle<TypeParam>(make_ray({0.6f, 0.6f, 1.0f}, {0, 0, -1}), kTriangle, hit));
+    EXPECT_FALSE(hit_triangle<TypeParam>(make_ray({-0.1f, 0.5f, 1.0f}, {0, 0, -1}), kTriangle, hit));
+    EXPECT_FALSE(hit_triangle<TypeParam>(make_ray({0.5f, -0.1f, 1.0f}, {0, 0, -1}), kTriangle, hit));
+}
+
+TYPED_TEST(TriangleTestSuite, EdgesAndVerticesAreInside) {
+    TriangleHit hit;
+    EXPECT_TRUE(
+        hit_triangle<TypeParam>(make_ray({0.5f, 0.0f, 1.0f}, {0, 0, -1}), kTriangle, hit));  // edge v0v1
+    EXPECT_TRUE(
+        hit_triangle<TypeParam>(make_ray({0.0f, 0.5f, 1.0f}, {0, 0, -1}), kTriangle, hit));  // edge v0v2
+    EXPECT_TRUE(
+        hit_triangle<TypeParam>(make_ray({0.5f, 0.5f, 1.0f}, {0, 0, -1}), kTriangle, hit));  // edge v1v2
+    EXPECT_TRUE(
+        hit_triangle<TypeParam>(make_ray({1.0f, 0.0f, 1.0f}, {0, 0, -1}), kTriangle, hit));  // vertex v1
+}
+
+TYPED_TEST(TriangleTestSuite, GrazingRayInThePlaneMisses) {
+    TriangleHit hit;
+    EXPECT_FALSE(hit_triangle<TypeParam>(make_ray({-1.0f, 0.25f, 0.0f}, {1, 0, 0}), kTriangle, hit));
+    EXPECT_FALSE(hit_triangle<TypeParam>(make_ray({-1.0f, 0.25f, 1e-7f}, {1, 0, 0}), kTriangle, hit));
+}
+
+TYPED_TEST(TriangleTestSuite, RespectsTnearAndTfar) {
+    TriangleHit hit;
+    EXPECT_FALSE(
+        hit_triangle<TypeParam>(make_ray({0.2f, 0.2f, 2.0f}, {0, 0, -1}, 0.0f, 1.9f), kTriangle, hit));
+    EXPECT_FALSE(
+        hit_triangle<TypeParam>(make_ray({0.2f, 0.2f, 2.0f}, {0, 0, -1}, 2.1f, 5.0f), kTriangle, hit));
+    EXPECT_TRUE(
+        hit_triangle<TypeParam>(make_ray({0.2f, 0.2f, 2.0f}, {0, 0, -1}, 2.0f, 2.0f), kTriangle, hit));
+    EXPECT_FALSE(
+        hit_triangle<TypeParam>(make_ray({0.2f, 0.2f, -2.0f}, {0, 0, -1}), kTriangle, hit));  // behind
+}
+
+TYPED_TEST(TriangleTestSuite, DegenerateTrianglesNeverHit) {
+    TriangleHit hit;
+    const Triangle collapsed{{0, 0, 0}, {1, 1, 0}, {2, 2, 0}};
+    const Triangle point{{1, 1, 1}, {1, 1, 1}, {1, 1, 1}};
+    EXPECT_FALSE(hit_triangle<TypeParam>(make_ray({1.0f, 1.0f, 2.0f}, {0, 0, -1}), collapsed, hit));
+    EXPECT_FALSE(hit_triangle<TypeParam>(make_ray({1.0f, 1.0f, 2.0f}, {0, 0, -1}), point, hit));
+}
+
+TEST(TriangleTests, WatertightAgreesWithMollerTrumboreOnRandomRays) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> coordinate(-1.0f, 1.0f);
+    auto random_point = [&] { return Vec3f(coordinate(rng), coordinate(rng), coordinate(rng)); };
+    int both = 0;
+    for (int i = 0; i < 40000; ++i) {
+        const Triangle tri{random_point(), random_point(), random_point()};
+        // Aim at a random point of the triangle's plane near it, so that most rays hit.
+        const float a = coordinate(rng), b = coordinate(rng);
+        const Vec3f target = tri.v0 + a * (tri.v1 - tri.v0) + b * (tri.v2 - tri.v0);
+        const Vec3f origin = random_point() * 3.0f;
+        const Ray ray = make_ray(origin, target - origin);
+        // Well-conditioned cases only: slivers and grazing rays amplify rounding differently in each test.
+        const Vec3f normal = tri.geometric_normal();
+        if (length(normal) < 0.1f || std::fabs(dot(normalize(normal), normalize(ray.direction))) < 0.2f)
+            continue;
+        TriangleHit mt, wt;
+        const bool mt_hit = hit_triangle<MollerTrumbore>(ray, tri, mt);
+        const bool wt_hit = hit_triangle<Watertight>(ray, tri, wt);
+        // Near an edge the two tests may disagree by rounding; away from it they must agree exactly on
+        // hit/miss.
+        const float margin = 1e-4f;
+        const bool near_edge =
+            mt_hit ? (mt.u < margin || mt.v < margin || 1.0f - mt.u - mt.v < margin)
+                   : (wt_hit && (wt.u < margin || wt.v < margin || 1.0f - wt.u - wt.v < margin));
+        if (near_edge) continue;
+        ASSERT_EQ(mt_hit, wt_hit) << "ray " << i;
+        if (!mt_hit) continue;
+        ++both;
+        EXPECT_NEAR(mt.t, wt.t, 1e-4f * std::max(1.0f, std::fabs(mt.t)));
+        EXPECT_NEAR(mt.u, wt.u, 1e-4f);
+        EXPECT_NEAR(mt.v, wt.v, 1e-4f);
+    }
+    EXPECT_GT(both, 3000);  // the comparison covered many hits
+}
+
+TEST(SphereTests, HitsFromOutsideAtTheNearRoot) {
+    TriangleHit hit;
+    const Sphere sphere{{0, 0, 0}, 1.0f, 0};
+    ASSERT_TRUE(intersect_sphere(make_ray({0, 0, 5}, {0, 0, -1}), sphere, 0.0f, kInfinity, hit));
+    EXPECT_FLOAT_EQ(hit.t, 4.0f);
+    EXPECT_NEAR(hit.v, 0.0f, 1e-6f);  // the north pole: polar angle 0
+}
+
+TEST(SphereTests, HitsFromInsideAtTheFarRoot) {
+    TriangleHit hit;
+    const Sphere sphere{{1, 2, 3}, 2.0f, 0};
+    ASSERT_TRUE(intersect_sphere(make_ray({1, 2, 3}, {0, 0.5f, 0}), sphere, 0.0f, kInfinity, hit));
+    EXPECT_FLOAT_EQ(hit.t, 4.0f);
+}
+
+TEST(SphereTests, MissesBesideBehindAndBeyondTfar) {
+    TriangleHit hit;
+    const Sphere sphere{{0, 0, 0}, 1.0f, 0};
+    EXPECT_FALSE(intersect_sphere(make_ray({0, 1.001f, 5}, {0, 0, -1}), sphere, 0.0f, kInfinity, hit));
+    EXPECT_FALSE(intersect_sphere(make_ray({0, 0, 5}, {0, 0, 1}), sphere, 0.0f, kInfinity, hit));
+    EXPECT_FALSE(intersect_sphere(make_ray({0, 0, 5}, {0, 0, -1}), sphere, 0.0f, 3.9f, hit));
+}
+
+TEST(SphereTests, ZeroAndNaNRadiusNeverHit) {
+    TriangleHit hit;
+    EXPECT_FALSE(
+        intersect_sphere(make_ray({0, 0, 5}, {0, 0, -1}), {{0, 0, 0}, 0.0f, 0}, 0.0f, kInfinity, hit));
+    EXPECT_FALSE(
+        intersect_sphere(make_ray({0, 0, 5}, {0, 0, -1}), {{0, 0, 0}, kNaN, 0}, 0.0f, kInfinity, hit));
+}
+
+TEST(SphereTests, StaysAccurateFarFromASmallSphere) {
+    // The textbook discriminant b^2 - 4ac cancels catastrophically here; Haines et al.'s form does not.
+    TriangleHit hit;
+    const Sphere sphere{{0, 0, 0}, 0.01f, 0};
+    ASSERT_TRUE(intersect_sphere(make_ray({0.005f, 0, 1e4f}, {0, 0, -1}), sphere, 0.0f, kInfinity, hit));
+    const float expected = 1e4f - std::sqrt(0.01f * 0.01f - 0.005f * 0.005f);
+    EXPECT_NEAR(hit.t, expected, 1e-3f);
+}
+
+TEST(PlaneTests, TheFourCasesOfSeed004) {
+    const Plane ground{{0, 1, 0}, 2.0f, 0};  // y = 2
+    float t = 0.0f;
+    EXPECT_EQ(classify_plane(make_ray({0, 0, 0}, {1, 0, 0}), ground, 0.0f, t), PlaneCase::Parallel);
+    EXPECT_EQ(classify_plane(make_ray({0, 2, 0}, {1, 0, 0}), ground, 0.0f, t), PlaneCase::InPlane);
+    EXPECT_EQ(classify_plane(make_ray({0, 0, 0}, {0, -1, 0}), ground, 0.0f, t), PlaneCase::Behind);
+    EXPECT_FLOAT_EQ(t, -2.0f);
+    EXPECT_EQ(classify_plane(make_ray({0, 0, 0}, {0, 1, 1}), ground, 0.0f, t), PlaneCase::Ahead);
+    EXPECT_FLOAT_EQ(t, 2.0f);
+    EXPECT_TRUE(intersect_plane(make_ray({0, 0, 0}, {0, 1, 1}), ground, 0.0f, kInfinity, t));
+    EXPECT_FALSE(intersect_plane(make_ray({0, 0, 0}, {0, 1, 1}), ground, 0.0f, 1.5f, t));
+    EXPECT_FALSE(intersect_plane(make_ray({0, 2, 0}, {1, 0, 0}), ground, 0.0f, kInfinity, t));
+}
+
+TEST(SlabTests, HitMissAndInside) {
+    const Box3f box{{-1, -1, -1}, {1, 1, 1}};
+    float entry = 0.0f, exit = 0.0f;
+    EXPECT_TRUE(intersect_box(SlabRay(make_ray({0, 0, 5}, {0, 0, -1})), box, 0.0f, kInfinity, entry, exit));
+    EXPECT_FLOAT_EQ(entry, 4.0f);
+    EXPECT_NEAR(exit, 6.0f, 1e-5f);
+    EXPECT_FALSE(intersect_box(SlabRay(make_ray({0, 2, 5}, {0, 0, -1})), box, 0.0f, kInfinity, entry, exit));
+    EXPECT_TRUE(
+        intersect_box(SlabRay(make_ray({0.5f, 0.5f, 0.5f}, {1, 1, 0})), box, 0.0f, kInfinity, entry, exit));
+    EXPECT_FLOAT_EQ(entry, 0.0f);  // origin inside: the interval starts at tnear
+    EXPECT_FALSE(intersect_box(SlabRay(make_ray({0, 0, 5}, {0, 0, -1})), box, 0.0f, 3.0f, entry, exit));
+}
+
+TEST(SlabTests, ZeroDirectionComponentsAndRaysInAFacePlane) {
+    const Box3f box{{-1, -1, -1}, {1, 1, 1}};
+    float entry = 0.0f, exit = 0.0f;
+    // Axis-parallel, beside the box in x: the x slab is empty.
+    EXPECT_FALSE(intersect_box(SlabRay(make_ray({2, 0, 5}, {0, 0, -1})), box, 0.0f, kInfinity, entry, exit));
+    // Running exactly in the plane x = 1 of a face: 0 * inf = NaN must not lose the box.
+    EXPECT_TRUE(intersect_box(SlabRay(make_ray({1, 0, 5}, {0, 0, -1})), box, 0.0f, kInfinity, entry, exit));
+    EXPECT_FLOAT_EQ(entry, 4.0f);
+    // Along an edge (x = 1 and y = 1).
+    EXPECT_TRUE(intersect_box(SlabRay(make_ray({1, 1, 5}, {0, 0, -1})), box, 0.0f, kInfinity, entry, exit));
+}
+
+TEST(RayTests, ValidityContract) {
+    EXPECT_TRUE(is_valid(make_ray({0, 0, 0}, {0, 0, 1})));
+    EXPECT_TRUE(is_valid(make_ray({0, 0, 0}, {0, 0, 1}, 1.0f, 1.0f)));
+    EXPECT_FALSE(is_valid(make_ray({0, 0, 0}, {0, 0, 0})));
+    EXPECT_FALSE(is_valid(make_ray({kNaN, 0, 0}, {0, 0, 1})));
+    EXPECT_FALSE(is_valid(make_ray({0, 0, 0}, {0, kInfinity, 1})));
+    EXPECT_FALSE(is_valid(make_ray({0, 0, 0}, {0, 0, 1}, 2.0f, 1.0f)));
+    EXPECT_FALSE(is_valid(make_ray({0, 0, 0}, {0, 0, 1}, kNaN, 1.0f)));
+    EXPECT_FALSE(is_valid(make_ray({0, 0, 0}, {0, 0, 1}, 0.0f, kNaN)));
+    EXPECT_FALSE(is_valid(make_ray({0, 0, 0}, {0, 0, 1}, -kInfinity, 1.0f)));
+}
+
+TEST(RayTests, ClosestOrderBreaksTiesByIndex) {
+    const Hit best{2.0f, 5, 0.0f, 0.0f};
+    EXPECT_TRUE(closer(1.0f, 9, best));
+    EXPECT_TRUE(closer(2.0f, 4, best));
+    EXPECT_FALSE(closer(2.0f, 6, best));
+    EXPECT_FALSE(closer(3.0f, 0, best));
+}
+
+}  // namespace
+}  // namespace lancer

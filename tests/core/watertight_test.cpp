@@ -1,0 +1,89 @@
+// The watertight test leaves no gap: rays shot from inside a closed mesh exactly at its shared vertices and
+// along its shared edges always hit (Woop, Benthin & Wald 2013). Moller-Trumbore's leaks are counted beside.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "accel/brute.hpp"
+#include "lancer/generate.hpp"
+
+namespace lancer {
+namespace {
+
+// A cube [-1, 1]^3 with two triangles per face, outward winding, vertices shared by index.
+TriangleMesh make_cube() {
+    TriangleMesh mesh;
+    for (int i = 0; i < 8; ++i) {
+        mesh.positions.push_back({(i & 1) ? 1.0f : -1.0f, (i & 2) ? 1.0f : -1.0f, (i & 4) ? 1.0f : -1.0f});
+    }
+    mesh.indices = {0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4,
+                    2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5};
+    return mesh;
+}
+
+// Targets on the surface: every vertex, and points along every edge (midpoints and random fractions).
+std::vector<Vec3f> surface_targets(const TriangleMesh& mesh, std::mt19937& rng) {
+    std::uniform_real_distribution<float> fraction(0.0f, 1.0f);
+    std::vector<Vec3f> targets(mesh.positions.begin(), mesh.positions.end());
+    for (std::size_t tri = 0; tri < mesh.triangle_count(); ++tri) {
+        for (int corner = 0; corner < 3; ++corner) {
+            const Vec3f a = mesh.positions[mesh.indices[3 * tri + corner]];
+            const Vec3f b = mesh.positions[mesh.indices[3 * tri + (corner + 1) % 3]];
+            targets.push_back(0.5f * (a + b));
+            const float f = fraction(rng);
+            targets.push_back((1.0f - f) * a + f * b);
+        }
+    }
+    return targets;
+}
+
+struct LeakCount {
+    std::size_t rays = 0, leaks = 0;
+};
+
+LeakCount count_leaks(const TriangleMesh& mesh, const std::vector<Vec3f>& origins, TriangleTest test) {
+    std::mt19937 rng(11);
+    const std::vector<Vec3f> targets = surface_targets(mesh, rng);
+    std::vector<Triangle> triangles;
+    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
+        triangles.push_back(mesh.triangle(i));
+    BruteAccel brute;
+    brute.build({triangles, {}}, {test});
+    std::vector<Ray> rays;
+    for (const Vec3f& origin : origins) {
+        for (const Vec3f& target : targets)
+            rays.push_back({origin, target - origin, 0.0f, kInfinity});
+    }
+    std::vector<std::uint8_t> occluded(rays.size());
+    brute.occluded(rays, occluded);
+    LeakCount count{rays.size(), 0};
+    for (std::uint8_t hit : occluded)
+        count.leaks += hit ? 0 : 1;
+    return count;
+}
+
+const std::vector<Vec3f> kInteriorOrigins = {
+    {0, 0, 0}, {0.1f, -0.2f, 0.3f}, {0.5f, 0.5f, 0.5f}, {-0.3f, 0.25f, -0.6f}, {1e-3f, 1e-3f, 0}};
+
+TEST(Watertight, NoLeakThroughSharedVerticesAndEdgesOfAnIcosphere) {
+    const TriangleMesh sphere = make_icosphere(3);
+    const LeakCount watertight = count_leaks(sphere, kInteriorOrigins, TriangleTest::Watertight);
+    const LeakCount moller = count_leaks(sphere, kInteriorOrigins, TriangleTest::MollerTrumbore);
+    std::printf("icosphere: %zu rays at vertices and edges; leaks: watertight %zu, moller-trumbore %zu\n",
+                watertight.rays, watertight.leaks, moller.leaks);
+    EXPECT_GT(watertight.rays, 40000u);
+    EXPECT_EQ(watertight.leaks, 0u);
+}
+
+TEST(Watertight, NoLeakThroughTheEdgesAndCornersOfACube) {
+    // Axis-aligned faces and edges: rays run exactly along the diagonals that split each face.
+    const TriangleMesh cube = make_cube();
+    const LeakCount watertight = count_leaks(cube, kInteriorOrigins, TriangleTest::Watertight);
+    const LeakCount moller = count_leaks(cube, kInteriorOrigins, TriangleTest::MollerTrumbore);
+    std::printf("cube: %zu rays at vertices and edges; leaks: watertight %zu, moller-trumbore %zu\n",
+                watertight.rays, watertight.leaks, moller.leaks);
+    EXPECT_EQ(watertight.leaks, 0u);
+}
+
+}  // namespace
+}  // namespace lancer
