@@ -1,0 +1,33 @@
+// Geometry helpers every spatial build shares: primitive bounds, conservative primitive-box overlap (which
+// cells or nodes must reference a primitive) and the box of a primitive clipped to a box ("perfect splits",
+// Havran 2000; Wald & Havran 2006 section 4.2).
+#pragma once
+
+#include <cstdint>
+
+#include "lancer/box.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer {
+
+[[nodiscard]] Box3f primitive_bounds(const Geometry& geometry, std::uint32_t prim);
+
+// The box grown by a relative margin of its own size (plus an absolute one for flat boxes), so that
+// rounding in an overlap or clipping test never drops a primitive that touches the box: an extra
+// reference costs a test, a missing one costs a wrong answer.
+[[nodiscard]] Box3f grown_for_overlap(const Box3f& box);
+
+// Whether the primitive may intersect the closed box (triangles: the separating-axis test of
+// Akenine-Moller 2001 against the grown box; spheres: centre-to-box distance against the radius).
+[[nodiscard]] bool primitive_overlaps_box(const Geometry& geometry, std::uint32_t prim, const Box3f& box);
+
+// Bounds of the part of the primitive inside the box (triangles: Sutherland-Hodgman clipping against the
+// six planes of the grown box, then intersected with the box; spheres: their bounds intersected with the
+// box). Empty when the primitive misses the box.
+[[nodiscard]] Box3f clipped_primitive_bounds(const Geometry& geometry, std::uint32_t prim, const Box3f& box);
+
+[[nodiscard]] inline Box3f intersection(const Box3f& a, const Box3f& b) {
+    return {max(a.lo, b.lo), min(a.hi, b.hi)};
+}
+
+}  // namespace lancer

@@ -1,0 +1,28 @@
+// Comparing a structure's answers with the brute-force oracle's, ray by ray.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <string>
+
+#include "lancer/accel.hpp"
+
+namespace lancer::testing {
+
+// Agreement (issue 3): the same hit or miss, and t within 1e-5 relative. A different primitive at the same
+// t is a tie, counted apart, not an error.
+struct Agreement {
+    std::size_t rays = 0, hits = 0, ties = 0, mismatches = 0;
+    std::string first_mismatch;  // ray index, both answers
+
+    [[nodiscard]] std::string summary() const;
+};
+
+[[nodiscard]] Agreement compare_hits(std::span<const Ray> rays, std::span<const Hit> expected,
+                                     std::span<const Hit> actual);
+
+// Occlusion must equal "the oracle found a hit".
+[[nodiscard]] Agreement compare_occlusion(std::span<const Ray> rays, std::span<const Hit> expected,
+                                          std::span<const std::uint8_t> occluded);
+
+}  // namespace lancer::testing

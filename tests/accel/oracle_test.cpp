@@ -1,0 +1,177 @@
+// Every registered structure against the brute-force oracle, on every scene and ray set below, for both
+// triangle tests, closest hit and occlusion. A new structure added to the registry is tested here at once.
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+
+#include "accel/brute.hpp"
+#include "lancer/generate.hpp"
+#include "oracle.hpp"
+#include "ray_sets.hpp"
+
+namespace lancer {
+namespace {
+
+struct TestScene {
+    std::string name;
+    std::vector<Triangle> triangles;
+    std::vector<Sphere> spheres;
+
+    [[nodiscard]] Geometry geometry() const { return {triangles, spheres}; }
+};
+
+void append(std::vector<Triangle>& triangles, const TriangleMesh& mesh) {
+    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
+        triangles.push_back(mesh.triangle(i));
+}
+
+std::vector<TestScene> make_scenes() {
+    std::vector<TestScene> scenes;
+    std::mt19937 rng(2024);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
+
+    TestScene mixed{"icosphere, knot and spheres", {}, {}};
+    append(mixed.triangles, make_icosphere(3, {0, 0, 0}, 1.0f));
+    append(mixed.triangles, make_torus_knot(300, 10));
+    for (int i = 0; i < 40; ++i)
+        mixed.spheres.push_back({point(4.0f) - Vec3f(2.0f), 0.05f + 0.2f * unit(rng), 0});
+    scenes.push_back(std::move(mixed));
+
+    TestScene soup{"random triangle soup", {}, {}};
+    for (int i = 0; i < 3000; ++i) {
+        const Vec3f base = point(10.0f);
+        const float size = i % 10 == 0 ? 3.0f : 0.3f;
+        soup.triangles.push_back(
+            {base, base + point(size) - Vec3f(size / 2), base + point(size) - Vec3f(size / 2)});
+    }
+    scenes.push_back(std::move(soup));
+
+    scenes.push_back({"empty", {}, {}});
+    scenes.push_back({"one triangle", {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}, {}});
+    scenes.push_back({"one sphere", {}, {{{0, 0, 0}, 1.0f, 0}}});
+
+    TestScene plane{"all triangles in one plane", {}, {}};
+    for (int i = 0; i < 40; ++i) {
+        for (int j = 0; j < 40; ++j) {
+            const float x = static_cast<float>(i), y = static_cast<float>(j);
+            plane.triangles.push_back({{x, y, 0}, {x + 1, y, 0}, {x + 1, y + 1, 0}});
+            plane.triangles.push_back({{x, y, 0}, {x + 1, y + 1, 0}, {x, y + 1, 0}});
+        }
+    }
+    scenes.push_back(std::move(plane));
+
+    TestScene coincident{"thousands of coincident triangles", {}, {}};
+    coincident.triangles.assign(3000, Triangle{{0, 0, 0}, {1, 0, 0.5f}, {0, 1, 1}});
+    coincident.triangles.push_back({{-1, -1, 2}, {2, -1, 2}, {-1, 2, 2}});
+    scenes.push_back(std::move(coincident));
+
+    TestScene huge{"huge triangle next to tiny ones", {}, {}};
+    huge.triangles.push_back({{-1e4f, -1e4f, 0.5f}, {1e4f, -1e4f, 0.5f}, {0, 1e4f, 0.5f}});
+    for (int i = 0; i < 2000; ++i) {
+        const Vec3f base = point(1.0f);
+        huge.triangles.push_back({base, base + Vec3f(1e-3f, 0, 0), base + Vec3f(0, 1e-3f, 1e-4f)});
+    }
+    scenes.push_back(std::move(huge));
+
+    TestScene degenerate{"degenerate and duplicate triangles", {}, {}};
+    append(degenerate.triangles, make_icosphere(2, {0, 0, 0}, 1.0f));
+    for (int i = 0; i < 200; ++i) {
+        const Vec3f a = point(2.0f) - Vec3f(1.0f), b = point(2.0f) - Vec3f(1.0f);
+        degenerate.triangles.push_back({a, b, 0.5f * (a + b)});  // zero area, collinear
+        degenerate.triangles.push_back({a, a, a});               // a point
+        degenerate.triangles.push_back(degenerate.triangles[static_cast<std::size_t>(i)]);  // duplicate
+    }
+    degenerate.spheres.push_back({{0.3f, 0.3f, 0.3f}, 0.0f, 0});  // zero radius
+    scenes.push_back(std::move(degenerate));
+    return scenes;
+}
+
+const std::vector<TestScene>& scenes() {
+    static const std::vector<TestScene> all = make_scenes();
+    return all;
+}
+
+std::vector<testing::RaySet> ray_sets(const TestScene& scene) {
+    Box3f bounds = scene.geometry().bounds();
+    if (bounds.empty()) bounds = {{-1, -1, -1}, {1, 1, 1}};
+    return {testing::random_rays(bounds, 4000, 1), testing::vertex_and_edge_rays(scene.triangles, 3000, 2),
+            testing::axis_parallel_rays(bounds, 3000, 3), testing::clipped_rays(bounds, 2000, 4),
+            testing::hostile_rays(bounds)};
+}
+
+// The oracle's answers, computed once per scene, ray set and triangle test and shared by all structures.
+const std::vector<Hit>& oracle_hits(std::size_t scene_index, std::size_t set_index,
+                                    const testing::RaySet& set, TriangleTest test) {
+    static std::map<std::tuple<std::size_t, std::size_t, TriangleTest>, std::vector<Hit>> cache;
+    auto [it, inserted] = cache.try_emplace({scene_index, set_index, test});
+    if (inserted) {
+        BruteAccel brute;
+        brute.build(scenes()[scene_index].geometry(), {test});
+        it->second.resize(set.rays.size());
+        brute.intersect(set.rays, it->second);
+    }
+    return it->second;
+}
+
+class OracleTest : public ::testing::TestWithParam<std::string_view> {};
+
+TEST_P(OracleTest, AgreesWithBruteForceOnEveryRay) {
+    for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        for (std::size_t scene_index = 0; scene_index < scenes().size(); ++scene_index) {
+            const TestScene& scene = scenes()[scene_index];
+            const std::unique_ptr<Accel> accel = make_accel(GetParam());
+            accel->build(scene.geometry(), {test});
+            const std::vector<testing::RaySet> sets = ray_sets(scene);
+            for (std::size_t set_index = 0; set_index < sets.size(); ++set_index) {
+                const testing::RaySet& set = sets[set_index];
+                const std::vector<Hit>& expected = oracle_hits(scene_index, set_index, set, test);
+                std::vector<Hit> hits(set.rays.size());
+                accel->intersect(set.rays, hits);
+                const testing::Agreement closest = testing::compare_hits(set.rays, expected, hits);
+                EXPECT_EQ(closest.mismatches, 0u)
+                    << GetParam() << ", " << scene.name << ", " << set.name << ", "
+                    << (test == TriangleTest::Watertight ? "watertight" : "moller") << ": "
+                    << closest.summary();
+                std::vector<std::uint8_t> occluded(set.rays.size());
+                accel->occluded(set.rays, occluded);
+                const testing::Agreement any = testing::compare_occlusion(set.rays, expected, occluded);
+                EXPECT_EQ(any.mismatches, 0u)
+                    << GetParam() << ", " << scene.name << ", " << set.name << ": " << any.summary();
+            }
+        }
+    }
+}
+
+TEST_P(OracleTest, CountersSeeEveryValidRay) {
+    const TestScene& scene = scenes()[0];
+    const std::unique_ptr<Accel> accel = make_accel(GetParam());
+    accel->build(scene.geometry(), {});
+    const testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 1000, 5);
+    std::vector<Hit> hits(set.rays.size()), counted_hits(set.rays.size());
+    accel->intersect(set.rays, hits);
+    TraversalCounters counters;
+    accel->intersect(set.rays, counted_hits, &counters);
+    EXPECT_EQ(counters.rays, set.rays.size());
+    EXPECT_GT(counters.nodes_visited, 0u);
+    EXPECT_GT(counters.prims_tested, 0u);
+    // Counting must not change an answer.
+    for (std::size_t i = 0; i < hits.size(); ++i) {
+        ASSERT_EQ(hits[i].prim, counted_hits[i].prim);
+        ASSERT_EQ(hits[i].t, counted_hits[i].t);
+    }
+}
+
+std::vector<std::string_view> structures_under_test() {
+    std::vector<std::string_view> names = accel_names();
+    std::erase(names, std::string_view("brute"));
+    return names;
+}
+
+INSTANTIATE_TEST_SUITE_P(Structures, OracleTest, ::testing::ValuesIn(structures_under_test()),
+                         [](const auto& param_info) { return std::string(param_info.param); });
+GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(OracleTest);
+
+}  // namespace
+}  // namespace lancer
