@@ -22,8 +22,50 @@ enum class TriangleTest {
     Watertight,      // Woop, Benthin & Wald 2013: no ray passes between two triangles that share an edge
 };
 
+// Regular grid (seed 004): cells per axis = density * cbrt(N), shared among the axes in proportion to the
+// box's extents, so that cells are about cubic.
+struct GridOptions {
+    float density = 1.0f;
+};
+
+// Classic octree (seed 004; Revelles et al. 2000): a node is split while depth < max_depth and it holds
+// more than leaf_size references.
+struct OctreeOptions {
+    int max_depth = 10;
+    int leaf_size = 8;
+};
+
+enum class KdTreeCost {
+    WaldHavran,  // Wald & Havran 2006: SAH with an empty-space bonus
+    Seed003,     // seed 003 section 5.3.2: C = 1 / SA(N) [SA(L)(Nl + Nb) + SA(R)(Nr + Nb)], no bonus
+};
+
+// SAH kd-tree (Wald & Havran 2006). max_depth 0 = automatic: 8 + 1.3 log2(N).
+struct KdTreeOptions {
+    KdTreeCost cost = KdTreeCost::WaldHavran;
+    float traversal_cost = 15.0f;
+    float intersection_cost = 20.0f;
+    float empty_bonus = 0.8f;  // cost factor (1 - bonus) when a side is empty
+    int max_depth = 0;
+};
+
+enum class BvhBuilder {
+    SweepSah,   // seed 002: full sweep over centroids sorted on each axis
+    BinnedSah,  // Wald 2007: binned SAH, parallel over oneTBB when available
+};
+
+struct BvhOptions {
+    BvhBuilder builder = BvhBuilder::BinnedSah;
+    int max_leaf_size = 4;
+    int bins = 32;
+};
+
 struct BuildOptions {
     TriangleTest triangle_test = TriangleTest::MollerTrumbore;
+    GridOptions grid;
+    OctreeOptions octree;
+    KdTreeOptions kdtree;
+    BvhOptions bvh;
 };
 
 // Statistics of a built structure (seed 003's counts; every field a structure does not have stays 0).

@@ -1,1 +1,179 @@
-// placeholder: being written
+// Tiles of pixels over oneTBB threads. Each pixel's colour depends on its own ray alone, and the one
+// image-wide quantity (the depth range) is taken after every tile is done, so the image is the same bit for
+// bit whatever the thread count, the tile size and the order tiles finish in.
+#include "lancer/render.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "lancer/camera.hpp"
+#include "render/progress.hpp"
+#include "render/scene_intersector.hpp"
+
+namespace lancer {
+namespace {
+
+void check_options(const Camera& camera, const RenderOptions& options) {
+    if (camera.width <= 0 || camera.height <= 0) {
+        throw std::invalid_argument("render: image size " + std::to_string(camera.width) + "x" +
+                                    std::to_string(camera.height) + " is not positive");
+    }
+    if (options.tile_size <= 0) {
+        throw std::invalid_argument("render: tile size " + std::to_string(options.tile_size) +
+                                    " is not positive");
+    }
+    if (options.threads < 0) {
+        throw std::invalid_argument("render: thread count " + std::to_string(options.threads) +
+                                    " is negative (0 means all hardware threads)");
+    }
+}
+
+// A headlight at the eye: the facet's cosine with the view, whichever side is seen (the paper's Figure 5).
+Vec3f flat_color(const SurfacePoint& surface, const Ray& ray) {
+    return surface.color * std::fabs(dot(surface.shading_normal, normalize(ray.direction)));
+}
+
+// The side the ray arrives on is decided by the geometric normal and the shading normal follows it: near a
+// silhouette an interpolated normal can point away from the viewer although its facet faces him, and
+// flipping it alone would paint the back of the surface there.
+Vec3f normal_color(const SurfacePoint& surface, const Ray& ray) {
+    const bool back_side = dot(surface.geometric_normal, ray.direction) > 0.0f;
+    const Vec3f normal = back_side ? -surface.shading_normal : surface.shading_normal;
+    return normal * 0.5f + Vec3f(0.5f);
+}
+
+// White at the nearest hit of the image, black at the farthest and on misses.
+void depth_to_image(const std::vector<float>& depth, Image& image) {
+    float t_min = kInfinity, t_max = -kInfinity;
+    for (float t : depth) {
+        if (t == kInfinity) continue;
+        t_min = std::min(t_min, t);
+        t_max = std::max(t_max, t);
+    }
+    const float range = t_max - t_min;
+    for (std::size_t i = 0; i < depth.size(); ++i) {
+        if (depth[i] == kInfinity) {
+            image.pixels[i] = Vec3f(0.0f);
+        } else {
+            // Every hit at one distance: all of them are the nearest.
+            image.pixels[i] = Vec3f(range > 0.0f ? 1.0f - (depth[i] - t_min) / range : 1.0f);
+        }
+    }
+}
+
+class TileRenderer {
+  public:
+    TileRenderer(const Scene& scene, const SceneIntersector& intersector, const PinholeCamera& camera,
+                 ShadingMode mode, int tile_size, Image& image, std::vector<float>& depth)
+        : scene_(scene),
+          intersector_(intersector),
+          camera_(camera),
+          mode_(mode),
+          tile_size_(tile_size),
+          tile_columns_((image.width + tile_size - 1) / tile_size),
+          tile_rows_((image.height + tile_size - 1) / tile_size),
+          image_(image),
+          depth_(depth) {}
+
+    [[nodiscard]] std::size_t tile_count() const {
+        return static_cast<std::size_t>(tile_columns_) * static_cast<std::size_t>(tile_rows_);
+    }
+
+    // One batch of primary rays through the pixel centres of tile `tile` (row-major over the tile grid).
+    void render(std::size_t tile) const {
+        const int x0 = static_cast<int>(tile % static_cast<std::size_t>(tile_columns_)) * tile_size_;
+        const int y0 = static_cast<int>(tile / static_cast<std::size_t>(tile_columns_)) * tile_size_;
+        const int x1 = std::min(x0 + tile_size_, image_.width);
+        const int y1 = std::min(y0 + tile_size_, image_.height);
+
+        std::vector<Ray> rays;
+        rays.reserve(static_cast<std::size_t>(x1 - x0) * static_cast<std::size_t>(y1 - y0));
+        for (int y = y0; y < y1; ++y) {
+            for (int x = x0; x < x1; ++x) {
+                rays.push_back(camera_.generate(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f));
+            }
+        }
+        std::vector<Hit> hits(rays.size());
+        intersector_.intersect(rays, hits);
+
+        std::size_t k = 0;
+        for (int y = y0; y < y1; ++y) {
+            for (int x = x0; x < x1; ++x, ++k) {
+                shade(x, y, rays[k], hits[k]);
+            }
+        }
+    }
+
+  private:
+    void shade(int x, int y, const Ray& ray, const Hit& hit) const {
+        if (mode_ == ShadingMode::Depth) {
+            depth_[static_cast<std::size_t>(y) * static_cast<std::size_t>(image_.width) + x] =
+                hit.hit() ? hit.t : kInfinity;
+            return;
+        }
+        if (!hit.hit()) {
+            image_.at(x, y) = scene_.background;
+            return;
+        }
+        const SurfacePoint surface = intersector_.surface(ray, hit);
+        image_.at(x, y) = mode_ == ShadingMode::Flat ? flat_color(surface, ray) : normal_color(surface, ray);
+    }
+
+    const Scene& scene_;
+    const SceneIntersector& intersector_;
+    const PinholeCamera& camera_;
+    ShadingMode mode_;
+    int tile_size_;
+    int tile_columns_;
+    int tile_rows_;
+    Image& image_;
+    std::vector<float>& depth_;  // hit distance per pixel, infinity on a miss; Depth mode only
+};
+
+}  // namespace
+
+Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel, const Camera& camera,
+             const RenderOptions& options, RenderStats* stats) {
+    const auto start = std::chrono::steady_clock::now();
+    check_options(camera, options);
+    const SceneIntersector intersector(scene, geometry, accel);
+    const PinholeCamera pinhole(camera);
+
+    Image image(camera.width, camera.height);
+    std::vector<float> depth;
+    if (options.mode == ShadingMode::Depth) depth.resize(image.pixels.size());
+    // A tile larger than the image is the image; the clamp also keeps the tile arithmetic within an int.
+    const int tile_size = std::min(options.tile_size, std::max(image.width, image.height));
+    const TileRenderer tiles(scene, intersector, pinhole, options.mode, tile_size, image, depth);
+
+    ProgressReporter progress("render", tiles.tile_count(), "tiles", options.progress);
+    tbb::task_arena arena(options.threads == 0 ? tbb::task_arena::automatic : options.threads);
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles.tile_count(), 1),
+                          [&](const tbb::blocked_range<std::size_t>& range) {
+                              for (std::size_t tile = range.begin(); tile != range.end(); ++tile) {
+                                  tiles.render(tile);
+                                  progress.advance();
+                              }
+                          });
+    });
+    progress.finish();
+    if (options.mode == ShadingMode::Depth) depth_to_image(depth, image);
+
+    if (stats != nullptr) {
+        stats->primary_rays = image.pixels.size();
+        stats->trace_ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    }
+    return image;
+}
+
+}  // namespace lancer
