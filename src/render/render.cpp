@@ -38,7 +38,7 @@ void check_options(const Camera& camera, const RenderOptions& options) {
 
 // A headlight at the eye: the facet's cosine with the view, whichever side is seen (the paper's Figure 5).
 Vec3f flat_color(const SurfacePoint& surface, const Ray& ray) {
-    return surface.color * std::fabs(dot(surface.shading_normal, normalize(ray.direction)));
+    return surface.color * std::fabs(dot(surface.geometric_normal, normalize(ray.direction)));
 }
 
 // The side the ray arrives on is decided by the geometric normal and the shading normal follows it: near a

@@ -1,1 +1,127 @@
-// placeholder: being written
+// Every other format (PLY ascii and binary, OBJ, STL, glTF, ...) through assimp. Only aiProcess_Triangulate
+// and the structure check run: JoinIdenticalVertices, SortByPType, OptimizeMeshes and PreTransformVertices
+// would merge or reorder faces, and triangle numbers must follow the file. Each mesh that a node of the
+// scene graph places becomes one TriangleMesh, in depth-first node order, its vertices moved by the node's
+// transform; its polygons come out as triangles in face order and its points and lines are dropped.
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <assimp/Importer.hpp>
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "lancer/io.hpp"
+#include "scene/loaders.hpp"
+#include "scene/text_reader.hpp"
+
+namespace lancer {
+
+namespace {
+
+Vec3f to_vec3(const aiVector3D& v) { return {v.x, v.y, v.z}; }
+
+Material convert_material(const aiMaterial& source) {
+    Material material;
+    aiColor3D diffuse;
+    if (source.Get(AI_MATKEY_COLOR_DIFFUSE, diffuse) == aiReturn_SUCCESS) {
+        const Vec3f color{diffuse.r, diffuse.g, diffuse.b};
+        if (is_finite(color)) material.color = color;
+    }
+    return material;
+}
+
+class AssimpConverter {
+public:
+    AssimpConverter(const std::filesystem::path& file, const aiScene& source) : file_(file), source_(source) {}
+
+    Scene convert() && {
+        for (unsigned i = 0; i < source_.mNumMaterials; ++i) scene_.materials.push_back(convert_material(*source_.mMaterials[i]));
+        if (source_.mRootNode != nullptr) convert_nodes();
+        return std::move(scene_);
+    }
+
+private:
+    // Depth-first, children in order, with an explicit stack: a hostile file can nest nodes deeply.
+    void convert_nodes() {
+        std::vector<std::pair<const aiNode*, aiMatrix4x4>> stack{{source_.mRootNode, source_.mRootNode->mTransformation}};
+        while (!stack.empty()) {
+            const auto [node, transform] = stack.back();
+            stack.pop_back();
+            for (unsigned i = 0; i < node->mNumMeshes; ++i) {
+                const unsigned mesh = node->mMeshes[i];
+                if (mesh >= source_.mNumMeshes) fail("a node refers to mesh " + std::to_string(mesh) + " of " + std::to_string(source_.mNumMeshes));
+                convert_mesh(*source_.mMeshes[mesh], transform);
+            }
+            for (unsigned i = node->mNumChildren; i-- > 0;) {
+                const aiNode* child = node->mChildren[i];
+                stack.emplace_back(child, transform * child->mTransformation);
+            }
+        }
+    }
+
+    void convert_mesh(const aiMesh& source, const aiMatrix4x4& transform) {
+        TriangleMesh mesh;
+        mesh.name = source.mName.length > 0 ? std::string(source.mName.C_Str()) : file_.stem().string();
+        if (source.mMaterialIndex >= scene_.materials.size()) fail("mesh " + mesh.name + " uses a material that does not exist");
+        mesh.material = source.mMaterialIndex;
+
+        const bool moved = !transform.IsIdentity();
+        mesh.positions.reserve(source.mNumVertices);
+        for (unsigned i = 0; i < source.mNumVertices; ++i) {
+            const Vec3f position = to_vec3(moved ? transform * source.mVertices[i] : source.mVertices[i]);
+            if (!is_finite(position)) fail("mesh " + mesh.name + ": vertex " + std::to_string(i) + " is not a finite point");
+            mesh.positions.push_back(position);
+        }
+        if (source.HasNormals()) convert_normals(source, transform, mesh);
+
+        mesh.indices.reserve(3 * static_cast<std::size_t>(source.mNumFaces));
+        for (unsigned f = 0; f < source.mNumFaces; ++f) {
+            const aiFace& face = source.mFaces[f];
+            if (face.mNumIndices != 3) continue;  // points and lines; polygons were triangulated
+            for (unsigned k = 0; k < 3; ++k) {
+                if (face.mIndices[k] >= source.mNumVertices) fail("mesh " + mesh.name + ": face " + std::to_string(f) + " index out of range");
+                mesh.indices.push_back(face.mIndices[k]);
+            }
+        }
+        if (mesh.triangle_count() > 0) scene_.meshes.push_back(std::move(mesh));
+    }
+
+    // Normals move with the inverse transpose of the node transform. A mesh with one unusable normal (zero or
+    // not finite) keeps none: flat shading beats a black or NaN spot.
+    static void convert_normals(const aiMesh& source, const aiMatrix4x4& transform, TriangleMesh& mesh) {
+        aiMatrix3x3 normal_transform(transform);
+        normal_transform.Inverse().Transpose();
+        mesh.normals.reserve(source.mNumVertices);
+        for (unsigned i = 0; i < source.mNumVertices; ++i) {
+            const Vec3f normal = to_vec3(normal_transform * source.mNormals[i]);
+            const float norm = length(normal);
+            if (!(norm > 0.0f && std::isfinite(norm))) {
+                mesh.normals.clear();
+                return;
+            }
+            mesh.normals.push_back(normal / norm);
+        }
+    }
+
+    [[noreturn]] void fail(const std::string& message) const { throw LoadError(file_, 0, message); }
+
+    const std::filesystem::path& file_;
+    const aiScene& source_;
+    Scene scene_;
+};
+
+}  // namespace
+
+Scene load_with_assimp(const std::filesystem::path& file) {
+    // assimp's own message for a missing file is vaguer than ours.
+    check_readable(file);
+    Assimp::Importer importer;
+    const aiScene* source = importer.ReadFile(file.string(), aiProcess_Triangulate | aiProcess_ValidateDataStructure);
+    if (source == nullptr) throw LoadError(file, 0, std::string("assimp: ") + importer.GetErrorString());
+    if ((source->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0) throw LoadError(file, 0, "assimp: the scene is incomplete");
+    return AssimpConverter(file, *source).convert();
+}
+
+}  // namespace lancer
