@@ -68,6 +68,13 @@ struct BuildOptions {
     BvhOptions bvh;
 };
 
+// Defaults with the given triangle test (brace-initialising the aggregate would leave the rest to -Wextra).
+[[nodiscard]] inline BuildOptions build_options(TriangleTest test) {
+    BuildOptions options;
+    options.triangle_test = test;
+    return options;
+}
+
 // Statistics of a built structure (seed 003's counts; every field a structure does not have stays 0).
 struct AccelStats {
     double build_ms = 0.0;

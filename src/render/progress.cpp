@@ -45,6 +45,7 @@ ProgressReporter::~ProgressReporter() {
 }
 
 void ProgressReporter::advance(std::uint64_t units) {
+    if (!enabled_) return;
     done_.fetch_add(units, std::memory_order_relaxed);
     const Clock::time_point now = Clock::now();
     if (now.time_since_epoch().count() < next_print_.load(std::memory_order_relaxed)) return;

@@ -20,7 +20,9 @@ namespace lancer {
 
 namespace {
 
-Vec3f to_vec3(const aiVector3D& v) { return {v.x, v.y, v.z}; }
+Vec3f to_vec3(const aiVector3D& v) {
+    return {v.x, v.y, v.z};
+}
 
 Material convert_material(const aiMaterial& source) {
     Material material;
@@ -33,25 +35,30 @@ Material convert_material(const aiMaterial& source) {
 }
 
 class AssimpConverter {
-public:
-    AssimpConverter(const std::filesystem::path& file, const aiScene& source) : file_(file), source_(source) {}
+  public:
+    AssimpConverter(const std::filesystem::path& file, const aiScene& source)
+        : file_(file), source_(source) {}
 
     Scene convert() && {
-        for (unsigned i = 0; i < source_.mNumMaterials; ++i) scene_.materials.push_back(convert_material(*source_.mMaterials[i]));
+        for (unsigned i = 0; i < source_.mNumMaterials; ++i)
+            scene_.materials.push_back(convert_material(*source_.mMaterials[i]));
         if (source_.mRootNode != nullptr) convert_nodes();
         return std::move(scene_);
     }
 
-private:
+  private:
     // Depth-first, children in order, with an explicit stack: a hostile file can nest nodes deeply.
     void convert_nodes() {
-        std::vector<std::pair<const aiNode*, aiMatrix4x4>> stack{{source_.mRootNode, source_.mRootNode->mTransformation}};
+        std::vector<std::pair<const aiNode*, aiMatrix4x4>> stack{
+            {source_.mRootNode, source_.mRootNode->mTransformation}};
         while (!stack.empty()) {
             const auto [node, transform] = stack.back();
             stack.pop_back();
             for (unsigned i = 0; i < node->mNumMeshes; ++i) {
                 const unsigned mesh = node->mMeshes[i];
-                if (mesh >= source_.mNumMeshes) fail("a node refers to mesh " + std::to_string(mesh) + " of " + std::to_string(source_.mNumMeshes));
+                if (mesh >= source_.mNumMeshes)
+                    fail("a node refers to mesh " + std::to_string(mesh) + " of " +
+                         std::to_string(source_.mNumMeshes));
                 convert_mesh(*source_.mMeshes[mesh], transform);
             }
             for (unsigned i = node->mNumChildren; i-- > 0;) {
@@ -64,14 +71,16 @@ private:
     void convert_mesh(const aiMesh& source, const aiMatrix4x4& transform) {
         TriangleMesh mesh;
         mesh.name = source.mName.length > 0 ? std::string(source.mName.C_Str()) : file_.stem().string();
-        if (source.mMaterialIndex >= scene_.materials.size()) fail("mesh " + mesh.name + " uses a material that does not exist");
+        if (source.mMaterialIndex >= scene_.materials.size())
+            fail("mesh " + mesh.name + " uses a material that does not exist");
         mesh.material = source.mMaterialIndex;
 
         const bool moved = !transform.IsIdentity();
         mesh.positions.reserve(source.mNumVertices);
         for (unsigned i = 0; i < source.mNumVertices; ++i) {
             const Vec3f position = to_vec3(moved ? transform * source.mVertices[i] : source.mVertices[i]);
-            if (!is_finite(position)) fail("mesh " + mesh.name + ": vertex " + std::to_string(i) + " is not a finite point");
+            if (!is_finite(position))
+                fail("mesh " + mesh.name + ": vertex " + std::to_string(i) + " is not a finite point");
             mesh.positions.push_back(position);
         }
         if (source.HasNormals()) convert_normals(source, transform, mesh);
@@ -81,7 +90,8 @@ private:
             const aiFace& face = source.mFaces[f];
             if (face.mNumIndices != 3) continue;  // points and lines; polygons were triangulated
             for (unsigned k = 0; k < 3; ++k) {
-                if (face.mIndices[k] >= source.mNumVertices) fail("mesh " + mesh.name + ": face " + std::to_string(f) + " index out of range");
+                if (face.mIndices[k] >= source.mNumVertices)
+                    fail("mesh " + mesh.name + ": face " + std::to_string(f) + " index out of range");
                 mesh.indices.push_back(face.mIndices[k]);
             }
         }
@@ -118,9 +128,11 @@ Scene load_with_assimp(const std::filesystem::path& file) {
     // assimp's own message for a missing file is vaguer than ours.
     check_readable(file);
     Assimp::Importer importer;
-    const aiScene* source = importer.ReadFile(file.string(), aiProcess_Triangulate | aiProcess_ValidateDataStructure);
+    const aiScene* source =
+        importer.ReadFile(file.string(), aiProcess_Triangulate | aiProcess_ValidateDataStructure);
     if (source == nullptr) throw LoadError(file, 0, std::string("assimp: ") + importer.GetErrorString());
-    if ((source->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0) throw LoadError(file, 0, "assimp: the scene is incomplete");
+    if ((source->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0)
+        throw LoadError(file, 0, "assimp: the scene is incomplete");
     return AssimpConverter(file, *source).convert();
 }
 

@@ -32,8 +32,8 @@ int read_image_side(TextReader& reader, std::string_view what) {
     Token token;
     const std::int64_t side = reader.read_integer(what, &token);
     if (side < 1 || side > max_image_side) {
-        reader.fail(token.line, "expected " + std::string(what) + " between 1 and " + std::to_string(max_image_side) +
-                                    ", got " + quote_token(token.text));
+        reader.fail(token.line, "expected " + std::string(what) + " between 1 and " +
+                                    std::to_string(max_image_side) + ", got " + quote_token(token.text));
     }
     return static_cast<int>(side);
 }
@@ -68,8 +68,8 @@ Scene load_dsc(const std::filesystem::path& file) {
     const std::uint64_t light_count = reader.read_count("a light count", &light_count_token);
     const std::size_t budget = reader.byte_budget();
     reader.check_fits(material_count, min_material_chars, budget, material_count_token, "materials");
-    reader.check_fits(light_count, min_light_chars, budget - material_count * min_material_chars, light_count_token,
-                      "lights");
+    reader.check_fits(light_count, min_light_chars, budget - material_count * min_material_chars,
+                      light_count_token, "lights");
 
     Scene scene;
     scene.materials.reserve(material_count);
@@ -114,7 +114,8 @@ Scene load_dsc(const std::filesystem::path& file) {
     std::filesystem::path off_file = file;
     off_file.replace_extension(".off");
     if (!std::filesystem::exists(off_file)) {
-        throw LoadError(file, 0, "cannot find the mesh " + off_file.string() + " that this scene description goes with");
+        throw LoadError(
+            file, 0, "cannot find the mesh " + off_file.string() + " that this scene description goes with");
     }
     OffMesh off = read_off(off_file);
     if (off.face_count != triangle_count) {
@@ -124,11 +125,13 @@ Scene load_dsc(const std::filesystem::path& file) {
     }
     TriangleMesh& mesh = off.mesh;
     mesh.material_ids.reserve(mesh.triangle_count());
-    for (const std::uint32_t face : off.face_of_triangle) mesh.material_ids.push_back(face_materials[face]);
+    for (const std::uint32_t face : off.face_of_triangle)
+        mesh.material_ids.push_back(face_materials[face]);
 
     // VIEWS.md frames the box over all the vertices of the file, used or not.
     Box3f bounds;
-    for (const Vec3f& position : mesh.positions) bounds.extend(position);
+    for (const Vec3f& position : mesh.positions)
+        bounds.extend(position);
     if (!bounds.empty()) scene.camera = canonical_view(bounds, width, height);
     scene.meshes.push_back(std::move(mesh));
     return scene;

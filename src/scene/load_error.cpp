@@ -10,8 +10,8 @@ namespace {
 // the error is not tied to a line.
 std::string located_message(const std::filesystem::path& file, std::size_t line, const std::string& message) {
     std::string text = file.string();
-    if (line > 0) text += ":" + std::to_string(line);
-    return text + ": " + message;
+    if (line > 0) text.append(":").append(std::to_string(line));
+    return text.append(": ").append(message);
 }
 
 }  // namespace

@@ -40,8 +40,10 @@ Vec3f normalized_or_zero(Vec3f v) {
 }
 
 class NffReader {
-public:
-    explicit NffReader(const std::filesystem::path& file) : reader_(file) { mesh_.name = file.stem().string(); }
+  public:
+    explicit NffReader(const std::filesystem::path& file) : reader_(file) {
+        mesh_.name = file.stem().string();
+    }
 
     Scene read() {
         while (const std::optional<Token> token = reader_.next()) {
@@ -63,7 +65,8 @@ public:
             } else if (keyword == "v") {
                 read_view(*token);
             } else {
-                reader_.fail(token->line, "expected a keyword (v, b, l, f, c, s, p or pp), got " + quote_token(keyword));
+                reader_.fail(token->line,
+                             "expected a keyword (v, b, l, f, c, s, p or pp), got " + quote_token(keyword));
             }
         }
         if (!has_shading_normals_) mesh_.normals.clear();
@@ -71,7 +74,7 @@ public:
         return std::move(scene_);
     }
 
-private:
+  private:
     int read_image_side(std::string_view what) {
         Token token;
         const std::int64_t side = reader_.read_integer(what, &token);
@@ -96,7 +99,8 @@ private:
         Token angle;
         camera.vertical_fov_degrees = reader_.read_float("a field of view in degrees after 'angle'", &angle);
         if (!(camera.vertical_fov_degrees > 0.0f && camera.vertical_fov_degrees < 180.0f)) {
-            reader_.fail(angle.line, "expected a field of view between 0 and 180 degrees, got " + quote_token(angle.text));
+            reader_.fail(angle.line, "expected a field of view between 0 and 180 degrees, got " +
+                                         quote_token(angle.text));
         }
         reader_.expect_keyword("hither");
         (void)reader_.read_float("a near distance after 'hither'");
@@ -173,7 +177,8 @@ private:
         Token count_token;
         const std::uint64_t count = reader_.read_count("a polygon vertex count", &count_token);
         if (count < 3) {
-            reader_.fail(count_token.line, "expected a polygon of at least 3 vertices, got " + std::to_string(count));
+            reader_.fail(count_token.line,
+                         "expected a polygon of at least 3 vertices, got " + std::to_string(count));
         }
         reader_.check_fits(count, with_normals ? min_patch_vertex_chars : min_polygon_vertex_chars,
                            reader_.byte_budget(), count_token, "polygon vertices");
@@ -201,7 +206,8 @@ private:
         triangles_.clear();
         triangulate_polygon(polygon_, triangles_);
         for (std::size_t i = 0; i < triangles_.size(); i += 3) {
-            add_triangle(first + triangles_[i], first + triangles_[i + 1], first + triangles_[i + 2], material);
+            add_triangle(first + triangles_[i], first + triangles_[i + 1], first + triangles_[i + 2],
+                         material);
         }
     }
 
@@ -218,7 +224,8 @@ private:
         if (outside == inside) {
             // Both radii zero, or of opposite signs.
             reader_.fail(base_token.line, "expected cone radii of one sign, not both zero, got " +
-                                              std::to_string(base_radius) + " and " + std::to_string(apex_radius));
+                                              std::to_string(base_radius) + " and " +
+                                              std::to_string(apex_radius));
         }
         tessellate_cone(base, std::fabs(base_radius), apex, std::fabs(apex_radius), inside, base_token);
     }
@@ -241,8 +248,8 @@ private:
             const Vec3f center = ring == 0 ? base : apex;
             const float radius = ring == 0 ? base_radius : apex_radius;
             for (std::uint32_t i = 0; i < cone_segments; ++i) {
-                const float angle =
-                    2.0f * std::numbers::pi_v<float> * static_cast<float>(i) / static_cast<float>(cone_segments);
+                const float angle = 2.0f * std::numbers::pi_v<float> * static_cast<float>(i) /
+                                    static_cast<float>(cone_segments);
                 const Vec3f radial = std::cos(angle) * u + std::sin(angle) * v;
                 mesh_.positions.push_back(center + radius * radial);
                 // Perpendicular to the generator (apex_radius - base_radius) radial + height w.
@@ -257,14 +264,19 @@ private:
             const std::uint32_t j = (i + 1) % cone_segments;
             const std::uint32_t b0 = first + i, b1 = first + j;
             const std::uint32_t a0 = first + cone_segments + i, a1 = first + cone_segments + j;
-            // Seen from outside, b0 b1 a1 and b0 a1 a0 run counter-clockwise; inside-visible cones reverse them.
+            // Seen from outside, b0 b1 a1 and b0 a1 a0 run counter-clockwise; inside-visible cones reverse
+            // them.
             if (base_radius > 0.0f) {
-                if (inside) add_triangle(b0, a1, b1, material);
-                else add_triangle(b0, b1, a1, material);
+                if (inside)
+                    add_triangle(b0, a1, b1, material);
+                else
+                    add_triangle(b0, b1, a1, material);
             }
             if (apex_radius > 0.0f) {
-                if (inside) add_triangle(b0, a0, a1, material);
-                else add_triangle(b0, a1, a0, material);
+                if (inside)
+                    add_triangle(b0, a0, a1, material);
+                else
+                    add_triangle(b0, a1, a0, material);
             }
         }
     }
@@ -282,6 +294,8 @@ private:
 
 }  // namespace
 
-Scene load_nff(const std::filesystem::path& file) { return NffReader(file).read(); }
+Scene load_nff(const std::filesystem::path& file) {
+    return NffReader(file).read();
+}
 
 }  // namespace lancer

@@ -31,8 +31,8 @@ std::string records_message(std::uint64_t expected, std::string_view plural_what
 }
 
 // The values of one record must sit on the line the record starts on.
-void expect_on_line(TextReader& reader, const Token& start, std::uint64_t expected, std::string_view plural_what,
-                    std::uint64_t got) {
+void expect_on_line(TextReader& reader, const Token& start, std::uint64_t expected,
+                    std::string_view plural_what, std::uint64_t got) {
     if (!reader.line_has_more_tokens()) {
         reader.fail(start.line, "expected " + records_message(expected, plural_what, got));
     }
@@ -69,7 +69,8 @@ OffMesh read_off(const std::filesystem::path& file) {
         if (!start) reader.fail_at_end(records_message(vertex_count, "vertices", vertex));
         Vec3f position;
         for (int axis = 0; axis < 3; ++axis) {
-            if (axis > 0) expect_on_line(reader, *start, 3, "vertex coordinates", static_cast<std::uint64_t>(axis));
+            if (axis > 0)
+                expect_on_line(reader, *start, 3, "vertex coordinates", static_cast<std::uint64_t>(axis));
             position[axis] = reader.read_float("3 vertex coordinates");
         }
         mesh.positions.push_back(position);
@@ -85,7 +86,8 @@ OffMesh read_off(const std::filesystem::path& file) {
         Token size_token;
         const std::uint64_t size = reader.read_count("a face vertex count", &size_token);
         if (size < 3) {
-            reader.fail(size_token.line, "expected a face of at least 3 vertices, got " + std::to_string(size));
+            reader.fail(size_token.line,
+                        "expected a face of at least 3 vertices, got " + std::to_string(size));
         }
         reader.check_fits(size, min_index_chars, reader.byte_budget(), size_token, "face vertices");
         polygon.clear();

@@ -14,7 +14,9 @@ struct Point2 {
 };
 
 // Twice the signed area of (a, b, c): positive when the three turn counter-clockwise.
-double orientation(Point2 a, Point2 b, Point2 c) { return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x); }
+double orientation(Point2 a, Point2 b, Point2 c) {
+    return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+}
 
 bool inside_or_on(Point2 p, Point2 a, Point2 b, Point2 c) {
     return orientation(a, b, p) >= 0.0 && orientation(b, c, p) >= 0.0 && orientation(c, a, p) >= 0.0;
@@ -41,7 +43,8 @@ std::vector<Point2> project(std::span<const Vec3f> polygon) {
     if (normal[axis] < 0.0f) std::swap(u, v);
     std::vector<Point2> points;
     points.reserve(polygon.size());
-    for (const Vec3f& p : polygon) points.push_back({p[u], p[v]});
+    for (const Vec3f& p : polygon)
+        points.push_back({p[u], p[v]});
     return points;
 }
 
@@ -59,7 +62,8 @@ bool is_convex(const std::vector<Point2>& points) {
 void clip_ears(const std::vector<Point2>& points, std::vector<std::uint32_t>& triangles) {
     const auto n = static_cast<std::uint32_t>(points.size());
     std::vector<std::uint32_t> prev(n), next(n);
-    for (std::uint32_t i = 0; i < n; ++i) prev[i] = (i + n - 1) % n, next[i] = (i + 1) % n;
+    for (std::uint32_t i = 0; i < n; ++i)
+        prev[i] = (i + n - 1) % n, next[i] = (i + 1) % n;
 
     const auto is_ear = [&](std::uint32_t corner) {
         const std::uint32_t a = prev[corner], c = next[corner];
@@ -115,7 +119,8 @@ void triangulate_polygon(std::span<const Vec3f> polygon, std::vector<std::uint32
         clip_ears(points, triangles);
         return;
     }
-    for (std::uint32_t k = 1; k + 1 < n; ++k) triangles.insert(triangles.end(), {0u, k, k + 1});
+    for (std::uint32_t k = 1; k + 1 < n; ++k)
+        triangles.insert(triangles.end(), {0u, k, k + 1});
 }
 
 }  // namespace lancer

@@ -76,7 +76,7 @@ TEST(Brute, HitsLieOnTheirTriangleInsideTheRayInterval) {
         triangles.push_back(mesh.triangle(i));
     for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
         BruteAccel brute;
-        brute.build({triangles, {}}, BuildOptions{.triangle_test = test});
+        brute.build({triangles, {}}, build_options(test));
         const Box3f bounds = Geometry{triangles, {}}.bounds();
         std::size_t checked = 0;
         for (const auto& set :

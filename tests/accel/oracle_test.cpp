@@ -108,7 +108,7 @@ const std::vector<Hit>& oracle_hits(std::size_t scene_index, std::size_t set_ind
     auto [it, inserted] = cache.try_emplace({scene_index, set_index, test});
     if (inserted) {
         BruteAccel brute;
-        brute.build(scenes()[scene_index].geometry(), BuildOptions{.triangle_test = test});
+        brute.build(scenes()[scene_index].geometry(), build_options(test));
         it->second.resize(set.rays.size());
         brute.intersect(set.rays, it->second);
     }
@@ -122,7 +122,7 @@ TEST_P(OracleTest, AgreesWithBruteForceOnEveryRay) {
         for (std::size_t scene_index = 0; scene_index < scenes().size(); ++scene_index) {
             const TestScene& scene = scenes()[scene_index];
             const std::unique_ptr<Accel> accel = make_accel(GetParam());
-            accel->build(scene.geometry(), BuildOptions{.triangle_test = test});
+            accel->build(scene.geometry(), build_options(test));
             const std::vector<testing::RaySet> sets = ray_sets(scene);
             for (std::size_t set_index = 0; set_index < sets.size(); ++set_index) {
                 const testing::RaySet& set = sets[set_index];

@@ -48,7 +48,7 @@ LeakCount count_leaks(const TriangleMesh& mesh, const std::vector<Vec3f>& origin
     for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
         triangles.push_back(mesh.triangle(i));
     BruteAccel brute;
-    brute.build({triangles, {}}, BuildOptions{.triangle_test = test});
+    brute.build({triangles, {}}, build_options(test));
     std::vector<Ray> rays;
     for (const Vec3f& origin : origins) {
         for (const Vec3f& target : targets)
