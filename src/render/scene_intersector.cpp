@@ -1,0 +1,143 @@
+#include "render/scene_intersector.hpp"
+
+#include <cassert>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "core/intersect.hpp"
+
+namespace lancer {
+namespace {
+
+void check_material(const Scene& scene, std::uint32_t material, const char* owner) {
+    if (material >= scene.materials.size()) {
+        throw std::invalid_argument(std::string("render: ") + owner + " uses material " +
+                                    std::to_string(material) + " but the scene has " +
+                                    std::to_string(scene.materials.size()));
+    }
+}
+
+void check_scene(const Scene& scene, const SceneGeometry& geometry) {
+    const Geometry view = geometry.view();
+    if (view.triangles.size() != scene.triangle_count() || view.spheres.size() != scene.spheres.size()) {
+        throw std::invalid_argument("render: the scene geometry was not made from this scene");
+    }
+    if (view.size() + scene.planes.size() >
+        static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+        throw std::invalid_argument("render: more primitives than a hit's 32-bit id can number");
+    }
+    for (const TriangleMesh& mesh : scene.meshes) {
+        check_material(scene, mesh.material, "a mesh");
+        for (std::uint32_t material : mesh.material_ids)
+            check_material(scene, material, "a triangle");
+        if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size()) {
+            throw std::invalid_argument("render: mesh '" + mesh.name + "' has " +
+                                        std::to_string(mesh.normals.size()) + " normals for " +
+                                        std::to_string(mesh.positions.size()) + " positions");
+        }
+    }
+    for (const Sphere& sphere : scene.spheres)
+        check_material(scene, sphere.material, "a sphere");
+    for (const Plane& plane : scene.planes)
+        check_material(scene, plane.material, "a plane");
+}
+
+// The unit grid of the two world axes other than the normal's dominant one: an axis-aligned plane gets unit
+// squares in its own coordinates, a tilted one their projection. Even cells keep the colour, odd cells get a
+// quarter of it. fmod keeps the parity exact for coordinates far beyond the range of an integer.
+Vec3f checker_color(const Plane& plane, Vec3f position, Vec3f color) {
+    const int normal_axis = max_axis(abs(plane.normal));
+    const float cell_a = std::floor(position[(normal_axis + 1) % 3]);
+    const float cell_b = std::floor(position[(normal_axis + 2) % 3]);
+    const bool odd = std::fabs(std::fmod(cell_a, 2.0f)) != std::fabs(std::fmod(cell_b, 2.0f));
+    return odd ? 0.25f * color : color;
+}
+
+}  // namespace
+
+SceneIntersector::SceneIntersector(const Scene& scene, const SceneGeometry& geometry, const Accel& accel)
+    : scene_(scene), geometry_(geometry), view_(geometry.view()), accel_(accel), first_plane_id_(0) {
+    check_scene(scene, geometry);
+    first_plane_id_ = static_cast<std::int32_t>(view_.size());
+}
+
+void SceneIntersector::intersect(std::span<const Ray> rays, std::span<Hit> hits) const {
+    assert(rays.size() == hits.size());
+    accel_.intersect(rays, hits);
+    if (scene_.planes.empty()) return;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        const Ray& ray = rays[i];
+        if (!is_valid(ray)) continue;
+        Hit& best = hits[i];
+        for (std::size_t p = 0; p < scene_.planes.size(); ++p) {
+            const auto id = first_plane_id_ + static_cast<std::int32_t>(p);
+            float t;
+            if (intersect_plane(ray, scene_.planes[p], ray.tnear, best.hit() ? best.t : ray.tfar, t) &&
+                closer(t, id, best)) {
+                best = {t, id, 0.0f, 0.0f};
+            }
+        }
+    }
+}
+
+SurfacePoint SceneIntersector::surface(const Ray& ray, const Hit& hit) const {
+    assert(hit.hit());
+    const auto prim = static_cast<std::size_t>(hit.prim);
+    if (prim < view_.triangles.size()) return triangle_surface(prim, hit);
+    if (prim < view_.size()) return sphere_surface(prim - view_.triangles.size(), ray, hit);
+    return plane_surface(prim - view_.size(), ray, hit);
+}
+
+SurfacePoint SceneIntersector::triangle_surface(std::size_t index, const Hit& hit) const {
+    const Triangle& tri = view_.triangles[index];
+    const auto [mesh_index, local] = geometry_.locate_triangle(index);
+    const TriangleMesh& mesh = scene_.meshes[mesh_index];
+    const float w = 1.0f - hit.u - hit.v;
+
+    SurfacePoint surface;
+    // From the barycentrics rather than o + t d: the point then lies on the triangle up to rounding, which
+    // secondary rays leaving it will need.
+    surface.position = w * tri.v0 + hit.u * tri.v1 + hit.v * tri.v2;
+    surface.geometric_normal = normalize(tri.geometric_normal());
+    surface.shading_normal = surface.geometric_normal;
+    if (!mesh.normals.empty()) {
+        const Vec3f interpolated = w * mesh.normals[mesh.indices[3 * local]] +
+                                   hit.u * mesh.normals[mesh.indices[3 * local + 1]] +
+                                   hit.v * mesh.normals[mesh.indices[3 * local + 2]];
+        // Opposite vertex normals can cancel out; the facet's own normal is then the only direction left.
+        const float interpolated_length = length(interpolated);
+        if (interpolated_length > 0.0f && std::isfinite(interpolated_length)) {
+            surface.shading_normal = interpolated / interpolated_length;
+        }
+    }
+    surface.material = mesh.material_of(local);
+    surface.color = scene_.materials[surface.material].color;
+    return surface;
+}
+
+SurfacePoint SceneIntersector::sphere_surface(std::size_t index, const Ray& ray, const Hit& hit) const {
+    const Sphere& sphere = view_.spheres[index];
+    SurfacePoint surface;
+    surface.position = ray.origin + hit.t * ray.direction;
+    surface.geometric_normal = (surface.position - sphere.center) / sphere.radius;
+    surface.shading_normal = surface.geometric_normal;
+    surface.material = sphere.material;
+    surface.color = scene_.materials[sphere.material].color;
+    return surface;
+}
+
+SurfacePoint SceneIntersector::plane_surface(std::size_t index, const Ray& ray, const Hit& hit) const {
+    const Plane& plane = scene_.planes[index];
+    SurfacePoint surface;
+    surface.position = ray.origin + hit.t * ray.direction;
+    surface.geometric_normal = plane.normal;
+    surface.shading_normal = plane.normal;
+    surface.material = plane.material;
+    const Vec3f color = scene_.materials[plane.material].color;
+    surface.color = plane.checkered ? checker_color(plane, surface.position, color) : color;
+    return surface;
+}
+
+}  // namespace lancer

@@ -1,0 +1,52 @@
+// Closest hits in the whole scene. The acceleration structure holds the meshes and spheres; the infinite
+// planes, which no structure can bound, are tested beside it one by one. Every integrator goes through this
+// class, for primary and secondary rays alike, so the plane numbering and the surface recovery exist once.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "lancer/accel.hpp"
+#include "lancer/ray.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer {
+
+// What shading needs at a hit. Both normals keep the primitive's own orientation (triangle winding, sphere
+// outside, plane normal): which side the ray arrived on is the integrator's business.
+struct SurfacePoint {
+    Vec3f position;
+    Vec3f geometric_normal;  // unit
+    Vec3f shading_normal;    // unit: the interpolated vertex normal on smooth meshes, else the geometric one
+    std::uint32_t material = 0;
+    Vec3f color;  // the material's colour, checkerboard applied
+};
+
+class SceneIntersector {
+  public:
+    // The three must outlive the intersector. Throws std::invalid_argument when `geometry` was not made from
+    // `scene`, a primitive names a material the scene does not have, or a mesh has neither no normals nor
+    // one per position.
+    SceneIntersector(const Scene& scene, const SceneGeometry& geometry, const Accel& accel);
+
+    // hits[i] = closest hit of rays[i] in [tnear, tfar]; hits.size() == rays.size(). Plane i answers with
+    // prim = geometry.view().size() + i and u = v = 0; at equal t the lower id wins (closer()), so a
+    // bounded primitive beats a plane. Invalid rays miss (is_valid).
+    void intersect(std::span<const Ray> rays, std::span<Hit> hits) const;
+
+    // The surface of `ray`'s hit `hit`, as intersect() returned it (hit.hit() must hold).
+    [[nodiscard]] SurfacePoint surface(const Ray& ray, const Hit& hit) const;
+
+  private:
+    [[nodiscard]] SurfacePoint triangle_surface(std::size_t index, const Hit& hit) const;
+    [[nodiscard]] SurfacePoint sphere_surface(std::size_t index, const Ray& ray, const Hit& hit) const;
+    [[nodiscard]] SurfacePoint plane_surface(std::size_t index, const Ray& ray, const Hit& hit) const;
+
+    const Scene& scene_;
+    const SceneGeometry& geometry_;
+    Geometry view_;
+    const Accel& accel_;
+    std::int32_t first_plane_id_;
+};
+
+}  // namespace lancer

@@ -1,0 +1,324 @@
+// The renderer on a tiny scene built in code, checked against values worked out by hand in double precision
+// (the camera model of shared/bench/VIEWS.md written out again here, not PinholeCamera).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+
+#include "accel/brute.hpp"
+#include "lancer/render.hpp"
+#include "render/print_vec.hpp"
+
+namespace lancer {
+namespace {
+
+struct Vec3d {
+    double x, y, z;
+};
+Vec3d operator-(Vec3d a, Vec3d b) {
+    return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+Vec3d operator+(Vec3d a, Vec3d b) {
+    return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+Vec3d operator*(double s, Vec3d a) {
+    return {s * a.x, s * a.y, s * a.z};
+}
+double dot(Vec3d a, Vec3d b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+Vec3d cross(Vec3d a, Vec3d b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+Vec3d normalize(Vec3d a) {
+    return (1.0 / std::sqrt(dot(a, a))) * a;
+}
+Vec3d to_double(Vec3f a) {
+    return {a.x, a.y, a.z};
+}
+
+// The eye at (0, 0, eye_z) looks down -z with up +y and a 90-degree field, so tan(fov / 2) = 1 and the frame
+// is f = -z, x = +x, y = +y: pixel (i, j) looks along normalize(u, v, -1).
+Camera camera_down_z(float eye_z, int width, int height) {
+    Camera camera;
+    camera.eye = {0.0f, 0.0f, eye_z};
+    camera.look_at = {0.0f, 0.0f, 0.0f};
+    camera.up = {0.0f, 1.0f, 0.0f};
+    camera.vertical_fov_degrees = 90.0f;
+    camera.width = width;
+    camera.height = height;
+    return camera;
+}
+
+Vec3d pixel_direction(const Camera& camera, int i, int j) {
+    const double u = (2.0 * (i + 0.5) / camera.width - 1.0) * camera.width / camera.height;
+    const double v = 1.0 - 2.0 * (j + 0.5) / camera.height;
+    return normalize({u, v, -1.0});
+}
+
+Image render_with_brute(const Scene& scene, const Camera& camera, const RenderOptions& options,
+                        RenderStats* stats = nullptr) {
+    const SceneGeometry geometry(scene);
+    BruteAccel accel;
+    accel.build(geometry.view(), {});
+    return render(scene, geometry, accel, camera, options, stats);
+}
+
+void expect_color_near(Vec3f actual, Vec3d expected, double tolerance = 1e-5) {
+    EXPECT_NEAR(actual.x, expected.x, tolerance);
+    EXPECT_NEAR(actual.y, expected.y, tolerance);
+    EXPECT_NEAR(actual.z, expected.z, tolerance);
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// A tilted triangle on the left, a sphere on the right, a checkered floor below and empty sky above, seen
+// by a 40x30 camera from z = 5 (40x30 so that rows and columns cannot be swapped unnoticed).
+constexpr Vec3d kTriangleA{-6, -1, 0}, kTriangleB{-1, -1, 1}, kTriangleC{-3, 3, -1};
+constexpr Vec3d kSphereCenter{3, 0, -1};
+constexpr double kSphereRadius = 1.5;
+constexpr double kFloorY = -2.0;
+const Vec3f kTriangleColor{0.9f, 0.5f, 0.2f};
+const Vec3f kSphereColor{0.3f, 0.8f, 0.4f};
+const Vec3f kFloorColor{0.2f, 0.6f, 0.9f};
+const Vec3f kBackground{0.1f, 0.2f, 0.3f};
+
+Vec3f to_float(Vec3d a) {
+    return {static_cast<float>(a.x), static_cast<float>(a.y), static_cast<float>(a.z)};
+}
+
+Scene tiny_scene() {
+    Scene scene;
+    TriangleMesh mesh;
+    mesh.positions = {to_float(kTriangleA), to_float(kTriangleB), to_float(kTriangleC)};
+    mesh.indices = {0, 1, 2};
+    mesh.material = 0;
+    scene.meshes.push_back(mesh);
+    scene.spheres.push_back({to_float(kSphereCenter), static_cast<float>(kSphereRadius), 1});
+    scene.planes.push_back({{0.0f, 1.0f, 0.0f}, static_cast<float>(kFloorY), 2, true});
+    scene.materials.resize(3);
+    scene.materials[0].color = kTriangleColor;
+    scene.materials[1].color = kSphereColor;
+    scene.materials[2].color = kFloorColor;
+    scene.background = kBackground;
+    return scene;
+}
+
+Camera tiny_camera() {
+    return camera_down_z(5.0f, 40, 30);
+}
+
+RenderOptions with_mode(ShadingMode mode) {
+    RenderOptions options;
+    options.mode = mode;
+    return options;
+}
+
+constexpr Vec3d kEye{0, 0, 5};
+
+TEST(RenderFlat, TrianglePixelIsColourTimesAbsoluteCosine) {
+    const Image image = render_with_brute(tiny_scene(), tiny_camera(), with_mode(ShadingMode::Flat));
+    const Vec3d normal = normalize(cross(kTriangleB - kTriangleA, kTriangleC - kTriangleA));
+    const double cosine = std::fabs(dot(normal, pixel_direction(tiny_camera(), 10, 13)));
+    ASSERT_GT(cosine, 0.1);
+    ASSERT_LT(cosine, 0.99);  // tilted: a renderer that ignores the angle would fail
+    expect_color_near(image.at(10, 13), cosine * to_double(kTriangleColor));
+}
+
+TEST(RenderFlat, SpherePixelUsesTheRadialNormal) {
+    const Image image = render_with_brute(tiny_scene(), tiny_camera(), with_mode(ShadingMode::Flat));
+    const Vec3d direction = pixel_direction(tiny_camera(), 27, 14);
+    // Nearer root of |eye + t d - c|^2 = r^2.
+    const Vec3d offset = kEye - kSphereCenter;
+    const double half_b = dot(offset, direction);
+    const double t =
+        -half_b - std::sqrt(half_b * half_b - (dot(offset, offset) - kSphereRadius * kSphereRadius));
+    const Vec3d normal = (1.0 / kSphereRadius) * (kEye + t * direction - kSphereCenter);
+    expect_color_near(image.at(27, 14), std::fabs(dot(normal, direction)) * to_double(kSphereColor));
+}
+
+TEST(RenderFlat, MissIsBackground) {
+    const Image image = render_with_brute(tiny_scene(), tiny_camera(), with_mode(ShadingMode::Flat));
+    EXPECT_EQ(image.at(39, 0), kBackground);
+    EXPECT_EQ(image.at(0, 0), kBackground);
+}
+
+TEST(RenderFlat, FloorAlternatesColourAndQuarterColour) {
+    const Image image = render_with_brute(tiny_scene(), tiny_camera(), with_mode(ShadingMode::Flat));
+    // Pixels (20, 29) and (19, 29) land on either side of x = 0, at z ~ 2.93: cells (0, 2) and (-1, 2).
+    for (const auto& [i, parity_even] : {std::pair{20, true}, std::pair{19, false}}) {
+        SCOPED_TRACE(i);
+        const Vec3d direction = pixel_direction(tiny_camera(), i, 29);
+        const Vec3d point = kEye + ((kFloorY - kEye.y) / direction.y) * direction;
+        ASSERT_EQ((static_cast<long>(std::floor(point.x)) + static_cast<long>(std::floor(point.z))) % 2 == 0,
+                  parity_even);
+        const double checker = parity_even ? 1.0 : 0.25;
+        expect_color_near(image.at(i, 29), checker * std::fabs(direction.y) * to_double(kFloorColor));
+    }
+}
+
+TEST(RenderNormal, MissIsBackground) {
+    const Image image = render_with_brute(tiny_scene(), tiny_camera(), with_mode(ShadingMode::Normal));
+    EXPECT_EQ(image.at(39, 0), kBackground);
+}
+
+TEST(RenderNormal, FloorMapsUpToGreen) {
+    const Image image = render_with_brute(tiny_scene(), tiny_camera(), with_mode(ShadingMode::Normal));
+    EXPECT_EQ(image.at(20, 29), Vec3f(0.5f, 1.0f, 0.5f));
+}
+
+// One triangle in the plane z = 0 spanning the view of a 9x9 camera at z = 4.
+Scene facing_triangle_scene(bool counter_clockwise) {
+    Scene scene;
+    TriangleMesh mesh;
+    mesh.positions = {{-10.0f, -10.0f, 0.0f}, {10.0f, -10.0f, 0.0f}, {0.0f, 10.0f, 0.0f}};
+    mesh.indices =
+        counter_clockwise ? std::vector<std::uint32_t>{0, 1, 2} : std::vector<std::uint32_t>{0, 2, 1};
+    scene.meshes.push_back(mesh);
+    scene.materials.resize(1);
+    return scene;
+}
+
+TEST(RenderNormal, AxisAlignedTriangleFacingTheCameraIsBlueish) {
+    const Image image = render_with_brute(facing_triangle_scene(true), camera_down_z(4.0f, 9, 9),
+                                          with_mode(ShadingMode::Normal));
+    EXPECT_EQ(image.at(4, 4), Vec3f(0.5f, 0.5f, 1.0f));
+    EXPECT_EQ(image.at(1, 7), Vec3f(0.5f, 0.5f, 1.0f));
+}
+
+TEST(RenderNormal, BackSideIsFlippedTowardsTheRay) {
+    const Image image = render_with_brute(facing_triangle_scene(false), camera_down_z(4.0f, 9, 9),
+                                          with_mode(ShadingMode::Normal));
+    EXPECT_EQ(image.at(4, 4), Vec3f(0.5f, 0.5f, 1.0f));
+}
+
+TEST(RenderNormal, VertexNormalsAreInterpolatedWithTheBarycentrics) {
+    Scene scene = facing_triangle_scene(true);
+    const Vec3d n0 = normalize({0, 0, 1}), n1 = normalize({1, 0, 1}), n2 = normalize({0, 1, 2});
+    scene.meshes[0].normals = {to_float(n0), to_float(n1), to_float(n2)};
+    const Camera camera = camera_down_z(4.0f, 9, 9);
+    const Image image = render_with_brute(scene, camera, with_mode(ShadingMode::Normal));
+
+    const int i = 5, j = 3;
+    const Vec3d direction = pixel_direction(camera, i, j);
+    const Vec3d point = Vec3d{0, 0, 4} + (-4.0 / direction.z) * direction;
+    // point = (1 - u - v) (-10, -10) + u (10, -10) + v (0, 10), solved for v then u.
+    const double v = (point.y + 10.0) / 20.0;
+    const double u = (point.x + 10.0 - 10.0 * v) / 20.0;
+    const Vec3d normal = normalize((1.0 - u - v) * n0 + (u * n1 + v * n2));
+    expect_color_near(image.at(i, j), 0.5 * normal + Vec3d{0.5, 0.5, 0.5});
+}
+
+TEST(RenderFlat, SmoothMeshStaysFaceted) {
+    Scene scene = facing_triangle_scene(true);
+    scene.meshes[0].normals = {to_float(normalize({1, 0, 1})), to_float(normalize({1, 0, 1})),
+                               to_float(normalize({1, 0, 1}))};
+    const Camera camera = camera_down_z(4.0f, 9, 9);
+    const Image image = render_with_brute(scene, camera, with_mode(ShadingMode::Flat));
+    // The facet's normal is +z whatever the vertex normals say.
+    const double cosine = std::fabs(pixel_direction(camera, 5, 3).z);
+    expect_color_near(image.at(5, 3), cosine * to_double(scene.materials[0].color));
+}
+
+TEST(RenderDepth, NearestHitWhiteFarthestBlackMissBlack) {
+    const Image image = render_with_brute(tiny_scene(), tiny_camera(), with_mode(ShadingMode::Depth));
+    EXPECT_EQ(image.at(39, 0), Vec3f(0.0f));
+    float brightest = 0.0f;
+    for (const Vec3f& pixel : image.pixels) {
+        EXPECT_EQ(pixel.x, pixel.y);
+        EXPECT_EQ(pixel.x, pixel.z);
+        EXPECT_GE(pixel.x, 0.0f);
+        EXPECT_LE(pixel.x, 1.0f);
+        brightest = std::max(brightest, pixel.x);
+    }
+    EXPECT_EQ(brightest, 1.0f);
+}
+
+// A 3x3 view straight onto the plane z = 0 from z = 5: t = 5 sqrt(1 + u^2 + v^2) with u, v in {-2/3, 0, 2/3}.
+TEST(RenderDepth, NormalisedOverTheImageHits) {
+    Scene scene;
+    scene.planes.push_back({{0.0f, 0.0f, 1.0f}, 0.0f, 0, false});
+    scene.materials.resize(1);
+    const Image image = render_with_brute(scene, camera_down_z(5.0f, 3, 3), with_mode(ShadingMode::Depth));
+    const double nearest = 5.0, edge = 5.0 * std::sqrt(1.0 + 4.0 / 9.0),
+                 corner = 5.0 * std::sqrt(1.0 + 8.0 / 9.0);
+    EXPECT_EQ(image.at(1, 1), Vec3f(1.0f));
+    EXPECT_NEAR(image.at(0, 0).x, 0.0, 1e-5);
+    EXPECT_NEAR(image.at(2, 2).x, 0.0, 1e-5);
+    const double edge_value = 1.0 - (edge - nearest) / (corner - nearest);
+    EXPECT_NEAR(image.at(1, 0).x, edge_value, 1e-5);
+    EXPECT_NEAR(image.at(0, 1).x, edge_value, 1e-5);
+    EXPECT_NEAR(image.at(2, 1).x, edge_value, 1e-5);
+}
+
+TEST(RenderDepth, HitsAllAtOneDistanceAreWhite) {
+    Scene scene;
+    scene.planes.push_back({{0.0f, 0.0f, 1.0f}, 0.0f, 0, false});
+    scene.materials.resize(1);
+    const Image image = render_with_brute(scene, camera_down_z(5.0f, 1, 1), with_mode(ShadingMode::Depth));
+    EXPECT_EQ(image.at(0, 0), Vec3f(1.0f));
+}
+
+TEST(Render, SameBitsWhateverThreadsAndTiles) {
+    const Scene scene = tiny_scene();
+    for (ShadingMode mode : {ShadingMode::Flat, ShadingMode::Normal, ShadingMode::Depth}) {
+        RenderOptions reference_options = with_mode(mode);
+        reference_options.threads = 1;
+        reference_options.tile_size = 16;
+        const Image reference = render_with_brute(scene, tiny_camera(), reference_options);
+        for (int threads : {1, 2, 3}) {
+            for (int tile_size : {1, 7, 16, 64}) {
+                SCOPED_TRACE(testing::Message() << "mode " << static_cast<int>(mode) << ", threads "
+                                                << threads << ", tile " << tile_size);
+                RenderOptions options = with_mode(mode);
+                options.threads = threads;
+                options.tile_size = tile_size;
+                const Image image = render_with_brute(scene, tiny_camera(), options);
+                ASSERT_EQ(image.pixels.size(), reference.pixels.size());
+                EXPECT_EQ(std::memcmp(image.pixels.data(), reference.pixels.data(),
+                                      image.pixels.size() * sizeof(Vec3f)),
+                          0);
+            }
+        }
+    }
+}
+
+TEST(Render, StatsCountOneRayPerPixel) {
+    RenderStats stats;
+    const Image image = render_with_brute(tiny_scene(), tiny_camera(), {}, &stats);
+    EXPECT_EQ(image.width, 40);
+    EXPECT_EQ(image.height, 30);
+    EXPECT_EQ(stats.primary_rays, 40u * 30u);
+    EXPECT_GT(stats.trace_ms, 0.0);
+}
+
+TEST(Render, ProgressLineCountsTiles) {
+    RenderOptions options;
+    options.progress = true;
+    testing::internal::CaptureStderr();
+    (void)render_with_brute(tiny_scene(), tiny_camera(), options);
+    const std::string output = testing::internal::GetCapturedStderr();
+    EXPECT_NE(output.find("render 100% (6/6 tiles)"), std::string::npos) << output;  // 3 x 2 tiles of 16
+    EXPECT_EQ(output.back(), '\n');
+}
+
+TEST(Render, SilentWithoutProgress) {
+    testing::internal::CaptureStderr();
+    (void)render_with_brute(tiny_scene(), tiny_camera(), {});
+    EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+}
+
+TEST(Render, RejectsBadOptions) {
+    RenderOptions zero_tile;
+    zero_tile.tile_size = 0;
+    EXPECT_THROW((void)render_with_brute(tiny_scene(), tiny_camera(), zero_tile), std::invalid_argument);
+    RenderOptions negative_threads;
+    negative_threads.threads = -1;
+    EXPECT_THROW((void)render_with_brute(tiny_scene(), tiny_camera(), negative_threads),
+                 std::invalid_argument);
+    EXPECT_THROW((void)render_with_brute(tiny_scene(), camera_down_z(5.0f, 0, 10), {}),
+                 std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace lancer
