@@ -16,6 +16,11 @@ Box3f grown_for_overlap(const Box3f& box) {
     return {box.lo - margin, box.hi + margin};
 }
 
+float geometric_tolerance(const Box3f& scene_bounds) {
+    if (scene_bounds.empty()) return 0.0f;
+    return 0x1p-20f * std::max(max_component(abs(scene_bounds.lo)), max_component(abs(scene_bounds.hi)));
+}
+
 namespace {
 
 // Akenine-Moller, "Fast 3D Triangle-Box Overlap Testing" (2001): the 13 candidate separating axes are the

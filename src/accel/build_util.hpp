@@ -26,6 +26,12 @@ namespace lancer {
 // box). Empty when the primitive misses the box.
 [[nodiscard]] Box3f clipped_primitive_bounds(const Geometry& geometry, std::uint32_t prim, const Box3f& box);
 
+// Triangle kernels compute hit points with a rounding error of a few ulps of the largest coordinate involved
+// (Moller-Trumbore more when ill-conditioned). Structures treat their node boxes and cells as grown by this
+// distance, 2^-20 (8 ulps) of the scene's largest coordinate, so that no structure culls a hit the kernel
+// reports and brute force finds (docs/numerical-contract.md, "Boxes").
+[[nodiscard]] float geometric_tolerance(const Box3f& scene_bounds);
+
 [[nodiscard]] inline Box3f intersection(const Box3f& a, const Box3f& b) {
     return {max(a.lo, b.lo), min(a.hi, b.hi)};
 }

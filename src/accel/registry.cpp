@@ -4,6 +4,7 @@
 #include <string>
 
 #include "accel/brute.hpp"
+#include "accel/bvh.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {
@@ -17,6 +18,7 @@ struct Entry {
 const std::vector<Entry>& registry() {
     static const std::vector<Entry> entries = {
         {"brute", [] { return std::make_unique<BruteAccel>(); }},
+        {"bvh", [] { return std::make_unique<BvhAccel>(); }},
     };
     return entries;
 }

@@ -59,9 +59,15 @@ struct TriangleHit {
 // Moller & Trumbore 1997, as written in seed 003 section 3:
 // [t u v] = 1 / ((D x E2) . E1) [((T x E1) . E2), ((D x E2) . T), ((T x E1) . D)], T = O - V0.
 struct MollerTrumbore {
+    static constexpr float kIllConditioned = 0x1p-20f;
+
     struct RayData {
         Vec3f origin, direction;
-        explicit RayData(const Ray& ray) : origin(ray.origin), direction(ray.direction) {}
+        float direction_scale;  // max |d_i|
+        explicit RayData(const Ray& ray)
+            : origin(ray.origin),
+              direction(ray.direction),
+              direction_scale(max_component(abs(ray.direction))) {}
     };
 
     [[nodiscard]] static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
@@ -70,7 +76,13 @@ struct MollerTrumbore {
         const Vec3f e2 = tri.v2 - tri.v0;
         const Vec3f p = cross(ray.direction, e2);
         const float det = dot(p, e1);
-        if (det == 0.0f) return false;  // ray parallel to the triangle's plane, or degenerate triangle
+        // det = d . (e1 x e2): zero for a ray parallel to the plane or a degenerate triangle. Near zero, u, v
+        // and t are mostly rounding noise (a zero-area triangle would report hits far from its segment), so
+        // the ill-conditioned band |det| < 2^-20 |d| |e1| |e2| (max norms, about 1e-6 rad of grazing angle
+        // times the triangle's own angle) is a miss too.
+        if (!(std::fabs(det) >
+              kIllConditioned * ray.direction_scale * max_component(abs(e1)) * max_component(abs(e2))))
+            return false;
         const float inv_det = 1.0f / det;
         const Vec3f to_origin = ray.origin - tri.v0;
         const float u = dot(to_origin, p) * inv_det;
@@ -79,7 +91,7 @@ struct MollerTrumbore {
         const float v = dot(ray.direction, q) * inv_det;
         if (!(v >= 0.0f && u + v <= 1.0f)) return false;
         const float t = dot(e2, q) * inv_det;
-        if (!(t >= tnear && t <= tfar)) return false;
+        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit
         out = {t, u, v};
         return true;
     }
@@ -134,7 +146,7 @@ struct Watertight {
         const float az = ray.shear_z * a[ray.kz], bz = ray.shear_z * b[ray.kz], cz = ray.shear_z * c[ray.kz];
         const float inv_det = 1.0f / det;
         const float t = (w0 * az + w1 * bz + w2 * cz) * inv_det;
-        if (!(t >= tnear && t <= tfar)) return false;
+        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit
         out = {t, w1 * inv_det, w2 * inv_det};
         return true;
     }
@@ -160,9 +172,9 @@ struct Watertight {
     float t_near_root = c / q, t_far_root = q / a;
     if (t_near_root > t_far_root) std::swap(t_near_root, t_far_root);
     float t;
-    if (t_near_root >= tnear && t_near_root <= tfar) {
+    if (t_near_root >= tnear && t_near_root <= tfar && t_near_root < kInfinity) {
         t = t_near_root;
-    } else if (t_far_root >= tnear && t_far_root <= tfar) {
+    } else if (t_far_root >= tnear && t_far_root <= tfar && t_far_root < kInfinity) {
         t = t_far_root;
     } else {
         return false;  // also rejects the NaN of c / q when q == 0 (ray from the centre, tangent)

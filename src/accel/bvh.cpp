@@ -1,0 +1,150 @@
+#include "accel/bvh.hpp"
+
+#include <array>
+#include <chrono>
+
+#include "accel/bvh_build.hpp"
+#include "accel/primitive_test.hpp"
+
+namespace lancer {
+
+void BvhAccel::build(const Geometry& geometry, const BuildOptions& options) {
+    const auto start = std::chrono::steady_clock::now();
+    geometry_ = geometry;
+    options_ = options;
+    BvhBuildResult built = build_bvh(geometry, options.bvh);
+    nodes_ = std::move(built.nodes);
+    prim_indices_ = std::move(built.prim_indices);
+    build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+namespace {
+
+struct StackEntry {
+    std::uint32_t node;
+    float t_entry;  // where the ray enters the node's box: the node is skipped once a hit is closer
+};
+
+// Front-to-back traversal shared by closest hit (kAnyHit false) and occlusion (kAnyHit true). At an inner
+// node both children's boxes are tested; the nearer child is visited first and the farther one pushed with
+// its entry distance, so that a popped node is skipped when the closest hit so far lies before it.
+template <bool kAnyHit, bool kCount, class TriangleTestT>
+bool traverse(const std::vector<BvhNode>& nodes, const std::vector<std::uint32_t>& prim_indices,
+              const Geometry& geometry, const Ray& ray, Hit& best, TraversalCounters* counters) {
+    const PreparedRay<TriangleTestT> prepared(ray);
+    const SlabRay slab(ray);
+    std::array<StackEntry, BvhAccel::kMaxDepth + 1> stack;
+    int stack_size = 0;
+    float t_entry, t_exit;
+    if (!intersect_box(slab, nodes[0].bounds(), ray.tnear, ray.tfar, t_entry, t_exit)) return false;
+    std::uint32_t current = 0;
+    while (true) {
+        const BvhNode& node = nodes[current];
+        if constexpr (kCount) ++counters->nodes_visited;
+        if (node.is_leaf()) {
+            if constexpr (kCount) counters->prims_tested += node.prim_count;
+            for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i) {
+                if constexpr (kAnyHit) {
+                    if (occludes(geometry, prim_indices[i], prepared)) return true;
+                } else {
+                    intersect_primitive(geometry, prim_indices[i], prepared, best);
+                }
+            }
+        } else {
+            const float t_limit = best.hit() ? best.t : ray.tfar;
+            const std::uint32_t first = current + 1, second = node.offset;
+            float first_entry, second_entry;
+            const bool hit_first =
+                intersect_box(slab, nodes[first].bounds(), ray.tnear, t_limit, first_entry, t_exit);
+            const bool hit_second =
+                intersect_box(slab, nodes[second].bounds(), ray.tnear, t_limit, second_entry, t_exit);
+            if (hit_first && hit_second) {
+                const bool first_is_near = first_entry <= second_entry;
+                stack[static_cast<std::size_t>(stack_size++)] =
+                    first_is_near ? StackEntry{second, second_entry} : StackEntry{first, first_entry};
+                current = first_is_near ? first : second;
+                continue;
+            }
+            if (hit_first || hit_second) {
+                current = hit_first ? first : second;
+                continue;
+            }
+        }
+        // Pop the next node that may still hold a hit no farther than the best one.
+        do {
+            if (stack_size == 0) return best.hit();
+            const StackEntry entry = stack[static_cast<std::size_t>(--stack_size)];
+            current = entry.node;
+            if (!best.hit() || entry.t_entry <= best.t) break;
+        } while (true);
+    }
+}
+
+}  // namespace
+
+void BvhAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                               TraversalCounters* counters) const {
+    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            hits[i] = Hit{};
+            if (nodes_.empty() || !is_valid(rays[i])) continue;
+            traverse<false, kCount, TriangleTestT>(nodes_, prim_indices_, geometry_, rays[i], hits[i],
+                                                   counters);
+        }
+        if constexpr (kCount) counters->rays += rays.size();
+    });
+}
+
+void BvhAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                              TraversalCounters* counters) const {
+    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            Hit unused;
+            occluded[i] = !nodes_.empty() && is_valid(rays[i]) &&
+                          traverse<true, kCount, TriangleTestT>(nodes_, prim_indices_, geometry_, rays[i],
+                                                                unused, counters);
+        }
+        if constexpr (kCount) counters->rays += rays.size();
+    });
+}
+
+AccelStats BvhAccel::stats() const {
+    AccelStats stats;
+    stats.build_ms = build_ms_;
+    stats.primitives = geometry_.size();
+    stats.nodes = nodes_.size();
+    stats.references = prim_indices_.size();
+    stats.sah_cost = bvh_sah_cost(nodes_);
+    // Leaf depths by walking the depth-first layout with an explicit stack.
+    std::vector<std::pair<std::uint32_t, int>> pending;
+    if (!nodes_.empty()) pending.push_back({0, 0});
+    double depth_sum = 0.0;
+    while (!pending.empty()) {
+        const auto [index, depth] = pending.back();
+        pending.pop_back();
+        const BvhNode& node = nodes_[index];
+        if (node.is_leaf()) {
+            ++stats.leaves;
+            depth_sum += depth;
+            stats.max_depth = std::max(stats.max_depth, depth);
+            stats.max_refs_per_leaf = std::max<std::size_t>(stats.max_refs_per_leaf, node.prim_count);
+        } else {
+            pending.push_back({node.offset, depth + 1});
+            pending.push_back({index + 1, depth + 1});
+        }
+    }
+    if (stats.leaves > 0) {
+        stats.mean_depth = depth_sum / static_cast<double>(stats.leaves);
+        // Every leaf holds at least one primitive: a BVH has no empty leaves.
+        stats.mean_refs_per_leaf = static_cast<double>(stats.references) / static_cast<double>(stats.leaves);
+    }
+    stats.memory_by_array = {{"nodes", nodes_.size() * sizeof(BvhNode)},
+                             {"prim_indices", prim_indices_.size() * sizeof(std::uint32_t)}};
+    return stats;
+}
+
+std::size_t BvhAccel::memory_bytes() const {
+    return nodes_.size() * sizeof(BvhNode) + prim_indices_.size() * sizeof(std::uint32_t);
+}
+
+}  // namespace lancer

@@ -1,0 +1,393 @@
+#include "accel/bvh_build.hpp"
+
+#include <algorithm>
+#include <array>
+#include <numeric>
+
+#include "accel/build_util.hpp"
+
+#if LANCER_HAS_TBB
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_invoke.h>
+#include <tbb/parallel_reduce.h>
+#endif
+
+namespace lancer {
+namespace {
+
+// The SAH of seed 002: T(child) = T_box + A(child) / A(node) N(child) T_object, with T_box = T_object = 1.
+constexpr float kNodeCost = 1.0f;
+constexpr float kPrimitiveCost = 1.0f;
+// Past this depth every split is an object median, so the depth stays below kMaxDepth for any input:
+// 64 + log2(2^32) <= 96.
+constexpr int kMedianSplitDepth = 64;
+static_assert(kMedianSplitDepth + 32 <= BvhAccel::kMaxDepth);
+
+struct BuildRef {
+    Box3f bounds;
+    Vec3f centroid;
+    std::uint32_t prim = 0;
+};
+
+struct Split {
+    int axis = -1;  // -1: no split improves on a leaf, or none separates the references
+    float cost = kInfinity;
+    std::size_t left_count = 0;  // sweep builder: references on the left in the axis order
+    int bin = 0;                 // binned builder: first bin on the right
+};
+
+// A subtree's nodes, depth first, child offsets relative to its root; leaves point into the reference array.
+using Subtree = std::vector<BvhNode>;
+
+BvhNode make_leaf(const Box3f& bounds, std::size_t first, std::size_t count) {
+    BvhNode node;
+    node.lo = bounds.lo, node.hi = bounds.hi;
+    node.offset = static_cast<std::uint32_t>(first);
+    node.prim_count = static_cast<std::uint16_t>(count);
+    return node;
+}
+
+// An inner node followed by its two subtrees, with the children's inner offsets shifted into place.
+Subtree join(const Box3f& bounds, int axis, Subtree left, Subtree right) {
+    Subtree nodes;
+    nodes.reserve(1 + left.size() + right.size());
+    BvhNode node;
+    node.lo = bounds.lo, node.hi = bounds.hi;
+    node.axis = static_cast<std::uint8_t>(axis);
+    node.offset = static_cast<std::uint32_t>(1 + left.size());
+    nodes.push_back(node);
+    auto append = [&nodes](Subtree& child, std::uint32_t shift) {
+        for (BvhNode& n : child) {
+            if (!n.is_leaf()) n.offset += shift;
+            nodes.push_back(n);
+        }
+    };
+    append(left, 1);
+    append(right, static_cast<std::uint32_t>(1 + left.size()));
+    return nodes;
+}
+
+std::vector<BuildRef> make_refs(const Geometry& geometry) {
+    std::vector<BuildRef> refs(geometry.size());
+    for (std::uint32_t prim = 0; prim < refs.size(); ++prim) {
+        const Box3f bounds = primitive_bounds(geometry, prim);
+        refs[prim] = {bounds, bounds.center(), prim};
+    }
+    return refs;
+}
+
+int leaf_size_limit(const BvhOptions& options) {
+    return std::clamp(options.max_leaf_size, 1, BvhAccel::kMaxLeafSize);
+}
+
+// Whether a node of `count` references stays a leaf given its best split (seed 002's stopping rule: when it
+// is no longer worth splitting), and never beyond the leaf size limit.
+bool stays_leaf(std::size_t count, float node_area, const Split& split, int max_leaf) {
+    if (count == 1) return true;
+    if (count > static_cast<std::size_t>(max_leaf)) return false;
+    // A node without area (references on a line or a point): no split can be told apart by the SAH.
+    if (split.axis < 0 || !(node_area > 0.0f)) return true;
+    return kNodeCost + split.cost / node_area >= static_cast<float>(count) * kPrimitiveCost;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Full sweep: the references are sorted once per axis by centroid (ties by primitive index); every node
+// sweeps each axis right to left for the right boxes' areas, then left to right evaluating every boundary,
+// and the chosen split is applied to the other two orders by a stable partition, O(N) per level.
+class SweepBuilder {
+  public:
+    SweepBuilder(std::vector<BuildRef>& refs, const BvhOptions& options)
+        : refs_(refs),
+          max_leaf_(leaf_size_limit(options)),
+          on_left_(refs.size()),
+          right_areas_(refs.size()),
+          scratch_(refs.size()) {
+        for (int axis = 0; axis < 3; ++axis) {
+            std::vector<std::uint32_t>& order = orders_[static_cast<std::size_t>(axis)];
+            order.resize(refs.size());
+            std::iota(order.begin(), order.end(), 0u);
+            std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+                const float ca = refs[a].centroid[axis], cb = refs[b].centroid[axis];
+                return ca < cb || (ca == cb && refs[a].prim < refs[b].prim);
+            });
+        }
+    }
+
+    Subtree build(std::size_t begin, std::size_t end, int depth) {
+        Box3f bounds;
+        for (std::size_t i = begin; i < end; ++i)
+            bounds.extend(refs_[orders_[0][i]].bounds);
+        const std::size_t count = end - begin;
+        Split split = depth >= kMedianSplitDepth ? Split{} : best_split(begin, end);
+        if (stays_leaf(count, bounds.surface_area(), split, max_leaf_))
+            return {make_leaf(bounds, begin, count)};
+        if (split.axis < 0) split = median_split(begin, end);
+        partition(begin, end, split);
+        const std::size_t middle = begin + split.left_count;
+        Subtree left = build(begin, middle, depth + 1);
+        Subtree right = build(middle, end, depth + 1);
+        return join(bounds, split.axis, std::move(left), std::move(right));
+    }
+
+    [[nodiscard]] std::vector<std::uint32_t> prim_indices() const {
+        std::vector<std::uint32_t> prims(refs_.size());
+        for (std::size_t i = 0; i < prims.size(); ++i)
+            prims[i] = refs_[orders_[0][i]].prim;
+        return prims;
+    }
+
+  private:
+    Split best_split(std::size_t begin, std::size_t end) {
+        Split best;
+        for (int axis = 0; axis < 3; ++axis) {
+            const std::vector<std::uint32_t>& order = orders_[static_cast<std::size_t>(axis)];
+            Box3f right;
+            for (std::size_t i = end - 1; i > begin; --i) {
+                right.extend(refs_[order[i]].bounds);
+                right_areas_[i] = right.surface_area();
+            }
+            Box3f left;
+            for (std::size_t i = begin; i + 1 < end; ++i) {
+                left.extend(refs_[order[i]].bounds);
+                // A boundary between equal centroids would not separate anything a ray could tell apart.
+                if (refs_[order[i]].centroid[axis] == refs_[order[i + 1]].centroid[axis]) continue;
+                const auto left_count = i + 1 - begin;
+                const float cost = left.surface_area() * static_cast<float>(left_count) +
+                                   right_areas_[i + 1] * static_cast<float>(end - i - 1);
+                if (cost < best.cost) best = {axis, cost, left_count, 0};
+            }
+        }
+        return best;
+    }
+
+    // Object median on the axis of largest centroid extent: used when no boundary separates the
+    // centroids, and below kMedianSplitDepth.
+    Split median_split(std::size_t begin, std::size_t end) const {
+        Box3f centroids;
+        for (std::size_t i = begin; i < end; ++i)
+            centroids.extend(refs_[orders_[0][i]].centroid);
+        return {max_axis(centroids.extent()), 0.0f, (end - begin) / 2, 0};
+    }
+
+    void partition(std::size_t begin, std::size_t end, const Split& split) {
+        const std::vector<std::uint32_t>& split_order = orders_[static_cast<std::size_t>(split.axis)];
+        for (std::size_t i = begin; i < end; ++i)
+            on_left_[split_order[i]] = i < begin + split.left_count;
+        for (int axis = 0; axis < 3; ++axis) {
+            if (axis == split.axis) continue;
+            std::vector<std::uint32_t>& order = orders_[static_cast<std::size_t>(axis)];
+            auto out = scratch_.begin();
+            for (std::size_t i = begin; i < end; ++i) {
+                if (on_left_[order[i]]) *out++ = order[i];
+            }
+            for (std::size_t i = begin; i < end; ++i) {
+                if (!on_left_[order[i]]) *out++ = order[i];
+            }
+            std::copy(scratch_.begin(), out, order.begin() + static_cast<std::ptrdiff_t>(begin));
+        }
+    }
+
+    std::vector<BuildRef>& refs_;
+    int max_leaf_;
+    std::array<std::vector<std::uint32_t>, 3> orders_;
+    std::vector<std::uint8_t> on_left_;
+    std::vector<float> right_areas_;
+    std::vector<std::uint32_t> scratch_;
+};
+
+// ---------------------------------------------------------------------------------------------------------
+// Binned SAH (Wald 2007): centroids are binned on each axis, only bin boundaries are candidates. Large nodes
+// bin in parallel and large subtrees build in parallel; bin merges are exact (integer counts, min/max of
+// boxes), so the result does not depend on the thread count.
+class BinnedBuilder {
+  public:
+    BinnedBuilder(std::vector<BuildRef>& refs, const BvhOptions& options)
+        : refs_(refs), max_leaf_(leaf_size_limit(options)), bins_(std::clamp(options.bins, 2, kMaxBins)) {}
+
+    Subtree build(std::size_t begin, std::size_t end, int depth) {
+        const auto [bounds, centroids] = bounds_of(begin, end);
+        const std::size_t count = end - begin;
+        Split split = depth >= kMedianSplitDepth ? Split{} : best_split(begin, end, centroids);
+        if (stays_leaf(count, bounds.surface_area(), split, max_leaf_))
+            return {make_leaf(bounds, begin, count)};
+        std::size_t middle;
+        if (split.axis >= 0) {
+            const auto first_right = std::partition(
+                refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                refs_.begin() + static_cast<std::ptrdiff_t>(end),
+                [&](const BuildRef& ref) { return bin_of(ref.centroid, split.axis, centroids) < split.bin; });
+            middle = static_cast<std::size_t>(first_right - refs_.begin());
+        } else {
+            split.axis = max_axis(centroids.extent());
+            middle = begin + count / 2;
+            const int axis = split.axis;
+            std::nth_element(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                             refs_.begin() + static_cast<std::ptrdiff_t>(middle),
+                             refs_.begin() + static_cast<std::ptrdiff_t>(end),
+                             [axis](const BuildRef& a, const BuildRef& b) {
+                                 return a.centroid[axis] < b.centroid[axis] ||
+                                        (a.centroid[axis] == b.centroid[axis] && a.prim < b.prim);
+                             });
+        }
+        Subtree left, right;
+#if LANCER_HAS_TBB
+        if (count > kParallelSubtree) {
+            tbb::parallel_invoke([&] { left = build(begin, middle, depth + 1); },
+                                 [&] { right = build(middle, end, depth + 1); });
+        } else
+#endif
+        {
+            left = build(begin, middle, depth + 1);
+            right = build(middle, end, depth + 1);
+        }
+        return join(bounds, split.axis, std::move(left), std::move(right));
+    }
+
+  private:
+    static constexpr int kMaxBins = 256;
+    static constexpr std::size_t kParallelSubtree = 4096;
+    static constexpr std::size_t kParallelBinning = 65536;
+
+    struct Bins {
+        std::array<std::array<Box3f, kMaxBins>, 3> boxes;
+        std::array<std::array<std::uint32_t, kMaxBins>, 3> counts{};
+
+        void merge(const Bins& other, int bin_count) {
+            for (std::size_t axis = 0; axis < 3; ++axis) {
+                for (std::size_t b = 0; b < static_cast<std::size_t>(bin_count); ++b) {
+                    boxes[axis][b].extend(other.boxes[axis][b]);
+                    counts[axis][b] += other.counts[axis][b];
+                }
+            }
+        }
+    };
+
+    int bin_of(Vec3f centroid, int axis, const Box3f& centroids) const {
+        const float extent = centroids.hi[axis] - centroids.lo[axis];
+        const float scaled = (centroid[axis] - centroids.lo[axis]) / extent * static_cast<float>(bins_);
+        return std::clamp(static_cast<int>(scaled), 0, bins_ - 1);
+    }
+
+    std::pair<Box3f, Box3f> bounds_of(std::size_t begin, std::size_t end) const {
+        auto accumulate = [this](std::size_t from, std::size_t to, std::pair<Box3f, Box3f> acc) {
+            for (std::size_t i = from; i < to; ++i)
+                acc.first.extend(refs_[i].bounds), acc.second.extend(refs_[i].centroid);
+            return acc;
+        };
+#if LANCER_HAS_TBB
+        if (end - begin > kParallelBinning) {
+            return tbb::parallel_reduce(
+                tbb::blocked_range<std::size_t>(begin, end), std::pair<Box3f, Box3f>{},
+                [&](const tbb::blocked_range<std::size_t>& r, std::pair<Box3f, Box3f> acc) {
+                    return accumulate(r.begin(), r.end(), acc);
+                },
+                [](std::pair<Box3f, Box3f> a, const std::pair<Box3f, Box3f>& b) {
+                    a.first.extend(b.first), a.second.extend(b.second);
+                    return a;
+                });
+        }
+#endif
+        return accumulate(begin, end, {});
+    }
+
+    Bins bin(std::size_t begin, std::size_t end, const Box3f& centroids) const {
+        auto fill = [&](std::size_t from, std::size_t to, Bins& bins) {
+            for (std::size_t i = from; i < to; ++i) {
+                for (int axis = 0; axis < 3; ++axis) {
+                    if (!(centroids.hi[axis] > centroids.lo[axis])) continue;
+                    const auto b = static_cast<std::size_t>(bin_of(refs_[i].centroid, axis, centroids));
+                    bins.boxes[static_cast<std::size_t>(axis)][b].extend(refs_[i].bounds);
+                    ++bins.counts[static_cast<std::size_t>(axis)][b];
+                }
+            }
+        };
+#if LANCER_HAS_TBB
+        if (end - begin > kParallelBinning) {
+            return tbb::parallel_reduce(
+                tbb::blocked_range<std::size_t>(begin, end, 16384), Bins{},
+                [&](const tbb::blocked_range<std::size_t>& r, Bins bins) {
+                    fill(r.begin(), r.end(), bins);
+                    return bins;
+                },
+                [this](Bins a, const Bins& b) {
+                    a.merge(b, bins_);
+                    return a;
+                });
+        }
+#endif
+        Bins bins;
+        fill(begin, end, bins);
+        return bins;
+    }
+
+    Split best_split(std::size_t begin, std::size_t end, const Box3f& centroids) const {
+        const Bins bins = bin(begin, end, centroids);
+        Split best;
+        std::array<float, kMaxBins> right_costs{};
+        for (int axis = 0; axis < 3; ++axis) {
+            if (!(centroids.hi[axis] > centroids.lo[axis])) continue;
+            const auto& boxes = bins.boxes[static_cast<std::size_t>(axis)];
+            const auto& counts = bins.counts[static_cast<std::size_t>(axis)];
+            Box3f right;
+            std::uint32_t right_count = 0;
+            for (int b = bins_ - 1; b > 0; --b) {
+                right.extend(boxes[static_cast<std::size_t>(b)]);
+                right_count += counts[static_cast<std::size_t>(b)];
+                right_costs[static_cast<std::size_t>(b)] =
+                    right.surface_area() * static_cast<float>(right_count);
+            }
+            Box3f left;
+            std::uint32_t left_count = 0;
+            for (int b = 1; b < bins_; ++b) {
+                left.extend(boxes[static_cast<std::size_t>(b - 1)]);
+                left_count += counts[static_cast<std::size_t>(b - 1)];
+                if (left_count == 0 || left_count == end - begin) continue;
+                const float cost = left.surface_area() * static_cast<float>(left_count) +
+                                   right_costs[static_cast<std::size_t>(b)];
+                if (cost < best.cost) best = {axis, cost, left_count, b};
+            }
+        }
+        return best;
+    }
+
+    std::vector<BuildRef>& refs_;
+    int max_leaf_;
+    int bins_;
+};
+
+}  // namespace
+
+BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
+    BvhBuildResult result;
+    if (geometry.size() == 0) return result;
+    std::vector<BuildRef> refs = make_refs(geometry);
+    if (options.builder == BvhBuilder::SweepSah) {
+        SweepBuilder builder(refs, options);
+        result.nodes = builder.build(0, refs.size(), 0);
+        result.prim_indices = builder.prim_indices();
+    } else {
+        BinnedBuilder builder(refs, options);
+        result.nodes = builder.build(0, refs.size(), 0);
+        result.prim_indices.resize(refs.size());
+        for (std::size_t i = 0; i < refs.size(); ++i)
+            result.prim_indices[i] = refs[i].prim;
+    }
+    const Vec3f margin(geometric_tolerance(result.nodes[0].bounds()));
+    for (BvhNode& node : result.nodes)
+        node.lo -= margin, node.hi += margin;
+    return result;
+}
+
+double bvh_sah_cost(const std::vector<BvhNode>& nodes) {
+    if (nodes.empty()) return 0.0;
+    const double root_area = nodes[0].bounds().surface_area();
+    if (!(root_area > 0.0)) return static_cast<double>(nodes[0].prim_count);
+    double cost = 0.0;
+    for (const BvhNode& node : nodes) {
+        const double relative_area = node.bounds().surface_area() / root_area;
+        cost += node.is_leaf() ? relative_area * node.prim_count * kPrimitiveCost : relative_area * kNodeCost;
+    }
+    return cost;
+}
+
+}  // namespace lancer

@@ -1,0 +1,23 @@
+// The two SAH builders of the binary BVH. Both return the same depth-first layout.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "accel/bvh.hpp"
+
+namespace lancer {
+
+struct BvhBuildResult {
+    std::vector<BvhNode> nodes;
+    std::vector<std::uint32_t> prim_indices;
+};
+
+// Deterministic: the same geometry and options give the same nodes, whatever the thread count.
+[[nodiscard]] BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options);
+
+// SAH cost of a built hierarchy, normalised by the root's area, with unit node and primitive costs:
+// sum over inner nodes of A(node) / A(root) + sum over leaves of A(leaf) / A(root) * primitives.
+[[nodiscard]] double bvh_sah_cost(const std::vector<BvhNode>& nodes);
+
+}  // namespace lancer
