@@ -8,5 +8,6 @@ namespace lancer::cli {
 void add_render_command(CLI::App& app);
 void add_info_command(CLI::App& app);
 void add_rays_command(CLI::App& app);
+void add_stats_command(CLI::App& app);
 
 }  // namespace lancer::cli

@@ -18,10 +18,32 @@ LoadedScene load_timed(const std::filesystem::path& file) {
     return loaded;
 }
 
-BuiltAccel build_timed(const std::string& name, const Geometry& geometry, const BuildOptions& options) {
-    BuiltAccel built;
+void AccelChoice::add_options(CLI::App& command) {
+    std::string names;
+    for (std::string_view known : accel_names())
+        names += (names.empty() ? "" : ", ") + std::string(known);
+    command.add_option("--accel", name, "Acceleration structure: " + names)->capture_default_str();
+    command.add_flag("--watertight", watertight, "Watertight triangle test (Woop, Benthin & Wald 2013)");
+    command.add_option("--set", settings, "Structure option KEY=VALUE, e.g. bvh.builder=sweep (repeatable)");
+}
+
+BuildOptions AccelChoice::build_options() const {
+    BuildOptions options =
+        lancer::build_options(watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore);
     try {
-        built.accel = make_accel(name);
+        for (const std::string& setting : settings)
+            set_build_option(options, setting);
+    } catch (const std::invalid_argument& error) {
+        throw InputError(error.what());
+    }
+    return options;
+}
+
+BuiltAccel build_timed(const AccelChoice& choice, const Geometry& geometry) {
+    BuiltAccel built;
+    const BuildOptions options = choice.build_options();
+    try {
+        built.accel = make_accel(choice.name);
     } catch (const std::invalid_argument& error) {
         throw InputError(error.what());
     }

@@ -8,6 +8,9 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
 
 #include "lancer/accel.hpp"
 #include "lancer/scene.hpp"
@@ -37,14 +40,24 @@ struct LoadedScene {
 
 [[nodiscard]] LoadedScene load_timed(const std::filesystem::path& file);
 
+// The structure a command builds: --accel NAME, --watertight, --set KEY=VALUE (repeatable).
+struct AccelChoice {
+    std::string name = "bvh";
+    bool watertight = false;
+    std::vector<std::string> settings;
+
+    void add_options(CLI::App& command);
+    // Throws InputError for a malformed --set.
+    [[nodiscard]] BuildOptions build_options() const;
+};
+
 struct BuiltAccel {
     std::unique_ptr<Accel> accel;
     double build_ms = 0.0;
 };
 
-// Throws InputError for an unknown structure name.
-[[nodiscard]] BuiltAccel build_timed(const std::string& name, const Geometry& geometry,
-                                     const BuildOptions& options);
+// Throws InputError for an unknown structure name or a malformed --set.
+[[nodiscard]] BuiltAccel build_timed(const AccelChoice& choice, const Geometry& geometry);
 
 // Closest hits of all rays, in chunks over `threads` oneTBB threads (0 = all).
 void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads);

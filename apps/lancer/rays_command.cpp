@@ -21,9 +21,8 @@ struct RaysOptions {
     std::string scene_file;
     std::string rays_file;
     std::string hits_file;
-    std::string accel = "brute";
+    AccelChoice accel;
     int threads = 0;
-    bool watertight = false;
 };
 
 std::vector<Ray> read_rays(const std::string& path) {
@@ -53,10 +52,7 @@ void run(const RaysOptions& options) {
     const LoadedScene loaded = load_timed(options.scene_file);
     const SceneGeometry geometry(loaded.scene);
     const std::vector<Ray> rays = read_rays(options.rays_file);
-    BuildOptions build_options;
-    build_options.triangle_test =
-        options.watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore;
-    const BuiltAccel built = build_timed(options.accel, geometry.view(), build_options);
+    const BuiltAccel built = build_timed(options.accel, geometry.view());
 
     std::vector<Hit> hits(rays.size());
     Stopwatch watch;
@@ -68,7 +64,7 @@ void run(const RaysOptions& options) {
     for (const Hit& hit : hits)
         hit_count += hit.hit() ? 1 : 0;
     fmt::print(stderr, "rays: {} rays, {} hits, accel {} (build {:.1f} ms), trace {:.1f} ms\n", rays.size(),
-               hit_count, options.accel, built.build_ms, trace_ms);
+               hit_count, options.accel.name, built.build_ms, trace_ms);
 }
 
 }  // namespace
@@ -80,9 +76,8 @@ void add_rays_command(CLI::App& app) {
     command->add_option("scene", options->scene_file, "Mesh or scene file")->required();
     command->add_option("--rays", options->rays_file, "Input: float32 x 8 per ray")->required();
     command->add_option("--hits", options->hits_file, "Output: 16 bytes per ray")->required();
-    command->add_option("--accel", options->accel, "Acceleration structure")->capture_default_str();
+    options->accel.add_options(*command);
     command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
-    command->add_flag("--watertight", options->watertight, "Watertight triangle test (Woop et al. 2013)");
     command->callback([options] { run(*options); });
 }
 

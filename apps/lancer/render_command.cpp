@@ -16,19 +16,15 @@ struct RenderCommandOptions {
     std::string output = "render.png";
     std::string size;
     ShadingMode mode = ShadingMode::Flat;
-    std::string accel = "brute";
+    AccelChoice accel;
     int threads = 0;
-    bool watertight = false;
 };
 
 void run(const RenderCommandOptions& options) {
     const LoadedScene loaded = load_timed(options.scene_file);
     const Scene& scene = loaded.scene;
     const SceneGeometry geometry(scene);
-    BuildOptions build_options;
-    build_options.triangle_test =
-        options.watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore;
-    const BuiltAccel built = build_timed(options.accel, geometry.view(), build_options);
+    const BuiltAccel built = build_timed(options.accel, geometry.view());
 
     Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds());
     if (!options.size.empty()) std::tie(camera.width, camera.height) = parse_size(options.size);
@@ -49,7 +45,13 @@ void run(const RenderCommandOptions& options) {
     fmt::print("{}: {}x{}, {} triangles, {} spheres, {} planes\n", options.scene_file, image.width,
                image.height, scene.triangle_count(), scene.spheres.size(), scene.planes.size());
     fmt::print("load {:.1f} ms, accel {} build {:.1f} ms, trace {:.1f} ms, {:.2f} Mrays/s\n", loaded.load_ms,
-               options.accel, built.build_ms, stats.trace_ms, mrays_per_s);
+               options.accel.name, built.build_ms, stats.trace_ms, mrays_per_s);
+    if (options.mode == ShadingMode::Heatmap) {
+        const double rays = static_cast<double>(stats.counters.rays);
+        fmt::print("per primary ray: {:.2f} nodes visited, {:.2f} primitives tested\n",
+                   static_cast<double>(stats.counters.nodes_visited) / rays,
+                   static_cast<double>(stats.counters.prims_tested) / rays);
+    }
     fmt::print("wrote {}\n", options.output);
 }
 
@@ -62,13 +64,14 @@ void add_render_command(CLI::App& app) {
                         "Scene or mesh file (default: the authored demo scene)");
     command->add_option("-o,--output", options->output, "PNG file to write")->capture_default_str();
     command->add_option("--size", options->size, "Image size WIDTHxHEIGHT (default: the scene's camera)");
-    const std::map<std::string, ShadingMode> modes = {
-        {"flat", ShadingMode::Flat}, {"normal", ShadingMode::Normal}, {"depth", ShadingMode::Depth}};
-    command->add_option("--mode", options->mode, "Shading: flat, normal or depth")
+    const std::map<std::string, ShadingMode> modes = {{"flat", ShadingMode::Flat},
+                                                      {"normal", ShadingMode::Normal},
+                                                      {"depth", ShadingMode::Depth},
+                                                      {"heatmap", ShadingMode::Heatmap}};
+    command->add_option("--mode", options->mode, "Shading: flat, normal, depth or heatmap (nodes per ray)")
         ->transform(CLI::CheckedTransformer(modes, CLI::ignore_case));
-    command->add_option("--accel", options->accel, "Acceleration structure")->capture_default_str();
+    options->accel.add_options(*command);
     command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
-    command->add_flag("--watertight", options->watertight, "Watertight triangle test (Woop et al. 2013)");
     command->callback([options] { run(*options); });
 }
 

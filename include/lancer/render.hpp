@@ -11,9 +11,11 @@
 namespace lancer {
 
 enum class ShadingMode {
-    Flat,    // the paper's Figure 5 look: material colour times |cos| between geometric normal and ray
-    Normal,  // shading normal mapped from [-1, 1] to [0, 1]
-    Depth,   // distance along the ray, near = white, far = black, misses black
+    Flat,     // the paper's Figure 5 look: material colour times |cos| between geometric normal and ray
+    Normal,   // shading normal mapped from [-1, 1] to [0, 1]
+    Depth,    // distance along the ray, near = white, far = black, misses black
+    Heatmap,  // traversal cost: nodes or cells visited per primary ray, black to white through a
+              // perceptual ramp, with a legend (0 .. image maximum) in the bottom-left corner
 };
 
 struct RenderOptions {
@@ -41,10 +43,13 @@ struct Image {
 struct RenderStats {
     double trace_ms = 0.0;
     std::uint64_t primary_rays = 0;
+    TraversalCounters counters;  // Heatmap mode only: summed over the image
 };
 
 // Renders `camera`'s view. `accel` must have been built on `geometry`, which was made from `scene`;
-// the scene's infinite planes are tested beside the structure.
+// the scene's infinite planes are tested beside the structure. Throws std::invalid_argument for a
+// non-positive image or tile size, a negative thread count, or a scene whose primitives name missing
+// materials.
 [[nodiscard]] Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
                            const Camera& camera, const RenderOptions& options, RenderStats* stats = nullptr);
 

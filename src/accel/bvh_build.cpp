@@ -29,6 +29,11 @@ struct BuildRef {
     std::uint32_t prim = 0;
 };
 
+// Centroid order on one axis, ties by primitive index: a total order, so sorts are deterministic.
+bool centroid_less(const BuildRef& a, const BuildRef& b, int axis) {
+    return a.centroid[axis] < b.centroid[axis] || (a.centroid[axis] == b.centroid[axis] && a.prim < b.prim);
+}
+
 struct Split {
     int axis = -1;  // -1: no split improves on a leaf, or none separates the references
     float cost = kInfinity;
@@ -36,36 +41,56 @@ struct Split {
     int bin = 0;                 // binned builder: first bin on the right
 };
 
-// A subtree's nodes, depth first, child offsets relative to its root; leaves point into the reference array.
-using Subtree = std::vector<BvhNode>;
+// Node slots: a subtree over n references has at most 2n - 1 nodes, so a node in slot i over n references
+// puts its first child in slot i + 1 and its second in slot i + 2 n_first. Subtrees built in parallel write
+// disjoint slots, and compact() renumbers the used slots depth first: the layout does not depend on which
+// task finished first.
+class NodeSlots {
+  public:
+    explicit NodeSlots(std::size_t references) : slots_(2 * references - 1), used_(2 * references - 1, 0) {}
 
-BvhNode make_leaf(const Box3f& bounds, std::size_t first, std::size_t count) {
-    BvhNode node;
-    node.lo = bounds.lo, node.hi = bounds.hi;
-    node.offset = static_cast<std::uint32_t>(first);
-    node.prim_count = static_cast<std::uint16_t>(count);
-    return node;
-}
+    void set_leaf(std::size_t slot, const Box3f& bounds, std::size_t first, std::size_t count) {
+        BvhNode& node = slots_[slot];
+        node.lo = bounds.lo, node.hi = bounds.hi;
+        node.offset = static_cast<std::uint32_t>(first);
+        node.prim_count = static_cast<std::uint16_t>(count);
+        used_[slot] = 1;
+    }
+    // Returns the slots of the two children.
+    std::pair<std::size_t, std::size_t> set_inner(std::size_t slot, const Box3f& bounds, int axis,
+                                                  std::size_t first_child_references) {
+        BvhNode& node = slots_[slot];
+        node.lo = bounds.lo, node.hi = bounds.hi;
+        node.axis = static_cast<std::uint8_t>(axis);
+        node.offset = static_cast<std::uint32_t>(slot + 2 * first_child_references);
+        used_[slot] = 1;
+        return {slot + 1, node.offset};
+    }
 
-// An inner node followed by its two subtrees, with the children's inner offsets shifted into place.
-Subtree join(const Box3f& bounds, int axis, Subtree left, Subtree right) {
-    Subtree nodes;
-    nodes.reserve(1 + left.size() + right.size());
-    BvhNode node;
-    node.lo = bounds.lo, node.hi = bounds.hi;
-    node.axis = static_cast<std::uint8_t>(axis);
-    node.offset = static_cast<std::uint32_t>(1 + left.size());
-    nodes.push_back(node);
-    auto append = [&nodes](Subtree& child, std::uint32_t shift) {
-        for (BvhNode& n : child) {
-            if (!n.is_leaf()) n.offset += shift;
-            nodes.push_back(n);
+    [[nodiscard]] std::vector<BvhNode> compact() const {
+        std::vector<BvhNode> nodes;
+        nodes.reserve(static_cast<std::size_t>(std::count(used_.begin(), used_.end(), 1)));
+        // Depth first from the root: (slot, index of the parent whose second-child offset awaits it).
+        std::vector<std::pair<std::size_t, std::size_t>> pending = {{0, SIZE_MAX}};
+        while (!pending.empty()) {
+            const auto [slot, parent] = pending.back();
+            pending.pop_back();
+            if (parent != SIZE_MAX) nodes[parent].offset = static_cast<std::uint32_t>(nodes.size());
+            const BvhNode& node = slots_[slot];
+            nodes.push_back(node);
+            if (!node.is_leaf()) {
+                pending.push_back(
+                    {node.offset, nodes.size() - 1});     // second child, after the first's subtree
+                pending.push_back({slot + 1, SIZE_MAX});  // first child: the very next node
+            }
         }
-    };
-    append(left, 1);
-    append(right, static_cast<std::uint32_t>(1 + left.size()));
-    return nodes;
-}
+        return nodes;
+    }
+
+  private:
+    std::vector<BvhNode> slots_;
+    std::vector<std::uint8_t> used_;
+};
 
 std::vector<BuildRef> make_refs(const Geometry& geometry) {
     std::vector<BuildRef> refs(geometry.size());
@@ -113,20 +138,22 @@ class SweepBuilder {
         }
     }
 
-    Subtree build(std::size_t begin, std::size_t end, int depth) {
+    void build(NodeSlots& slots, std::size_t slot, std::size_t begin, std::size_t end, int depth) {
         Box3f bounds;
         for (std::size_t i = begin; i < end; ++i)
             bounds.extend(refs_[orders_[0][i]].bounds);
         const std::size_t count = end - begin;
         Split split = depth >= kMedianSplitDepth ? Split{} : best_split(begin, end);
-        if (stays_leaf(count, bounds.surface_area(), split, max_leaf_))
-            return {make_leaf(bounds, begin, count)};
+        if (stays_leaf(count, bounds.surface_area(), split, max_leaf_)) {
+            slots.set_leaf(slot, bounds, begin, count);
+            return;
+        }
         if (split.axis < 0) split = median_split(begin, end);
         partition(begin, end, split);
         const std::size_t middle = begin + split.left_count;
-        Subtree left = build(begin, middle, depth + 1);
-        Subtree right = build(middle, end, depth + 1);
-        return join(bounds, split.axis, std::move(left), std::move(right));
+        const auto [first, second] = slots.set_inner(slot, bounds, split.axis, split.left_count);
+        build(slots, first, begin, middle, depth + 1);
+        build(slots, second, middle, end, depth + 1);
     }
 
     [[nodiscard]] std::vector<std::uint32_t> prim_indices() const {
@@ -204,57 +231,96 @@ class BinnedBuilder {
     BinnedBuilder(std::vector<BuildRef>& refs, const BvhOptions& options)
         : refs_(refs), max_leaf_(leaf_size_limit(options)), bins_(std::clamp(options.bins, 2, kMaxBins)) {}
 
-    Subtree build(std::size_t begin, std::size_t end, int depth) {
+    void build(NodeSlots& slots, std::size_t slot, std::size_t begin, std::size_t end, int depth) {
         const auto [bounds, centroids] = bounds_of(begin, end);
         const std::size_t count = end - begin;
-        Split split = depth >= kMedianSplitDepth ? Split{} : best_split(begin, end, centroids);
-        if (stays_leaf(count, bounds.surface_area(), split, max_leaf_))
-            return {make_leaf(bounds, begin, count)};
+        const bool exact = count <= kExactSplitBelow;
+        Split split;
+        if (depth < kMedianSplitDepth)
+            split = exact ? exact_split(begin, end) : best_split(begin, end, centroids);
+        if (stays_leaf(count, bounds.surface_area(), split, max_leaf_)) {
+            slots.set_leaf(slot, bounds, begin, count);
+            return;
+        }
         std::size_t middle;
-        if (split.axis >= 0) {
+        if (split.axis >= 0 && !exact) {
             const auto first_right = std::partition(
                 refs_.begin() + static_cast<std::ptrdiff_t>(begin),
                 refs_.begin() + static_cast<std::ptrdiff_t>(end),
                 [&](const BuildRef& ref) { return bin_of(ref.centroid, split.axis, centroids) < split.bin; });
             middle = static_cast<std::size_t>(first_right - refs_.begin());
         } else {
-            split.axis = max_axis(centroids.extent());
-            middle = begin + count / 2;
+            // The exact split's order, or an object median when nothing separates the centroids.
+            if (split.axis < 0) split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
+            middle = begin + split.left_count;
             const int axis = split.axis;
-            std::nth_element(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                             refs_.begin() + static_cast<std::ptrdiff_t>(middle),
-                             refs_.begin() + static_cast<std::ptrdiff_t>(end),
-                             [axis](const BuildRef& a, const BuildRef& b) {
-                                 return a.centroid[axis] < b.centroid[axis] ||
-                                        (a.centroid[axis] == b.centroid[axis] && a.prim < b.prim);
-                             });
+            std::nth_element(
+                refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                refs_.begin() + static_cast<std::ptrdiff_t>(middle),
+                refs_.begin() + static_cast<std::ptrdiff_t>(end),
+                [axis](const BuildRef& a, const BuildRef& b) { return centroid_less(a, b, axis); });
         }
-        Subtree left, right;
+        const auto [first, second] = slots.set_inner(slot, bounds, split.axis, middle - begin);
 #if LANCER_HAS_TBB
         if (count > kParallelSubtree) {
-            tbb::parallel_invoke([&] { left = build(begin, middle, depth + 1); },
-                                 [&] { right = build(middle, end, depth + 1); });
-        } else
-#endif
-        {
-            left = build(begin, middle, depth + 1);
-            right = build(middle, end, depth + 1);
+            tbb::parallel_invoke([&] { build(slots, first, begin, middle, depth + 1); },
+                                 [&] { build(slots, second, middle, end, depth + 1); });
+            return;
         }
-        return join(bounds, split.axis, std::move(left), std::move(right));
+#endif
+        build(slots, first, begin, middle, depth + 1);
+        build(slots, second, middle, end, depth + 1);
     }
 
   private:
     static constexpr int kMaxBins = 256;
     static constexpr std::size_t kParallelSubtree = 4096;
+    // Below this many references, the exact sweep over the node's own sorted centroids is both better and
+    // cheaper than clearing and scanning the bins.
+    static constexpr std::size_t kExactSplitBelow = 32;
+
+    Split exact_split(std::size_t begin, std::size_t end) const {
+        const std::size_t count = end - begin;
+        std::array<const BuildRef*, kExactSplitBelow> order{};
+        std::array<float, kExactSplitBelow> right_areas{};
+        Split best;
+        for (int axis = 0; axis < 3; ++axis) {
+            for (std::size_t i = 0; i < count; ++i)
+                order[i] = &refs_[begin + i];
+            std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(count),
+                      [axis](const BuildRef* a, const BuildRef* b) { return centroid_less(*a, *b, axis); });
+            Box3f right;
+            for (std::size_t i = count - 1; i > 0; --i) {
+                right.extend(order[i]->bounds);
+                right_areas[i] = right.surface_area();
+            }
+            Box3f left;
+            for (std::size_t i = 0; i + 1 < count; ++i) {
+                left.extend(order[i]->bounds);
+                if (order[i]->centroid[axis] == order[i + 1]->centroid[axis]) continue;
+                const float cost = left.surface_area() * static_cast<float>(i + 1) +
+                                   right_areas[i + 1] * static_cast<float>(count - i - 1);
+                if (cost < best.cost) best = {axis, cost, i + 1, 0};
+            }
+        }
+        return best;
+    }
     static constexpr std::size_t kParallelBinning = 65536;
 
+    // Per axis, each bin's box and reference count; sized to the bin count actually used.
     struct Bins {
-        std::array<std::array<Box3f, kMaxBins>, 3> boxes;
-        std::array<std::array<std::uint32_t, kMaxBins>, 3> counts{};
+        std::array<std::vector<Box3f>, 3> boxes;
+        std::array<std::vector<std::uint32_t>, 3> counts;
 
-        void merge(const Bins& other, int bin_count) {
+        explicit Bins(int bin_count) {
             for (std::size_t axis = 0; axis < 3; ++axis) {
-                for (std::size_t b = 0; b < static_cast<std::size_t>(bin_count); ++b) {
+                boxes[axis].resize(static_cast<std::size_t>(bin_count));
+                counts[axis].resize(static_cast<std::size_t>(bin_count));
+            }
+        }
+        void merge(const Bins& other) {
+            for (std::size_t axis = 0; axis < 3; ++axis) {
+                for (std::size_t b = 0; b < boxes[axis].size(); ++b) {
                     boxes[axis][b].extend(other.boxes[axis][b]);
                     counts[axis][b] += other.counts[axis][b];
                 }
@@ -304,18 +370,18 @@ class BinnedBuilder {
 #if LANCER_HAS_TBB
         if (end - begin > kParallelBinning) {
             return tbb::parallel_reduce(
-                tbb::blocked_range<std::size_t>(begin, end, 16384), Bins{},
+                tbb::blocked_range<std::size_t>(begin, end, 16384), Bins(bins_),
                 [&](const tbb::blocked_range<std::size_t>& r, Bins bins) {
                     fill(r.begin(), r.end(), bins);
                     return bins;
                 },
-                [this](Bins a, const Bins& b) {
-                    a.merge(b, bins_);
+                [](Bins a, const Bins& b) {
+                    a.merge(b);
                     return a;
                 });
         }
 #endif
-        Bins bins;
+        Bins bins(bins_);
         fill(begin, end, bins);
         return bins;
     }
@@ -361,17 +427,19 @@ BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
     BvhBuildResult result;
     if (geometry.size() == 0) return result;
     std::vector<BuildRef> refs = make_refs(geometry);
+    NodeSlots slots(refs.size());
     if (options.builder == BvhBuilder::SweepSah) {
         SweepBuilder builder(refs, options);
-        result.nodes = builder.build(0, refs.size(), 0);
+        builder.build(slots, 0, 0, refs.size(), 0);
         result.prim_indices = builder.prim_indices();
     } else {
         BinnedBuilder builder(refs, options);
-        result.nodes = builder.build(0, refs.size(), 0);
+        builder.build(slots, 0, 0, refs.size(), 0);
         result.prim_indices.resize(refs.size());
         for (std::size_t i = 0; i < refs.size(); ++i)
             result.prim_indices[i] = refs[i].prim;
     }
+    result.nodes = slots.compact();
     const Vec3f margin(geometric_tolerance(result.nodes[0].bounds()));
     for (BvhNode& node : result.nodes)
         node.lo -= margin, node.hi += margin;

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "lancer/camera.hpp"
+#include "render/heatmap.hpp"
 #include "render/progress.hpp"
 #include "render/scene_intersector.hpp"
 
@@ -72,7 +73,8 @@ void depth_to_image(const std::vector<float>& depth, Image& image) {
 class TileRenderer {
   public:
     TileRenderer(const Scene& scene, const SceneIntersector& intersector, const PinholeCamera& camera,
-                 ShadingMode mode, int tile_size, Image& image, std::vector<float>& depth)
+                 ShadingMode mode, int tile_size, Image& image, std::vector<float>& depth,
+                 std::vector<TraversalCounters>& heat)
         : scene_(scene),
           intersector_(intersector),
           camera_(camera),
@@ -81,7 +83,8 @@ class TileRenderer {
           tile_columns_((image.width + tile_size - 1) / tile_size),
           tile_rows_((image.height + tile_size - 1) / tile_size),
           image_(image),
-          depth_(depth) {}
+          depth_(depth),
+          heat_(heat) {}
 
     [[nodiscard]] std::size_t tile_count() const {
         return static_cast<std::size_t>(tile_columns_) * static_cast<std::size_t>(tile_rows_);
@@ -102,6 +105,10 @@ class TileRenderer {
             }
         }
         std::vector<Hit> hits(rays.size());
+        if (mode_ == ShadingMode::Heatmap) {
+            trace_counting(rays, hits, x0, y0, x1);
+            return;
+        }
         intersector_.intersect(rays, hits);
 
         std::size_t k = 0;
@@ -113,6 +120,17 @@ class TileRenderer {
     }
 
   private:
+    // One ray at a time, so that each pixel gets its own count (a diagnostic mode: speed is not the point).
+    void trace_counting(const std::vector<Ray>& rays, std::vector<Hit>& hits, int x0, int y0, int x1) const {
+        const int width = x1 - x0;
+        for (std::size_t k = 0; k < rays.size(); ++k) {
+            const auto x = static_cast<std::size_t>(x0 + static_cast<int>(k) % width);
+            const auto y = static_cast<std::size_t>(y0 + static_cast<int>(k) / width);
+            intersector_.intersect({&rays[k], 1}, {&hits[k], 1},
+                                   &heat_[y * static_cast<std::size_t>(image_.width) + x]);
+        }
+    }
+
     void shade(int x, int y, const Ray& ray, const Hit& hit) const {
         if (mode_ == ShadingMode::Depth) {
             depth_[static_cast<std::size_t>(y) * static_cast<std::size_t>(image_.width) + x] =
@@ -135,7 +153,8 @@ class TileRenderer {
     int tile_columns_;
     int tile_rows_;
     Image& image_;
-    std::vector<float>& depth_;  // hit distance per pixel, infinity on a miss; Depth mode only
+    std::vector<float>& depth_;             // hit distance per pixel, infinity on a miss; Depth mode only
+    std::vector<TraversalCounters>& heat_;  // traversal counts per pixel; Heatmap mode only
 };
 
 }  // namespace
@@ -150,9 +169,11 @@ Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& acc
     Image image(camera.width, camera.height);
     std::vector<float> depth;
     if (options.mode == ShadingMode::Depth) depth.resize(image.pixels.size());
+    std::vector<TraversalCounters> heat;
+    if (options.mode == ShadingMode::Heatmap) heat.resize(image.pixels.size());
     // A tile larger than the image is the image; the clamp also keeps the tile arithmetic within an int.
     const int tile_size = std::min(options.tile_size, std::max(image.width, image.height));
-    const TileRenderer tiles(scene, intersector, pinhole, options.mode, tile_size, image, depth);
+    const TileRenderer tiles(scene, intersector, pinhole, options.mode, tile_size, image, depth, heat);
 
     ProgressReporter progress("render", tiles.tile_count(), "tiles", options.progress);
     tbb::task_arena arena(options.threads == 0 ? tbb::task_arena::automatic : options.threads);
@@ -167,9 +188,17 @@ Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& acc
     });
     progress.finish();
     if (options.mode == ShadingMode::Depth) depth_to_image(depth, image);
+    if (options.mode == ShadingMode::Heatmap) {
+        std::vector<std::uint32_t> nodes(heat.size());
+        for (std::size_t i = 0; i < heat.size(); ++i)
+            nodes[i] = static_cast<std::uint32_t>(heat[i].nodes_visited);
+        heat_to_image(nodes, image);
+    }
 
     if (stats != nullptr) {
         stats->primary_rays = image.pixels.size();
+        for (const TraversalCounters& pixel : heat)
+            stats->counters += pixel;
         stats->trace_ms =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     }

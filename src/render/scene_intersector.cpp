@@ -63,9 +63,10 @@ SceneIntersector::SceneIntersector(const Scene& scene, const SceneGeometry& geom
     first_plane_id_ = static_cast<std::int32_t>(view_.size());
 }
 
-void SceneIntersector::intersect(std::span<const Ray> rays, std::span<Hit> hits) const {
+void SceneIntersector::intersect(std::span<const Ray> rays, std::span<Hit> hits,
+                                 TraversalCounters* counters) const {
     assert(rays.size() == hits.size());
-    accel_.intersect(rays, hits);
+    accel_.intersect(rays, hits, counters);
     if (scene_.planes.empty()) return;
     for (std::size_t i = 0; i < rays.size(); ++i) {
         const Ray& ray = rays[i];

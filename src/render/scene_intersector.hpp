@@ -32,7 +32,9 @@ class SceneIntersector {
     // hits[i] = closest hit of rays[i] in [tnear, tfar]; hits.size() == rays.size(). Plane i answers with
     // prim = geometry.view().size() + i and u = v = 0; at equal t the lower id wins (closer()), so a
     // bounded primitive beats a plane. Invalid rays miss (is_valid).
-    void intersect(std::span<const Ray> rays, std::span<Hit> hits) const;
+    // `counters`, when given, receive the structure's traversal counts (planes are not counted).
+    void intersect(std::span<const Ray> rays, std::span<Hit> hits,
+                   TraversalCounters* counters = nullptr) const;
 
     // The surface of `ray`'s hit `hit`, as intersect() returned it (hit.hit() must hold).
     [[nodiscard]] SurfacePoint surface(const Ray& ray, const Hit& hit) const;

@@ -1,0 +1,137 @@
+// lancer stats MESH --accel NAME [--json FILE] [--rays]: what a structure looks like once built (seed 003's
+// operation counts, the paper's Figure 6 in numbers), and with --rays its cost per primary ray.
+#include <fmt/core.h>
+#include <fmt/os.h>
+
+#include <memory>
+
+#include "commands.hpp"
+#include "common.hpp"
+#include "lancer/camera.hpp"
+
+namespace lancer::cli {
+namespace {
+
+struct StatsOptions {
+    std::string scene_file;
+    AccelChoice accel;
+    std::string json_file;
+    bool rays = false;
+    std::string size = "1024x1024";
+};
+
+struct RayCost {
+    std::uint64_t rays = 0, hits = 0;
+    TraversalCounters counters;
+    double trace_ms = 0.0;
+};
+
+// The canonical view of shared/bench/VIEWS.md (or the scene's camera), traced once with counters on.
+RayCost trace_view(const Accel& accel, const Scene& scene, int width, int height) {
+    Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds(), width, height);
+    camera.width = width, camera.height = height;
+    const PinholeCamera pinhole(camera);
+    std::vector<Ray> rays;
+    rays.reserve(static_cast<std::size_t>(width) * static_cast<std::size_t>(height));
+    for (int j = 0; j < height; ++j) {
+        for (int i = 0; i < width; ++i) {
+            rays.push_back(pinhole.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
+        }
+    }
+    std::vector<Hit> hits(rays.size());
+    RayCost cost;
+    Stopwatch watch;
+    accel.intersect(rays, hits, &cost.counters);
+    cost.trace_ms = watch.elapsed_ms();
+    cost.rays = rays.size();
+    for (const Hit& hit : hits)
+        cost.hits += hit.hit() ? 1 : 0;
+    return cost;
+}
+
+void run(const StatsOptions& options) {
+    const LoadedScene loaded = load_timed(options.scene_file);
+    const SceneGeometry geometry(loaded.scene);
+    const BuiltAccel built = build_timed(options.accel, geometry.view());
+    const AccelStats stats = built.accel->stats();
+    const std::size_t primitives = geometry.view().size();
+    const double memory_mb = static_cast<double>(built.accel->memory_bytes()) / (1024.0 * 1024.0);
+
+    fmt::print("scene        {} ({} primitives), load {:.1f} ms\n", options.scene_file, primitives,
+               loaded.load_ms);
+    fmt::print("accel        {}\n", options.accel.name);
+    fmt::print("build        {:.1f} ms ({:.2f} Mprims/s)\n", built.build_ms,
+               built.build_ms > 0.0 ? static_cast<double>(primitives) / (built.build_ms * 1e3) : 0.0);
+    fmt::print("nodes        {} ({} leaves, {} empty)\n", stats.nodes, stats.leaves, stats.empty_leaves);
+    fmt::print("depth        max {}, mean leaf depth {:.2f}\n", stats.max_depth, stats.mean_depth);
+    fmt::print("refs/leaf    mean {:.2f}, max {}\n", stats.mean_refs_per_leaf, stats.max_refs_per_leaf);
+    fmt::print("references   {} ({} duplicates)\n", stats.references,
+               stats.references > primitives ? stats.references - primitives : 0);
+    fmt::print("SAH cost     {:.3f}\n", stats.sah_cost);
+    fmt::print("memory       {:.3f} MB", memory_mb);
+    for (const auto& [array, bytes] : stats.memory_by_array) {
+        fmt::print(", {} {:.3f} MB", array, static_cast<double>(bytes) / (1024.0 * 1024.0));
+    }
+    fmt::print("\n");
+
+    RayCost cost;
+    if (options.rays) {
+        const auto [width, height] = parse_size(options.size);
+        cost = trace_view(*built.accel, loaded.scene, width, height);
+        const double rays = static_cast<double>(cost.rays);
+        fmt::print(
+            "view         {}x{}, {:.1f}% hits, {:.2f} nodes/ray, {:.2f} prims/ray (one thread, counting)\n",
+            width, height, 100.0 * static_cast<double>(cost.hits) / rays,
+            static_cast<double>(cost.counters.nodes_visited) / rays,
+            static_cast<double>(cost.counters.prims_tested) / rays);
+    }
+
+    if (!options.json_file.empty()) {
+        std::string memory_json;
+        for (const auto& [array, bytes] : stats.memory_by_array) {
+            memory_json += fmt::format("{}\"{}\": {}", memory_json.empty() ? "" : ", ", array, bytes);
+        }
+        std::string json = fmt::format(
+            "{{\"scene\": \"{}\", \"accel\": \"{}\", \"primitives\": {}, \"build_ms\": {:.3f}, \"nodes\": "
+            "{}, "
+            "\"leaves\": {}, \"empty_leaves\": {}, \"max_depth\": {}, \"mean_depth\": {:.4f}, "
+            "\"mean_refs_per_leaf\": {:.4f}, \"max_refs_per_leaf\": {}, \"references\": {}, \"sah_cost\": "
+            "{:.6f}, "
+            "\"memory_bytes\": {}, \"memory_by_array\": {{{}}}",
+            options.scene_file, options.accel.name, primitives, built.build_ms, stats.nodes, stats.leaves,
+            stats.empty_leaves, stats.max_depth, stats.mean_depth, stats.mean_refs_per_leaf,
+            stats.max_refs_per_leaf, stats.references, stats.sah_cost, built.accel->memory_bytes(),
+            memory_json);
+        if (options.rays) {
+            const double rays = static_cast<double>(cost.rays);
+            json += fmt::format(
+                ", \"rays\": {}, \"hit_fraction\": {:.6f}, \"nodes_per_ray\": {:.4f}, "
+                "\"prims_per_ray\": {:.4f}",
+                cost.rays, static_cast<double>(cost.hits) / rays,
+                static_cast<double>(cost.counters.nodes_visited) / rays,
+                static_cast<double>(cost.counters.prims_tested) / rays);
+        }
+        json += "}\n";
+        try {
+            fmt::output_file(options.json_file).print("{}", json);
+        } catch (const std::system_error& error) {
+            throw InputError(options.json_file + ": " + error.what());
+        }
+    }
+}
+
+}  // namespace
+
+void add_stats_command(CLI::App& app) {
+    auto options = std::make_shared<StatsOptions>();
+    CLI::App* command = app.add_subcommand("stats", "Build a structure and print its statistics");
+    command->add_option("scene", options->scene_file, "Mesh or scene file")->required();
+    options->accel.add_options(*command);
+    command->add_option("--json", options->json_file, "Also write the statistics as JSON");
+    command->add_flag("--rays", options->rays,
+                      "Trace the canonical view and report nodes and primitives per ray");
+    command->add_option("--size", options->size, "Image size of the --rays view")->capture_default_str();
+    command->callback([options] { run(*options); });
+}
+
+}  // namespace lancer::cli

@@ -1,0 +1,93 @@
+// `--set KEY=VALUE`: structure options from the command line, checked and with the accepted range in the
+// error message.
+#include <charconv>
+#include <functional>
+#include <map>
+#include <stdexcept>
+#include <string>
+
+#include "lancer/accel.hpp"
+
+namespace lancer {
+namespace {
+
+[[noreturn]] void fail(std::string_view key, std::string_view value, std::string_view expected) {
+    throw std::invalid_argument("--set " + std::string(key) + "=" + std::string(value) + ": expected " +
+                                std::string(expected));
+}
+
+template <class Number>
+Number parse_number(std::string_view key, std::string_view value, Number lowest, Number highest) {
+    Number number{};
+    const auto [end, error] = std::from_chars(value.data(), value.data() + value.size(), number);
+    if (error != std::errc{} || end != value.data() + value.size() ||
+        !(number >= lowest && number <= highest)) {
+        fail(key, value, "a number in [" + std::to_string(lowest) + ", " + std::to_string(highest) + "]");
+    }
+    return number;
+}
+
+using Setter = std::function<void(BuildOptions&, std::string_view key, std::string_view value)>;
+
+const std::map<std::string, Setter, std::less<>>& setters() {
+    static const std::map<std::string, Setter, std::less<>> table = {
+        {"grid.density",
+         [](BuildOptions& o, auto k, auto v) { o.grid.density = parse_number(k, v, 0.01f, 64.0f); }},
+        {"octree.max_depth",
+         [](BuildOptions& o, auto k, auto v) { o.octree.max_depth = parse_number(k, v, 0, 20); }},
+        {"octree.leaf_size",
+         [](BuildOptions& o, auto k, auto v) { o.octree.leaf_size = parse_number(k, v, 1, 1 << 20); }},
+        {"kdtree.cost",
+         [](BuildOptions& o, auto k, auto v) {
+             if (v == "wald-havran") {
+                 o.kdtree.cost = KdTreeCost::WaldHavran;
+             } else if (v == "seed003") {
+                 o.kdtree.cost = KdTreeCost::Seed003;
+             } else {
+                 fail(k, v, "wald-havran or seed003");
+             }
+         }},
+        {"kdtree.traversal_cost",
+         [](BuildOptions& o, auto k, auto v) { o.kdtree.traversal_cost = parse_number(k, v, 0.0f, 1e6f); }},
+        {"kdtree.intersection_cost",
+         [](BuildOptions& o, auto k, auto v) {
+             o.kdtree.intersection_cost = parse_number(k, v, 1e-3f, 1e6f);
+         }},
+        {"kdtree.empty_bonus",
+         [](BuildOptions& o, auto k, auto v) { o.kdtree.empty_bonus = parse_number(k, v, 0.0f, 1.0f); }},
+        {"kdtree.max_depth",
+         [](BuildOptions& o, auto k, auto v) { o.kdtree.max_depth = parse_number(k, v, 0, 64); }},
+        {"bvh.builder",
+         [](BuildOptions& o, auto k, auto v) {
+             if (v == "sweep") {
+                 o.bvh.builder = BvhBuilder::SweepSah;
+             } else if (v == "binned") {
+                 o.bvh.builder = BvhBuilder::BinnedSah;
+             } else {
+                 fail(k, v, "sweep or binned");
+             }
+         }},
+        {"bvh.max_leaf_size",
+         [](BuildOptions& o, auto k, auto v) { o.bvh.max_leaf_size = parse_number(k, v, 1, 64); }},
+        {"bvh.bins", [](BuildOptions& o, auto k, auto v) { o.bvh.bins = parse_number(k, v, 2, 256); }},
+    };
+    return table;
+}
+
+}  // namespace
+
+void set_build_option(BuildOptions& options, std::string_view assignment) {
+    const auto equals = assignment.find('=');
+    const std::string_view key = assignment.substr(0, equals);
+    const auto setter = setters().find(key);
+    if (equals == std::string_view::npos || setter == setters().end()) {
+        std::string known;
+        for (const auto& [name, unused] : setters())
+            known += (known.empty() ? "" : ", ") + name;
+        throw std::invalid_argument("--set " + std::string(assignment) +
+                                    ": expected KEY=VALUE with KEY one of " + known);
+    }
+    setter->second(options, key, assignment.substr(equals + 1));
+}
+
+}  // namespace lancer
