@@ -1,0 +1,99 @@
+// The Stanford meshes of ../shared/data/meshes, when present: every structure against the others on every
+// ray of the canonical view (shared/bench/VIEWS.md, 1024 x 1024) and of 10^6 random rays, and brute force
+// on a sample of both. Brute force on all 2 x 10^6 rays of the dragon would take hours (1.7e12 triangle
+// tests), so the chain is: brute == bvh on the sample, then bvh == every other structure on every ray.
+#include <gtest/gtest.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <filesystem>
+
+#include "lancer/camera.hpp"
+#include "lancer/io.hpp"
+#include "oracle.hpp"
+#include "ray_sets.hpp"
+
+namespace lancer {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kMeshes = fs::path(LANCER_SHARED_DIR) / "data" / "meshes";
+
+std::vector<Ray> canonical_view_rays(const Box3f& bounds) {
+    const PinholeCamera camera(canonical_view(bounds, 1024, 1024));
+    std::vector<Ray> rays;
+    rays.reserve(1024 * 1024);
+    for (int j = 0; j < 1024; ++j) {
+        for (int i = 0; i < 1024; ++i) {
+            rays.push_back(camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
+        }
+    }
+    return rays;
+}
+
+std::vector<Hit> trace(const Accel& accel, std::span<const Ray> rays) {
+    std::vector<Hit> hits(rays.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 1024), [&](const auto& range) {
+        accel.intersect(rays.subspan(range.begin(), range.size()),
+                        std::span(hits).subspan(range.begin(), range.size()));
+    });
+    return hits;
+}
+
+class StanfordMesh : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(StanfordMesh, EveryStructureAgreesOnTheCanonicalViewAndOnRandomRays) {
+    const fs::path file = kMeshes / GetParam();
+    if (!fs::exists(file)) GTEST_SKIP() << file << " is absent (see README, 'The Stanford meshes')";
+    const Scene scene = load_scene(file);
+    const SceneGeometry geometry(scene);
+    const Box3f bounds = geometry.view().bounds();
+
+    const std::vector<testing::RaySet> sets = {{"canonical view", canonical_view_rays(bounds)},
+                                               testing::random_rays(bounds, 1'000'000, 17)};
+    const std::unique_ptr<Accel> reference = make_accel("bvh");
+    reference->build(geometry.view(), {});
+    const std::unique_ptr<Accel> brute = make_accel("brute");
+    brute->build(geometry.view(), {});
+
+    for (const testing::RaySet& set : sets) {
+        const std::vector<Hit> reference_hits = trace(*reference, set.rays);
+
+        // Brute force on an evenly spread sample: about 3.5e9 triangle tests for the dragon.
+        const std::size_t sample_size = 4'000'000'000 / geometry.view().size() / sets.size();
+        std::vector<Ray> sample;
+        std::vector<Hit> sample_reference;
+        for (std::size_t i = 0; i < set.rays.size();
+             i += std::max<std::size_t>(1, set.rays.size() / sample_size)) {
+            sample.push_back(set.rays[i]);
+            sample_reference.push_back(reference_hits[i]);
+        }
+        const testing::Agreement with_brute =
+            testing::compare_hits(sample, trace(*brute, sample), sample_reference);
+        std::printf("%s, %s: bvh vs brute on %zu sampled rays: %s\n", GetParam(), set.name.c_str(),
+                    sample.size(), with_brute.summary().c_str());
+        EXPECT_EQ(with_brute.mismatches, 0u) << with_brute.summary();
+        EXPECT_GT(with_brute.hits, sample.size() / 20);
+
+        for (std::string_view name : accel_names()) {
+            if (name == "brute" || name == "bvh") continue;
+            const std::unique_ptr<Accel> accel = make_accel(name);
+            accel->build(geometry.view(), {});
+            const testing::Agreement agreement =
+                testing::compare_hits(set.rays, reference_hits, trace(*accel, set.rays));
+            std::printf("%s, %s: %s vs bvh on every ray: %s\n", GetParam(), set.name.c_str(),
+                        std::string(name).c_str(), agreement.summary().c_str());
+            EXPECT_EQ(agreement.mismatches, 0u) << name << ": " << agreement.summary();
+        }
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Meshes, StanfordMesh, ::testing::Values("bunny.obj", "armadillo.off", "dragon.ply"),
+    [](const auto& param_info) {
+        return std::string(param_info.param).substr(0, std::string(param_info.param).find('.'));
+    });
+
+}  // namespace
+}  // namespace lancer
