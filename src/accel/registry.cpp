@@ -5,6 +5,7 @@
 
 #include "accel/brute.hpp"
 #include "accel/bvh.hpp"
+#include "accel/grid.hpp"
 #include "accel/kdtree.hpp"
 #include "lancer/accel.hpp"
 
@@ -19,6 +20,7 @@ struct Entry {
 const std::vector<Entry>& registry() {
     static const std::vector<Entry> entries = {
         {"brute", [] { return std::make_unique<BruteAccel>(); }},
+        {"grid", [] { return std::make_unique<GridAccel>(); }},
         {"kdtree", [] { return std::make_unique<KdTreeAccel>(); }},
         {"bvh", [] { return std::make_unique<BvhAccel>(); }},
     };
