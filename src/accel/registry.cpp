@@ -5,6 +5,7 @@
 
 #include "accel/brute.hpp"
 #include "accel/bvh.hpp"
+#include "accel/octree.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {
@@ -18,6 +19,7 @@ struct Entry {
 const std::vector<Entry>& registry() {
     static const std::vector<Entry> entries = {
         {"brute", [] { return std::make_unique<BruteAccel>(); }},
+        {"octree", [] { return std::make_unique<OctreeAccel>(); }},
         {"bvh", [] { return std::make_unique<BvhAccel>(); }},
     };
     return entries;
