@@ -7,6 +7,7 @@
 #include "accel/bvh.hpp"
 #include "accel/grid.hpp"
 #include "accel/kdtree.hpp"
+#include "accel/octree.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {
@@ -21,6 +22,7 @@ const std::vector<Entry>& registry() {
     static const std::vector<Entry> entries = {
         {"brute", [] { return std::make_unique<BruteAccel>(); }},
         {"grid", [] { return std::make_unique<GridAccel>(); }},
+        {"octree", [] { return std::make_unique<OctreeAccel>(); }},
         {"kdtree", [] { return std::make_unique<KdTreeAccel>(); }},
         {"bvh", [] { return std::make_unique<BvhAccel>(); }},
     };
