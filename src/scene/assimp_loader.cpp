@@ -1,19 +1,25 @@
-// Every other format (PLY ascii and binary, OBJ, STL, glTF, ...) through assimp. Only aiProcess_Triangulate
-// and the structure check run: JoinIdenticalVertices, SortByPType, OptimizeMeshes and PreTransformVertices
-// would merge or reorder faces, and triangle numbers must follow the file. Each mesh that a node of the
-// scene graph places becomes one TriangleMesh, in depth-first node order, its vertices moved by the node's
-// transform; its polygons come out as triangles in face order and its points and lines are dropped.
+// The formats lancer does not read by hand (OBJ, STL, glTF, Collada, ...) through assimp. Each mesh that a
+// node of the scene graph places becomes one TriangleMesh, in depth-first node order, its vertices moved by
+// the node's transform; its faces come out as triangles in face order, and its points and lines are dropped.
+//
+// assimp runs no post-processing step but the structure check: JoinIdenticalVertices, SortByPType,
+// OptimizeMeshes and PreTransformVertices would merge or reorder faces, and triangle numbers must follow
+// the file. Polygons are triangulated here by triangulate_polygon rather than by aiProcess_Triangulate,
+// which in assimp 5.2 aborts the process (a failed ai_assert) when a damaged file leaves a mesh's
+// primitive types inconsistent with its faces.
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
 #include <assimp/Importer.hpp>
 #include <cmath>
+#include <exception>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "lancer/io.hpp"
 #include "scene/loaders.hpp"
+#include "scene/polygon.hpp"
 #include "scene/text_reader.hpp"
 
 namespace lancer {
@@ -88,12 +94,18 @@ class AssimpConverter {
         mesh.indices.reserve(3 * static_cast<std::size_t>(source.mNumFaces));
         for (unsigned f = 0; f < source.mNumFaces; ++f) {
             const aiFace& face = source.mFaces[f];
-            if (face.mNumIndices != 3) continue;  // points and lines; polygons were triangulated
-            for (unsigned k = 0; k < 3; ++k) {
-                if (face.mIndices[k] >= source.mNumVertices)
+            if (face.mNumIndices < 3) continue;  // points and lines
+            polygon_.clear();
+            for (unsigned k = 0; k < face.mNumIndices; ++k) {
+                if (face.mIndices[k] >= source.mNumVertices) {
                     fail("mesh " + mesh.name + ": face " + std::to_string(f) + " index out of range");
-                mesh.indices.push_back(face.mIndices[k]);
+                }
+                polygon_.push_back(mesh.positions[face.mIndices[k]]);
             }
+            corners_.clear();
+            triangulate_polygon(polygon_, corners_);
+            for (const std::uint32_t corner : corners_)
+                mesh.indices.push_back(face.mIndices[corner]);
         }
         if (mesh.triangle_count() > 0) scene_.meshes.push_back(std::move(mesh));
     }
@@ -120,6 +132,9 @@ class AssimpConverter {
     const std::filesystem::path& file_;
     const aiScene& source_;
     Scene scene_;
+    // Scratch space of convert_mesh, kept between faces.
+    std::vector<Vec3f> polygon_;
+    std::vector<std::uint32_t> corners_;
 };
 
 }  // namespace
@@ -128,8 +143,13 @@ Scene load_with_assimp(const std::filesystem::path& file) {
     // assimp's own message for a missing file is vaguer than ours.
     check_readable(file);
     Assimp::Importer importer;
-    const aiScene* source =
-        importer.ReadFile(file.string(), aiProcess_Triangulate | aiProcess_ValidateDataStructure);
+    const aiScene* source = nullptr;
+    try {
+        source = importer.ReadFile(file.string(), aiProcess_ValidateDataStructure);
+    } catch (const std::exception& error) {
+        // assimp catches its own import errors; what escapes (bad_alloc on absurd sizes) is still the file's.
+        throw LoadError(file, 0, std::string("assimp: ") + error.what());
+    }
     if (source == nullptr) throw LoadError(file, 0, std::string("assimp: ") + importer.GetErrorString());
     if ((source->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0)
         throw LoadError(file, 0, "assimp: the scene is incomplete");

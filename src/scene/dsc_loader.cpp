@@ -25,18 +25,6 @@ namespace {
 constexpr std::size_t min_material_chars = 12;
 constexpr std::size_t min_light_chars = 12;
 constexpr std::size_t min_triangle_chars = 2;
-// An image side past this is a corrupt header, not a picture anyone renders.
-constexpr std::int64_t max_image_side = 1 << 16;
-
-int read_image_side(TextReader& reader, std::string_view what) {
-    Token token;
-    const std::int64_t side = reader.read_integer(what, &token);
-    if (side < 1 || side > max_image_side) {
-        reader.fail(token.line, "expected " + std::string(what) + " between 1 and " +
-                                    std::to_string(max_image_side) + ", got " + quote_token(token.text));
-    }
-    return static_cast<int>(side);
-}
 
 // Seed 003 names three coefficients; Whitted's model has four weights. The transmission weight is what
 // the diffuse and reflection weights leave, and only a refracting material (index set and not 1) has one.
@@ -52,17 +40,13 @@ Material dsc_material(Vec3f color, float reflection, float intensity, float refr
     return material;
 }
 
-std::string count_message(std::uint64_t expected, std::string_view plural_what, std::uint64_t got) {
-    return std::to_string(expected) + " " + std::string(plural_what) + ", got " + std::to_string(got);
-}
-
 }  // namespace
 
 Scene load_dsc(const std::filesystem::path& file) {
     TextReader reader(file);
     reader.expect_keyword("DSC");
-    const int width = read_image_side(reader, "an image width");
-    const int height = read_image_side(reader, "an image height");
+    const int width = reader.read_image_side("an image width");
+    const int height = reader.read_image_side("an image height");
     Token material_count_token, light_count_token;
     const std::uint64_t material_count = reader.read_count("a material count", &material_count_token);
     const std::uint64_t light_count = reader.read_count("a light count", &light_count_token);

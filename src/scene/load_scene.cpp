@@ -1,6 +1,8 @@
 #include <algorithm>
 #include <cctype>
+#include <fstream>
 #include <string>
+#include <string_view>
 
 #include "lancer/io.hpp"
 #include "scene/loaders.hpp"
@@ -14,6 +16,14 @@ std::string lower_case_extension(const std::filesystem::path& file) {
     std::transform(extension.begin(), extension.end(), extension.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
     return extension;
+}
+
+// assimp would take a file that starts with the PLY magic for PLY whatever its name; the PLY reader here is
+// the robust one.
+bool has_ply_magic(const std::filesystem::path& file) {
+    char magic[4] = {};
+    std::ifstream(file, std::ios::binary).read(magic, sizeof magic);
+    return std::string_view(magic, 3) == "ply" && (magic[3] == '\n' || magic[3] == '\r');
 }
 
 // One material id per triangle where one would do costs memory and a lookup per hit.
@@ -40,6 +50,10 @@ void check_scene(const Scene& scene, const std::filesystem::path& file) {
     };
     for (const TriangleMesh& mesh : scene.meshes) {
         const std::string name = "mesh '" + mesh.name + "'";
+        // Finite values can still overflow on the way (a huge cone radius): structures need finite bounds.
+        for (const Vec3f& position : mesh.positions) {
+            if (!is_finite(position)) fail(name + " has a vertex beyond the float range");
+        }
         if (mesh.indices.size() % 3 != 0) fail(name + " has an index count that is not a multiple of 3");
         for (const std::uint32_t index : mesh.indices) {
             if (index >= mesh.positions.size()) fail(name + " has a vertex index out of range");
@@ -53,21 +67,29 @@ void check_scene(const Scene& scene, const std::filesystem::path& file) {
                  std::to_string(mesh.triangle_count()) + " triangles");
         }
         check_material(mesh.material, name);
-        for (const std::uint32_t material : mesh.material_ids)
-            check_material(material, "a triangle of " + name);
+        for (std::size_t t = 0; t < mesh.material_ids.size(); ++t) {
+            // The message is built only for the culprit: this loop runs over every triangle.
+            if (mesh.material_ids[t] >= material_count) {
+                check_material(mesh.material_ids[t], "triangle " + std::to_string(t) + " of " + name);
+            }
+        }
     }
-    for (const Sphere& sphere : scene.spheres)
+    for (const Sphere& sphere : scene.spheres) {
         check_material(sphere.material, "a sphere");
+        const Box3f bounds = sphere.bounds();
+        if (!is_finite(bounds.lo) || !is_finite(bounds.hi)) fail("a sphere reaches beyond the float range");
+    }
 }
 
 }  // namespace
 
 Scene load_scene(const std::filesystem::path& file) {
     const std::string extension = lower_case_extension(file);
-    Scene scene = extension == ".off"   ? load_off(file)
-                  : extension == ".dsc" ? load_dsc(file)
-                  : extension == ".nff" ? load_nff(file)
-                                        : load_with_assimp(file);
+    Scene scene = extension == ".off"                          ? load_off(file)
+                  : extension == ".dsc"                        ? load_dsc(file)
+                  : extension == ".nff"                        ? load_nff(file)
+                  : extension == ".ply" || has_ply_magic(file) ? load_ply(file)
+                                                               : load_with_assimp(file);
     if (scene.materials.empty()) scene.materials.emplace_back();
     for (TriangleMesh& mesh : scene.meshes)
         fold_uniform_materials(mesh);

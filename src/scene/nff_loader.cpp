@@ -31,8 +31,7 @@ constexpr std::uint32_t cone_segments = 24;
 // The fewest characters of a polygon vertex ("0 0 0\n") and of a patch vertex ("0 0 0 0 0 1\n").
 constexpr std::size_t min_polygon_vertex_chars = 6;
 constexpr std::size_t min_patch_vertex_chars = 12;
-// An image side past this is a corrupt header, not a picture anyone renders.
-constexpr std::int64_t max_image_side = 1 << 16;
+constexpr std::string_view keyword_list = "a keyword (v, b, l, f, c, s, p or pp)";
 
 Vec3f normalized_or_zero(Vec3f v) {
     const float norm = length(v);
@@ -46,6 +45,8 @@ class NffReader {
     }
 
     Scene read() {
+        // No entity at all is a file cut to nothing, not a scene.
+        if (!reader_.peek()) reader_.fail_at_end(keyword_list);
         while (const std::optional<Token> token = reader_.next()) {
             const std::string_view keyword = token->text;
             if (keyword == "s") {
@@ -66,7 +67,7 @@ class NffReader {
                 read_view(*token);
             } else {
                 reader_.fail(token->line,
-                             "expected a keyword (v, b, l, f, c, s, p or pp), got " + quote_token(keyword));
+                             "expected " + std::string(keyword_list) + ", got " + quote_token(keyword));
             }
         }
         if (!has_shading_normals_) mesh_.normals.clear();
@@ -75,16 +76,6 @@ class NffReader {
     }
 
   private:
-    int read_image_side(std::string_view what) {
-        Token token;
-        const std::int64_t side = reader_.read_integer(what, &token);
-        if (side < 1 || side > max_image_side) {
-            reader_.fail(token.line, "expected " + std::string(what) + " between 1 and " +
-                                         std::to_string(max_image_side) + ", got " + quote_token(token.text));
-        }
-        return static_cast<int>(side);
-    }
-
     // v, then from, at, up, angle, hither and resolution in this order (NFF.TXT). hither is read and
     // dropped: the camera has no near plane.
     void read_view(const Token& keyword) {
@@ -105,8 +96,8 @@ class NffReader {
         reader_.expect_keyword("hither");
         (void)reader_.read_float("a near distance after 'hither'");
         reader_.expect_keyword("resolution");
-        camera.width = read_image_side("an image width after 'resolution'");
-        camera.height = read_image_side("an image height after 'resolution'");
+        camera.width = reader_.read_image_side("an image width after 'resolution'");
+        camera.height = reader_.read_image_side("an image height after 'resolution'");
         // The camera frame is normalize(cross(at - from, up)): it needs a direction and an up off its axis.
         if (cross(camera.look_at - camera.eye, camera.up) == Vec3f{}) {
             reader_.fail(keyword.line, "the view has no direction, or an up vector along it");
@@ -186,14 +177,17 @@ class NffReader {
         polygon_normals_.clear();
         for (std::uint64_t i = 0; i < count; ++i) {
             if (!reader_.peek()) {
-                reader_.fail_at_end(std::to_string(count) + " polygon vertices, got " + std::to_string(i));
+                reader_.fail_at_end(count_message(count, "polygon vertices", i));
             }
             polygon_.push_back(reader_.read_vec3("a polygon vertex x y z"));
             if (with_normals) polygon_normals_.push_back(reader_.read_vec3("a vertex normal nx ny nz"));
         }
 
         const std::uint32_t first = reserve_vertices(polygon_.size(), count_token);
-        const Vec3f face_normal = normalized_or_zero(polygon_normal(polygon_));
+        // A polygon without area by NFF's rule and by Newell's is invalid input; its vertices still need a
+        // unit normal.
+        Vec3f face_normal = normalized_or_zero(polygon_normal(polygon_));
+        if (face_normal == Vec3f{}) face_normal = {0.0f, 0.0f, 1.0f};
         mesh_.positions.insert(mesh_.positions.end(), polygon_.begin(), polygon_.end());
         for (std::size_t i = 0; i < polygon_.size(); ++i) {
             // A patch normal of zero length cannot shade; the face normal stands in for it.
@@ -218,7 +212,10 @@ class NffReader {
         const float base_radius = reader_.read_float("a cone base radius", &base_token);
         const Vec3f apex = reader_.read_vec3("a cone apex centre x y z");
         const float apex_radius = reader_.read_float("a cone apex radius");
-        if (base == apex) reader_.fail(base_token.line, "a cone needs distinct base and apex centres");
+        const float height = length(apex - base);
+        if (!(height > 0.0f && std::isfinite(height))) {
+            reader_.fail(base_token.line, "a cone needs distinct base and apex centres at a finite distance");
+        }
         const bool outside = base_radius >= 0.0f && apex_radius >= 0.0f;
         const bool inside = base_radius <= 0.0f && apex_radius <= 0.0f;
         if (outside == inside) {

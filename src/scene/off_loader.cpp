@@ -6,8 +6,10 @@
 // '#' comments and blank lines may appear anywhere. Records are lines: a vertex or a face must sit on one.
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "scene/loaders.hpp"
 #include "scene/text_reader.hpp"
@@ -26,15 +28,11 @@ bool is_off_magic(std::string_view token) {
     return token == "OFF" || token == "COFF" || token == "NOFF" || token == "CNOFF";
 }
 
-std::string records_message(std::uint64_t expected, std::string_view plural_what, std::uint64_t got) {
-    return std::to_string(expected) + " " + std::string(plural_what) + ", got " + std::to_string(got);
-}
-
 // The values of one record must sit on the line the record starts on.
 void expect_on_line(TextReader& reader, const Token& start, std::uint64_t expected,
                     std::string_view plural_what, std::uint64_t got) {
     if (!reader.line_has_more_tokens()) {
-        reader.fail(start.line, "expected " + records_message(expected, plural_what, got));
+        reader.fail(start.line, "expected " + count_message(expected, plural_what, got));
     }
 }
 
@@ -50,14 +48,15 @@ OffMesh read_off(const std::filesystem::path& file) {
     const std::uint64_t face_count = reader.read_count("a face count", &face_count_token);
     if (reader.line_has_more_tokens()) (void)reader.read_count("an edge count");
     reader.skip_rest_of_line();
-    constexpr std::uint64_t max_index = std::numeric_limits<std::uint32_t>::max();
-    if (vertex_count > max_index || face_count > max_index) {
-        reader.fail(vertex_count_token.line, "more vertices or faces than 32-bit indices can number");
-    }
     const std::size_t budget = reader.byte_budget();
     reader.check_fits(vertex_count, min_vertex_chars, budget, vertex_count_token, "vertices");
     reader.check_fits(face_count, min_face_chars, budget - vertex_count * min_vertex_chars, face_count_token,
                       "faces");
+    // Unreachable below 24 GB of text, but the mesh's indices are 32-bit.
+    constexpr std::uint64_t max_index = std::numeric_limits<std::uint32_t>::max();
+    if (vertex_count > max_index || face_count > max_index) {
+        reader.fail(vertex_count_token.line, "more vertices or faces than 32-bit indices can number");
+    }
 
     OffMesh off;
     off.face_count = face_count;
@@ -66,7 +65,7 @@ OffMesh read_off(const std::filesystem::path& file) {
     mesh.positions.reserve(vertex_count);
     for (std::uint64_t vertex = 0; vertex < vertex_count; ++vertex) {
         const std::optional<Token> start = reader.peek();
-        if (!start) reader.fail_at_end(records_message(vertex_count, "vertices", vertex));
+        if (!start) reader.fail_at_end(count_message(vertex_count, "vertices", vertex));
         Vec3f position;
         for (int axis = 0; axis < 3; ++axis) {
             if (axis > 0)
@@ -82,7 +81,7 @@ OffMesh read_off(const std::filesystem::path& file) {
     off.face_of_triangle.reserve(face_count);
     std::vector<std::uint32_t> polygon;
     for (std::uint64_t face = 0; face < face_count; ++face) {
-        if (!reader.peek()) reader.fail_at_end(records_message(face_count, "faces", face));
+        if (!reader.peek()) reader.fail_at_end(count_message(face_count, "faces", face));
         Token size_token;
         const std::uint64_t size = reader.read_count("a face vertex count", &size_token);
         if (size < 3) {

@@ -23,11 +23,13 @@ bool inside_or_on(Point2 p, Point2 a, Point2 b, Point2 c) {
 }
 
 // Newell's method: the area vector of the whole outline, pointing to the side it runs counter-clockwise
-// around. It stays right when some corners are flat or nearly so.
+// around. It stays right when some corners are flat or nearly so. The sum does not depend on the origin;
+// taking the first vertex as origin keeps far-off polygons from cancelling away their digits.
 Vec3f newell_normal(std::span<const Vec3f> polygon) {
     Vec3f normal;
+    const Vec3f origin = polygon[0];
     for (std::size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
-        const Vec3f a = polygon[j], b = polygon[i];
+        const Vec3f a = polygon[j] - origin, b = polygon[i] - origin;
         normal += Vec3f{(a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y)};
     }
     return normal;
@@ -57,29 +59,46 @@ bool is_convex(const std::vector<Point2>& points) {
 }
 
 // Ear clipping on a doubly linked ring (Meisters' two-ears theorem: a simple polygon always has an ear).
-// An ear is a strictly convex corner whose triangle holds no other remaining vertex; vertices that coincide
-// with a corner (outlines that touch themselves) do not block it.
+// An ear is a strictly convex corner whose triangle holds no other remaining vertex. A vertex that
+// coincides with an end of the ear's diagonal does not block it (an outline that touches itself there); one
+// that coincides with the ear's tip does, since the diagonal would then cut the outline off at that point.
 void clip_ears(const std::vector<Point2>& points, std::vector<std::uint32_t>& triangles) {
     const auto n = static_cast<std::uint32_t>(points.size());
     std::vector<std::uint32_t> prev(n), next(n);
     for (std::uint32_t i = 0; i < n; ++i)
         prev[i] = (i + n - 1) % n, next[i] = (i + 1) % n;
 
+    const auto turn = [&](std::uint32_t corner) {
+        return orientation(points[prev[corner]], points[corner], points[next[corner]]);
+    };
     const auto is_ear = [&](std::uint32_t corner) {
         const std::uint32_t a = prev[corner], c = next[corner];
         const Point2 pa = points[a], pb = points[corner], pc = points[c];
         if (orientation(pa, pb, pc) <= 0.0) return false;
         for (std::uint32_t other = next[c]; other != a; other = next[other]) {
             const Point2 p = points[other];
-            if (p == pa || p == pb || p == pc) continue;
+            if (p == pa || p == pc) continue;
             if (inside_or_on(p, pa, pb, pc)) return false;
         }
         return true;
+    };
+    // When a whole lap finds no ear, the outline left is not simple (it overlaps itself, or has collapsed
+    // to zero area). Clipping a flat corner costs no area; failing that, the most convex corner goes, so
+    // that the loop ends with n - 2 triangles whatever the input.
+    const auto fallback = [&](std::uint32_t start) {
+        std::uint32_t best = start, corner = start;
+        do {
+            if (turn(corner) == 0.0) return corner;
+            if (turn(corner) > turn(best)) best = corner;
+            corner = next[corner];
+        } while (corner != start);
+        return best;
     };
     const auto clip = [&](std::uint32_t corner) {
         triangles.insert(triangles.end(), {prev[corner], corner, next[corner]});
         next[prev[corner]] = next[corner];
         prev[next[corner]] = prev[corner];
+        return next[corner];
     };
 
     std::uint32_t corner = 0;
@@ -87,15 +106,9 @@ void clip_ears(const std::vector<Point2>& points, std::vector<std::uint32_t>& tr
     std::uint32_t tried = 0;  // corners tried since the last clip
     while (left > 3) {
         if (is_ear(corner)) {
-            const std::uint32_t following = next[corner];
-            clip(corner);
-            corner = following, --left, tried = 0;
+            corner = clip(corner), --left, tried = 0;
         } else if (++tried == left) {
-            // A whole lap without an ear: the outline is not simple. Clip anyway so that the loop ends and
-            // the count stays n - 2.
-            const std::uint32_t following = next[corner];
-            clip(corner);
-            corner = following, --left, tried = 0;
+            corner = clip(fallback(corner)), --left, tried = 0;
         } else {
             corner = next[corner];
         }
