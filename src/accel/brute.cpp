@@ -13,37 +13,29 @@ void BruteAccel::build(const Geometry& geometry, const BuildOptions& options) {
 
 void BruteAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                  TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        const auto prim_count = static_cast<std::uint32_t>(geometry_.size());
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            hits[i] = Hit{};
-            if (!is_valid(rays[i])) continue;
-            const PreparedRay<TriangleTestT> prepared(rays[i]);
-            for (std::uint32_t prim = 0; prim < prim_count; ++prim) {
-                intersect_primitive(geometry_, prim, prepared, hits[i]);
-            }
-            if constexpr (kCount) counters->prims_tested += prim_count;
-        }
-        if constexpr (kCount) counters->rays += rays.size();
-    });
+    const auto prim_count = static_cast<std::uint32_t>(geometry_.size());
+    intersect_each(options_.triangle_test, rays, hits, counters,
+                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                         Hit& best, TraversalCounters& counts) {
+                       for (std::uint32_t prim = 0; prim < prim_count; ++prim) {
+                           intersect_primitive(geometry_, prim, prepared, best);
+                       }
+                       if constexpr (kCount) counts.prims_tested += prim_count;
+                   });
 }
 
 void BruteAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                 TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        const auto prim_count = static_cast<std::uint32_t>(geometry_.size());
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            occluded[i] = 0;
-            if (!is_valid(rays[i])) continue;
-            const PreparedRay<TriangleTestT> prepared(rays[i]);
-            std::uint32_t prim = 0;
-            while (prim < prim_count && !occludes(geometry_, prim, prepared))
-                ++prim;
-            occluded[i] = prim < prim_count ? 1 : 0;
-            if constexpr (kCount) counters->prims_tested += std::min(prim + 1, prim_count);
-        }
-        if constexpr (kCount) counters->rays += rays.size();
-    });
+    const auto prim_count = static_cast<std::uint32_t>(geometry_.size());
+    occluded_each(options_.triangle_test, rays, occluded, counters,
+                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                        TraversalCounters& counts) {
+                      std::uint32_t prim = 0;
+                      while (prim < prim_count && !occludes(geometry_, prim, prepared))
+                          ++prim;
+                      if constexpr (kCount) counts.prims_tested += std::min(prim + 1, prim_count);
+                      return prim < prim_count;
+                  });
 }
 
 AccelStats BruteAccel::stats() const {

@@ -30,8 +30,10 @@ struct StackEntry {
 // its entry distance, so that a popped node is skipped when the closest hit so far lies before it.
 template <bool kAnyHit, bool kCount, class TriangleTestT>
 bool traverse(const std::vector<BvhNode>& nodes, const std::vector<std::uint32_t>& prim_indices,
-              const Geometry& geometry, const Ray& ray, Hit& best, TraversalCounters* counters) {
-    const PreparedRay<TriangleTestT> prepared(ray);
+              const Geometry& geometry, const PreparedRay<TriangleTestT>& prepared, Hit& best,
+              TraversalCounters& counters) {
+    if (nodes.empty()) return false;
+    const Ray& ray = prepared.ray;
     const SlabRay slab(ray);
     std::array<StackEntry, BvhAccel::kMaxDepth + 1> stack;
     int stack_size = 0;
@@ -40,9 +42,9 @@ bool traverse(const std::vector<BvhNode>& nodes, const std::vector<std::uint32_t
     std::uint32_t current = 0;
     while (true) {
         const BvhNode& node = nodes[current];
-        if constexpr (kCount) ++counters->nodes_visited;
+        if constexpr (kCount) ++counters.nodes_visited;
         if (node.is_leaf()) {
-            if constexpr (kCount) counters->prims_tested += node.prim_count;
+            if constexpr (kCount) counters.prims_tested += node.prim_count;
             for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i) {
                 if constexpr (kAnyHit) {
                     if (occludes(geometry, prim_indices[i], prepared)) return true;
@@ -84,28 +86,22 @@ bool traverse(const std::vector<BvhNode>& nodes, const std::vector<std::uint32_t
 
 void BvhAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            hits[i] = Hit{};
-            if (nodes_.empty() || !is_valid(rays[i])) continue;
-            traverse<false, kCount, TriangleTestT>(nodes_, prim_indices_, geometry_, rays[i], hits[i],
-                                                   counters);
-        }
-        if constexpr (kCount) counters->rays += rays.size();
-    });
+    intersect_each(options_.triangle_test, rays, hits, counters,
+                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                         Hit& best, TraversalCounters& counts) {
+                       traverse<false, kCount>(nodes_, prim_indices_, geometry_, prepared, best, counts);
+                   });
 }
 
 void BvhAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                               TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            Hit unused;
-            occluded[i] = !nodes_.empty() && is_valid(rays[i]) &&
-                          traverse<true, kCount, TriangleTestT>(nodes_, prim_indices_, geometry_, rays[i],
-                                                                unused, counters);
-        }
-        if constexpr (kCount) counters->rays += rays.size();
-    });
+    occluded_each(options_.triangle_test, rays, occluded, counters,
+                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                        TraversalCounters& counts) {
+                      Hit unused;
+                      return traverse<true, kCount>(nodes_, prim_indices_, geometry_, prepared, unused,
+                                                    counts);
+                  });
 }
 
 AccelStats BvhAccel::stats() const {

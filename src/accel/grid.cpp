@@ -273,36 +273,21 @@ bool GridAccel::traverse(const PreparedRay<TriangleTestT>& prepared, Hit& best,
 
 void GridAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                 TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        TraversalCounters local;  // summed here, so that the hot loop does not write through the pointer
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            Hit best;  // a local, not hits[i]: the compiler keeps it in registers
-            if (is_valid(rays[i])) traverse<false, kCount>(PreparedRay<TriangleTestT>(rays[i]), best, local);
-            hits[i] = best;
-        }
-        if constexpr (kCount) {
-            local.rays = rays.size();
-            *counters += local;
-        }
-    });
+    intersect_each(options_.triangle_test, rays, hits, counters,
+                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                         Hit& best, TraversalCounters& counts) {
+                       traverse<false, kCount>(prepared, best, counts);
+                   });
 }
 
 void GridAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        TraversalCounters local;
-        Hit unused;
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            occluded[i] = 0;
-            if (!is_valid(rays[i])) continue;
-            const PreparedRay<TriangleTestT> prepared(rays[i]);
-            occluded[i] = traverse<true, kCount>(prepared, unused, local) ? 1 : 0;
-        }
-        if constexpr (kCount) {
-            local.rays = rays.size();
-            *counters += local;
-        }
-    });
+    occluded_each(options_.triangle_test, rays, occluded, counters,
+                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                        TraversalCounters& counts) {
+                      Hit unused;
+                      return traverse<true, kCount>(prepared, unused, counts);
+                  });
 }
 
 std::vector<std::pair<std::string, std::size_t>> GridAccel::memory_by_array() const {

@@ -183,37 +183,21 @@ bool KdTreeAccel::walk(const PreparedRayT& prepared, Hit& best, TraversalCounter
 
 void KdTreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                   TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        TraversalCounters counts;
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            hits[i] = Hit{};
-            if (!is_valid(rays[i])) continue;
-            const PreparedRay<TriangleTestT> prepared(rays[i]);
-            walk<false, PreparedRay<TriangleTestT>, kCount>(prepared, hits[i], counts);
-        }
-        if constexpr (kCount) {
-            counts.rays = rays.size();
-            *counters += counts;
-        }
-    });
+    intersect_each(options_.triangle_test, rays, hits, counters,
+                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                         Hit& best, TraversalCounters& counts) {
+                       walk<false, PreparedRay<TriangleTestT>, kCount>(prepared, best, counts);
+                   });
 }
 
 void KdTreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                  TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        TraversalCounters counts;
-        Hit unused;
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            occluded[i] = 0;
-            if (!is_valid(rays[i])) continue;
-            const PreparedRay<TriangleTestT> prepared(rays[i]);
-            occluded[i] = walk<true, PreparedRay<TriangleTestT>, kCount>(prepared, unused, counts) ? 1 : 0;
-        }
-        if constexpr (kCount) {
-            counts.rays = rays.size();
-            *counters += counts;
-        }
-    });
+    occluded_each(options_.triangle_test, rays, occluded, counters,
+                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                        TraversalCounters& counts) {
+                      Hit unused;
+                      return walk<true, PreparedRay<TriangleTestT>, kCount>(prepared, unused, counts);
+                  });
 }
 
 AccelStats KdTreeAccel::stats() const {

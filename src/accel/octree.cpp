@@ -205,51 +205,44 @@ void OctreeAccel::walk(const Ray& ray, LeafVisitor&& visit_leaf, TraversalCounte
 
 void OctreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                   TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            Hit& best = hits[i];
-            best = Hit{};
-            if (!is_valid(rays[i])) continue;
-            const PreparedRay<TriangleTestT> prepared(rays[i]);
-            walk<kCount>(
-                rays[i],
-                [&](std::uint32_t node_index, float) {
-                    const OctreeNode& leaf = nodes_[node_index];
-                    for (std::uint32_t r = leaf.index; r < leaf.index + leaf.count; ++r)
-                        intersect_primitive(geometry_, references_[r], prepared, best);
-                    if constexpr (kCount) counters->prims_tested += leaf.count;
-                    return best.hit() ? best.t : prepared.ray.tfar;
-                },
-                counters);
-        }
-        if constexpr (kCount) counters->rays += rays.size();
-    });
+    intersect_each(options_.triangle_test, rays, hits, counters,
+                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                         Hit& best, TraversalCounters& counts) {
+                       walk<kCount>(
+                           prepared.ray,
+                           [&](std::uint32_t node_index, float) {
+                               const OctreeNode& leaf = nodes_[node_index];
+                               for (std::uint32_t r = leaf.index; r < leaf.index + leaf.count; ++r)
+                                   intersect_primitive(geometry_, references_[r], prepared, best);
+                               if constexpr (kCount) counts.prims_tested += leaf.count;
+                               return best.hit() ? best.t : prepared.ray.tfar;
+                           },
+                           &counts);
+                   });
 }
 
 void OctreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                  TraversalCounters* counters) const {
-    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            occluded[i] = 0;
-            if (!is_valid(rays[i])) continue;
-            const PreparedRay<TriangleTestT> prepared(rays[i]);
-            walk<kCount>(
-                rays[i],
-                [&](std::uint32_t node_index, float limit) {
-                    const OctreeNode& leaf = nodes_[node_index];
-                    for (std::uint32_t r = leaf.index; r < leaf.index + leaf.count; ++r) {
-                        if constexpr (kCount) ++counters->prims_tested;
-                        if (occludes(geometry_, references_[r], prepared)) {
-                            occluded[i] = 1;
-                            return -kInfinity;  // any hit ends the walk
-                        }
-                    }
-                    return limit;
-                },
-                counters);
-        }
-        if constexpr (kCount) counters->rays += rays.size();
-    });
+    occluded_each(options_.triangle_test, rays, occluded, counters,
+                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                        TraversalCounters& counts) {
+                      bool hit = false;
+                      walk<kCount>(
+                          prepared.ray,
+                          [&](std::uint32_t node_index, float limit) {
+                              const OctreeNode& leaf = nodes_[node_index];
+                              for (std::uint32_t r = leaf.index; r < leaf.index + leaf.count; ++r) {
+                                  if constexpr (kCount) ++counts.prims_tested;
+                                  if (occludes(geometry_, references_[r], prepared)) {
+                                      hit = true;
+                                      return -kInfinity;  // any hit ends the walk
+                                  }
+                              }
+                              return limit;
+                          },
+                          &counts);
+                      return hit;
+                  });
 }
 
 std::vector<std::uint32_t> OctreeAccel::leaves_along(const Ray& ray) const {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 
 #include "core/intersect.hpp"
 #include "lancer/accel.hpp"
@@ -60,6 +61,47 @@ inline void dispatch_policies(TriangleTest test, bool count, Body&& body) {
         count ? body.template operator()<MollerTrumbore, true>()
               : body.template operator()<MollerTrumbore, false>();
     }
+}
+
+// The batch loops every structure shares: the policies dispatched once per batch, invalid rays (is_valid)
+// answered as misses without any traversal, counts summed in a local (the hot loop never writes through the
+// caller's pointer) and added once. For one valid ray,
+//   closest.template operator()<TriangleTestT, kCount>(prepared, best, counts) improves the Hit `best`;
+//   any.template operator()<TriangleTestT, kCount>(prepared, counts) returns whether anything is hit.
+template <class ClosestOne>
+void intersect_each(TriangleTest test, std::span<const Ray> rays, std::span<Hit> hits,
+                    TraversalCounters* counters, ClosestOne&& closest) {
+    dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        TraversalCounters counts;
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            Hit best;  // a local, not hits[i]: it stays in registers
+            if (is_valid(rays[i])) {
+                closest.template operator()<TriangleTestT, kCount>(PreparedRay<TriangleTestT>(rays[i]), best,
+                                                                   counts);
+            }
+            hits[i] = best;
+        }
+        if constexpr (kCount) {
+            counts.rays = rays.size();
+            *counters += counts;
+        }
+    });
+}
+
+template <class AnyOne>
+void occluded_each(TriangleTest test, std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                   TraversalCounters* counters, AnyOne&& any) {
+    dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        TraversalCounters counts;
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            occluded[i] = is_valid(rays[i]) && any.template operator()<TriangleTestT, kCount>(
+                                                   PreparedRay<TriangleTestT>(rays[i]), counts);
+        }
+        if constexpr (kCount) {
+            counts.rays = rays.size();
+            *counters += counts;
+        }
+    });
 }
 
 }  // namespace lancer
