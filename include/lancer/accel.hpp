@@ -63,17 +63,21 @@ struct BvhOptions {
     int bins = 32;
 };
 
+// How the `embree` structure is queried: rtcIntersect1/rtcOccluded1 per ray, or 8- and 16-wide packets.
+enum class EmbreePacket { Single, Packet8, Packet16 };
+
 struct BuildOptions {
     TriangleTest triangle_test = TriangleTest::MollerTrumbore;
     GridOptions grid;
     OctreeOptions octree;
     KdTreeOptions kdtree;
     BvhOptions bvh;
+    EmbreePacket embree_packet = EmbreePacket::Single;
 };
 
 // Sets one option from "KEY=VALUE", as `--set` gives it: grid.density, octree.max_depth, octree.leaf_size,
 // kdtree.cost (wald-havran | seed003), kdtree.traversal_cost, kdtree.intersection_cost, kdtree.empty_bonus,
-// kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins. Throws std::invalid_argument
+// kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins, embree.packet (1 | 8 | 16). Throws std::invalid_argument
 // naming the key and the values it accepts.
 void set_build_option(BuildOptions& options, std::string_view assignment);
 

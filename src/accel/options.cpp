@@ -69,6 +69,18 @@ const std::map<std::string, Setter, std::less<>>& setters() {
          }},
         {"bvh.max_leaf_size",
          [](BuildOptions& o, auto k, auto v) { o.bvh.max_leaf_size = parse_number(k, v, 1, 64); }},
+        {"embree.packet",
+         [](BuildOptions& o, auto k, auto v) {
+             if (v == "1") {
+                 o.embree_packet = EmbreePacket::Single;
+             } else if (v == "8") {
+                 o.embree_packet = EmbreePacket::Packet8;
+             } else if (v == "16") {
+                 o.embree_packet = EmbreePacket::Packet16;
+             } else {
+                 fail(k, v, "1, 8 or 16");
+             }
+         }},
         {"bvh.bins", [](BuildOptions& o, auto k, auto v) { o.bvh.bins = parse_number(k, v, 2, 256); }},
     };
     return table;

@@ -5,6 +5,9 @@
 
 #include "accel/brute.hpp"
 #include "accel/bvh.hpp"
+#if LANCER_HAS_EMBREE
+#include "accel/embree.hpp"
+#endif
 #include "accel/grid.hpp"
 #include "accel/kdtree.hpp"
 #include "accel/octree.hpp"
@@ -25,6 +28,9 @@ const std::vector<Entry>& registry() {
         {"octree", [] { return std::make_unique<OctreeAccel>(); }},
         {"kdtree", [] { return std::make_unique<KdTreeAccel>(); }},
         {"bvh", [] { return std::make_unique<BvhAccel>(); }},
+#if LANCER_HAS_EMBREE
+        {"embree", [] { return std::make_unique<EmbreeAccel>(); }},
+#endif
     };
     return entries;
 }

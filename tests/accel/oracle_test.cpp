@@ -163,9 +163,12 @@ TEST_P(OracleTest, CountersSeeEveryValidRay) {
     }
 }
 
+// Every lancer structure. Embree, measured beside them, keeps its own triangle test and sphere rounding: it is
+// checked against brute force with its own tolerance in embree_test.cpp.
 std::vector<std::string_view> structures_under_test() {
     std::vector<std::string_view> names = accel_names();
     std::erase(names, std::string_view("brute"));
+    std::erase(names, std::string_view("embree"));
     return names;
 }
 

@@ -1,0 +1,212 @@
+#include "accel/embree.hpp"
+
+#include <chrono>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+namespace lancer {
+namespace {
+
+constexpr unsigned int kTriangleGeometry = 0;
+constexpr unsigned int kSphereGeometry = 1;
+
+// Embree asserts that coordinates stay below FLT_LARGE (1.8e18). A larger direction is scaled by a power of
+// two (exact, t is scaled back); an origin that far away is outside Embree's domain and answered as a miss.
+constexpr float kEmbreeLargest = 0x1p60f;
+
+bool in_embree_domain(const Ray& ray) {
+    return is_valid(ray) && max_component(abs(ray.origin)) <= kEmbreeLargest;
+}
+
+// The power of two that brings the direction inside Embree's domain (1 for ordinary rays).
+float direction_scale(const Ray& ray) {
+    float scale = 1.0f;
+    while (max_component(abs(ray.direction)) * scale > kEmbreeLargest)
+        scale *= 0x1p-32f;
+    return scale;
+}
+
+void fill_ray(const Ray& ray, RTCRay& out) {
+    out.org_x = ray.origin.x, out.org_y = ray.origin.y, out.org_z = ray.origin.z;
+    out.dir_x = ray.direction.x, out.dir_y = ray.direction.y, out.dir_z = ray.direction.z;
+    out.tnear = ray.tnear, out.tfar = ray.tfar;
+    out.time = 0.0f, out.mask = ~0u, out.id = 0, out.flags = 0;
+}
+
+template <int N>
+void fill_packet_ray(const Ray& ray, RTCRayNt<N>& out, int lane) {
+    out.org_x[lane] = ray.origin.x, out.org_y[lane] = ray.origin.y, out.org_z[lane] = ray.origin.z;
+    out.dir_x[lane] = ray.direction.x, out.dir_y[lane] = ray.direction.y, out.dir_z[lane] = ray.direction.z;
+    out.tnear[lane] = ray.tnear, out.tfar[lane] = ray.tfar;
+    out.time[lane] = 0.0f, out.mask[lane] = ~0u, out.id[lane] = 0, out.flags[lane] = 0;
+}
+
+// Embree numbers primitives per geometry; lancer's global numbering puts the spheres after the triangles.
+Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, float v,
+           unsigned int triangle_count) {
+    if (geometry == RTC_INVALID_GEOMETRY_ID) return Hit{};
+    const unsigned int global = geometry == kSphereGeometry ? triangle_count + primitive : primitive;
+    return {t, static_cast<std::int32_t>(global), u, v};
+}
+
+void check(RTCDevice device, const char* what) {
+    const RTCError error = rtcGetDeviceError(device);
+    if (error != RTC_ERROR_NONE)
+        throw std::runtime_error(std::string("embree: ") + what + " failed (error " +
+                                 std::to_string(static_cast<int>(error)) + ")");
+}
+
+// The packet variants: lanes of invalid rays are masked off and answered as misses.
+template <int N, class RtcPacket>
+void intersect_packets(RTCScene scene, std::span<const Ray> rays, std::span<Hit> hits,
+                       unsigned int triangle_count,
+                       void (*intersect)(const int*, RTCScene, RTCIntersectContext*, RtcPacket*)) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    for (std::size_t first = 0; first < rays.size(); first += N) {
+        alignas(64) RTCRayHitNt<N> packet;
+        alignas(64) int valid[N];
+        float scales[N];
+        const std::size_t lanes = std::min<std::size_t>(N, rays.size() - first);
+        for (int lane = 0; lane < N; ++lane) {
+            const bool used = static_cast<std::size_t>(lane) < lanes && in_embree_domain(rays[first + lane]);
+            valid[lane] = used ? -1 : 0;
+            scales[lane] = used ? direction_scale(rays[first + lane]) : 1.0f;
+            Ray scaled = used ? rays[first + lane] : Ray{};
+            scaled.direction *= scales[lane], scaled.tnear /= scales[lane], scaled.tfar /= scales[lane];
+            fill_packet_ray(scaled, packet.ray, lane);
+            packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+        }
+        intersect(valid, scene, &context, reinterpret_cast<RtcPacket*>(&packet));
+        for (std::size_t lane = 0; lane < lanes; ++lane) {
+            hits[first + lane] = valid[lane] ? to_hit(packet.ray.tfar[lane] * scales[lane],
+                                                      packet.hit.geomID[lane], packet.hit.primID[lane],
+                                                      packet.hit.u[lane], packet.hit.v[lane], triangle_count)
+                                             : Hit{};
+        }
+    }
+}
+
+}  // namespace
+
+EmbreeAccel::EmbreeAccel() : device_(rtcNewDevice(nullptr)) {
+    if (device_ == nullptr) throw std::runtime_error("embree: cannot create a device");
+}
+
+EmbreeAccel::~EmbreeAccel() {
+    release_scene();
+    rtcReleaseDevice(device_);
+}
+
+void EmbreeAccel::release_scene() {
+    if (scene_ != nullptr) rtcReleaseScene(scene_);
+    scene_ = nullptr;
+}
+
+void EmbreeAccel::build(const Geometry& geometry, const BuildOptions& options) {
+    const auto start = std::chrono::steady_clock::now();
+    release_scene();
+    packet_ = options.embree_packet;
+    triangle_count_ = static_cast<unsigned int>(geometry.triangles.size());
+    primitive_count_ = geometry.size();
+    buffer_bytes_ = 0;
+    scene_ = rtcNewScene(device_);
+    rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
+    if (options.triangle_test == TriangleTest::Watertight) rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);
+
+    if (!geometry.triangles.empty()) {
+        // Embree's own buffers: it pads them for its vector loads, which a shared std::vector would not be.
+        const RTCGeometry mesh = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+        const std::size_t vertex_count = 3 * geometry.triangles.size();
+        auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+            mesh, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertex_count));
+        auto* indices = static_cast<unsigned int*>(
+            rtcSetNewGeometryBuffer(mesh, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                    3 * sizeof(unsigned int), geometry.triangles.size()));
+        check(device_, "allocating the triangle buffers");
+        static_assert(sizeof(Triangle) == 9 * sizeof(float));
+        std::memcpy(vertices, geometry.triangles.data(), geometry.triangles.size() * sizeof(Triangle));
+        for (unsigned int i = 0; i < vertex_count; ++i)
+            indices[i] = i;
+        buffer_bytes_ += vertex_count * (3 * sizeof(float) + sizeof(unsigned int));
+        rtcCommitGeometry(mesh);
+        rtcAttachGeometryByID(scene_, mesh, kTriangleGeometry);
+        rtcReleaseGeometry(mesh);
+    }
+    if (!geometry.spheres.empty()) {
+        const RTCGeometry spheres = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+        auto* points =
+            static_cast<float*>(rtcSetNewGeometryBuffer(spheres, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                                        4 * sizeof(float), geometry.spheres.size()));
+        check(device_, "allocating the sphere buffer");
+        for (std::size_t i = 0; i < geometry.spheres.size(); ++i) {
+            const Sphere& sphere = geometry.spheres[i];
+            points[4 * i] = sphere.center.x, points[4 * i + 1] = sphere.center.y;
+            points[4 * i + 2] = sphere.center.z, points[4 * i + 3] = sphere.radius;
+        }
+        buffer_bytes_ += geometry.spheres.size() * 4 * sizeof(float);
+        rtcCommitGeometry(spheres);
+        rtcAttachGeometryByID(scene_, spheres, kSphereGeometry);
+        rtcReleaseGeometry(spheres);
+    }
+    rtcCommitScene(scene_);
+    check(device_, "building the scene");
+    build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                  TraversalCounters* counters) const {
+    if (counters != nullptr) counters->rays += rays.size();  // Embree exposes no traversal counts
+    if (packet_ == EmbreePacket::Packet8) {
+        intersect_packets<8, RTCRayHit8>(scene_, rays, hits, triangle_count_, rtcIntersect8);
+        return;
+    }
+    if (packet_ == EmbreePacket::Packet16) {
+        intersect_packets<16, RTCRayHit16>(scene_, rays, hits, triangle_count_, rtcIntersect16);
+        return;
+    }
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        hits[i] = Hit{};
+        if (!in_embree_domain(rays[i])) continue;
+        const float scale = direction_scale(rays[i]);
+        Ray scaled = rays[i];
+        scaled.direction *= scale, scaled.tnear /= scale, scaled.tfar /= scale;
+        RTCRayHit query;
+        fill_ray(scaled, query.ray);
+        query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene_, &context, &query);
+        hits[i] = to_hit(query.ray.tfar * scale, query.hit.geomID, query.hit.primID, query.hit.u, query.hit.v,
+                         triangle_count_);
+    }
+}
+
+void EmbreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                                 TraversalCounters* counters) const {
+    if (counters != nullptr) counters->rays += rays.size();
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        occluded[i] = 0;
+        if (!in_embree_domain(rays[i])) continue;
+        const float scale = direction_scale(rays[i]);
+        Ray scaled = rays[i];
+        scaled.direction *= scale, scaled.tnear /= scale, scaled.tfar /= scale;
+        RTCRay query;
+        fill_ray(scaled, query);
+        rtcOccluded1(scene_, &context, &query);
+        occluded[i] = query.tfar == -kInfinity ? 1 : 0;  // Embree marks an occluded ray with tfar = -inf
+    }
+}
+
+AccelStats EmbreeAccel::stats() const {
+    AccelStats stats;
+    stats.build_ms = build_ms_;
+    stats.primitives = primitive_count_;
+    stats.memory_by_array = {{"embree buffers", buffer_bytes_}};
+    return stats;
+}
+
+}  // namespace lancer

@@ -1,0 +1,44 @@
+// Intel Embree behind lancer's interface, so that it is measured in the same process, on the same rays and
+// threads as lancer's own structures (issue 6). Compiled in when Debian's Embree 3 is found
+// (LANCER_EMBREE). Embree uses its own triangle test (watertight when --watertight sets its robust mode)
+// and its own traversal: it is a peer to compare with, not one of our kernels, so it is checked against
+// brute force by tests/accel/embree_test.cpp rather than held to the bit-exact oracle test.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <vector>
+
+#include "lancer/accel.hpp"
+
+namespace lancer {
+
+class EmbreeAccel final : public Accel {
+public:
+    EmbreeAccel();
+    ~EmbreeAccel() override;
+    EmbreeAccel(const EmbreeAccel&) = delete;
+    EmbreeAccel& operator=(const EmbreeAccel&) = delete;
+
+    [[nodiscard]] std::string_view name() const override { return "embree"; }
+    void build(const Geometry& geometry, const BuildOptions& options) override;
+    [[nodiscard]] AccelStats stats() const override;
+    // Embree does not expose its node memory; this counts the vertex and index buffers it was given.
+    [[nodiscard]] std::size_t memory_bytes() const override { return buffer_bytes_; }
+
+private:
+    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters) const override;
+    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                        TraversalCounters* counters) const override;
+    void release_scene();
+
+    RTCDevice device_ = nullptr;
+    RTCScene scene_ = nullptr;
+    unsigned int triangle_count_ = 0;
+    std::size_t primitive_count_ = 0;
+    std::size_t buffer_bytes_ = 0;
+    double build_ms_ = 0.0;
+    EmbreePacket packet_ = EmbreePacket::Single;
+};
+
+}  // namespace lancer
