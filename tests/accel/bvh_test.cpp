@@ -9,10 +9,10 @@
 #include <cstring>
 #include <random>
 
+#include "accel/agreement.hpp"
 #include "accel/build_util.hpp"
 #include "accel/bvh_build.hpp"
 #include "lancer/generate.hpp"
-#include "oracle.hpp"
 #include "ray_sets.hpp"
 
 namespace lancer {
@@ -93,7 +93,7 @@ TEST(Bvh, SweepBuilderAgreesWithBruteForce) {
         std::vector<Hit> expected(set.rays.size()), actual(set.rays.size());
         brute->intersect(set.rays, expected);
         bvh.intersect(set.rays, actual);
-        const testing::Agreement agreement = testing::compare_hits(set.rays, expected, actual);
+        const Agreement agreement = compare_hits(set.rays, expected, actual);
         EXPECT_EQ(agreement.mismatches, 0u) << set.name << ": " << agreement.summary();
     }
 }

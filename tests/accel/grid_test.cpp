@@ -9,10 +9,10 @@
 #include <cmath>
 #include <random>
 
+#include "accel/agreement.hpp"
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
 #include "lancer/generate.hpp"
-#include "oracle.hpp"
 #include "ray_sets.hpp"
 
 namespace lancer {
@@ -61,11 +61,11 @@ std::size_t expect_agreement_with_brute(const Geometry& geometry, std::span<cons
         std::vector<Hit> expected(rays.size()), actual(rays.size());
         brute.intersect(rays, expected);
         grid.intersect(rays, actual);
-        const testing::Agreement closest = testing::compare_hits(rays, expected, actual);
+        const Agreement closest = compare_hits(rays, expected, actual);
         EXPECT_EQ(closest.mismatches, 0u) << what << ": " << closest.summary();
         std::vector<std::uint8_t> occluded(rays.size());
         grid.occluded(rays, occluded);
-        const testing::Agreement any = testing::compare_occlusion(rays, expected, occluded);
+        const Agreement any = compare_occlusion(rays, expected, occluded);
         EXPECT_EQ(any.mismatches, 0u) << what << ": " << any.summary();
         hits_found += closest.hits;
     }

@@ -13,10 +13,10 @@
 #include <limits>
 #include <random>
 
+#include "accel/agreement.hpp"
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
 #include "lancer/generate.hpp"
-#include "oracle.hpp"
 #include "ray_sets.hpp"
 
 namespace lancer {
@@ -383,12 +383,12 @@ TEST(KdTree, Seed003CostAgreesWithBruteForce) {
                 std::vector<Hit> expected(set.rays.size()), hits(set.rays.size());
                 brute.intersect(set.rays, expected);
                 accel.intersect(set.rays, hits);
-                const testing::Agreement closest = testing::compare_hits(set.rays, expected, hits);
+                const Agreement closest = compare_hits(set.rays, expected, hits);
                 EXPECT_EQ(closest.mismatches, 0u)
                     << scene.name << ", " << set.name << ": " << closest.summary();
                 std::vector<std::uint8_t> occluded(set.rays.size());
                 accel.occluded(set.rays, occluded);
-                const testing::Agreement any = testing::compare_occlusion(set.rays, expected, occluded);
+                const Agreement any = compare_occlusion(set.rays, expected, occluded);
                 EXPECT_EQ(any.mismatches, 0u) << scene.name << ", " << set.name << ": " << any.summary();
             }
         }
@@ -425,12 +425,12 @@ TEST(KdTree, RaysOnSplitPlanesAgreeWithBruteForce) {
         std::vector<Hit> expected(rays.size()), hits(rays.size());
         brute.intersect(rays, expected);
         accel.intersect(rays, hits);
-        const testing::Agreement closest = testing::compare_hits(rays, expected, hits);
+        const Agreement closest = compare_hits(rays, expected, hits);
         EXPECT_EQ(closest.mismatches, 0u) << scene.name << ": " << closest.summary();
         EXPECT_GT(closest.hits, rays.size() / 10);
         std::vector<std::uint8_t> occluded(rays.size());
         accel.occluded(rays, occluded);
-        const testing::Agreement any = testing::compare_occlusion(rays, expected, occluded);
+        const Agreement any = compare_occlusion(rays, expected, occluded);
         EXPECT_EQ(any.mismatches, 0u) << scene.name << ": " << any.summary();
     }
 }

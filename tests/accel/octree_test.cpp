@@ -11,10 +11,10 @@
 #include <random>
 #include <tuple>
 
+#include "accel/agreement.hpp"
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
 #include "lancer/generate.hpp"
-#include "oracle.hpp"
 #include "ray_sets.hpp"
 
 namespace lancer {
@@ -387,10 +387,10 @@ TEST(OctreeAccel, RaysInCellPlanes) {
         brute.intersect(rays, expected);
         accel.intersect(rays, hits);
         accel.occluded(rays, occluded);
-        const testing::Agreement closest = testing::compare_hits(rays, expected, hits);
+        const Agreement closest = compare_hits(rays, expected, hits);
         EXPECT_EQ(closest.mismatches, 0u) << closest.summary();
         EXPECT_GT(closest.hits, 200u);
-        const testing::Agreement any = testing::compare_occlusion(rays, expected, occluded);
+        const Agreement any = compare_occlusion(rays, expected, occluded);
         EXPECT_EQ(any.mismatches, 0u) << any.summary();
     }
     OctreeAccel accel;
@@ -473,9 +473,8 @@ TEST(OctreeAccel, MaxDepthZeroIsOneLeafThatAgreesWithBruteForce) {
                 brute.intersect(set.rays, expected);
                 accel.intersect(set.rays, hits);
                 accel.occluded(set.rays, occluded);
-                EXPECT_EQ(testing::compare_hits(set.rays, expected, hits).mismatches, 0u) << set.name;
-                EXPECT_EQ(testing::compare_occlusion(set.rays, expected, occluded).mismatches, 0u)
-                    << set.name;
+                EXPECT_EQ(compare_hits(set.rays, expected, hits).mismatches, 0u) << set.name;
+                EXPECT_EQ(compare_occlusion(set.rays, expected, occluded).mismatches, 0u) << set.name;
             }
         }
     }

@@ -5,9 +5,9 @@
 #include <map>
 #include <random>
 
+#include "accel/agreement.hpp"
 #include "accel/brute.hpp"
 #include "lancer/generate.hpp"
-#include "oracle.hpp"
 #include "ray_sets.hpp"
 
 namespace lancer {
@@ -129,14 +129,14 @@ TEST_P(OracleTest, AgreesWithBruteForceOnEveryRay) {
                 const std::vector<Hit>& expected = oracle_hits(scene_index, set_index, set, test);
                 std::vector<Hit> hits(set.rays.size());
                 accel->intersect(set.rays, hits);
-                const testing::Agreement closest = testing::compare_hits(set.rays, expected, hits);
+                const Agreement closest = compare_hits(set.rays, expected, hits);
                 EXPECT_EQ(closest.mismatches, 0u)
                     << GetParam() << ", " << scene.name << ", " << set.name << ", "
                     << (test == TriangleTest::Watertight ? "watertight" : "moller") << ": "
                     << closest.summary();
                 std::vector<std::uint8_t> occluded(set.rays.size());
                 accel->occluded(set.rays, occluded);
-                const testing::Agreement any = testing::compare_occlusion(set.rays, expected, occluded);
+                const Agreement any = compare_occlusion(set.rays, expected, occluded);
                 EXPECT_EQ(any.mismatches, 0u)
                     << GetParam() << ", " << scene.name << ", " << set.name << ": " << any.summary();
             }
@@ -163,8 +163,8 @@ TEST_P(OracleTest, CountersSeeEveryValidRay) {
     }
 }
 
-// Every lancer structure. Embree, measured beside them, keeps its own triangle test and sphere rounding: it is
-// checked against brute force with its own tolerance in embree_test.cpp.
+// Every lancer structure. Embree, measured beside them, keeps its own triangle test and sphere rounding: it
+// is checked against brute force with its own tolerance in embree_test.cpp.
 std::vector<std::string_view> structures_under_test() {
     std::vector<std::string_view> names = accel_names();
     std::erase(names, std::string_view("brute"));

@@ -9,9 +9,9 @@
 
 #include <filesystem>
 
+#include "accel/agreement.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/io.hpp"
-#include "oracle.hpp"
 #include "ray_sets.hpp"
 
 namespace lancer {
@@ -74,19 +74,18 @@ TEST_P(StanfordMesh, EveryStructureAgreesOnTheCanonicalViewAndOnRandomRays) {
             sample.push_back(set.rays[i]);
             sample_reference.push_back(reference_hits[i]);
         }
-        const testing::Agreement with_brute =
-            testing::compare_hits(sample, trace(*brute, sample), sample_reference);
+        const Agreement with_brute = compare_hits(sample, trace(*brute, sample), sample_reference);
         std::printf("%s, %s: bvh vs brute on %zu sampled rays: %s\n", GetParam(), set.name.c_str(),
                     sample.size(), with_brute.summary().c_str());
         EXPECT_EQ(with_brute.mismatches, 0u) << with_brute.summary();
         EXPECT_GT(with_brute.hits, sample.size() / 20);
 
         for (std::string_view name : accel_names()) {
-            if (name == "brute" || name == "bvh" || name == "embree") continue;  // embree: see embree_test.cpp
+            if (name == "brute" || name == "bvh" || name == "embree")
+                continue;  // embree: see embree_test.cpp
             const std::unique_ptr<Accel> accel = make_accel(name);
             accel->build(geometry.view(), {});
-            const testing::Agreement agreement =
-                testing::compare_hits(set.rays, reference_hits, trace(*accel, set.rays));
+            const Agreement agreement = compare_hits(set.rays, reference_hits, trace(*accel, set.rays));
             std::printf("%s, %s: %s vs bvh on every ray: %s\n", GetParam(), set.name.c_str(),
                         std::string(name).c_str(), agreement.summary().c_str());
             EXPECT_EQ(agreement.mismatches, 0u) << name << ": " << agreement.summary();

@@ -1,10 +1,10 @@
-#include "oracle.hpp"
+#include "accel/agreement.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 
-namespace lancer::testing {
+namespace lancer {
 namespace {
 
 std::string describe(const Ray& ray, const Hit& expected, const Hit& actual, std::size_t index) {
@@ -60,4 +60,4 @@ Agreement compare_occlusion(std::span<const Ray> rays, std::span<const Hit> expe
     return agreement;
 }
 
-}  // namespace lancer::testing
+}  // namespace lancer

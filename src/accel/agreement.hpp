@@ -1,4 +1,5 @@
-// Comparing a structure's answers with the brute-force oracle's, ray by ray.
+// Comparing two structures' answers ray by ray: the oracle tests, and `lancer bench`, which checks every
+// structure against the first one before it times them (style habit 9: validate while timing).
 #pragma once
 
 #include <cstddef>
@@ -7,7 +8,7 @@
 
 #include "lancer/accel.hpp"
 
-namespace lancer::testing {
+namespace lancer {
 
 // Agreement (issue 3): the same hit or miss, and t within 1e-5 relative. A different primitive at the same
 // t is a tie, counted apart, not an error.
@@ -25,4 +26,4 @@ struct Agreement {
 [[nodiscard]] Agreement compare_occlusion(std::span<const Ray> rays, std::span<const Hit> expected,
                                           std::span<const std::uint8_t> occluded);
 
-}  // namespace lancer::testing
+}  // namespace lancer
