@@ -23,6 +23,12 @@ class InputError : public std::runtime_error {
     using std::runtime_error::runtime_error;
 };
 
+// A check the command ran failed (structures disagree in the bench): printed on stderr, exit code 1.
+class CheckFailure : public std::runtime_error {
+  public:
+    using std::runtime_error::runtime_error;
+};
+
 class Stopwatch {
   public:
     [[nodiscard]] double elapsed_ms() const {

@@ -1,4 +1,5 @@
-// lancer: the command-line front end. Exit codes: 0 success, 2 bad input (file, flag), 1 internal error.
+// lancer: the command-line front end. Exit codes: 0 success, 2 bad input (file, flag), 1 a failed check
+// (structures that disagree in the bench) or an internal error.
 #include <fmt/core.h>
 
 #include <CLI/CLI.hpp>
@@ -16,6 +17,7 @@ int main(int argc, char** argv) {
     lancer::cli::add_info_command(app);
     lancer::cli::add_rays_command(app);
     lancer::cli::add_stats_command(app);
+    lancer::cli::add_bench_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& error) {
@@ -27,6 +29,9 @@ int main(int argc, char** argv) {
     } catch (const lancer::cli::InputError& error) {
         fmt::print(stderr, "lancer: {}\n", error.what());
         return 2;
+    } catch (const lancer::cli::CheckFailure& error) {
+        fmt::print(stderr, "lancer: {}\n", error.what());
+        return 1;
     } catch (const std::exception& error) {
         fmt::print(stderr, "lancer: internal error: {}\n", error.what());
         return 1;

@@ -140,6 +140,36 @@ TEST_F(Cli, RenderWritesAPngAndReportsItsWork) {
     EXPECT_EQ(std::string(signature + 1, 3), "PNG");
 }
 
+TEST_F(Cli, BenchWritesOneRecordPerStructureAndThreadCount) {
+    const fs::path mesh = write("mesh.off", kMesh);
+    const fs::path json = dir_ / "bench.json";
+    const fs::path svg = dir_ / "bench.svg";
+    const Result result = run("bench --mesh " + mesh.string() + " --accel grid,bvh --threads 1,2 --size 32 " +
+                              "--frames 2 --json " + json.string() + " --svg " + svg.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    std::ostringstream text;
+    text << std::ifstream(json).rdbuf();
+    const std::string records = text.str();
+    std::size_t count = 0;
+    for (std::size_t at = records.find("\"mrays_per_s\""); at != std::string::npos;
+         at = records.find("\"mrays_per_s\"", at + 1)) {
+        ++count;
+    }
+    EXPECT_EQ(count, 4u) << records;  // 2 structures x 2 thread counts
+    for (const char* field : {"\"mesh\"", "\"triangles\": 3", "\"accel\": \"bvh\"", "\"threads\": 2",
+                              "\"build_ms\"", "\"memory_bytes\"", "\"mrays_min\"", "\"mrays_max\"",
+                              "\"hit_fraction\"", "\"nodes_per_ray\"", "\"prims_per_ray\""}) {
+        EXPECT_NE(records.find(field), std::string::npos) << field;
+    }
+    std::ostringstream picture;
+    picture << std::ifstream(svg).rdbuf();
+    EXPECT_NE(picture.str().find("<svg"), std::string::npos);
+    EXPECT_NE(picture.str().find("bvh, 2 threads"), std::string::npos);
+
+    EXPECT_EQ(run("bench --mesh " + mesh.string() + " --threads 0").exit_code, 2);
+    EXPECT_EQ(run("bench --mesh " + mesh.string() + " --accel nope").exit_code, 2);
+}
+
 TEST_F(Cli, InfoCountsTrianglesAfterFanTriangulation) {
     const Result result = run("info " + write("mesh.off", kMesh).string());
     ASSERT_EQ(result.exit_code, 0) << result.output;

@@ -1,0 +1,357 @@
+// lancer bench: the throughput of every structure on the canonical view of shared/bench/VIEWS.md, Embree
+// beside lancer in the same process on the same rays and threads. Every structure's hits are checked
+// against the first structure's before it is timed; a disagreement fails the bench (exit code 1).
+#include <fmt/core.h>
+#include <fmt/os.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <array>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+#include "accel/agreement.hpp"
+#include "commands.hpp"
+#include "common.hpp"
+#include "lancer/camera.hpp"
+#include "lancer/generate.hpp"
+
+namespace lancer::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct BenchOptions {
+    std::vector<std::string> meshes;
+    std::string accel_list = "all";
+    std::string thread_list = "1,2";
+    int size = 1024;
+    int frames = 5;
+    bool moller_trumbore = false;
+    std::vector<std::string> settings;
+    std::string json_file;
+    std::string svg_file;
+};
+
+struct Record {
+    std::string mesh;
+    std::size_t triangles = 0;
+    std::string accel;
+    int threads = 0;
+    double build_ms = 0.0;
+    std::size_t memory_bytes = 0;
+    std::size_t geometry_bytes = 0;
+    double mrays_median = 0.0, mrays_min = 0.0, mrays_max = 0.0;
+    double hit_fraction = 0.0;
+    double nodes_per_ray = 0.0, prims_per_ray = 0.0;
+    bool counted = false;  // false for structures that expose no traversal counts (Embree)
+};
+
+std::string per_ray(double value, bool counted) {
+    return counted ? fmt::format("{:.2f}", value) : "n/a";
+}
+
+struct BenchMesh {
+    std::string name;
+    Scene scene;
+};
+
+std::vector<int> parse_int_list(const std::string& text, const char* what) {
+    std::vector<int> values;
+    std::stringstream stream(text);
+    std::string item;
+    while (std::getline(stream, item, ',')) {
+        try {
+            std::size_t used = 0;
+            const int value = std::stoi(item, &used);
+            if (used != item.size() || value < 1 || value > 1024) throw std::invalid_argument(item);
+            values.push_back(value);
+        } catch (const std::exception&) {
+            throw InputError(fmt::format(
+                "{}: expected a comma-separated list of integers in [1, 1024], got '{}'", what, text));
+        }
+    }
+    if (values.empty()) throw InputError(fmt::format("{}: empty list", what));
+    return values;
+}
+
+std::vector<std::string> parse_accels(const std::string& text) {
+    std::vector<std::string> names;
+    if (text == "all") {
+        for (std::string_view name : accel_names()) {
+            if (name != "brute") names.emplace_back(name);  // brute force at 1M rays x 1M triangles: hours
+        }
+        return names;
+    }
+    std::stringstream stream(text);
+    std::string item;
+    while (std::getline(stream, item, ','))
+        names.push_back(item);
+    return names;
+}
+
+// The Stanford meshes when shared/data is there, else torus knots of the same sizes (VIEWS.md).
+std::vector<BenchMesh> load_meshes(const BenchOptions& options) {
+    std::vector<BenchMesh> meshes;
+    std::vector<std::string> files = options.meshes;
+    if (files.empty()) {
+        const fs::path shared = fs::path(LANCER_SHARED_DIR) / "data" / "meshes";
+        for (const char* name : {"bunny.obj", "armadillo.off", "dragon.ply"}) {
+            if (fs::exists(shared / name)) files.push_back((shared / name).string());
+        }
+    }
+    for (const std::string& file : files)
+        meshes.push_back({fs::path(file).filename().string(), load_timed(file).scene});
+    if (meshes.empty()) {
+        for (const auto& [name, segments] :
+             {std::pair{"knot-70k", 1750}, {"knot-350k", 8750}, {"knot-870k", 21800}}) {
+            BenchMesh mesh{name, {}};
+            mesh.scene.meshes.push_back(make_torus_knot(segments, 20));
+            mesh.scene.materials.emplace_back();
+            meshes.push_back(std::move(mesh));
+        }
+    }
+    return meshes;
+}
+
+// One frame as VIEWS.md times it: generate every ray from the camera, trace it, store its closest hit.
+void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hit>& hits,
+                 tbb::task_arena& arena) {
+    const int width = camera.width();
+    arena.execute([&] {
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, camera.height(), 4), [&](const tbb::blocked_range<int>& rows) {
+                std::vector<Ray> rays;
+                rays.reserve(static_cast<std::size_t>(rows.size()) * static_cast<std::size_t>(width));
+                for (int j = rows.begin(); j < rows.end(); ++j) {
+                    for (int i = 0; i < width; ++i) {
+                        rays.push_back(
+                            camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
+                    }
+                }
+                const auto first = static_cast<std::size_t>(rows.begin()) * static_cast<std::size_t>(width);
+                accel.intersect(rays, std::span(hits).subspan(first, rays.size()));
+            });
+    });
+}
+
+std::vector<Ray> view_rays(const PinholeCamera& camera) {
+    std::vector<Ray> rays;
+    rays.reserve(static_cast<std::size_t>(camera.width()) * static_cast<std::size_t>(camera.height()));
+    for (int j = 0; j < camera.height(); ++j) {
+        for (int i = 0; i < camera.width(); ++i) {
+            rays.push_back(camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
+        }
+    }
+    return rays;
+}
+
+std::string cpu_name() {
+    std::ifstream cpuinfo("/proc/cpuinfo");
+    std::string line;
+    while (std::getline(cpuinfo, line)) {
+        if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+    }
+    return "unknown CPU";
+}
+
+void write_json(const std::string& file, const std::vector<Record>& records) {
+    std::string json = "[\n";
+    for (std::size_t i = 0; i < records.size(); ++i) {
+        const Record& r = records[i];
+        json += fmt::format(
+            "  {{\"mesh\": \"{}\", \"triangles\": {}, \"accel\": \"{}\", \"threads\": {}, \"build_ms\": "
+            "{:.3f}, "
+            "\"memory_bytes\": {}, \"geometry_bytes\": {}, \"mrays_per_s\": {:.4f}, \"mrays_min\": {:.4f}, "
+            "\"mrays_max\": {:.4f}, \"hit_fraction\": {:.6f}, \"nodes_per_ray\": {}, \"prims_per_ray\": "
+            "{}}}{}\n",
+            r.mesh, r.triangles, r.accel, r.threads, r.build_ms, r.memory_bytes, r.geometry_bytes,
+            r.mrays_median, r.mrays_min, r.mrays_max, r.hit_fraction,
+            r.counted ? fmt::format("{:.4f}", r.nodes_per_ray) : "null",
+            r.counted ? fmt::format("{:.4f}", r.prims_per_ray) : "null", i + 1 < records.size() ? "," : "");
+    }
+    json += "]\n";
+    try {
+        fmt::output_file(file).print("{}", json);
+    } catch (const std::system_error& error) {
+        throw InputError(file + ": " + error.what());
+    }
+}
+
+// Horizontal bars, one group per mesh, one bar per structure and thread count, labelled with the value.
+void write_svg(const std::string& file, const std::vector<Record>& records) {
+    constexpr int kBarHeight = 16, kLabelWidth = 230, kChartWidth = 520, kGroupGap = 28;
+    double best = 0.0;
+    for (const Record& r : records)
+        best = std::max(best, r.mrays_median);
+    const std::array<const char*, 6> palette = {"#4c72b0", "#dd8452", "#55a868",
+                                                "#c44e52", "#8172b3", "#937860"};
+    std::vector<std::string> accels;
+    for (const Record& r : records) {
+        if (std::find(accels.begin(), accels.end(), r.accel) == accels.end()) accels.push_back(r.accel);
+    }
+    std::string body;
+    int y = 40;
+    std::string current_mesh;
+    for (const Record& r : records) {
+        if (r.mesh != current_mesh) {
+            current_mesh = r.mesh;
+            y += kGroupGap / 2;
+            body += fmt::format("<text x=\"8\" y=\"{}\" font-weight=\"bold\">{} ({} triangles)</text>\n", y,
+                                r.mesh, r.triangles);
+            y += 8;
+        }
+        const auto colour =
+            static_cast<std::size_t>(std::find(accels.begin(), accels.end(), r.accel) - accels.begin());
+        const double width = best > 0.0 ? kChartWidth * r.mrays_median / best : 0.0;
+        body +=
+            fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"end\">{}, {} thread{}</text>\n",
+                        kLabelWidth - 6, y + kBarHeight - 4, r.accel, r.threads, r.threads > 1 ? "s" : "");
+        body += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{:.1f}\" height=\"{}\" fill=\"{}\"/>\n",
+                            kLabelWidth, y, width, kBarHeight - 2, palette[colour % palette.size()]);
+        body += fmt::format("<text x=\"{:.1f}\" y=\"{}\">{:.2f}</text>\n", kLabelWidth + width + 4,
+                            y + kBarHeight - 4, r.mrays_median);
+        y += kBarHeight;
+    }
+    const int height = y + 20;
+    const std::string svg = fmt::format(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" font-family=\"sans-serif\" "
+        "font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+        "<text x=\"8\" y=\"20\" font-size=\"14\">lancer bench: Mrays/s on the canonical view (median of the "
+        "frames)</text>\n{}</svg>\n",
+        kLabelWidth + kChartWidth + 80, height, body);
+    try {
+        fmt::output_file(file).print("{}", svg);
+    } catch (const std::system_error& error) {
+        throw InputError(file + ": " + error.what());
+    }
+}
+
+void run(const BenchOptions& options) {
+    const std::vector<int> thread_counts = parse_int_list(options.thread_list, "--threads");
+    const std::vector<std::string> accels = parse_accels(options.accel_list);
+    const std::vector<BenchMesh> meshes = load_meshes(options);
+
+    fmt::print(
+        "lancer bench: {}, {} hardware threads; {} {}; {}x{} canonical view, {} frames after 1 warm-up\n",
+        cpu_name(), std::thread::hardware_concurrency(), LANCER_COMPILER, LANCER_BUILD_FLAGS, options.size,
+        options.size, options.frames);
+    fmt::print("{:<16} {:>9} {:<8} {:>3} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6} {:>8} {:>8}\n", "mesh",
+               "triangles", "accel", "thr", "build ms", "Mtris/s", "mem MB", "Mrays/s", "min", "max", "hits",
+               "nodes/r", "prims/r");
+
+    std::vector<Record> records;
+    bool agreement_failed = false;
+    for (const BenchMesh& mesh : meshes) {
+        const SceneGeometry geometry(mesh.scene);
+        const PinholeCamera camera(canonical_view(geometry.view().bounds(), options.size, options.size));
+        const std::vector<Ray> rays = view_rays(camera);
+        std::vector<Hit> reference;
+        std::string reference_name;
+        for (const std::string& name : accels) {
+            AccelChoice choice{name, !options.moller_trumbore, options.settings};
+            const BuiltAccel built = build_timed(choice, geometry.view());
+
+            // Validate before timing: the same answers as the first structure measured.
+            std::vector<Hit> hits(rays.size());
+            TraversalCounters counters;
+            built.accel->intersect(rays, hits, &counters);
+            if (reference.empty()) {
+                reference = hits;
+                reference_name = name;
+            } else {
+                const Agreement agreement = compare_hits(rays, reference, hits);
+                if (agreement.mismatches > 0) {
+                    fmt::print(stderr, "bench: {} disagrees with {} on {}: {}\n", name, reference_name,
+                               mesh.name, agreement.summary());
+                    agreement_failed = true;
+                    continue;
+                }
+            }
+            std::size_t hit_count = 0;
+            for (const Hit& hit : hits)
+                hit_count += hit.hit() ? 1 : 0;
+
+            for (int threads : thread_counts) {
+                tbb::task_arena arena(threads);
+                std::vector<double> mrays;
+                for (int frame = -1; frame < options.frames; ++frame) {  // frame -1: the warm-up
+                    Stopwatch watch;
+                    trace_frame(*built.accel, camera, hits, arena);
+                    if (frame >= 0)
+                        mrays.push_back(static_cast<double>(rays.size()) / (watch.elapsed_ms() * 1e3));
+                }
+                std::sort(mrays.begin(), mrays.end());
+                Record record;
+                record.mesh = mesh.name;
+                record.triangles = geometry.triangle_count();
+                record.accel = name;
+                record.threads = threads;
+                record.build_ms = built.build_ms;
+                record.memory_bytes = built.accel->memory_bytes();
+                record.geometry_bytes = geometry.view().triangles.size() * sizeof(Triangle) +
+                                        geometry.view().spheres.size() * sizeof(Sphere);
+                record.mrays_median = mrays[mrays.size() / 2];
+                record.mrays_min = mrays.front();
+                record.mrays_max = mrays.back();
+                record.hit_fraction = static_cast<double>(hit_count) / static_cast<double>(rays.size());
+                record.nodes_per_ray =
+                    static_cast<double>(counters.nodes_visited) / static_cast<double>(rays.size());
+                record.prims_per_ray =
+                    static_cast<double>(counters.prims_tested) / static_cast<double>(rays.size());
+                record.counted = counters.nodes_visited > 0;
+                fmt::print(
+                    "{:<16} {:>9} {:<8} {:>3} {:>10.1f} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f} "
+                    "{:>5.1f}% {:>8} {:>8}\n",
+                    record.mesh, record.triangles, record.accel, threads, record.build_ms,
+                    static_cast<double>(record.triangles) / (record.build_ms * 1e3),
+                    static_cast<double>(record.memory_bytes) / (1024.0 * 1024.0), record.mrays_median,
+                    record.mrays_min, record.mrays_max, 100.0 * record.hit_fraction,
+                    per_ray(record.nodes_per_ray, record.counted),
+                    per_ray(record.prims_per_ray, record.counted));
+                std::fflush(stdout);
+                records.push_back(record);
+            }
+        }
+    }
+    if (!options.json_file.empty()) write_json(options.json_file, records);
+    if (!options.svg_file.empty()) write_svg(options.svg_file, records);
+    if (agreement_failed)
+        throw CheckFailure("bench: structures disagree (see above); figures not trustworthy");
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App& app) {
+    auto options = std::make_shared<BenchOptions>();
+    CLI::App* command = app.add_subcommand(
+        "bench", "Mrays/s of every structure on the canonical view (VIEWS.md), Embree beside lancer");
+    command->add_option("--mesh", options->meshes,
+                        "Mesh file (repeatable; default: the Stanford meshes of ../shared/data/meshes, else "
+                        "generated meshes of 70k, 350k and 870k triangles)");
+    command->add_option("--accel", options->accel_list, "Comma-separated structures, or all")
+        ->capture_default_str();
+    command->add_option("--threads", options->thread_list, "Comma-separated thread counts")
+        ->capture_default_str();
+    command->add_option("--size", options->size, "Image side in pixels")
+        ->check(CLI::Range(1, 16384))
+        ->capture_default_str();
+    command->add_option("--frames", options->frames, "Timed frames (median, min, max)")
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
+    command->add_flag("--moller-trumbore", options->moller_trumbore,
+                      "Moller-Trumbore instead of the default watertight test (Embree then runs its fast, "
+                      "non-robust test: the two leak through different edges, so they may disagree)");
+    command->add_option("--set", options->settings, "Structure option KEY=VALUE (repeatable)");
+    command->add_option("--json", options->json_file,
+                        "Write one record per mesh, structure and thread count");
+    command->add_option("--svg", options->svg_file, "Draw the Mrays/s bars");
+    command->callback([options] { run(*options); });
+}
+
+}  // namespace lancer::cli
