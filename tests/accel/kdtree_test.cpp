@@ -7,7 +7,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -469,32 +468,6 @@ TEST(KdTree, CoincidentTrianglesTerminateWithFewNodes) {
         EXPECT_LE(stats.references, 3001u + 3000u);  // the 3000 copies are never split apart, at most once
         expect_valid_tree(accel, scene.geometry());
     }
-}
-
-double fastest_build_ms(const Geometry& geometry) {
-    double best = std::numeric_limits<double>::infinity();
-    for (int run = 0; run < 3; ++run) {
-        KdTreeAccel accel;
-        const auto start = std::chrono::steady_clock::now();
-        accel.build(geometry, {});
-        best = std::min(
-            best,
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-    }
-    return best;
-}
-
-// O(N log N) (Wald & Havran): 4x the triangles costs about 4.6x the time; O(N^2) would be 16x,
-// O(N log^2 N) about 5.5x. A loose bound, since the machine may be busy.
-TEST(KdTree, BuildTimeGrowsAsNLogN) {
-    std::vector<Triangle> small, large;
-    append(small, make_torus_knot(500, 20));
-    append(large, make_torus_knot(2000, 20));
-    ASSERT_EQ(small.size(), 20000u);
-    ASSERT_EQ(large.size(), 80000u);
-    const double small_ms = fastest_build_ms({small, {}});
-    const double large_ms = fastest_build_ms({large, {}});
-    EXPECT_LT(large_ms, 8.0 * small_ms) << small_ms << " ms for 20k triangles, " << large_ms << " ms for 80k";
 }
 
 TEST(KdTree, SameTreeEveryBuild) {
