@@ -33,12 +33,13 @@ struct LightContribution {
     std::uint32_t sample;
 };
 
-// Everything one level of the tree produces besides the light already added to the samples.
+// What shading one level of the tree leaves to do, besides the light already added to the samples, and the
+// rays counted so far over all levels.
 struct LevelOutput {
     std::vector<RayNode> children;
     std::vector<Ray> shadow_rays;
     std::vector<LightContribution> shadow_light;  // one per shadow ray
-    RayCounts counts;
+    RayCounts counts;                             // not cleared between levels
 
     void clear() { children.clear(), shadow_rays.clear(), shadow_light.clear(); }
 };
@@ -48,7 +49,7 @@ struct LevelOutput {
 struct FacingSurface {
     Vec3f position;
     Vec3f geometric;  // unit, facing the incoming ray
-    Vec3f shading;    // unit, on the geometric normal's side of the facet
+    Vec3f shading;    // unit, flipped along with the geometric normal
     bool from_back;   // the ray arrived against the primitive's own normal: it leaves the medium
 };
 
