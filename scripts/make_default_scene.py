@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """Writes scenes/default.nff, the authored demo scene of `make demo` (no downloaded data).
 
-A checkered floor, a mirror sphere, a glass sphere, a matte sphere and a (2, 3) torus knot given as `pp`
-triangles with vertex normals, lit by two point lights. Run it again to regenerate the file byte for byte.
+An infinite checkered floor (lancer's `plane` extension of NFF, docs/formats.md), a mirror sphere, a glass
+sphere, a matte sphere and a (2, 3) torus knot given as `pp` triangles with vertex normals, lit by two
+coloured point lights over a dim ambient light (lancer's `ambient` extension). Run it again to regenerate
+the file byte for byte.
 """
 import math
 import pathlib
@@ -65,7 +67,7 @@ def fmt(values):
 def main():
     lines = [
         "# lancer demo scene, written by scripts/make_default_scene.py",
-        "b 0.08 0.1 0.16",
+        "b 0.32 0.42 0.58",
         "v",
         "from 0 2.2 6.2",
         "at 0 0.7 0",
@@ -73,18 +75,13 @@ def main():
         "angle 40",
         "hither 0.01",
         "resolution 800 600",
-        "l -4 6 5",
-        "l 5 4 -2",
+        "ambient 0.12 0.12 0.14",
+        "l -4 6 5 0.75 0.7 0.62",
+        "l 5 4 -2 0.35 0.4 0.5",
     ]
-    # Checkered floor: 12 x 12 unit tiles in two materials, counter-clockwise seen from above (+y).
-    for parity, color in ((0, (0.85, 0.85, 0.8)), (1, (0.18, 0.2, 0.25))):
-        lines.append(f"f {fmt(color)} 0.8 0.2 60 0 1")
-        for i in range(-6, 6):
-            for k in range(-6, 6):
-                if (i + k) % 2 == parity:
-                    lines.append("p 4")
-                    for x, z in ((i, k), (i, k + 1), (i + 1, k + 1), (i + 1, k)):
-                        lines.append(fmt((x, 0, z)))
+    # The floor: x . (0, 1, 0) = 0, checkered on the unit grid (odd squares at a quarter of the colour).
+    lines.append("f 0.8 0.78 0.72 0.75 0.15 60 0 1")
+    lines.append("plane 0 1 0 0 checkered")
     lines.append("f 0.9 0.9 0.95 0.05 0.9 300 0 1")  # mirror
     lines.append("s -1.7 0.8 0.4 0.8")
     lines.append("f 0.95 0.95 0.95 0.05 0.1 300 0.9 1.5")  # glass

@@ -1,8 +1,12 @@
-// lancer render [SCENE]: renders a scene (the authored default scene when none is given) to PNG.
+// lancer render [SCENE]: renders a scene (the authored default scene when none is given) to PNG or OpenEXR,
+// then prints a summary: sizes, timings, rays by kind and Mrays/s.
 #include <fmt/core.h>
 
+#include <cctype>
+#include <filesystem>
 #include <map>
 #include <memory>
+#include <string>
 
 #include "commands.hpp"
 #include "common.hpp"
@@ -15,10 +19,47 @@ struct RenderCommandOptions {
     std::string scene_file = LANCER_DEFAULT_SCENE;
     std::string output = "render.png";
     std::string size;
-    ShadingMode mode = ShadingMode::Flat;
+    ShadingMode mode = ShadingMode::Whitted;
     AccelChoice accel;
     int threads = 0;
+    int samples_per_pixel = 4;
+    int max_depth = 5;
+    float min_weight = 1.0f / 512.0f;
+    bool fresnel = false;
 };
+
+bool is_exr(const std::filesystem::path& file) {
+    std::string extension = file.extension().string();
+    for (char& c : extension)
+        c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return extension == ".exr";
+}
+
+void print_summary(const RenderCommandOptions& options, const LoadedScene& loaded, const BuiltAccel& built,
+                   const Image& image, const RenderStats& stats) {
+    const Scene& scene = loaded.scene;
+    const bool whitted = options.mode == ShadingMode::Whitted;
+    fmt::print("{}: {}x{}{}, {} triangles, {} spheres, {} planes, {} lights\n", options.scene_file,
+               image.width, image.height, whitted ? fmt::format(", {} spp", options.samples_per_pixel) : "",
+               scene.triangle_count(), scene.spheres.size(), scene.planes.size(), scene.lights.size());
+    fmt::print("load {:.1f} ms, accel {} build {:.1f} ms, render {:.1f} ms\n", loaded.load_ms,
+               options.accel.name, built.build_ms, stats.trace_ms);
+    const double mrays_per_s = static_cast<double>(stats.total_rays()) / (stats.trace_ms * 1e3);
+    if (whitted) {
+        fmt::print("rays: {} primary, {} shadow, {} reflection, {} refraction; {} in all, {:.2f} Mrays/s\n",
+                   stats.primary_rays, stats.shadow_rays, stats.reflection_rays, stats.refraction_rays,
+                   stats.total_rays(), mrays_per_s);
+    } else {
+        fmt::print("rays: {} primary, {:.2f} Mrays/s\n", stats.primary_rays, mrays_per_s);
+    }
+    if (options.mode == ShadingMode::Heatmap) {
+        const double rays = static_cast<double>(stats.counters.rays);
+        fmt::print("per primary ray: {:.2f} nodes visited, {:.2f} primitives tested\n",
+                   static_cast<double>(stats.counters.nodes_visited) / rays,
+                   static_cast<double>(stats.counters.prims_tested) / rays);
+    }
+    fmt::print("wrote {}\n", options.output);
+}
 
 void run(const RenderCommandOptions& options) {
     const LoadedScene loaded = load_timed(options.scene_file);
@@ -33,43 +74,61 @@ void run(const RenderCommandOptions& options) {
     render_options.mode = options.mode;
     render_options.threads = options.threads;
     render_options.progress = stderr_is_terminal();
+    render_options.samples_per_pixel = options.samples_per_pixel;
+    render_options.max_depth = options.max_depth;
+    render_options.min_weight = options.min_weight;
+    render_options.fresnel = options.fresnel;
     RenderStats stats;
     const Image image = render(scene, geometry, *built.accel, camera, render_options, &stats);
     try {
-        write_png(image, options.output);
+        if (is_exr(options.output))
+            write_exr(image, options.output);
+        else
+            write_png(image, options.output);
     } catch (const std::runtime_error& error) {
         throw InputError(error.what());
     }
-
-    const double mrays_per_s = static_cast<double>(stats.primary_rays) / (stats.trace_ms * 1e3);
-    fmt::print("{}: {}x{}, {} triangles, {} spheres, {} planes\n", options.scene_file, image.width,
-               image.height, scene.triangle_count(), scene.spheres.size(), scene.planes.size());
-    fmt::print("load {:.1f} ms, accel {} build {:.1f} ms, trace {:.1f} ms, {:.2f} Mrays/s\n", loaded.load_ms,
-               options.accel.name, built.build_ms, stats.trace_ms, mrays_per_s);
-    if (options.mode == ShadingMode::Heatmap) {
-        const double rays = static_cast<double>(stats.counters.rays);
-        fmt::print("per primary ray: {:.2f} nodes visited, {:.2f} primitives tested\n",
-                   static_cast<double>(stats.counters.nodes_visited) / rays,
-                   static_cast<double>(stats.counters.prims_tested) / rays);
-    }
-    fmt::print("wrote {}\n", options.output);
+    print_summary(options, loaded, built, image, stats);
 }
 
 }  // namespace
 
 void add_render_command(CLI::App& app) {
     auto options = std::make_shared<RenderCommandOptions>();
-    CLI::App* command = app.add_subcommand("render", "Render a scene to PNG");
+    CLI::App* command = app.add_subcommand("render", "Render a scene to PNG or OpenEXR");
     command->add_option("scene", options->scene_file,
                         "Scene or mesh file (default: the authored demo scene)");
-    command->add_option("-o,--output", options->output, "PNG file to write")->capture_default_str();
+    command
+        ->add_option("-o,--output", options->output,
+                     "Image to write: 8-bit sRGB PNG, or linear half-float OpenEXR when it ends in .exr")
+        ->capture_default_str();
     command->add_option("--size", options->size, "Image size WIDTHxHEIGHT (default: the scene's camera)");
-    const std::map<std::string, ShadingMode> modes = {{"flat", ShadingMode::Flat},
+    const std::map<std::string, ShadingMode> modes = {{"whitted", ShadingMode::Whitted},
+                                                      {"flat", ShadingMode::Flat},
                                                       {"normal", ShadingMode::Normal},
                                                       {"depth", ShadingMode::Depth},
                                                       {"heatmap", ShadingMode::Heatmap}};
-    command->add_option("--mode", options->mode, "Shading: flat, normal, depth or heatmap (nodes per ray)")
+    command
+        ->add_option("--mode", options->mode,
+                     "Shading: whitted (default: shadows, reflection, refraction), flat, normal, depth or "
+                     "heatmap (nodes per ray)")
         ->transform(CLI::CheckedTransformer(modes, CLI::ignore_case));
+    command->add_option("--spp", options->samples_per_pixel, "Whitted mode: stratified samples per pixel")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 4096));
+    command
+        ->add_option("--max-depth", options->max_depth, "Whitted mode: ray-tree depth, the eye ray being 1")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 64));
+    command
+        ->add_option("--min-weight", options->min_weight,
+                     "Whitted mode: cut off reflected and refracted rays whose weight is not above this "
+                     "(0: trace them all, as the SPD asks)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0f, 1.0f));
+    command->add_flag("--fresnel", options->fresnel,
+                      "Whitted mode: split transmission between reflection and refraction by Fresnel's "
+                      "equations");
     options->accel.add_options(*command);
     command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
     command->callback([options] { run(*options); });

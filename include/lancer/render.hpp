@@ -1,4 +1,5 @@
-// The renderer: tiles of pixels over oneTBB threads, one closest-hit batch per tile.
+// The renderer: tiles of pixels over oneTBB threads, one closest-hit batch per tile (per ray-tree level in
+// Whitted mode).
 #pragma once
 
 #include <cstdint>
@@ -11,6 +12,7 @@
 namespace lancer {
 
 enum class ShadingMode {
+    Whitted,  // seed 003 4.3: ambient, shadowed point lights with Phong highlights, mirror and refracted rays
     Flat,     // the paper's Figure 5 look: material colour times |cos| between geometric normal and ray
     Normal,   // shading normal mapped from [-1, 1] to [0, 1]
     Depth,    // distance along the ray, near = white, far = black, misses black
@@ -19,10 +21,17 @@ enum class ShadingMode {
 };
 
 struct RenderOptions {
-    ShadingMode mode = ShadingMode::Flat;
+    ShadingMode mode = ShadingMode::Whitted;
     int threads = 0;        // 0: all hardware threads
     int tile_size = 16;     // pixels per tile side
     bool progress = false;  // a progress line on stderr (the CLI turns it on when stderr is a terminal)
+    // Whitted mode (docs/whitted.md):
+    int samples_per_pixel = 1;  // stratified over the pixel (a Hammersley set); 1 = the pixel centre
+    int max_depth = 5;          // ray-tree depth, the eye ray being depth 1 (seed 003 5; the SPD's 5)
+    // A reflected or refracted ray whose weight (product of ks and kt from the eye) is not above this is not
+    // traced. 0 traces every ray with a positive weight, as the SPD asks.
+    float min_weight = 1.0f / 512.0f;
+    bool fresnel = false;  // split kt between reflection and refraction by Fresnel's dielectric reflectance
 };
 
 // Linear RGB, row-major, top row first.
@@ -43,17 +52,27 @@ struct Image {
 struct RenderStats {
     double trace_ms = 0.0;
     std::uint64_t primary_rays = 0;
-    TraversalCounters counters;  // Heatmap mode only: summed over the image
+    std::uint64_t shadow_rays = 0;      // Whitted mode: one per light a surface faces
+    std::uint64_t reflection_rays = 0;  // Whitted mode: mirror rays, total internal reflections included
+    std::uint64_t refraction_rays = 0;  // Whitted mode
+    TraversalCounters counters;         // Heatmap mode only: summed over the image
+
+    [[nodiscard]] std::uint64_t total_rays() const {
+        return primary_rays + shadow_rays + reflection_rays + refraction_rays;
+    }
 };
 
 // Renders `camera`'s view. `accel` must have been built on `geometry`, which was made from `scene`;
 // the scene's infinite planes are tested beside the structure. Throws std::invalid_argument for a
-// non-positive image or tile size, a negative thread count, or a scene whose primitives name missing
-// materials.
+// non-positive image or tile size, a negative thread count, a non-positive sample count or depth, a
+// negative or NaN minimum weight, or a scene whose primitives name missing materials.
 [[nodiscard]] Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
                            const Camera& camera, const RenderOptions& options, RenderStats* stats = nullptr);
 
 // 8-bit sRGB PNG (libpng). Throws std::runtime_error with the path and the reason on failure.
 void write_png(const Image& image, const std::filesystem::path& file);
+
+// OpenEXR, linear half-float RGB. Throws std::runtime_error with the path and the reason on failure.
+void write_exr(const Image& image, const std::filesystem::path& file);
 
 }  // namespace lancer

@@ -1,4 +1,4 @@
-// Tiles of pixels over oneTBB threads. Each pixel's colour depends on its own ray alone, and the one
+// Tiles of pixels over oneTBB threads. Each pixel's colour depends on its own rays alone, and the one
 // image-wide quantity (the depth range) is taken after every tile is done, so the image is the same bit for
 // bit whatever the thread count, the tile size and the order tiles finish in.
 #include "lancer/render.hpp"
@@ -8,6 +8,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -18,9 +19,13 @@
 #include "render/heatmap.hpp"
 #include "render/progress.hpp"
 #include "render/scene_intersector.hpp"
+#include "render/whitted.hpp"
 
 namespace lancer {
 namespace {
+
+// A tile holds tile_size^2 x samples camera samples at once; 4096 per pixel is far past visible noise.
+constexpr int kMaxSamplesPerPixel = 4096;
 
 void check_options(const Camera& camera, const RenderOptions& options) {
     if (camera.width <= 0 || camera.height <= 0) {
@@ -35,7 +40,31 @@ void check_options(const Camera& camera, const RenderOptions& options) {
         throw std::invalid_argument("render: thread count " + std::to_string(options.threads) +
                                     " is negative (0 means all hardware threads)");
     }
+    if (options.samples_per_pixel <= 0 || options.samples_per_pixel > kMaxSamplesPerPixel) {
+        throw std::invalid_argument("render: samples per pixel " + std::to_string(options.samples_per_pixel) +
+                                    " is not in [1, " + std::to_string(kMaxSamplesPerPixel) + "]");
+    }
+    if (options.max_depth <= 0) {
+        throw std::invalid_argument("render: maximum depth " + std::to_string(options.max_depth) +
+                                    " is not positive (the eye ray is depth 1)");
+    }
+    if (!(options.min_weight >= 0.0f)) {
+        throw std::invalid_argument("render: minimum weight " + std::to_string(options.min_weight) +
+                                    " is negative or NaN");
+    }
 }
+
+// Rays a tile traced, added up over the threads.
+struct AtomicRayCounts {
+    std::atomic<std::uint64_t> primary{0}, shadow{0}, reflection{0}, refraction{0};
+
+    void add(const RayCounts& counts) {
+        primary.fetch_add(counts.primary, std::memory_order_relaxed);
+        shadow.fetch_add(counts.shadow, std::memory_order_relaxed);
+        reflection.fetch_add(counts.reflection, std::memory_order_relaxed);
+        refraction.fetch_add(counts.refraction, std::memory_order_relaxed);
+    }
+};
 
 // A headlight at the eye: the facet's cosine with the view, whichever side is seen (the paper's Figure 5).
 Vec3f flat_color(const SurfacePoint& surface, const Ray& ray) {
@@ -73,29 +102,36 @@ void depth_to_image(const std::vector<float>& depth, Image& image) {
 class TileRenderer {
   public:
     TileRenderer(const Scene& scene, const SceneIntersector& intersector, const PinholeCamera& camera,
-                 ShadingMode mode, int tile_size, Image& image, std::vector<float>& depth,
-                 std::vector<TraversalCounters>& heat)
+                 const WhittedTracer& whitted, ShadingMode mode, int tile_size, Image& image,
+                 std::vector<float>& depth, std::vector<TraversalCounters>& heat, AtomicRayCounts& rays)
         : scene_(scene),
           intersector_(intersector),
           camera_(camera),
+          whitted_(whitted),
           mode_(mode),
           tile_size_(tile_size),
           tile_columns_((image.width + tile_size - 1) / tile_size),
           tile_rows_((image.height + tile_size - 1) / tile_size),
           image_(image),
           depth_(depth),
-          heat_(heat) {}
+          heat_(heat),
+          rays_(rays) {}
 
     [[nodiscard]] std::size_t tile_count() const {
         return static_cast<std::size_t>(tile_columns_) * static_cast<std::size_t>(tile_rows_);
     }
 
-    // One batch of primary rays through the pixel centres of tile `tile` (row-major over the tile grid).
+    // Tile `tile` (row-major over the tile grid): the Whitted ray tree of its samples, or one batch of
+    // primary rays through its pixel centres.
     void render(std::size_t tile) const {
         const int x0 = static_cast<int>(tile % static_cast<std::size_t>(tile_columns_)) * tile_size_;
         const int y0 = static_cast<int>(tile / static_cast<std::size_t>(tile_columns_)) * tile_size_;
         const int x1 = std::min(x0 + tile_size_, image_.width);
         const int y1 = std::min(y0 + tile_size_, image_.height);
+        if (mode_ == ShadingMode::Whitted) {
+            rays_.add(whitted_.render_tile(x0, y0, x1, y1, image_));
+            return;
+        }
 
         std::vector<Ray> rays;
         rays.reserve(static_cast<std::size_t>(x1 - x0) * static_cast<std::size_t>(y1 - y0));
@@ -110,6 +146,7 @@ class TileRenderer {
             return;
         }
         intersector_.intersect(rays, hits);
+        rays_.add({rays.size(), 0, 0, 0});
 
         std::size_t k = 0;
         for (int y = y0; y < y1; ++y) {
@@ -129,6 +166,7 @@ class TileRenderer {
             intersector_.intersect({&rays[k], 1}, {&hits[k], 1},
                                    &heat_[y * static_cast<std::size_t>(image_.width) + x]);
         }
+        rays_.add({rays.size(), 0, 0, 0});
     }
 
     void shade(int x, int y, const Ray& ray, const Hit& hit) const {
@@ -148,6 +186,7 @@ class TileRenderer {
     const Scene& scene_;
     const SceneIntersector& intersector_;
     const PinholeCamera& camera_;
+    const WhittedTracer& whitted_;
     ShadingMode mode_;
     int tile_size_;
     int tile_columns_;
@@ -155,6 +194,7 @@ class TileRenderer {
     Image& image_;
     std::vector<float>& depth_;             // hit distance per pixel, infinity on a miss; Depth mode only
     std::vector<TraversalCounters>& heat_;  // traversal counts per pixel; Heatmap mode only
+    AtomicRayCounts& rays_;
 };
 
 }  // namespace
@@ -165,6 +205,7 @@ Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& acc
     check_options(camera, options);
     const SceneIntersector intersector(scene, geometry, accel);
     const PinholeCamera pinhole(camera);
+    const WhittedTracer whitted(scene, intersector, pinhole, options);
 
     Image image(camera.width, camera.height);
     std::vector<float> depth;
@@ -173,7 +214,9 @@ Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& acc
     if (options.mode == ShadingMode::Heatmap) heat.resize(image.pixels.size());
     // A tile larger than the image is the image; the clamp also keeps the tile arithmetic within an int.
     const int tile_size = std::min(options.tile_size, std::max(image.width, image.height));
-    const TileRenderer tiles(scene, intersector, pinhole, options.mode, tile_size, image, depth, heat);
+    AtomicRayCounts rays;
+    const TileRenderer tiles(scene, intersector, pinhole, whitted, options.mode, tile_size, image, depth,
+                             heat, rays);
 
     ProgressReporter progress("render", tiles.tile_count(), "tiles", options.progress);
     tbb::task_arena arena(options.threads == 0 ? tbb::task_arena::automatic : options.threads);
@@ -196,7 +239,10 @@ Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& acc
     }
 
     if (stats != nullptr) {
-        stats->primary_rays = image.pixels.size();
+        stats->primary_rays = rays.primary;
+        stats->shadow_rays = rays.shadow;
+        stats->reflection_rays = rays.reflection;
+        stats->refraction_rays = rays.refraction;
         for (const TraversalCounters& pixel : heat)
             stats->counters += pixel;
         stats->trace_ms =

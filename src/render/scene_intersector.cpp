@@ -83,6 +83,22 @@ void SceneIntersector::intersect(std::span<const Ray> rays, std::span<Hit> hits,
     }
 }
 
+void SceneIntersector::occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded) const {
+    assert(rays.size() == occluded.size());
+    accel_.occluded(rays, occluded);
+    if (scene_.planes.empty()) return;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        if (occluded[i] != 0 || !is_valid(rays[i])) continue;
+        for (const Plane& plane : scene_.planes) {
+            float t;
+            if (intersect_plane(rays[i], plane, rays[i].tnear, rays[i].tfar, t)) {
+                occluded[i] = 1;
+                break;
+            }
+        }
+    }
+}
+
 SurfacePoint SceneIntersector::surface(const Ray& ray, const Hit& hit) const {
     assert(hit.hit());
     const auto prim = static_cast<std::size_t>(hit.prim);
@@ -121,8 +137,12 @@ SurfacePoint SceneIntersector::triangle_surface(std::size_t index, const Hit& hi
 SurfacePoint SceneIntersector::sphere_surface(std::size_t index, const Ray& ray, const Hit& hit) const {
     const Sphere& sphere = view_.spheres[index];
     SurfacePoint surface;
-    surface.position = ray.origin + hit.t * ray.direction;
-    surface.geometric_normal = (surface.position - sphere.center) / sphere.radius;
+    // o + t d is off the sphere by the rounding of t times |d| and of o, which grows with the distance the
+    // ray travelled; projected back onto the sphere, the point is off by a few ulps of its own coordinates
+    // (pbrt-v4, section 6.8.5), as secondary-ray offsets assume.
+    const Vec3f radial = normalize(ray.origin + hit.t * ray.direction - sphere.center);
+    surface.position = sphere.center + sphere.radius * radial;
+    surface.geometric_normal = radial;
     surface.shading_normal = surface.geometric_normal;
     surface.material = sphere.material;
     surface.color = scene_.materials[sphere.material].color;
@@ -132,7 +152,9 @@ SurfacePoint SceneIntersector::sphere_surface(std::size_t index, const Ray& ray,
 SurfacePoint SceneIntersector::plane_surface(std::size_t index, const Ray& ray, const Hit& hit) const {
     const Plane& plane = scene_.planes[index];
     SurfacePoint surface;
-    surface.position = ray.origin + hit.t * ray.direction;
+    // Projected back onto the plane, as for spheres: o + t d alone is off it by an error that grows with t.
+    const Vec3f along_ray = ray.origin + hit.t * ray.direction;
+    surface.position = along_ray - (dot(along_ray, plane.normal) - plane.offset) * plane.normal;
     surface.geometric_normal = plane.normal;
     surface.shading_normal = plane.normal;
     surface.material = plane.material;

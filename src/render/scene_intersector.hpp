@@ -1,6 +1,7 @@
 // Closest hits in the whole scene. The acceleration structure holds the meshes and spheres; the infinite
 // planes, which no structure can bound, are tested beside it one by one. Every integrator goes through this
-// class, for primary and secondary rays alike, so the plane numbering and the surface recovery exist once.
+// class, for primary, secondary and shadow rays alike, so the plane numbering and the surface recovery
+// exist once.
 #pragma once
 
 #include <cstdint>
@@ -15,7 +16,7 @@ namespace lancer {
 // What shading needs at a hit. Both normals keep the primitive's own orientation (triangle winding, sphere
 // outside, plane normal): which side the ray arrived on is the integrator's business.
 struct SurfacePoint {
-    Vec3f position;
+    Vec3f position;  // on the surface up to a few ulps of its coordinates (what secondary-ray offsets assume)
     Vec3f geometric_normal;  // unit
     Vec3f shading_normal;    // unit: the interpolated vertex normal on smooth meshes, else the geometric one
     std::uint32_t material = 0;
@@ -35,6 +36,10 @@ class SceneIntersector {
     // `counters`, when given, receive the structure's traversal counts (planes are not counted).
     void intersect(std::span<const Ray> rays, std::span<Hit> hits,
                    TraversalCounters* counters = nullptr) const;
+
+    // occluded[i] = 1 when rays[i] hits anything in [tnear, tfar] (Accel::occluded, then the planes of the
+    // rays still unoccluded), else 0. Invalid rays are unoccluded.
+    void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded) const;
 
     // The surface of `ray`'s hit `hit`, as intersect() returned it (hit.hit() must hold).
     [[nodiscard]] SurfacePoint surface(const Ray& ray, const Hit& hit) const;

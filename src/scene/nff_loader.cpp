@@ -9,6 +9,12 @@
 //   c        a cylinder or truncated cone without caps, cone_segments quads around (tessellate_cone)
 // The mesh carries vertex normals when the file has a `pp` or a `c`; the vertices of `p` polygons then get
 // their face normal. Spheres stay spheres.
+//
+// Two lancer extensions, which no SPD file uses (docs/formats.md):
+//   plane nx ny nz d [checkered]   the infinite plane x . n = d, optionally checkered on a unit grid
+//   ambient r g b                  the ambient light
+// Lights given without a colour, and the ambient light unless `ambient` sets it, get the SPD's relative
+// intensity sqrt(N) / (2N) for N lights (shared/data/README.md section 3).
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -31,7 +37,7 @@ constexpr std::uint32_t cone_segments = 24;
 // The fewest characters of a polygon vertex ("0 0 0\n") and of a patch vertex ("0 0 0 0 0 1\n").
 constexpr std::size_t min_polygon_vertex_chars = 6;
 constexpr std::size_t min_patch_vertex_chars = 12;
-constexpr std::string_view keyword_list = "a keyword (v, b, l, f, c, s, p or pp)";
+constexpr std::string_view keyword_list = "a keyword (v, b, l, f, c, s, p, pp, plane or ambient)";
 
 Vec3f normalized_or_zero(Vec3f v) {
     const float norm = length(v);
@@ -65,6 +71,11 @@ class NffReader {
                 scene_.background = reader_.read_vec3("a background colour r g b");
             } else if (keyword == "v") {
                 read_view(*token);
+            } else if (keyword == "plane") {
+                read_plane(*token);
+            } else if (keyword == "ambient") {
+                scene_.ambient = reader_.read_vec3("an ambient colour r g b");
+                ambient_given_ = true;
             } else {
                 reader_.fail(token->line,
                              "expected " + std::string(keyword_list) + ", got " + quote_token(keyword));
@@ -72,6 +83,7 @@ class NffReader {
         }
         if (!has_shading_normals_) mesh_.normals.clear();
         if (mesh_.triangle_count() > 0) scene_.meshes.push_back(std::move(mesh_));
+        apply_spd_intensities();
         return std::move(scene_);
     }
 
@@ -105,12 +117,46 @@ class NffReader {
         scene_.camera = camera;
     }
 
-    // l x y z [r g b]: white unless a colour follows.
+    // l x y z [r g b]: the SPD intensity (apply_spd_intensities) unless a colour follows.
     void read_light() {
         Light light;
         light.position = reader_.read_vec3("a light position x y z");
-        if (reader_.next_is_number()) light.color = reader_.read_vec3("a light colour r g b");
+        const bool colored = reader_.next_is_number();
+        if (colored) light.color = reader_.read_vec3("a light colour r g b");
+        light_colored_.push_back(colored);
         scene_.lights.push_back(light);
+    }
+
+    // The SPD Readme: "each light and the ambient term" get the relative intensity sqrt(N) / (2N) for N
+    // lights, so that a surface facing every light is not washed out. With no light the ambient default
+    // stays.
+    void apply_spd_intensities() {
+        if (scene_.lights.empty()) return;
+        const auto count = static_cast<float>(scene_.lights.size());
+        const float intensity = std::sqrt(count) / (2.0f * count);
+        for (std::size_t i = 0; i < scene_.lights.size(); ++i) {
+            if (!light_colored_[i]) scene_.lights[i].color = Vec3f(intensity);
+        }
+        if (!ambient_given_) scene_.ambient = Vec3f(intensity);
+    }
+
+    // plane nx ny nz d [checkered] (a lancer extension): x . n = d, n normalised along with d.
+    void read_plane(const Token& keyword) {
+        Plane plane;
+        const Vec3f normal = reader_.read_vec3("a plane normal nx ny nz");
+        const float offset = reader_.read_float("a plane offset d");
+        const float norm = length(normal);
+        if (!(norm > 0.0f && std::isfinite(norm))) {
+            reader_.fail(keyword.line, "a plane needs a non-zero normal");
+        }
+        plane.normal = normal / norm;
+        plane.offset = offset / norm;
+        if (const std::optional<Token> flag = reader_.peek(); flag && flag->text == "checkered") {
+            (void)reader_.next();
+            plane.checkered = true;
+        }
+        plane.material = current_material();
+        scene_.planes.push_back(plane);
     }
 
     // f r g b Kd Ks Shine T ior: one material per line, for every primitive until the next one.
@@ -282,6 +328,8 @@ class NffReader {
     Scene scene_;
     TriangleMesh mesh_;
     bool has_shading_normals_ = false;
+    std::vector<bool> light_colored_;  // per light: the file gave its colour
+    bool ambient_given_ = false;
     std::optional<std::uint32_t> current_material_;
     // Scratch space of read_polygon, kept between polygons.
     std::vector<Vec3f> polygon_;

@@ -1,5 +1,5 @@
 // The lancer executable end to end: the RAYS/HITS round trip, exit code 2 with a clear message on bad
-// input, and renders that produce a PNG.
+// input, and renders that produce a PNG or an OpenEXR.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -168,6 +168,29 @@ TEST_F(Cli, BenchWritesOneRecordPerStructureAndThreadCount) {
 
     EXPECT_EQ(run("bench --mesh " + mesh.string() + " --threads 0").exit_code, 2);
     EXPECT_EQ(run("bench --mesh " + mesh.string() + " --accel nope").exit_code, 2);
+}
+
+// The default mode is Whitted's: a lit scene with a mirror ball reports its rays by kind; `.exr` writes
+// OpenEXR (its magic number 76 2f 31 01).
+TEST_F(Cli, RenderDefaultsToWhittedAndWritesExr) {
+    const fs::path scene =
+        write("ball.nff",
+              "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 40\nhither 0.01\nresolution 16 12\n"
+              "l 3 3 3\nf 0.8 0.8 0.8 0.5 0.5 20 0 1\ns 0 0 0 1\nplane 0 1 0 -1 checkered\n");
+    const fs::path exr = dir_ / "out.exr";
+    const Result result = run("render " + scene.string() + " --spp 2 -o " + exr.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("16x12, 2 spp"), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find("384 primary"), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find(" shadow, "), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find(" reflection, "), std::string::npos) << result.output;
+    std::ifstream in(exr, std::ios::binary);
+    unsigned char magic[4] = {};
+    in.read(reinterpret_cast<char*>(magic), 4);
+    EXPECT_EQ(magic[0], 0x76);
+    EXPECT_EQ(magic[1], 0x2f);
+    EXPECT_EQ(magic[2], 0x31);
+    EXPECT_EQ(magic[3], 0x01);
 }
 
 TEST_F(Cli, InfoCountsTrianglesAfterFanTriangulation) {

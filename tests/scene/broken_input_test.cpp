@@ -51,7 +51,7 @@ const BrokenFile kBrokenFiles[] = {
     {"missing_off.dsc", 0, "missing_off.off"},
     {"huge_material_count.dsc", 3, "announces 1000000000000 materials"},
     {"zero_width.dsc", 2, "expected an image width between 1 and 65536, got '0'"},
-    {"unknown_keyword.nff", 3, "expected a keyword (v, b, l, f, c, s, p or pp), got 'x'"},
+    {"unknown_keyword.nff", 3, "expected a keyword (v, b, l, f, c, s, p, pp, plane or ambient), got 'x'"},
     {"polygon_two_vertices.nff", 2, "expected a polygon of at least 3 vertices, got 2"},
     {"polygon_short.nff", 5, "expected a polygon vertex x y z, got 's'"},
     {"sphere_radius_zero.nff", 2, "expected a positive sphere radius, got '0'"},

@@ -54,9 +54,36 @@ TEST_F(EveryKeyword, ReadsViewBackgroundAndLights) {
     EXPECT_EQ(scene_.background, Vec3f(0.1f, 0.2f, 0.3f));
     ASSERT_EQ(scene_.lights.size(), 2u);
     EXPECT_EQ(scene_.lights[0].position, Vec3f(10.0f));
-    EXPECT_EQ(scene_.lights[0].color, Vec3f(1.0f));
+    // The SPD's sqrt(N) / (2N) for N = 2 lights, for the light without a colour and for the ambient light.
+    EXPECT_EQ(scene_.lights[0].color, Vec3f(std::sqrt(2.0f) / 4.0f));
     EXPECT_EQ(scene_.lights[1].position, Vec3f(-10.0f, 5.0f, 5.0f));
     EXPECT_EQ(scene_.lights[1].color, Vec3f(0.5f, 0.25f, 1.0f));
+    EXPECT_EQ(scene_.ambient, Vec3f(std::sqrt(2.0f) / 4.0f));
+}
+
+TEST(NffExtensions, PlaneAndAmbient) {
+    test::ScratchDir dir;
+    const auto file = dir.write("plane.nff",
+                                "ambient 0.2 0.3 0.4\nl 0 5 0\nf 1 1 1 1 0 0 0 1\nplane 0 2 0 -4 checkered\n"
+                                "f 1 0 0 1 0 0 0 1\nplane 1 0 0 3\n");
+    const Scene scene = load_scene(file);
+    EXPECT_EQ(scene.ambient, Vec3f(0.2f, 0.3f, 0.4f));
+    EXPECT_EQ(scene.lights[0].color, Vec3f(0.5f));  // one light: sqrt(1) / 2
+    ASSERT_EQ(scene.planes.size(), 2u);
+    EXPECT_EQ(scene.planes[0].normal, Vec3f(0.0f, 1.0f, 0.0f));
+    EXPECT_EQ(scene.planes[0].offset, -2.0f);
+    EXPECT_TRUE(scene.planes[0].checkered);
+    EXPECT_EQ(scene.planes[0].material, 0u);
+    EXPECT_EQ(scene.planes[1].normal, Vec3f(1.0f, 0.0f, 0.0f));
+    EXPECT_EQ(scene.planes[1].offset, 3.0f);
+    EXPECT_FALSE(scene.planes[1].checkered);
+    EXPECT_EQ(scene.planes[1].material, 1u);
+}
+
+TEST(NffExtensions, PlaneWithoutNormalIsAnError) {
+    test::ScratchDir dir;
+    const auto file = dir.write("flat.nff", "plane 0 0 0 1\n");
+    EXPECT_THROW((void)load_scene(file), LoadError);
 }
 
 TEST_F(EveryKeyword, MapsEachMaterialLineAndGivesItToTheFollowingPrimitives) {

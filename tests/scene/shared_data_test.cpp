@@ -371,8 +371,10 @@ TEST_F(SharedSpd, EverySceneLoadsWithTheReadmeCountsAndView) {
         EXPECT_LE(scene.meshes.size(), 1u);
         EXPECT_EQ(scene.lights.size(), facts.lights);
         EXPECT_EQ(scene.materials.size(), facts.materials);
+        // No SPD light has a colour: each gets the SPD's sqrt(N) / (2N).
+        const auto count = static_cast<float>(facts.lights);
         for (const Light& light : scene.lights)
-            EXPECT_EQ(light.color, Vec3f(1.0f));
+            EXPECT_EQ(light.color, Vec3f(std::sqrt(count) / (2.0f * count)));
 
         ASSERT_TRUE(scene.camera.has_value());
         EXPECT_EQ(scene.camera->eye, facts.from);
