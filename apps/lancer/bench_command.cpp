@@ -241,9 +241,9 @@ void run(const BenchOptions& options) {
         "lancer bench: {}, {} hardware threads; {} {}; {}x{} canonical view, {} frames after 1 warm-up\n",
         cpu_name(), std::thread::hardware_concurrency(), LANCER_COMPILER, LANCER_BUILD_FLAGS, options.size,
         options.size, options.frames);
-    fmt::print("{:<16} {:>9} {:<8} {:>3} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6} {:>8} {:>8}\n", "mesh",
-               "triangles", "accel", "thr", "build ms", "Mtris/s", "mem MB", "Mrays/s", "min", "max", "hits",
-               "nodes/r", "prims/r");
+    fmt::print("{:<16} {:>9} {:<8} {:>3} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6} {:>8} {:>8}\n",
+               "mesh", "triangles", "accel", "thr", "build ms", "Mtris/s", "accel MB", "tris MB", "Mrays/s",
+               "min", "max", "hits", "nodes/r", "prims/r");
 
     std::vector<Record> records;
     bool agreement_failed = false;
@@ -307,10 +307,12 @@ void run(const BenchOptions& options) {
                 record.counted = counters.nodes_visited > 0;
                 fmt::print(
                     "{:<16} {:>9} {:<8} {:>3} {:>10.1f} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f} "
+                    "{:>9.2f} "
                     "{:>5.1f}% {:>8} {:>8}\n",
                     record.mesh, record.triangles, record.accel, threads, record.build_ms,
                     static_cast<double>(record.triangles) / (record.build_ms * 1e3),
-                    static_cast<double>(record.memory_bytes) / (1024.0 * 1024.0), record.mrays_median,
+                    static_cast<double>(record.memory_bytes) / (1024.0 * 1024.0),
+                    static_cast<double>(record.geometry_bytes) / (1024.0 * 1024.0), record.mrays_median,
                     record.mrays_min, record.mrays_max, 100.0 * record.hit_fraction,
                     per_ray(record.nodes_per_ray, record.counted),
                     per_ray(record.prims_per_ray, record.counted));
