@@ -1,6 +1,8 @@
 #include "accel/bvh_wide.hpp"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <chrono>
 
 #include "accel/bvh_build.hpp"
