@@ -25,9 +25,12 @@ namespace lancer {
 template <int W>
 struct alignas(32) WideBvhNode {
     static constexpr int kLo = 0, kHi = 1;
-    float bounds[2][3][W];        // 24 W bytes: [lo | hi][axis][child]
-    std::uint32_t child[W] = {};  //  4 W: inner child: index of its node; leaf: first entry of prim_indices
-    std::uint32_t prim_count[W] = {};  // 4 W: primitives of a leaf child, 0 for an inner child or empty slot
+    // 24 W bytes: [lo | hi][axis][child].
+    float bounds[2][3][W];
+    // 4 W bytes: an inner child's node index; a leaf child's first entry of prim_indices.
+    std::uint32_t child[W] = {};
+    // 4 W bytes: the primitives of a leaf child; 0 for an inner child or an empty slot.
+    std::uint32_t prim_count[W] = {};
 
     WideBvhNode() {
         for (int axis = 0; axis < 3; ++axis) {
@@ -51,7 +54,9 @@ static_assert(sizeof(WideBvhNode<8>) == 256 && alignof(WideBvhNode<8>) == 32);
 struct WideRay {
     Vec3f origin;
     Vec3f inv_direction;
-    std::array<int, 3> entry_side;  // kHi where the direction component is negative (or -0), kLo otherwise
+    // Per axis, the side of the box the ray enters by: kHi (1) where the direction is negative or -0, else
+    // kLo.
+    std::array<int, 3> entry_side;
 
     explicit WideRay(const SlabRay& slab) : origin(slab.origin), inv_direction(slab.inv_direction) {
         for (int axis = 0; axis < 3; ++axis)
