@@ -5,6 +5,7 @@
 
 #include "accel/brute.hpp"
 #include "accel/bvh.hpp"
+#include "accel/bvh_wide.hpp"
 #if LANCER_HAS_EMBREE
 #include "accel/embree.hpp"
 #endif
@@ -28,6 +29,8 @@ const std::vector<Entry>& registry() {
         {"octree", [] { return std::make_unique<OctreeAccel>(); }},
         {"kdtree", [] { return std::make_unique<KdTreeAccel>(); }},
         {"bvh", [] { return std::make_unique<BvhAccel>(); }},
+        {"bvh4", [] { return std::make_unique<Bvh4Accel>(); }},
+        {"bvh8", [] { return std::make_unique<Bvh8Accel>(); }},
 #if LANCER_HAS_EMBREE
         {"embree", [] { return std::make_unique<EmbreeAccel>(); }},
 #endif

@@ -1,0 +1,239 @@
+#include "accel/bvh_wide.hpp"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <chrono>
+
+#include "accel/bvh_build.hpp"
+#include "accel/primitive_test.hpp"
+
+namespace lancer {
+namespace {
+
+// The same unit costs as bvh_sah_cost, so that the two SAH costs compare.
+constexpr double kNodeCost = 1.0;
+constexpr double kPrimitiveCost = 1.0;
+
+// Collapses the binary subtree under `binary_root` (an inner node, or the root leaf of a tiny scene) into
+// wide nodes appended depth first to `wide`, and returns the index of the first. Dammertz et al. 2008,
+// section 3: the node starts with the two binary children and repeatedly opens the inner child of largest
+// surface area (the one a ray is most likely to enter; the first of equal areas) until it has W children or
+// only leaves are left. An opened child's two children take its place, so the binary left-to-right order of
+// the subtrees is kept.
+template <int W>
+std::uint32_t collapse(const std::vector<BvhNode>& binary, std::uint32_t binary_root,
+                       std::vector<WideBvhNode<W>>& wide) {
+    std::array<std::uint32_t, W> children{};
+    int child_count = 0;
+    if (binary[binary_root].is_leaf()) {
+        children[child_count++] = binary_root;
+    } else {
+        children[child_count++] = binary_root + 1;
+        children[child_count++] = binary[binary_root].offset;
+    }
+    while (child_count < W) {
+        int widest = -1;
+        float widest_area = -1.0f;
+        for (int i = 0; i < child_count; ++i) {
+            const BvhNode& candidate = binary[children[i]];
+            if (!candidate.is_leaf() && candidate.bounds().surface_area() > widest_area)
+                widest = i, widest_area = candidate.bounds().surface_area();
+        }
+        if (widest < 0) break;
+        const std::uint32_t opened = children[widest];
+        std::copy_backward(children.begin() + widest + 1, children.begin() + child_count,
+                           children.begin() + child_count + 1);
+        children[widest] = opened + 1;
+        children[widest + 1] = binary[opened].offset;
+        ++child_count;
+    }
+
+    const auto index = static_cast<std::uint32_t>(wide.size());
+    wide.emplace_back();
+    for (int slot = 0; slot < child_count; ++slot) {
+        const BvhNode& child = binary[children[slot]];
+        for (int axis = 0; axis < 3; ++axis) {
+            wide[index].bounds[WideBvhNode<W>::kLo][axis][slot] = child.lo[axis];
+            wide[index].bounds[WideBvhNode<W>::kHi][axis][slot] = child.hi[axis];
+        }
+        if (child.is_leaf()) {
+            wide[index].child[slot] = child.offset;
+            wide[index].prim_count[slot] = child.prim_count;
+        } else {
+            // Not a reference into `wide`: the recursion may reallocate it.
+            const std::uint32_t child_index = collapse<W>(binary, children[slot], wide);
+            wide[index].child[slot] = child_index;
+        }
+    }
+    return index;
+}
+
+// A child as the traversal holds it: an inner node (prim_count 0) or a leaf range of prim_indices.
+struct ChildRef {
+    std::uint32_t child;
+    std::uint32_t prim_count;
+};
+
+struct StackEntry {
+    ChildRef ref;
+    float t_entry;  // where the ray enters the child's box: the child is skipped once a hit is closer
+};
+
+// Each wide level pushes at most W - 1 children, and the wide tree is no deeper than the binary one.
+template <int W>
+constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
+
+// Front to back, as the binary BVH (docs/accel/bvh.md): all W child boxes are tested at once, the hit ones
+// are ordered by entry distance (insertion sort: ties keep slot order), the nearest is visited and the
+// others pushed, farthest first. A popped child is skipped when it is entered beyond the best hit.
+template <int W, bool kAnyHit, bool kCount, class TriangleTestT>
+bool traverse(const std::vector<WideBvhNode<W>>& nodes, const std::vector<std::uint32_t>& prim_indices,
+              const Geometry& geometry, const PreparedRay<TriangleTestT>& prepared, Hit& best,
+              TraversalCounters& counters) {
+    if (nodes.empty()) return false;
+    const Ray& ray = prepared.ray;
+    const WideRay wide_ray{SlabRay(ray)};
+    std::array<StackEntry, kStackSize<W>> stack;
+    int stack_size = 0;
+    ChildRef current{0, 0};
+    while (true) {
+        if constexpr (kCount) ++counters.nodes_visited;
+        if (current.prim_count > 0) {
+            // LEAF
+            if constexpr (kCount) counters.prims_tested += current.prim_count;
+            for (std::uint32_t i = current.child; i < current.child + current.prim_count; ++i) {
+                if constexpr (kAnyHit) {
+                    if (occludes(geometry, prim_indices[i], prepared)) return true;
+                } else {
+                    intersect_primitive(geometry, prim_indices[i], prepared, best);
+                }
+            }
+        } else {
+            // INNER: test the W boxes, visit the nearest hit child, push the others.
+            const WideBvhNode<W>& node = nodes[current.child];
+            const float t_limit = best.hit() ? best.t : ray.tfar;
+            alignas(32) float entry[W];
+            unsigned hit_mask = intersect_children(node, wide_ray, ray.tnear, t_limit, entry);
+            if (hit_mask != 0) {
+                std::array<int, W> order;
+                int hit_count = 0;
+                for (; hit_mask != 0; hit_mask &= hit_mask - 1) {
+                    const int slot = std::countr_zero(hit_mask);
+                    int position = hit_count++;
+                    for (; position > 0 && entry[order[position - 1]] > entry[slot]; --position)
+                        order[position] = order[position - 1];
+                    order[position] = slot;
+                }
+                for (int k = hit_count - 1; k > 0; --k) {
+                    const int slot = order[k];
+                    stack[stack_size++] = {{node.child[slot], node.prim_count[slot]}, entry[slot]};
+                }
+                current = {node.child[order[0]], node.prim_count[order[0]]};
+                continue;
+            }
+        }
+        // POP the next child that may still hold a hit no farther than the best one.
+        do {
+            if (stack_size == 0) return best.hit();
+            const StackEntry popped = stack[--stack_size];
+            current = popped.ref;
+            if (!best.hit() || popped.t_entry <= best.t) break;
+        } while (true);
+    }
+}
+
+}  // namespace
+
+template <int W>
+void WideBvhAccel<W>::build(const Geometry& geometry, const BuildOptions& options) {
+    const auto start = std::chrono::steady_clock::now();
+    geometry_ = geometry;
+    options_ = options;
+    BvhBuildResult binary = build_bvh(geometry, options.bvh);
+    nodes_.clear();
+    if (!binary.nodes.empty()) collapse<W>(binary.nodes, 0, nodes_);
+    prim_indices_ = std::move(binary.prim_indices);
+    build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+template <int W>
+void WideBvhAccel<W>::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                      TraversalCounters* counters) const {
+    intersect_each(options_.triangle_test, rays, hits, counters,
+                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                         Hit& best, TraversalCounters& counts) {
+                       traverse<W, false, kCount>(nodes_, prim_indices_, geometry_, prepared, best, counts);
+                   });
+}
+
+template <int W>
+void WideBvhAccel<W>::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                                     TraversalCounters* counters) const {
+    occluded_each(options_.triangle_test, rays, occluded, counters,
+                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                        TraversalCounters& counts) {
+                      Hit unused;
+                      return traverse<W, true, kCount>(nodes_, prim_indices_, geometry_, prepared, unused,
+                                                       counts);
+                  });
+}
+
+template <int W>
+AccelStats WideBvhAccel<W>::stats() const {
+    AccelStats stats;
+    stats.build_ms = build_ms_;
+    stats.primitives = geometry_.size();
+    stats.references = prim_indices_.size();
+    stats.memory_by_array = {{"nodes", nodes_.size() * sizeof(WideBvhNode<W>)},
+                             {"prim_indices", prim_indices_.size() * sizeof(std::uint32_t)}};
+    if (nodes_.empty()) return stats;
+
+    // Areas, depths and counts in one walk; leaves live in their parents' slots, at the parent's depth + 1.
+    auto node_bounds = [](const WideBvhNode<W>& node) {
+        Box3f box;
+        for (int slot = 0; slot < W; ++slot) {
+            if (!node.is_empty(slot)) box.extend(node.child_bounds(slot));
+        }
+        return box;
+    };
+    const double root_area = node_bounds(nodes_[0]).surface_area();
+    double weighted_area = 0.0;  // SAH sum before the division by the root's area
+    double depth_sum = 0.0;
+    std::vector<std::pair<std::uint32_t, int>> pending = {{0, 0}};
+    while (!pending.empty()) {
+        const auto [index, depth] = pending.back();
+        pending.pop_back();
+        const WideBvhNode<W>& node = nodes_[index];
+        weighted_area += node_bounds(node).surface_area() * kNodeCost;
+        for (int slot = 0; slot < W; ++slot) {
+            if (node.is_empty(slot)) continue;
+            if (node.prim_count[slot] == 0) {
+                pending.push_back({node.child[slot], depth + 1});
+                continue;
+            }
+            ++stats.leaves;
+            depth_sum += depth + 1;
+            stats.max_depth = std::max(stats.max_depth, depth + 1);
+            stats.max_refs_per_leaf = std::max<std::size_t>(stats.max_refs_per_leaf, node.prim_count[slot]);
+            weighted_area += static_cast<double>(node.child_bounds(slot).surface_area()) *
+                             node.prim_count[slot] * kPrimitiveCost;
+        }
+    }
+    stats.nodes = nodes_.size() + stats.leaves;
+    stats.mean_depth = depth_sum / static_cast<double>(stats.leaves);
+    stats.mean_refs_per_leaf = static_cast<double>(stats.references) / static_cast<double>(stats.leaves);
+    // A point-like scene has no area to normalise by: its cost is then its primitive count.
+    stats.sah_cost = root_area > 0.0 ? weighted_area / root_area : static_cast<double>(stats.references);
+    return stats;
+}
+
+template <int W>
+std::size_t WideBvhAccel<W>::memory_bytes() const {
+    return nodes_.size() * sizeof(WideBvhNode<W>) + prim_indices_.size() * sizeof(std::uint32_t);
+}
+
+template class WideBvhAccel<4>;
+template class WideBvhAccel<8>;
+
+}  // namespace lancer

@@ -1,0 +1,209 @@
+// 4- and 8-wide bounding volume hierarchies collapsed from the binary SAH BVH (Dammertz, Hanika & Keller,
+// "Shallow Bounding Volume Hierarchies for Fast SIMD Ray Tracing of Incoherent Rays", EGSR 2008; Wald,
+// Benthin & Boulos, "Getting Rid of Packets", RT 2008), traversed one ray at a time with all W child boxes
+// tested at once in SIMD. docs/accel/bvh_wide.md has the design note.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#if defined(__AVX2__) || defined(__SSE4_1__)
+#include <immintrin.h>
+#endif
+
+#include "accel/bvh.hpp"
+#include "core/intersect.hpp"
+
+namespace lancer {
+
+// One wide node, structure of arrays so that one load brings a coordinate of all W children. Width 4:
+// 96 bytes of boxes + 16 + 16 = 128 bytes (two cache lines); width 8: 192 + 32 + 32 = 256 bytes (four).
+// An empty slot has the inverted box lo = +inf, hi = -inf, which the sign-selected slab test below never
+// hits.
+template <int W>
+struct alignas(32) WideBvhNode {
+    static constexpr int kLo = 0, kHi = 1;
+    // 24 W bytes: [lo | hi][axis][child].
+    float bounds[2][3][W];
+    // 4 W bytes: an inner child's node index; a leaf child's first entry of prim_indices.
+    std::uint32_t child[W] = {};
+    // 4 W bytes: the primitives of a leaf child; 0 for an inner child or an empty slot.
+    std::uint32_t prim_count[W] = {};
+
+    WideBvhNode() {
+        for (int axis = 0; axis < 3; ++axis) {
+            for (int slot = 0; slot < W; ++slot)
+                bounds[kLo][axis][slot] = kInfinity, bounds[kHi][axis][slot] = -kInfinity;
+        }
+    }
+    [[nodiscard]] bool is_empty(int slot) const { return bounds[kLo][0][slot] > bounds[kHi][0][slot]; }
+    [[nodiscard]] Box3f child_bounds(int slot) const {
+        return {{bounds[kLo][0][slot], bounds[kLo][1][slot], bounds[kLo][2][slot]},
+                {bounds[kHi][0][slot], bounds[kHi][1][slot], bounds[kHi][2][slot]}};
+    }
+};
+static_assert(sizeof(WideBvhNode<4>) == 128 && alignof(WideBvhNode<4>) == 32);
+static_assert(sizeof(WideBvhNode<8>) == 256 && alignof(WideBvhNode<8>) == 32);
+
+// A ray as the wide box test reads it. The slab test picks each axis's entry plane by the sign of the
+// reciprocal direction (pbrt-v3's dirIsNeg) instead of taking min/max of the two planes: an inverted empty
+// slot then enters at +inf and leaves at -inf, a miss, where min/max would turn it into the unbounded box.
+// For every box with lo <= hi both forms give the same two plane distances.
+struct WideRay {
+    Vec3f origin;
+    Vec3f inv_direction;
+    // Per axis, the side of the box the ray enters by: kHi (1) where the direction is negative or -0, else
+    // kLo.
+    std::array<int, 3> entry_side;
+
+    explicit WideRay(const SlabRay& slab) : origin(slab.origin), inv_direction(slab.inv_direction) {
+        for (int axis = 0; axis < 3; ++axis)
+            entry_side[axis] = std::signbit(inv_direction[axis]) ? 1 : 0;
+    }
+};
+
+// The exit widening of intersect_box, as the same fp32 expression.
+inline constexpr float kSlabExitWidening = 1.0f + 2.0f * gamma_bound(3);
+
+// The slab test of intersect_box on every child of `node`, one child at a time: bit i of the result is set
+// when child i is hit within [tnear, tfar], with entry[i] its entry distance. The NaN rule of intersect_box
+// (a ray in a face plane, 0 * inf, has that slab unbounded) holds per plane: a NaN plane distance leaves the
+// interval as it is, because max(nan, t) and min(nan, t) are written to return t. Where one plane distance
+// of an axis is NaN the other is +-inf on the side that does not clip, so this equals dropping the slab.
+template <int W>
+[[nodiscard]] inline unsigned intersect_children_scalar(const WideBvhNode<W>& node, const WideRay& ray,
+                                                        float tnear, float tfar, float (&entry)[W]) {
+    unsigned mask = 0;
+    for (int slot = 0; slot < W; ++slot) {
+        float t0 = tnear, t1 = tfar;
+        for (int axis = 0; axis < 3; ++axis) {
+            const int side = ray.entry_side[axis];
+            const float near_plane =
+                (node.bounds[side][axis][slot] - ray.origin[axis]) * ray.inv_direction[axis];
+            const float far_plane = (node.bounds[1 - side][axis][slot] - ray.origin[axis]) *
+                                    ray.inv_direction[axis] * kSlabExitWidening;
+            t0 = near_plane > t0 ? near_plane : t0;  // maxps operand order: NaN keeps t0
+            t1 = far_plane < t1 ? far_plane : t1;    // minps operand order: NaN keeps t1
+        }
+        entry[slot] = t0;
+        if (t0 <= t1) mask |= 1u << slot;
+    }
+    return mask;
+}
+
+#if defined(__AVX2__) || defined(__SSE4_1__)
+namespace wide_detail {
+
+// _mm*_max_ps(a, b) returns b when either is NaN and _mm*_min_ps(a, b) likewise: with the plane distance
+// first, a NaN plane leaves the interval unchanged, as in intersect_children_scalar.
+template <class Ops>
+[[nodiscard]] inline unsigned intersect_children_simd(const float* lo_hi, const WideRay& ray, float tnear,
+                                                      float tfar, float* entry, int width) {
+    using Float = decltype(Ops::broadcast(0.0f));
+    Float t0 = Ops::broadcast(tnear), t1 = Ops::broadcast(tfar);
+    const Float widening = Ops::broadcast(kSlabExitWidening);
+    for (int axis = 0; axis < 3; ++axis) {
+        const int side = ray.entry_side[axis];
+        const Float origin = Ops::broadcast(ray.origin[axis]);
+        const Float inv_direction = Ops::broadcast(ray.inv_direction[axis]);
+        const Float near_plane =
+            Ops::mul(Ops::sub(Ops::load(lo_hi + (side * 3 + axis) * width), origin), inv_direction);
+        const Float far_plane = Ops::mul(
+            Ops::mul(Ops::sub(Ops::load(lo_hi + ((1 - side) * 3 + axis) * width), origin), inv_direction),
+            widening);
+        t0 = Ops::max(near_plane, t0);
+        t1 = Ops::min(far_plane, t1);
+    }
+    Ops::store(entry, t0);
+    return Ops::mask_less_equal(t0, t1);
+}
+
+#if defined(__SSE4_1__)
+struct Sse4 {
+    static __m128 broadcast(float x) { return _mm_set1_ps(x); }
+    static __m128 load(const float* p) { return _mm_load_ps(p); }
+    static void store(float* p, __m128 x) { _mm_storeu_ps(p, x); }
+    static __m128 sub(__m128 a, __m128 b) { return _mm_sub_ps(a, b); }
+    static __m128 mul(__m128 a, __m128 b) { return _mm_mul_ps(a, b); }
+    static __m128 max(__m128 a, __m128 b) { return _mm_max_ps(a, b); }
+    static __m128 min(__m128 a, __m128 b) { return _mm_min_ps(a, b); }
+    static unsigned mask_less_equal(__m128 a, __m128 b) {
+        return static_cast<unsigned>(_mm_movemask_ps(_mm_cmple_ps(a, b)));
+    }
+};
+#endif
+
+#if defined(__AVX2__)
+struct Avx2 {
+    static __m256 broadcast(float x) { return _mm256_set1_ps(x); }
+    static __m256 load(const float* p) { return _mm256_load_ps(p); }
+    static void store(float* p, __m256 x) { _mm256_storeu_ps(p, x); }
+    static __m256 sub(__m256 a, __m256 b) { return _mm256_sub_ps(a, b); }
+    static __m256 mul(__m256 a, __m256 b) { return _mm256_mul_ps(a, b); }
+    static __m256 max(__m256 a, __m256 b) { return _mm256_max_ps(a, b); }
+    static __m256 min(__m256 a, __m256 b) { return _mm256_min_ps(a, b); }
+    // Ordered, non-signalling: a NaN compares false, as t0 <= t1 does in scalar code.
+    static unsigned mask_less_equal(__m256 a, __m256 b) {
+        return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)));
+    }
+};
+#endif
+
+}  // namespace wide_detail
+#endif
+
+// The wide box test the traversal uses: SSE for 4 children and AVX2 for 8 where the compiler targets them
+// (-march=native), intersect_children_scalar otherwise. Same hits and entry distances either way.
+template <int W>
+[[nodiscard]] inline unsigned intersect_children(const WideBvhNode<W>& node, const WideRay& ray, float tnear,
+                                                 float tfar, float (&entry)[W]) {
+#if defined(__SSE4_1__)
+    if constexpr (W == 4) {
+        return wide_detail::intersect_children_simd<wide_detail::Sse4>(&node.bounds[0][0][0], ray, tnear,
+                                                                       tfar, entry, W);
+    }
+#endif
+#if defined(__AVX2__)
+    if constexpr (W == 8) {
+        return wide_detail::intersect_children_simd<wide_detail::Avx2>(&node.bounds[0][0][0], ray, tnear,
+                                                                       tfar, entry, W);
+    }
+#endif
+    return intersect_children_scalar(node, ray, tnear, tfar, entry);
+}
+
+template <int W>
+class WideBvhAccel final : public Accel {
+  public:
+    static_assert(W == 4 || W == 8);
+
+    [[nodiscard]] std::string_view name() const override { return W == 4 ? "bvh4" : "bvh8"; }
+    void build(const Geometry& geometry, const BuildOptions& options) override;
+    [[nodiscard]] AccelStats stats() const override;
+    [[nodiscard]] std::size_t memory_bytes() const override;
+
+    // The built hierarchy, for tests. The root is node 0 whenever the geometry is not empty.
+    [[nodiscard]] const std::vector<WideBvhNode<W>>& nodes() const { return nodes_; }
+    [[nodiscard]] const std::vector<std::uint32_t>& prim_indices() const { return prim_indices_; }
+
+  private:
+    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                         TraversalCounters* counters) const override;
+    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                        TraversalCounters* counters) const override;
+
+    Geometry geometry_;
+    BuildOptions options_;
+    std::vector<WideBvhNode<W>> nodes_;
+    std::vector<std::uint32_t> prim_indices_;
+    double build_ms_ = 0.0;
+};
+
+extern template class WideBvhAccel<4>;
+extern template class WideBvhAccel<8>;
+using Bvh4Accel = WideBvhAccel<4>;
+using Bvh8Accel = WideBvhAccel<8>;
+
+}  // namespace lancer
