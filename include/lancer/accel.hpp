@@ -77,8 +77,8 @@ struct BuildOptions {
 
 // Sets one option from "KEY=VALUE", as `--set` gives it: grid.density, octree.max_depth, octree.leaf_size,
 // kdtree.cost (wald-havran | seed003), kdtree.traversal_cost, kdtree.intersection_cost, kdtree.empty_bonus,
-// kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins, embree.packet (1 | 8 | 16). Throws std::invalid_argument
-// naming the key and the values it accepts.
+// kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins, embree.packet (1 | 8 | 16).
+// Throws std::invalid_argument naming the key and the values it accepts.
 void set_build_option(BuildOptions& options, std::string_view assignment);
 
 // Defaults with the given triangle test (brace-initialising the aggregate would leave the rest to -Wextra).

@@ -14,7 +14,7 @@
 namespace lancer {
 
 class EmbreeAccel final : public Accel {
-public:
+  public:
     EmbreeAccel();
     ~EmbreeAccel() override;
     EmbreeAccel(const EmbreeAccel&) = delete;
@@ -26,8 +26,9 @@ public:
     // Embree does not expose its node memory; this counts the vertex and index buffers it was given.
     [[nodiscard]] std::size_t memory_bytes() const override { return buffer_bytes_; }
 
-private:
-    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters) const override;
+  private:
+    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                         TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                         TraversalCounters* counters) const override;
     void release_scene();

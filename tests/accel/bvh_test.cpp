@@ -14,17 +14,12 @@
 #include "accel/bvh_build.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
+#include "test_scenes.hpp"
 
 namespace lancer {
 namespace {
 
-std::vector<Triangle> knot_triangles(int segments) {
-    const TriangleMesh mesh = make_torus_knot(segments, 12);
-    std::vector<Triangle> triangles;
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
-    return triangles;
-}
+using testing::knot_triangles;
 
 BuildOptions with_builder(BvhBuilder builder, int max_leaf_size = 4) {
     BuildOptions options;

@@ -9,17 +9,12 @@
 
 #include "accel/build_util.hpp"
 #include "lancer/generate.hpp"
+#include "test_scenes.hpp"
 
 namespace lancer {
 namespace {
 
-std::vector<Triangle> knot_triangles(int segments) {
-    const TriangleMesh mesh = make_torus_knot(segments, 12);
-    std::vector<Triangle> triangles;
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
-    return triangles;
-}
+using testing::knot_triangles;
 
 bool contains(const Box3f& outer, const Box3f& inner) {
     return outer.lo.x <= inner.lo.x && outer.lo.y <= inner.lo.y && outer.lo.z <= inner.lo.z &&

@@ -7,9 +7,12 @@
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
+#include "test_scenes.hpp"
 
 namespace lancer {
 namespace {
+
+using testing::TestScene;
 
 bool has_embree() {
     for (std::string_view name : accel_names()) {
@@ -18,14 +21,8 @@ bool has_embree() {
     return false;
 }
 
-struct Scene3 {
-    std::vector<Triangle> triangles;
-    std::vector<Sphere> spheres;
-    [[nodiscard]] Geometry geometry() const { return {triangles, spheres}; }
-};
-
-Scene3 mixed_scene() {
-    Scene3 scene;
+TestScene mixed_scene() {
+    TestScene scene;
     for (const TriangleMesh& mesh : {make_icosphere(3), make_torus_knot(300, 10)}) {
         for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
             scene.triangles.push_back(mesh.triangle(i));
@@ -45,7 +42,7 @@ std::vector<Hit> trace(const std::string& name, const Geometry& geometry, const 
 
 TEST(Embree, AgreesWithBruteForceOnRandomRays) {
     if (!has_embree()) GTEST_SKIP() << "built without Embree";
-    const Scene3 scene = mixed_scene();
+    const TestScene scene = mixed_scene();
     const testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 20000, 7);
     const float scale = length(scene.geometry().bounds().extent());
     for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
@@ -88,7 +85,7 @@ TEST(Embree, SpheresAreNumberedAfterTrianglesAndInvalidRaysMiss) {
 
 TEST(Embree, PacketsAnswerLikeSingleRays) {
     if (!has_embree()) GTEST_SKIP() << "built without Embree";
-    const Scene3 scene = mixed_scene();
+    const TestScene scene = mixed_scene();
     testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 5003, 9);  // not a multiple of 16
     for (const Ray& hostile : testing::hostile_rays(scene.geometry().bounds()).rays)
         set.rays.push_back(hostile);

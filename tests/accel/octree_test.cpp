@@ -16,21 +16,13 @@
 #include "accel/build_util.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
+#include "test_scenes.hpp"
 
 namespace lancer {
 namespace {
 
-struct TestScene {
-    std::vector<Triangle> triangles;
-    std::vector<Sphere> spheres;
-
-    [[nodiscard]] Geometry geometry() const { return {triangles, spheres}; }
-};
-
-void append(std::vector<Triangle>& triangles, const TriangleMesh& mesh) {
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
-}
+using testing::append;
+using testing::TestScene;
 
 TestScene sphere_and_spheres() {
     TestScene scene;
