@@ -177,6 +177,26 @@ struct ComputedBoxes {
     return true;
 }
 
+// EXIT-FACE (section 4.2.1): Pi_a(V) = (d x (V - o))_a against the three edges through the exit vertex V
+// (equations 4-5 as one cross product: 6 products, 6 differences), packed by equation (6) and looked up by
+// equation (8). `to_exit_vertex` = V - o.
+[[nodiscard]] inline int exit_face(const WalkRay& ray, const Vec3f& to_exit_vertex) {
+    const Vec3f products = cross(ray.direction, to_exit_vertex);
+    const int pattern = (products.x > 0.0f) | (products.y > 0.0f) << 1 | (products.z > 0.0f) << 2;
+    return kExitFace[static_cast<std::size_t>(ray.octant)][static_cast<std::size_t>(pattern)];
+}
+
+// The sub-face (section 4.2.2) through which the ray crosses `face`, from the products against the lines
+// through the face's centre P along the in-face axes (equations 9-10); `to_centre` = P - o. A product that
+// is exactly 0 (the ray meets a median line) takes the octant's side (kQuadrantTieBits).
+[[nodiscard]] inline std::uint32_t sub_face(const WalkRay& ray, int face, const Vec3f& to_centre) {
+    const Vec3f products = cross(ray.direction, to_centre);
+    const int signs = (products.x > 0.0f) | (products.y > 0.0f) << 1 | (products.z > 0.0f) << 2;
+    const int zeros = (products.x == 0.0f) | (products.y == 0.0f) << 1 | (products.z == 0.0f) << 2;
+    const int pattern = signs | (zeros & ray.tie[static_cast<std::size_t>(face_axis(face))]);
+    return kNeighbourQuadrant[static_cast<std::size_t>(face)][static_cast<std::size_t>(pattern)];
+}
+
 // Rounding bound of the exit test: a product and a difference, each rounded once, with the margin of
 // intersect_box (2 gamma(3)). Shrinks towards -inf, so that rounding never stops the walk early.
 [[nodiscard]] inline float exit_lower_bound(float distance) {
@@ -200,7 +220,6 @@ void walk(const PluckerLayout& layout, const Boxes& boxes, const Ray& ray, LeafV
     constexpr std::uint32_t kHeader = header_words(Boxes::kStored);
     [[maybe_unused]] constexpr std::uint32_t kBoxWords = box_words(Boxes::kStored);
     const Vec3f& o = walk_ray.origin;
-    const Vec3f& d = walk_ray.direction;
     [[maybe_unused]] std::size_t steps_left = layout.cells.size();
     float limit = ray.tfar;
     while (true) {
@@ -210,42 +229,29 @@ void walk(const PluckerLayout& layout, const Boxes& boxes, const Ray& ray, LeafV
         limit = visit_leaf(record, limit);
         if (limit < ray.tnear) return;
 
-        // EXIT-FACE (4.2.1): Pi_a(V) = (d x (V - o))_a against the three edges through the exit vertex V
-        // (equations 4-5 written as one cross product), packed by equation (6), looked up by equation (8).
+        // EXIT-FACE
         const auto cell = boxes.read(record + kBoxWord);
         const Vec3f w(boxes.exit_plane(cell, 0, walk_ray.up[0]) - o.x,
                       boxes.exit_plane(cell, 1, walk_ray.up[1]) - o.y,
                       boxes.exit_plane(cell, 2, walk_ray.up[2]) - o.z);
-        const Vec3f exit_products = cross(d, w);
-        const int pattern =
-            (exit_products.x > 0.0f) | (exit_products.y > 0.0f) << 1 | (exit_products.z > 0.0f) << 2;
-        const int face =
-            kExitFace[static_cast<std::size_t>(walk_ray.octant)][static_cast<std::size_t>(pattern)];
+        const int face = exit_face(walk_ray, w);
         const int axis = face_axis(face);
         // Done once the search interval ends before this leaf's exit: limit <= (V_a - o_a) / d_a, written
         // without a division (w_a has the sign of the direction when the exit lies ahead).
         const float ahead = walk_ray.up[static_cast<std::size_t>(axis)] ? w[axis] : -w[axis];
         if (limit * walk_ray.abs_direction[axis] <= exit_lower_bound(ahead)) return;
 
-        // NEIGHBOR (4.2.2): the sub-face from the two median lines of the exit face, through its centre.
+        // NEIGHBOR: the sub-face (meaningful with four neighbours, computed for one too: no branch)
         const std::uint32_t ends = record[kHeader - 1];
         const std::uint32_t start = neighbour_start(ends, face);
         const std::uint32_t count = neighbour_end(ends, face) - start;
         if (count == 0) return;  // the root's boundary
-        std::uint32_t link;
-        {
-            const Vec3f to_centre(axis == 0 ? w.x : boxes.mid(cell, 0) - o.x,
-                                  axis == 1 ? w.y : boxes.mid(cell, 1) - o.y,
-                                  axis == 2 ? w.z : boxes.mid(cell, 2) - o.z);
-            const Vec3f products = cross(d, to_centre);
-            const int signs = (products.x > 0.0f) | (products.y > 0.0f) << 1 | (products.z > 0.0f) << 2;
-            const int zeros = (products.x == 0.0f) | (products.y == 0.0f) << 1 | (products.z == 0.0f) << 2;
-            const int sub_face_pattern = signs | (zeros & walk_ray.tie[static_cast<std::size_t>(axis)]);
-            const std::uint32_t q = kNeighbourQuadrant[static_cast<std::size_t>(face)]
-                                                      [static_cast<std::size_t>(sub_face_pattern)];
-            // Equation (10) with the seed's trick: count / 4 is 1 for four neighbours and 0 for one.
-            link = record[kHeader + start + q * (count >> 2)];
-        }
+        const std::uint32_t q =
+            sub_face(walk_ray, face,
+                     {axis == 0 ? w.x : boxes.mid(cell, 0) - o.x, axis == 1 ? w.y : boxes.mid(cell, 1) - o.y,
+                      axis == 2 ? w.z : boxes.mid(cell, 2) - o.z});
+        // Equation (10) with the seed's trick: count / 4 is 1 for four neighbours and 0 for one.
+        std::uint32_t link = record[kHeader + start + q * (count >> 2)];
         if constexpr (!kBalanced) {
             // A same-level inner cell: descend it, each level by the sub-face test on its face (the exit
             // plane is the same), the child on the near side of the face.
@@ -256,17 +262,11 @@ void walk(const PluckerLayout& layout, const Boxes& boxes, const Ray& ray, LeafV
                 const std::uint32_t* inner = cells + (link & kAddressMask);
                 if constexpr (kCount) ++counters->nodes_visited;
                 const auto inner_cell = boxes.read(inner);
-                const Vec3f to_centre(axis == 0 ? w.x : boxes.mid(inner_cell, 0) - o.x,
-                                      axis == 1 ? w.y : boxes.mid(inner_cell, 1) - o.y,
-                                      axis == 2 ? w.z : boxes.mid(inner_cell, 2) - o.z);
-                const Vec3f products = cross(d, to_centre);
-                const int signs = (products.x > 0.0f) | (products.y > 0.0f) << 1 | (products.z > 0.0f) << 2;
-                const int zeros =
-                    (products.x == 0.0f) | (products.y == 0.0f) << 1 | (products.z == 0.0f) << 2;
-                const std::uint32_t q =
-                    kNeighbourQuadrant[static_cast<std::size_t>(face)][static_cast<std::size_t>(
-                        signs | (zeros & walk_ray.tie[static_cast<std::size_t>(axis)]))];
-                const std::uint32_t child = near_bit << axis | (q & 1u) << u | (q >> 1) << v;
+                const std::uint32_t inner_q = sub_face(walk_ray, face,
+                                                       {axis == 0 ? w.x : boxes.mid(inner_cell, 0) - o.x,
+                                                        axis == 1 ? w.y : boxes.mid(inner_cell, 1) - o.y,
+                                                        axis == 2 ? w.z : boxes.mid(inner_cell, 2) - o.z});
+                const std::uint32_t child = near_bit << axis | (inner_q & 1u) << u | (inner_q >> 1) << v;
                 link = inner[kBoxWords + child];
             }
         }
