@@ -21,10 +21,11 @@ struct RenderCommandOptions {
 };
 
 void run(const RenderCommandOptions& options) {
-    const LoadedScene loaded = load_timed(options.scene_file);
+    const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
+    const LoadedScene& loaded = prepared.loaded;
     const Scene& scene = loaded.scene;
-    const SceneGeometry geometry(scene);
-    const BuiltAccel built = build_timed(options.accel, geometry.view());
+    const SceneGeometry& geometry = *prepared.geometry;
+    const BuiltAccel& built = prepared.built;
 
     Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds());
     if (!options.size.empty()) std::tie(camera.width, camera.height) = parse_size(options.size);
@@ -45,7 +46,7 @@ void run(const RenderCommandOptions& options) {
     fmt::print("{}: {}x{}, {} triangles, {} spheres, {} planes\n", options.scene_file, image.width,
                image.height, scene.triangle_count(), scene.spheres.size(), scene.planes.size());
     fmt::print("load {:.1f} ms, accel {} build {:.1f} ms, trace {:.1f} ms, {:.2f} Mrays/s\n", loaded.load_ms,
-               options.accel.name, built.build_ms, stats.trace_ms, mrays_per_s);
+               built.accel->name(), built.build_ms, stats.trace_ms, mrays_per_s);
     if (options.mode == ShadingMode::Heatmap) {
         const double rays = static_cast<double>(stats.counters.rays);
         fmt::print("per primary ray: {:.2f} nodes visited, {:.2f} primitives tested\n",
@@ -60,8 +61,9 @@ void run(const RenderCommandOptions& options) {
 void add_render_command(CLI::App& app) {
     auto options = std::make_shared<RenderCommandOptions>();
     CLI::App* command = app.add_subcommand("render", "Render a scene to PNG");
-    command->add_option("scene", options->scene_file,
-                        "Scene or mesh file (default: the authored demo scene)");
+    command->add_option(
+        "scene", options->scene_file,
+        "Scene or mesh file, or a .plo octree from `lancer convert` (default: the demo scene)");
     command->add_option("-o,--output", options->output, "PNG file to write")->capture_default_str();
     command->add_option("--size", options->size, "Image size WIDTHxHEIGHT (default: the scene's camera)");
     const std::map<std::string, ShadingMode> modes = {{"flat", ShadingMode::Flat},

@@ -41,7 +41,9 @@ struct OctreeOptions {
 // dragon's 871k). The other fields are the variants of its section 6 (docs/plucker-octree.md).
 struct PluckerOptions {
     int max_depth = 0;
-    int leaf_size = 6;         // split while a cell holds more references ("6 triangles per leaf", 5.1)
+    // Split while a cell holds more references: 12 leaves 5.5 to 6.2 references per non-empty leaf on the
+    // Stanford meshes, the seed's "6 triangles per leaf on average" (5.1; docs/results.md, the sweep).
+    int leaf_size = 12;
     bool balanced = true;      // false: no 2:1 rule, links to the same-or-larger neighbour and a descent
     bool stored_boxes = true;  // false: cell planes recomputed from integer coordinates and level
     bool morton = false;       // true: cells in depth-first (Morton) order instead of the build's order

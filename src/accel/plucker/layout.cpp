@@ -11,11 +11,6 @@
 namespace lancer::plucker {
 namespace {
 
-// The cube map stops at 2^10 x 2^10 texels per face (4 MiB, the seed's 24 MB for the dragon over six
-// faces); a texel that covers several deeper leaves holds the cell covering it, tagged with kInnerBit, and
-// the entry descends from there (plucker_walk.hpp).
-constexpr std::uint32_t kMaxCubeMapLevel = 10;
-
 // Leaves (and, in the unconstrained variant, inner cells other than the root) in stream order.
 std::vector<std::uint32_t> record_order(const Octree& octree, const PluckerLayoutOptions& options) {
     std::vector<std::uint32_t> leaves, inner;

@@ -74,6 +74,11 @@ static_assert(sizeof(PluckerPrimitive) == 40);
 // 2^level x 2^level texels, level the deepest leaf on that face, each holding the address of the boundary
 // leaf that contains it. Texel (i, j) on face f covers in-face cells i (lower in-face axis) and j (upper)
 // at that level; it is texels[offset[f] + i + (j << level[f])].
+// The cube map stops at 2^10 x 2^10 texels per face (4 MiB, the seed's 24 MB for the dragon over six
+// faces); a texel that covers several deeper leaves holds the inner cell of that level covering it, tagged
+// with kInnerBit, and the entry descends from there (walk.hpp).
+inline constexpr std::uint32_t kMaxCubeMapLevel = 10;
+
 struct CubeMap {
     std::array<std::uint32_t, 6> level{};
     std::array<std::uint32_t, 6> offset{};
