@@ -93,10 +93,12 @@ PluckerFile read_plucker_file(const std::filesystem::path& file) {
     const auto file_size = static_cast<std::uint64_t>(in.tellg());
     in.seekg(0);
     PluckerFileHeader header{};
-    if (file_size < sizeof(header) || !in.read(reinterpret_cast<char*>(&header), sizeof(header)))
-        fail(file, "truncated: shorter than the " + std::to_string(sizeof(header)) + "-byte header");
-    if (std::memcmp(header.magic, kFileMagic, sizeof(kFileMagic)) != 0)
+    const auto available = static_cast<std::streamsize>(std::min<std::uint64_t>(file_size, sizeof(header)));
+    if (!in.read(reinterpret_cast<char*>(&header), available)) fail(file, "read error");
+    if (file_size < sizeof(kFileMagic) || std::memcmp(header.magic, kFileMagic, sizeof(kFileMagic)) != 0)
         fail(file, "not a lancer Pluecker octree file (wrong magic; write one with `lancer convert`)");
+    if (file_size < sizeof(header))
+        fail(file, "truncated: shorter than the " + std::to_string(sizeof(header)) + "-byte header");
     if (header.version != kFileVersion)
         fail(file, "format version " + std::to_string(header.version) + ", this lancer reads version " +
                        std::to_string(kFileVersion));
