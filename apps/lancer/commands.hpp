@@ -10,5 +10,6 @@ void add_info_command(CLI::App& app);
 void add_rays_command(CLI::App& app);
 void add_stats_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
+void add_convert_command(CLI::App& app);
 
 }  // namespace lancer::cli

@@ -7,6 +7,8 @@
 
 #include <charconv>
 
+#include "accel/plucker/plucker.hpp"
+#include "accel/plucker/serialise.hpp"
 #include "lancer/io.hpp"
 
 namespace lancer::cli {
@@ -22,7 +24,8 @@ void AccelChoice::add_options(CLI::App& command) {
     std::string names;
     for (std::string_view known : accel_names())
         names += (names.empty() ? "" : ", ") + std::string(known);
-    command.add_option("--accel", name, "Acceleration structure: " + names)->capture_default_str();
+    name_option =
+        command.add_option("--accel", name, "Acceleration structure: " + names)->capture_default_str();
     command.add_flag("--watertight", watertight, "Watertight triangle test (Woop, Benthin & Wald 2013)");
     command.add_option("--set", settings, "Structure option KEY=VALUE, e.g. bvh.builder=sweep (repeatable)");
 }
@@ -51,6 +54,61 @@ BuiltAccel build_timed(const AccelChoice& choice, const Geometry& geometry) {
     built.accel->build(geometry, options);
     built.build_ms = watch.elapsed_ms();
     return built;
+}
+
+namespace {
+
+// The scene a `.plo` file stands for: its triangles as one mesh (global order kept), its spheres, the
+// default material; no camera (the canonical view), no lights, no planes.
+Scene scene_of(const plucker::PluckerFile& file) {
+    Scene scene;
+    TriangleMesh mesh;
+    mesh.name = "plucker";
+    mesh.positions.reserve(3 * file.triangles.size());
+    for (const Triangle& triangle : file.triangles) {
+        for (const Vec3f& vertex : {triangle.v0, triangle.v1, triangle.v2}) {
+            mesh.indices.push_back(static_cast<std::uint32_t>(mesh.positions.size()));
+            mesh.positions.push_back(vertex);
+        }
+    }
+    scene.meshes.push_back(std::move(mesh));
+    scene.spheres = file.spheres;
+    for (Sphere& sphere : scene.spheres)
+        sphere.material = 0;
+    scene.materials.emplace_back();
+    return scene;
+}
+
+}  // namespace
+
+PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice& choice) {
+    PreparedScene prepared;
+    if (file.extension() != ".plo") {
+        prepared.loaded = load_timed(file);
+        prepared.geometry = std::make_unique<SceneGeometry>(prepared.loaded.scene);
+        prepared.built = build_timed(choice, prepared.geometry->view());
+        return prepared;
+    }
+    if (choice.name_option != nullptr && choice.name_option->count() > 0 && choice.name != "plucker")
+        throw InputError(file.string() + " holds a plucker octree: --accel must be plucker or left out");
+    if (!choice.settings.empty())
+        throw InputError("--set does not apply to a stored structure: give the options to `lancer convert`");
+    Stopwatch watch;
+    plucker::PluckerFile stored;
+    try {
+        stored = plucker::read_plucker_file(file);
+    } catch (const plucker::PluckerFileError& error) {
+        throw InputError(error.what());
+    }
+    prepared.loaded.scene = scene_of(stored);
+    prepared.geometry = std::make_unique<SceneGeometry>(prepared.loaded.scene);
+    auto accel = std::make_unique<PluckerAccel>();
+    const BuildOptions options =
+        lancer::build_options(choice.watertight ? TriangleTest::Watertight : stored.triangle_test);
+    accel->adopt(prepared.geometry->view(), options, std::move(stored.layout));
+    prepared.loaded.load_ms = watch.elapsed_ms();
+    prepared.built.accel = std::move(accel);
+    return prepared;
 }
 
 void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads) {

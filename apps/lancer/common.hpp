@@ -51,6 +51,7 @@ struct AccelChoice {
     std::string name = "bvh";
     bool watertight = false;
     std::vector<std::string> settings;
+    const CLI::Option* name_option = nullptr;  // to tell `--accel bvh` from the default
 
     void add_options(CLI::App& command);
     // Throws InputError for a malformed --set.
@@ -64,6 +65,17 @@ struct BuiltAccel {
 
 // Throws InputError for an unknown structure name or a malformed --set.
 [[nodiscard]] BuiltAccel build_timed(const AccelChoice& choice, const Geometry& geometry);
+
+// What a command works on: a scene file with the chosen structure built on it, or a Pluecker octree file
+// (`.plo`, written by `lancer convert`) with the geometry it holds, loaded instead of built (build_ms 0,
+// load_ms the read and the checks). A `.plo` file takes --watertight but not --set, and --accel only as
+// plucker. Throws LoadError, InputError.
+struct PreparedScene {
+    LoadedScene loaded;
+    std::unique_ptr<SceneGeometry> geometry;  // the structure keeps spans into it: never moved
+    BuiltAccel built;
+};
+[[nodiscard]] PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice& choice);
 
 // Closest hits of all rays, in chunks over `threads` oneTBB threads (0 = all).
 void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads);

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     lancer::cli::add_rays_command(app);
     lancer::cli::add_stats_command(app);
     lancer::cli::add_bench_command(app);
+    lancer::cli::add_convert_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& error) {

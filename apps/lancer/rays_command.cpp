@@ -49,10 +49,9 @@ void write_hits(const std::string& path, const std::vector<Hit>& hits) {
 }
 
 void run(const RaysOptions& options) {
-    const LoadedScene loaded = load_timed(options.scene_file);
-    const SceneGeometry geometry(loaded.scene);
+    const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
+    const BuiltAccel& built = prepared.built;
     const std::vector<Ray> rays = read_rays(options.rays_file);
-    const BuiltAccel built = build_timed(options.accel, geometry.view());
 
     std::vector<Hit> hits(rays.size());
     Stopwatch watch;
@@ -64,7 +63,7 @@ void run(const RaysOptions& options) {
     for (const Hit& hit : hits)
         hit_count += hit.hit() ? 1 : 0;
     fmt::print(stderr, "rays: {} rays, {} hits, accel {} (build {:.1f} ms), trace {:.1f} ms\n", rays.size(),
-               hit_count, options.accel.name, built.build_ms, trace_ms);
+               hit_count, built.accel->name(), built.build_ms, trace_ms);
 }
 
 }  // namespace
@@ -73,7 +72,8 @@ void add_rays_command(CLI::App& app) {
     auto options = std::make_shared<RaysOptions>();
     CLI::App* command =
         app.add_subcommand("rays", "Closest hits of a binary batch of rays (formats in README)");
-    command->add_option("scene", options->scene_file, "Mesh or scene file")->required();
+    command->add_option("scene", options->scene_file, "Mesh or scene file, or a .plo octree (lancer convert)")
+        ->required();
     command->add_option("--rays", options->rays_file, "Input: float32 x 8 per ray")->required();
     command->add_option("--hits", options->hits_file, "Output: 16 bytes per ray")->required();
     options->accel.add_options(*command);

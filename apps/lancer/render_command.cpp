@@ -43,7 +43,7 @@ void print_summary(const RenderCommandOptions& options, const LoadedScene& loade
                image.width, image.height, whitted ? fmt::format(", {} spp", options.samples_per_pixel) : "",
                scene.triangle_count(), scene.spheres.size(), scene.planes.size(), scene.lights.size());
     fmt::print("load {:.1f} ms, accel {} build {:.1f} ms, render {:.1f} ms\n", loaded.load_ms,
-               options.accel.name, built.build_ms, stats.trace_ms);
+               built.accel->name(), built.build_ms, stats.trace_ms);
     const double mrays_per_s = static_cast<double>(stats.total_rays()) / (stats.trace_ms * 1e3);
     if (whitted) {
         fmt::print("rays: {} primary, {} shadow, {} reflection, {} refraction; {} in all, {:.2f} Mrays/s\n",
@@ -62,10 +62,11 @@ void print_summary(const RenderCommandOptions& options, const LoadedScene& loade
 }
 
 void run(const RenderCommandOptions& options) {
-    const LoadedScene loaded = load_timed(options.scene_file);
+    const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
+    const LoadedScene& loaded = prepared.loaded;
     const Scene& scene = loaded.scene;
-    const SceneGeometry geometry(scene);
-    const BuiltAccel built = build_timed(options.accel, geometry.view());
+    const SceneGeometry& geometry = *prepared.geometry;
+    const BuiltAccel& built = prepared.built;
 
     Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds());
     if (!options.size.empty()) std::tie(camera.width, camera.height) = parse_size(options.size);
@@ -96,8 +97,9 @@ void run(const RenderCommandOptions& options) {
 void add_render_command(CLI::App& app) {
     auto options = std::make_shared<RenderCommandOptions>();
     CLI::App* command = app.add_subcommand("render", "Render a scene to PNG or OpenEXR");
-    command->add_option("scene", options->scene_file,
-                        "Scene or mesh file (default: the authored demo scene)");
+    command->add_option(
+        "scene", options->scene_file,
+        "Scene or mesh file, or a .plo octree from `lancer convert` (default: the demo scene)");
     command
         ->add_option("-o,--output", options->output,
                      "Image to write: 8-bit sRGB PNG, or linear half-float OpenEXR when it ends in .exr")

@@ -50,16 +50,17 @@ RayCost trace_view(const Accel& accel, const Scene& scene, int width, int height
 }
 
 void run(const StatsOptions& options) {
-    const LoadedScene loaded = load_timed(options.scene_file);
-    const SceneGeometry geometry(loaded.scene);
-    const BuiltAccel built = build_timed(options.accel, geometry.view());
+    const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
+    const LoadedScene& loaded = prepared.loaded;
+    const SceneGeometry& geometry = *prepared.geometry;
+    const BuiltAccel& built = prepared.built;
     const AccelStats stats = built.accel->stats();
     const std::size_t primitives = geometry.view().size();
     const double memory_mb = static_cast<double>(built.accel->memory_bytes()) / (1024.0 * 1024.0);
 
     fmt::print("scene        {} ({} primitives), load {:.1f} ms\n", options.scene_file, primitives,
                loaded.load_ms);
-    fmt::print("accel        {}\n", options.accel.name);
+    fmt::print("accel        {}\n", built.accel->name());
     fmt::print("build        {:.1f} ms ({:.2f} Mprims/s)\n", built.build_ms,
                built.build_ms > 0.0 ? static_cast<double>(primitives) / (built.build_ms * 1e3) : 0.0);
     fmt::print("nodes        {} ({} leaves, {} empty)\n", stats.nodes, stats.leaves, stats.empty_leaves);
@@ -98,7 +99,7 @@ void run(const StatsOptions& options) {
             "\"mean_refs_per_leaf\": {:.4f}, \"max_refs_per_leaf\": {}, \"references\": {}, \"sah_cost\": "
             "{:.6f}, "
             "\"memory_bytes\": {}, \"memory_by_array\": {{{}}}",
-            options.scene_file, options.accel.name, primitives, built.build_ms, stats.nodes, stats.leaves,
+            options.scene_file, built.accel->name(), primitives, built.build_ms, stats.nodes, stats.leaves,
             stats.empty_leaves, stats.max_depth, stats.mean_depth, stats.mean_refs_per_leaf,
             stats.max_refs_per_leaf, stats.references, stats.sah_cost, built.accel->memory_bytes(),
             memory_json);
@@ -125,7 +126,8 @@ void run(const StatsOptions& options) {
 void add_stats_command(CLI::App& app) {
     auto options = std::make_shared<StatsOptions>();
     CLI::App* command = app.add_subcommand("stats", "Build a structure and print its statistics");
-    command->add_option("scene", options->scene_file, "Mesh or scene file")->required();
+    command->add_option("scene", options->scene_file, "Mesh or scene file, or a .plo octree (lancer convert)")
+        ->required();
     options->accel.add_options(*command);
     command->add_option("--json", options->json_file, "Also write the statistics as JSON");
     command->add_flag("--rays", options->rays,

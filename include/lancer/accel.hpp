@@ -35,6 +35,20 @@ struct OctreeOptions {
     int leaf_size = 8;
 };
 
+// Pluecker-connected octree (seed 000, Portalez & Duguet 2016): the octree above with the 2:1 rule and
+// face-neighbour links, walked leaf to leaf. max_depth 0 = automatic: round(0.8 log2(N) - 5), the depths of
+// the seed's section 5.2 (8 for the bunny's 69k triangles, 10 for the armadillo's 346k, 11 for the
+// dragon's 871k). The other fields are the variants of its section 6 (docs/plucker-octree.md).
+struct PluckerOptions {
+    int max_depth = 0;
+    // Split while a cell holds more references: 12 leaves 5.5 to 6.2 references per non-empty leaf on the
+    // Stanford meshes, the seed's "6 triangles per leaf on average" (5.1; docs/results.md, the sweep).
+    int leaf_size = 12;
+    bool balanced = true;      // false: no 2:1 rule, links to the same-or-larger neighbour and a descent
+    bool stored_boxes = true;  // false: cell planes recomputed from integer coordinates and level
+    bool morton = false;       // true: cells in depth-first (Morton) order instead of the build's order
+};
+
 enum class KdTreeCost {
     WaldHavran,  // Wald & Havran 2006: SAH with an empty-space bonus
     Seed003,     // seed 003 section 5.3.2: C = 1 / SA(N) [SA(L)(Nl + Nb) + SA(R)(Nr + Nb)], no bonus
@@ -70,15 +84,17 @@ struct BuildOptions {
     TriangleTest triangle_test = TriangleTest::MollerTrumbore;
     GridOptions grid;
     OctreeOptions octree;
+    PluckerOptions plucker;
     KdTreeOptions kdtree;
     BvhOptions bvh;
     EmbreePacket embree_packet = EmbreePacket::Single;
 };
 
 // Sets one option from "KEY=VALUE", as `--set` gives it: grid.density, octree.max_depth, octree.leaf_size,
-// kdtree.cost (wald-havran | seed003), kdtree.traversal_cost, kdtree.intersection_cost, kdtree.empty_bonus,
-// kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins, embree.packet (1 | 8 | 16).
-// Throws std::invalid_argument naming the key and the values it accepts.
+// plucker.max_depth, plucker.leaf_size, plucker.balanced, plucker.stored_boxes, plucker.morton (true |
+// false), kdtree.cost (wald-havran | seed003), kdtree.traversal_cost, kdtree.intersection_cost,
+// kdtree.empty_bonus, kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins,
+// embree.packet (1 | 8 | 16). Throws std::invalid_argument naming the key and the values it accepts.
 void set_build_option(BuildOptions& options, std::string_view assignment);
 
 // Defaults with the given triangle test (brace-initialising the aggregate would leave the rest to -Wextra).

@@ -27,6 +27,12 @@ Number parse_number(std::string_view key, std::string_view value, Number lowest,
     return number;
 }
 
+bool parse_bool(std::string_view key, std::string_view value) {
+    if (value == "true" || value == "1") return true;
+    if (value == "false" || value == "0") return false;
+    fail(key, value, "true or false");
+}
+
 using Setter = std::function<void(BuildOptions&, std::string_view key, std::string_view value)>;
 
 const std::map<std::string, Setter, std::less<>>& setters() {
@@ -37,6 +43,14 @@ const std::map<std::string, Setter, std::less<>>& setters() {
          [](BuildOptions& o, auto k, auto v) { o.octree.max_depth = parse_number(k, v, 0, 20); }},
         {"octree.leaf_size",
          [](BuildOptions& o, auto k, auto v) { o.octree.leaf_size = parse_number(k, v, 1, 1 << 20); }},
+        {"plucker.max_depth",
+         [](BuildOptions& o, auto k, auto v) { o.plucker.max_depth = parse_number(k, v, 0, 16); }},
+        {"plucker.leaf_size",
+         [](BuildOptions& o, auto k, auto v) { o.plucker.leaf_size = parse_number(k, v, 1, 1 << 20); }},
+        {"plucker.balanced", [](BuildOptions& o, auto k, auto v) { o.plucker.balanced = parse_bool(k, v); }},
+        {"plucker.stored_boxes",
+         [](BuildOptions& o, auto k, auto v) { o.plucker.stored_boxes = parse_bool(k, v); }},
+        {"plucker.morton", [](BuildOptions& o, auto k, auto v) { o.plucker.morton = parse_bool(k, v); }},
         {"kdtree.cost",
          [](BuildOptions& o, auto k, auto v) {
              if (v == "wald-havran") {

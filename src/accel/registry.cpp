@@ -12,6 +12,7 @@
 #include "accel/grid.hpp"
 #include "accel/kdtree.hpp"
 #include "accel/octree.hpp"
+#include "accel/plucker/plucker.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {
@@ -27,6 +28,7 @@ const std::vector<Entry>& registry() {
         {"brute", [] { return std::make_unique<BruteAccel>(); }},
         {"grid", [] { return std::make_unique<GridAccel>(); }},
         {"octree", [] { return std::make_unique<OctreeAccel>(); }},
+        {"plucker", [] { return std::make_unique<PluckerAccel>(); }},
         {"kdtree", [] { return std::make_unique<KdTreeAccel>(); }},
         {"bvh", [] { return std::make_unique<BvhAccel>(); }},
         {"bvh4", [] { return std::make_unique<Bvh4Accel>(); }},

@@ -193,6 +193,70 @@ TEST_F(Cli, RenderDefaultsToWhittedAndWritesExr) {
     EXPECT_EQ(magic[3], 0x01);
 }
 
+// lancer convert writes the Pluecker octree; rays and render read it back, with the same answers as a
+// structure built on the mesh; a damaged file or a contradicting flag exits with 2.
+TEST_F(Cli, ConvertedPluckerOctreeAnswersLikeTheMesh) {
+    const fs::path mesh = write("mesh.off", kMesh);
+    const fs::path octree = dir_ / "mesh.plo";
+    Result result =
+        run("convert " + mesh.string() + " --accel plucker --set plucker.leaf_size=1 -o " + octree.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("wrote"), std::string::npos) << result.output;
+
+    std::vector<Ray> rays;
+    for (int i = 0; i < 400; ++i) {
+        const float x = -0.25f + 2.5f * static_cast<float>(i % 20) / 19.0f;
+        const float y = -0.25f + 2.5f * static_cast<float>(i / 20) / 19.0f;
+        rays.push_back({{x, y, 1.0f}, {0.01f * static_cast<float>(i % 3), 0.0f, -1.0f}, 0.0f, kInfinity});
+    }
+    const fs::path rays_file = dir_ / "rays.bin";
+    std::ofstream(rays_file, std::ios::binary)
+        .write(reinterpret_cast<const char*>(rays.data()),
+               static_cast<std::streamsize>(rays.size() * sizeof(Ray)));
+    auto hits_of = [&](const std::string& scene, const std::string& extra) {
+        const fs::path hits_file = dir_ / "hits.bin";
+        const Result traced =
+            run("rays " + scene + " --rays " + rays_file.string() + " --hits " + hits_file.string() + extra);
+        EXPECT_EQ(traced.exit_code, 0) << traced.output;
+        std::vector<Hit> hits(rays.size());
+        std::ifstream(hits_file, std::ios::binary)
+            .read(reinterpret_cast<char*>(hits.data()),
+                  static_cast<std::streamsize>(hits.size() * sizeof(Hit)));
+        return hits;
+    };
+    const std::vector<Hit> from_mesh = hits_of(mesh.string(), " --accel brute");
+    const std::vector<Hit> from_file = hits_of(octree.string(), "");
+    int hit_count = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        ASSERT_EQ(from_file[i].prim, from_mesh[i].prim) << "ray " << i;
+        ASSERT_EQ(from_file[i].t, from_mesh[i].t) << "ray " << i;
+        hit_count += from_mesh[i].hit() ? 1 : 0;
+    }
+    EXPECT_GT(hit_count, 100);
+
+    result = run("render " + octree.string() + " --size 32x32 -o " + (dir_ / "octree.png").string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("accel plucker"), std::string::npos) << result.output;
+
+    result = run("stats " + octree.string() + " --accel bvh");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("--accel must be plucker"), std::string::npos) << result.output;
+    result = run("convert " + mesh.string() + " --accel bvh -o " + octree.string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("plucker octree only"), std::string::npos) << result.output;
+
+    std::ifstream in(octree, std::ios::binary);
+    std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const fs::path truncated = write("truncated.plo", data.substr(0, data.size() - 7));
+    result = run("stats " + truncated.string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("truncated.plo: truncated"), std::string::npos) << result.output;
+    const fs::path not_octree = write("mesh_as.plo", kMesh);
+    result = run("render " + not_octree.string() + " -o " + (dir_ / "x.png").string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("wrong magic"), std::string::npos) << result.output;
+}
+
 TEST_F(Cli, InfoCountsTrianglesAfterFanTriangulation) {
     const Result result = run("info " + write("mesh.off", kMesh).string());
     ASSERT_EQ(result.exit_code, 0) << result.output;

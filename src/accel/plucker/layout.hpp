@@ -1,0 +1,120 @@
+// The trace-time arrays of the Pluecker octree (seed 000 section 3): the cells as a stream of 32-bit words,
+// the triangles in leaf order, the cell boxes and the boundary cube map, plus the point-location tree that
+// rays starting inside the root need. Plain data: this is also the on-disk layout (serialise.hpp).
+//
+// A leaf is stored as the words of equation (3):
+//   tCount | tOffset | i | nEnds | N_0^0 ... N_5^3          (stored boxes: i indexes `boxes`)
+//   tCount | tOffset | x | y << 16 ... see kPosition below   (no stored boxes: i is replaced by the position)
+// nEnds packs the running end of each direction's neighbour list, 5 bits per face: the neighbours across
+// face f are the words [start(f), end(f)) after the header, with start(0) = 0 and start(f) = end(f - 1). The
+// seed packs the six counts instead (4 bits each); the running ends carry the same information and make
+// goToDirection a shift instead of a loop over the previous counts (docs/plucker-octree.md).
+// A neighbour word is the address (word index) of the neighbour's first word. In the unconstrained variant
+// a link may point at an inner cell (kInnerBit set): its record is the box word(s) and the 8 children's
+// links, and the walk descends it (plucker_walk.hpp).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "accel/octree_build.hpp"
+#include "lancer/accel.hpp"
+
+namespace lancer::plucker {
+
+inline constexpr std::uint32_t kInnerBit = 0x80000000u;
+inline constexpr std::uint32_t kAddressMask = 0x7FFFFFFFu;
+
+// Word offsets in a leaf record.
+inline constexpr std::uint32_t kTriangleCount = 0;
+inline constexpr std::uint32_t kTriangleOffset = 1;
+inline constexpr std::uint32_t kBoxWord = 2;  // stored boxes: the box index; else x | y << 16
+// No stored boxes: word kBoxWord + 1 holds z | level << 16.
+[[nodiscard]] constexpr std::uint32_t header_words(bool stored_boxes) {
+    return stored_boxes ? 4u : 5u;
+}
+// Number of words describing the geometry of a cell (leaf or inner record).
+[[nodiscard]] constexpr std::uint32_t box_words(bool stored_boxes) {
+    return stored_boxes ? 1u : 2u;
+}
+
+// The running ends of the six neighbour lists, 5 bits each (at most 24 neighbours in all).
+[[nodiscard]] constexpr std::uint32_t neighbour_start(std::uint32_t ends, int face) {
+    return static_cast<std::uint32_t>((static_cast<std::uint64_t>(ends) << 5) >> (5 * face)) & 31u;
+}
+[[nodiscard]] constexpr std::uint32_t neighbour_end(std::uint32_t ends, int face) {
+    return (ends >> (5 * face)) & 31u;
+}
+
+// 36 bytes: a cell's lower corner, mid planes and upper corner, each the exact float of OctreeCube::plane,
+// so that a cell's exit plane is bit for bit its neighbour's entry plane and its mid planes are its finer
+// neighbours' shared faces. The seed stores 16 bytes per box; the mid planes are what the sub-face test
+// (section 4.2.2) needs, and lo + size / 2 would round differently from the neighbours' own faces.
+struct PluckerBox {
+    std::array<float, 9> planes;  // lo.xyz, mid.xyz, hi.xyz
+
+    [[nodiscard]] float lo(int axis) const { return planes[static_cast<std::size_t>(axis)]; }
+    [[nodiscard]] float mid(int axis) const { return planes[static_cast<std::size_t>(3 + axis)]; }
+    [[nodiscard]] float hi(int axis) const { return planes[static_cast<std::size_t>(6 + axis)]; }
+};
+static_assert(sizeof(PluckerBox) == 36);
+
+// 40 bytes: one leaf's copy of a triangle (the seed's "triangles" array, in leaf order, so that a leaf's
+// triangles are read in one sweep) and its global primitive index. A sphere reference keeps only the index
+// (the sphere is read from the geometry); its triangle stays zero.
+struct PluckerPrimitive {
+    Triangle triangle;   // 36
+    std::uint32_t prim;  // 4
+};
+static_assert(sizeof(PluckerPrimitive) == 40);
+
+// The boundary cube map (seed 000 section 3, Figure 3): for each of the six faces of the root, a square of
+// 2^level x 2^level texels, level the deepest leaf on that face, each holding the address of the boundary
+// leaf that contains it. Texel (i, j) on face f covers in-face cells i (lower in-face axis) and j (upper)
+// at that level; it is texels[offset[f] + i + (j << level[f])].
+// The cube map stops at 2^10 x 2^10 texels per face (4 MiB, the seed's 24 MB for the dragon over six
+// faces); a texel that covers several deeper leaves holds the inner cell of that level covering it, tagged
+// with kInnerBit, and the entry descends from there (walk.hpp).
+inline constexpr std::uint32_t kMaxCubeMapLevel = 10;
+
+struct CubeMap {
+    std::array<std::uint32_t, 6> level{};
+    std::array<std::uint32_t, 6> offset{};
+    std::vector<std::uint32_t> texels;
+};
+
+struct PluckerLayoutOptions {
+    bool stored_boxes = true;
+    bool balanced = true;
+    bool morton = false;
+};
+
+struct PluckerLayout {
+    PluckerLayoutOptions options;
+    OctreeCube cube;
+    float tolerance = 0.0f;
+    std::uint32_t triangle_count = 0;  // primitives below it are triangles, the rest spheres
+    std::vector<std::uint32_t> cells;  // the word stream
+    std::vector<PluckerPrimitive> primitives;
+    std::vector<PluckerBox> boxes;  // empty without stored boxes
+    CubeMap cube_map;
+    // Point location for rays that start inside the root, one word per cell of the tree (the build's cell
+    // order): inner: first child << 1 | 1; leaf: its address << 1.
+    std::vector<std::uint32_t> locate;
+};
+
+// Lays out a (balanced, unless options.balanced is false) octree: leaves in the build's cell order, or in
+// Morton order (depth first) with options.morton; inner cells after the leaves in the unconstrained
+// variant. Throws std::length_error when the stream would not fit 31-bit addresses.
+[[nodiscard]] PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
+                                          const PluckerLayoutOptions& options);
+
+// The tree the layout was made from: cells (levels, coordinates, children) from `locate`, leaf references
+// from the stream. Throws std::invalid_argument naming the first inconsistency (a child index out of range
+// or not after its parent, a cell with two parents, a level past kOctreeMaxLevel, a leaf address or a
+// triangle range out of bounds).
+[[nodiscard]] Octree recover_octree(const PluckerLayout& layout);
+
+}  // namespace lancer::plucker

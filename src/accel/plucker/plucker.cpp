@@ -1,0 +1,217 @@
+#include "accel/plucker/plucker.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "accel/plucker/balance.hpp"
+#include "accel/plucker/walk.hpp"
+#include "accel/primitive_test.hpp"
+
+namespace lancer {
+
+using plucker::PluckerLayout;
+
+int PluckerAccel::automatic_depth(std::size_t primitive_count) {
+    const double log_count = std::log2(static_cast<double>(std::max<std::size_t>(primitive_count, 1)));
+    return std::clamp(static_cast<int>(std::lround(0.8 * log_count - 5.0)), 2, kOctreeMaxLevel);
+}
+
+void PluckerAccel::build(const Geometry& geometry, const BuildOptions& options) {
+    const auto start = std::chrono::steady_clock::now();
+    geometry_ = geometry;
+    options_ = options;
+    const PluckerOptions& plucker_options = options.plucker;
+    OctreeOptions octree_options;
+    octree_options.max_depth =
+        plucker_options.max_depth > 0 ? plucker_options.max_depth : automatic_depth(geometry.size());
+    octree_options.leaf_size = plucker_options.leaf_size;
+    Octree octree = build_octree(geometry, octree_options);
+    if (plucker_options.balanced) plucker::balance_octree(geometry, octree);
+    layout_ = plucker::layout_octree(
+        geometry, octree, {plucker_options.stored_boxes, plucker_options.balanced, plucker_options.morton});
+    const auto stop = std::chrono::steady_clock::now();
+    compute_layout_stats();
+    stats_.build_ms = std::chrono::duration<double, std::milli>(stop - start).count();
+}
+
+void PluckerAccel::adopt(const Geometry& geometry, const BuildOptions& options, PluckerLayout layout) {
+    geometry_ = geometry;
+    options_ = options;
+    options_.plucker.balanced = layout.options.balanced;
+    options_.plucker.stored_boxes = layout.options.stored_boxes;
+    options_.plucker.morton = layout.options.morton;
+    layout_ = std::move(layout);
+    compute_layout_stats();
+}
+
+// The statistics of the tree, read back from `locate` and the leaf records.
+void PluckerAccel::compute_layout_stats() {
+    stats_ = AccelStats{};
+    stats_.primitives = geometry_.size();
+    stats_.references = layout_.primitives.size();
+    stats_.nodes = layout_.locate.size();
+    std::vector<std::uint8_t> level(layout_.locate.size(), 0);
+    std::size_t depth_sum = 0, non_empty = 0;
+    for (std::size_t index = 0; index < layout_.locate.size(); ++index) {
+        const std::uint32_t word = layout_.locate[index];
+        if (word & 1u) {
+            for (std::uint32_t child = 0; child < 8; ++child)
+                level[(word >> 1) + child] = static_cast<std::uint8_t>(level[index] + 1);
+            stats_.sah_cost += std::ldexp(1.0, -2 * level[index]);
+            continue;
+        }
+        const std::uint32_t count = layout_.cells[(word >> 1) + plucker::kTriangleCount];
+        ++stats_.leaves;
+        depth_sum += level[index];
+        stats_.max_depth = std::max<int>(stats_.max_depth, level[index]);
+        stats_.max_refs_per_leaf = std::max<std::size_t>(stats_.max_refs_per_leaf, count);
+        stats_.sah_cost += std::ldexp(1.0, -2 * level[index]) * count;
+        if (count == 0)
+            ++stats_.empty_leaves;
+        else
+            ++non_empty;
+    }
+    stats_.mean_depth =
+        stats_.leaves == 0 ? 0.0 : static_cast<double>(depth_sum) / static_cast<double>(stats_.leaves);
+    stats_.mean_refs_per_leaf =
+        non_empty == 0 ? 0.0 : static_cast<double>(stats_.references) / static_cast<double>(non_empty);
+    // The seed's four arrays (Table 3), then the point-location tree this implementation adds.
+    stats_.memory_by_array = {
+        {"cube map", layout_.cube_map.texels.size() * sizeof(std::uint32_t)},
+        {"octree", layout_.cells.size() * sizeof(std::uint32_t)},
+        {"triangles", layout_.primitives.size() * sizeof(plucker::PluckerPrimitive)},
+        {"boxes", layout_.boxes.size() * sizeof(plucker::PluckerBox)},
+        {"locate", layout_.locate.size() * sizeof(std::uint32_t)},
+    };
+}
+
+std::size_t PluckerAccel::memory_bytes() const {
+    std::size_t bytes = 0;
+    for (const auto& [array, size] : stats_.memory_by_array)
+        bytes += size;
+    return bytes;
+}
+
+template <class Body>
+void PluckerAccel::dispatch_layout(Body&& body) const {
+    const plucker::StoredBoxes stored{layout_.boxes.data()};
+    const plucker::ComputedBoxes computed{layout_.cube};
+    if (layout_.options.balanced) {
+        layout_.options.stored_boxes ? body.template operator()<true>(stored)
+                                     : body.template operator()<true>(computed);
+    } else {
+        layout_.options.stored_boxes ? body.template operator()<false>(stored)
+                                     : body.template operator()<false>(computed);
+    }
+}
+
+void PluckerAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                   TraversalCounters* counters) const {
+    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        dispatch_layout([&]<bool kBalanced>(const auto& boxes) {
+            TraversalCounters local;  // summed here, so that the hot loop does not write through the pointer
+            const plucker::PluckerPrimitive* primitives = layout_.primitives.data();
+            const std::uint32_t triangle_count = layout_.triangle_count;
+            for (std::size_t i = 0; i < rays.size(); ++i) {
+                Hit best;
+                if (is_valid(rays[i])) {
+                    const PreparedRay<TriangleTestT> prepared(rays[i]);
+                    const Ray& ray = prepared.ray;
+                    plucker::walk<kBalanced, kCount>(
+                        layout_, boxes, ray,
+                        [&](const std::uint32_t* record, float) {
+                            const std::uint32_t count = record[plucker::kTriangleCount];
+                            const plucker::PluckerPrimitive* leaf =
+                                primitives + record[plucker::kTriangleOffset];
+                            for (std::uint32_t r = 0; r < count; ++r) {
+                                const plucker::PluckerPrimitive& primitive = leaf[r];
+                                TriangleHit candidate;
+                                const float tfar = best.hit() ? best.t : ray.tfar;
+                                const bool found =
+                                    primitive.prim < triangle_count
+                                        ? TriangleTestT::intersect(prepared.triangle_data, primitive.triangle,
+                                                                   ray.tnear, tfar, candidate)
+                                        : intersect_sphere(ray,
+                                                           geometry_.spheres[primitive.prim - triangle_count],
+                                                           ray.tnear, tfar, candidate);
+                                const auto prim = static_cast<std::int32_t>(primitive.prim);
+                                if (found && closer(candidate.t, prim, best))
+                                    best = {candidate.t, prim, candidate.u, candidate.v};
+                            }
+                            if constexpr (kCount) local.prims_tested += count;
+                            return best.hit() ? best.t : ray.tfar;
+                        },
+                        &local);
+                }
+                hits[i] = best;
+            }
+            if constexpr (kCount) {
+                local.rays = rays.size();
+                *counters += local;
+            }
+        });
+    });
+}
+
+void PluckerAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                                  TraversalCounters* counters) const {
+    dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        dispatch_layout([&]<bool kBalanced>(const auto& boxes) {
+            TraversalCounters local;
+            const plucker::PluckerPrimitive* primitives = layout_.primitives.data();
+            const std::uint32_t triangle_count = layout_.triangle_count;
+            for (std::size_t i = 0; i < rays.size(); ++i) {
+                occluded[i] = 0;
+                if (!is_valid(rays[i])) continue;
+                const PreparedRay<TriangleTestT> prepared(rays[i]);
+                const Ray& ray = prepared.ray;
+                plucker::walk<kBalanced, kCount>(
+                    layout_, boxes, ray,
+                    [&](const std::uint32_t* record, float limit) {
+                        const std::uint32_t count = record[plucker::kTriangleCount];
+                        const plucker::PluckerPrimitive* leaf = primitives + record[plucker::kTriangleOffset];
+                        for (std::uint32_t r = 0; r < count; ++r) {
+                            if constexpr (kCount) ++local.prims_tested;
+                            TriangleHit candidate;
+                            const plucker::PluckerPrimitive& primitive = leaf[r];
+                            const bool found =
+                                primitive.prim < triangle_count
+                                    ? TriangleTestT::intersect(prepared.triangle_data, primitive.triangle,
+                                                               ray.tnear, ray.tfar, candidate)
+                                    : intersect_sphere(ray,
+                                                       geometry_.spheres[primitive.prim - triangle_count],
+                                                       ray.tnear, ray.tfar, candidate);
+                            if (found) {
+                                occluded[i] = 1;
+                                return -kInfinity;  // any hit ends the walk
+                            }
+                        }
+                        return limit;
+                    },
+                    &local);
+            }
+            if constexpr (kCount) {
+                local.rays = rays.size();
+                *counters += local;
+            }
+        });
+    });
+}
+
+std::vector<std::uint32_t> PluckerAccel::leaves_along(const Ray& ray) const {
+    std::vector<std::uint32_t> leaves;
+    if (!is_valid(ray)) return leaves;
+    dispatch_layout([&]<bool kBalanced>(const auto& boxes) {
+        plucker::walk<kBalanced, false>(
+            layout_, boxes, ray,
+            [&](const std::uint32_t* record, float limit) {
+                leaves.push_back(static_cast<std::uint32_t>(record - layout_.cells.data()));
+                return limit;
+            },
+            nullptr);
+    });
+    return leaves;
+}
+
+}  // namespace lancer

@@ -1,0 +1,50 @@
+// The Pluecker-connected octree of Portalez & Duguet, "Lancer de rayons dans un octree" (2016; seed 000):
+// the octree of octree_build.hpp made 2:1 balanced (balance.hpp), its leaves linked to their face
+// neighbours and laid out as the seed's four arrays (layout.hpp), walked leaf to leaf with Pluecker tests
+// for the exit face and the sub-face (walk.hpp, conventions.hpp). Design note: docs/plucker-octree.md.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "accel/plucker/layout.hpp"
+#include "lancer/accel.hpp"
+
+namespace lancer {
+
+class PluckerAccel final : public Accel {
+  public:
+    [[nodiscard]] std::string_view name() const override { return "plucker"; }
+    void build(const Geometry& geometry, const BuildOptions& options) override;
+    [[nodiscard]] AccelStats stats() const override { return stats_; }
+    [[nodiscard]] std::size_t memory_bytes() const override;
+
+    // A structure read back from a file (serialise.hpp) instead of built: `layout` must have been made on
+    // `geometry` (read_plucker_file checks it). options.triangle_test is the only option used.
+    void adopt(const Geometry& geometry, const BuildOptions& options, plucker::PluckerLayout layout);
+
+    [[nodiscard]] const plucker::PluckerLayout& layout() const { return layout_; }
+    // The depth max_depth = 0 stands for: round(0.8 log2(N) - 5), clamped to [2, kOctreeMaxLevel].
+    [[nodiscard]] static int automatic_depth(std::size_t primitive_count);
+    // The addresses of the leaf records the walk enters over [tnear, tfar], in order, without testing
+    // primitives: the traversal seen from outside, for tests.
+    [[nodiscard]] std::vector<std::uint32_t> leaves_along(const Ray& ray) const;
+
+  private:
+    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                         TraversalCounters* counters) const override;
+    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                        TraversalCounters* counters) const override;
+
+    // Calls body.template operator()<kBalanced, Boxes>(boxes) with the layout's variant, once per batch.
+    template <class Body>
+    void dispatch_layout(Body&& body) const;
+    void compute_layout_stats();
+
+    Geometry geometry_;
+    BuildOptions options_;
+    plucker::PluckerLayout layout_;
+    AccelStats stats_;
+};
+
+}  // namespace lancer
