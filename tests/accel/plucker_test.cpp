@@ -301,10 +301,10 @@ TEST(PluckerBuild, IsDeterministicAndFollowsTheAutomaticDepth) {
 // Table 1 of the seed: the 2:1 rule costs leaves (120-133% on the Stanford meshes); stats count them.
 TEST(PluckerBuild, TheUnconstrainedOctreeHasFewerLeavesAndTheSameStatistics) {
     const TestScene& scene = scenes()[2];
-    PluckerAccel balanced, free;
+    PluckerAccel balanced, unconstrained;
     balanced.build(scene.geometry(), plucker_options(8, 2, true));
-    free.build(scene.geometry(), plucker_options(8, 2, false));
-    EXPECT_GT(balanced.stats().leaves, free.stats().leaves);
+    unconstrained.build(scene.geometry(), plucker_options(8, 2, false));
+    EXPECT_GT(balanced.stats().leaves, unconstrained.stats().leaves);
     const Octree octree = plucker::recover_octree(balanced.layout());
     const auto leaf_count = static_cast<std::size_t>(std::count_if(
         octree.cells.begin(), octree.cells.end(), [](const OctreeCell& c) { return c.is_leaf(); }));

@@ -30,7 +30,8 @@ namespace lancer::plucker {
 // max_depth holds. Deterministic. References are compacted afterwards, leaf after leaf in cell order.
 void balance_octree(const Geometry& geometry, Octree& octree);
 
-// Whether every pair of face-adjacent leaves differs by at most one level (for tests and file checks).
+// Whether every pair of face-adjacent leaves differs by at most one level (for tests; the layout refuses a
+// tree that is not).
 [[nodiscard]] bool is_balanced(const Octree& octree);
 
 }  // namespace lancer::plucker

@@ -11,7 +11,7 @@
 //                 0 -x, 1 +x, 2 -y, 3 +y, 4 -z, 5 +z
 //   vertex v      bit a set for the upper coordinate on axis a (the child order of the build)
 //   octant        the exit vertex of a ray: bit a set when the ray moves towards +a. A zero direction
-//                 component is given a sign per ray (plucker_walk.hpp, WalkRay) and never wins an exit.
+//                 component is given a sign per ray (walk.hpp, WalkRay) and never wins an exit.
 //   sub-face q    on face f the in-face axes u < v (increasing): q = bit_u | bit_v << 1, bit = 1 for the
 //                 upper half. The four finer neighbours across a face are stored in this order.
 #pragma once

@@ -3,15 +3,16 @@
 // rays starting inside the root need. Plain data: this is also the on-disk layout (serialise.hpp).
 //
 // A leaf is stored as the words of equation (3):
-//   tCount | tOffset | i | nEnds | N_0^0 ... N_5^3          (stored boxes: i indexes `boxes`)
-//   tCount | tOffset | x | y << 16 ... see kPosition below   (no stored boxes: i is replaced by the position)
+//   tCount | tOffset | i | nEnds | N_0^0 ... N_5^3                   (stored boxes: i indexes `boxes`)
+//   tCount | tOffset | x | y << 16 | z | level << 16 | nEnds | N ...  (no stored boxes: i becomes the
+//   position)
 // nEnds packs the running end of each direction's neighbour list, 5 bits per face: the neighbours across
 // face f are the words [start(f), end(f)) after the header, with start(0) = 0 and start(f) = end(f - 1). The
 // seed packs the six counts instead (4 bits each); the running ends carry the same information and make
 // goToDirection a shift instead of a loop over the previous counts (docs/plucker-octree.md).
 // A neighbour word is the address (word index) of the neighbour's first word. In the unconstrained variant
 // a link may point at an inner cell (kInnerBit set): its record is the box word(s) and the 8 children's
-// links, and the walk descends it (plucker_walk.hpp).
+// links, and the walk descends it (walk.hpp).
 #pragma once
 
 #include <array>
