@@ -3,14 +3,11 @@
 // against the BVH (which stanford_test.cpp checks against brute force on a sample). The registry's default
 // layout is covered by stanford_test.cpp itself.
 #include <gtest/gtest.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <filesystem>
 
 #include "accel/agreement.hpp"
 #include "accel/plucker/plucker.hpp"
-#include "lancer/camera.hpp"
 #include "lancer/io.hpp"
 #include "ray_sets.hpp"
 
@@ -18,15 +15,6 @@ namespace lancer {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::vector<Hit> trace(const Accel& accel, std::span<const Ray> rays) {
-    std::vector<Hit> hits(rays.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 1024), [&](const auto& range) {
-        accel.intersect(rays.subspan(range.begin(), range.size()),
-                        std::span(hits).subspan(range.begin(), range.size()));
-    });
-    return hits;
-}
 
 class PluckerStanford : public ::testing::TestWithParam<const char*> {};
 
@@ -36,18 +24,13 @@ TEST_P(PluckerStanford, EveryLayoutAgreesWithTheBvh) {
     const Scene scene = load_scene(file);
     const SceneGeometry geometry(scene);
     const Box3f bounds = geometry.view().bounds();
-    const PinholeCamera camera(canonical_view(bounds, 1024, 1024));
-    std::vector<testing::RaySet> sets = {{"canonical view", {}}, testing::random_rays(bounds, 1'000'000, 19)};
-    for (int j = 0; j < 1024; ++j) {
-        for (int i = 0; i < 1024; ++i)
-            sets[0].rays.push_back(
-                camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
-    }
+    const std::vector<testing::RaySet> sets = {testing::canonical_view_rays(bounds),
+                                               testing::random_rays(bounds, 1'000'000, 19)};
     const std::unique_ptr<Accel> reference = make_accel("bvh");
     reference->build(geometry.view(), {});
     std::vector<std::vector<Hit>> expected;
     for (const testing::RaySet& set : sets)
-        expected.push_back(trace(*reference, set.rays));
+        expected.push_back(testing::trace_in_parallel(*reference, set.rays));
 
     for (int variant = 1; variant < 8; ++variant) {  // variant 0 is the default, in stanford_test.cpp
         BuildOptions options;
@@ -57,7 +40,8 @@ TEST_P(PluckerStanford, EveryLayoutAgreesWithTheBvh) {
         PluckerAccel accel;
         accel.build(geometry.view(), options);
         for (std::size_t s = 0; s < sets.size(); ++s) {
-            const Agreement agreement = compare_hits(sets[s].rays, expected[s], trace(accel, sets[s].rays));
+            const Agreement agreement =
+                compare_hits(sets[s].rays, expected[s], testing::trace_in_parallel(accel, sets[s].rays));
             std::printf("%s, %s: plucker balanced=%d stored_boxes=%d morton=%d vs bvh: %s\n", GetParam(),
                         sets[s].name.c_str(), options.plucker.balanced, options.plucker.stored_boxes,
                         options.plucker.morton, agreement.summary().c_str());

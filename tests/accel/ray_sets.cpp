@@ -1,6 +1,11 @@
 #include "ray_sets.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <limits>
+
+#include "lancer/camera.hpp"
 
 namespace lancer::testing {
 namespace {
@@ -100,6 +105,27 @@ RaySet clipped_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed) 
         set.rays.push_back({origin, direction, tnear, tfar});
     }
     return set;
+}
+
+RaySet canonical_view_rays(const Box3f& bounds, int size) {
+    const PinholeCamera camera(canonical_view(bounds, size, size));
+    RaySet set{"canonical view", {}};
+    set.rays.reserve(static_cast<std::size_t>(size) * static_cast<std::size_t>(size));
+    for (int j = 0; j < size; ++j) {
+        for (int i = 0; i < size; ++i) {
+            set.rays.push_back(camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
+        }
+    }
+    return set;
+}
+
+std::vector<Hit> trace_in_parallel(const Accel& accel, std::span<const Ray> rays) {
+    std::vector<Hit> hits(rays.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 1024), [&](const auto& range) {
+        accel.intersect(rays.subspan(range.begin(), range.size()),
+                        std::span(hits).subspan(range.begin(), range.size()));
+    });
+    return hits;
 }
 
 RaySet hostile_rays(const Box3f& bounds) {

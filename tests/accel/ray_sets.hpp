@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "lancer/accel.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
 
@@ -24,6 +25,10 @@ RaySet vertex_and_edge_rays(std::span<const Triangle> triangles, std::size_t cou
 RaySet axis_parallel_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed);
 // Rays with tnear > 0 and finite tfar cutting the interval around the surface.
 RaySet clipped_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed);
+// The primary rays of shared/bench/VIEWS.md's canonical view, size x size, row by row.
+RaySet canonical_view_rays(const Box3f& bounds, int size = 1024);
+// Closest hits of all rays, in parallel over oneTBB (large ray sets of the Stanford tests).
+std::vector<Hit> trace_in_parallel(const Accel& accel, std::span<const Ray> rays);
 // NaN, infinite, zero-direction, tnear > tfar, denormal directions: all must miss, except denormal ones
 // which are valid and must agree with the oracle.
 RaySet hostile_rays(const Box3f& bounds);

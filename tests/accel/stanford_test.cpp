@@ -4,13 +4,10 @@
 // each set. Brute force on all 2 x 10^6 rays of the dragon would take hours (1.7e12 triangle
 // tests), so the chain is: brute == bvh on the sample, then bvh == every other structure on every ray.
 #include <gtest/gtest.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <filesystem>
 
 #include "accel/agreement.hpp"
-#include "lancer/camera.hpp"
 #include "lancer/io.hpp"
 #include "ray_sets.hpp"
 
@@ -20,27 +17,6 @@ namespace {
 namespace fs = std::filesystem;
 
 const fs::path kMeshes = fs::path(LANCER_SHARED_DIR) / "data" / "meshes";
-
-std::vector<Ray> canonical_view_rays(const Box3f& bounds) {
-    const PinholeCamera camera(canonical_view(bounds, 1024, 1024));
-    std::vector<Ray> rays;
-    rays.reserve(1024 * 1024);
-    for (int j = 0; j < 1024; ++j) {
-        for (int i = 0; i < 1024; ++i) {
-            rays.push_back(camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
-        }
-    }
-    return rays;
-}
-
-std::vector<Hit> trace(const Accel& accel, std::span<const Ray> rays) {
-    std::vector<Hit> hits(rays.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 1024), [&](const auto& range) {
-        accel.intersect(rays.subspan(range.begin(), range.size()),
-                        std::span(hits).subspan(range.begin(), range.size()));
-    });
-    return hits;
-}
 
 class StanfordMesh : public ::testing::TestWithParam<const char*> {};
 
@@ -52,18 +28,16 @@ TEST_P(StanfordMesh, EveryStructureAgreesOnTheCanonicalViewAndOnRandomRays) {
     const Box3f bounds = geometry.view().bounds();
 
     const std::vector<testing::RaySet> sets = {
-        {"canonical view", canonical_view_rays(bounds)},
-        testing::random_rays(bounds, 1'000'000, 17),
+        testing::canonical_view_rays(bounds), testing::random_rays(bounds, 1'000'000, 17),
         testing::vertex_and_edge_rays(geometry.view().triangles, 50'000, 18),
-        testing::axis_parallel_rays(bounds, 50'000, 19),
-        testing::clipped_rays(bounds, 50'000, 20)};
+        testing::axis_parallel_rays(bounds, 50'000, 19), testing::clipped_rays(bounds, 50'000, 20)};
     const std::unique_ptr<Accel> reference = make_accel("bvh");
     reference->build(geometry.view(), {});
     const std::unique_ptr<Accel> brute = make_accel("brute");
     brute->build(geometry.view(), {});
 
     for (const testing::RaySet& set : sets) {
-        const std::vector<Hit> reference_hits = trace(*reference, set.rays);
+        const std::vector<Hit> reference_hits = testing::trace_in_parallel(*reference, set.rays);
 
         // Brute force on an evenly spread sample: about 4e9 triangle tests per mesh over all the sets.
         const std::size_t sample_size = 4'000'000'000 / geometry.view().size() / sets.size();
@@ -74,7 +48,8 @@ TEST_P(StanfordMesh, EveryStructureAgreesOnTheCanonicalViewAndOnRandomRays) {
             sample.push_back(set.rays[i]);
             sample_reference.push_back(reference_hits[i]);
         }
-        const Agreement with_brute = compare_hits(sample, trace(*brute, sample), sample_reference);
+        const Agreement with_brute =
+            compare_hits(sample, testing::trace_in_parallel(*brute, sample), sample_reference);
         std::printf("%s, %s: bvh vs brute on %zu sampled rays: %s\n", GetParam(), set.name.c_str(),
                     sample.size(), with_brute.summary().c_str());
         EXPECT_EQ(with_brute.mismatches, 0u) << with_brute.summary();
@@ -85,7 +60,8 @@ TEST_P(StanfordMesh, EveryStructureAgreesOnTheCanonicalViewAndOnRandomRays) {
                 continue;  // embree: see embree_test.cpp
             const std::unique_ptr<Accel> accel = make_accel(name);
             accel->build(geometry.view(), {});
-            const Agreement agreement = compare_hits(set.rays, reference_hits, trace(*accel, set.rays));
+            const Agreement agreement =
+                compare_hits(set.rays, reference_hits, testing::trace_in_parallel(*accel, set.rays));
             std::printf("%s, %s: %s vs bvh on every ray: %s\n", GetParam(), set.name.c_str(),
                         std::string(name).c_str(), agreement.summary().c_str());
             EXPECT_EQ(agreement.mismatches, 0u) << name << ": " << agreement.summary();
