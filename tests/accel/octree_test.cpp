@@ -403,12 +403,9 @@ TEST(OctreeAccel, RaysInCellPlanes) {
 // A primitive spanning several leaves is tested in the first and hit beyond that leaf's exit; a closer hit in
 // a later leaf must still be found.
 TEST(OctreeAccel, AHitBeyondTheLeafExitDoesNotEndTheWalk) {
-    TestScene scene;
-    // A: a slanted triangle crossing the line y = z = 0.3 at x = 3.5, spanning x in [0, 10].
-    scene.triangles.push_back({{0, -2, 0.3f - 0.35f}, {10, -2, 0.3f + 0.65f}, {0, 2, 0.3f - 0.35f}});
-    // B: a small triangle across the same line at x = 3.
-    scene.triangles.push_back({{3, 0.2f, 0.2f}, {3, 0.5f, 0.2f}, {3, 0.2f, 0.5f}});
-    const Ray ray{{-1, 0.3f, 0.3f}, {1, 0, 0}, 0.0f, kInfinity};
+    const testing::HitBeyondLeafExit example;
+    const TestScene& scene = example.scene;
+    const Ray& ray = example.ray;
     const OctreeOptions options = octree_options(6, 1);
     OctreeAccel accel;
     accel.build(scene.geometry(), build_options_with(options));

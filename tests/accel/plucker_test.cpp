@@ -19,24 +19,15 @@
 #include "accel/plucker/walk.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
+#include "test_scenes.hpp"
 
 namespace lancer {
 namespace {
 
 using plucker::PluckerLayout;
 
-struct TestScene {
-    std::string name;
-    std::vector<Triangle> triangles;
-    std::vector<Sphere> spheres;
-
-    [[nodiscard]] Geometry geometry() const { return {triangles, spheres}; }
-};
-
-void append(std::vector<Triangle>& triangles, const TriangleMesh& mesh) {
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
-}
+using testing::append;
+using testing::TestScene;
 
 std::vector<TestScene> make_scenes() {
     std::vector<TestScene> scenes;
@@ -463,10 +454,9 @@ TEST(PluckerWalk, RaysInCellPlanesAndAlongEdges) {
 // The seed returns at the first leaf with a hit (section 4.2.3). A: a slanted triangle referenced by the
 // first leaf but hit far beyond that leaf's exit; B: a small triangle across the ray in a later leaf, closer.
 TEST(PluckerWalk, AHitBeyondTheLeafExitDoesNotEndTheWalk) {
-    TestScene scene;
-    scene.triangles.push_back({{0, -2, 0.3f - 0.35f}, {10, -2, 0.3f + 0.65f}, {0, 2, 0.3f - 0.35f}});
-    scene.triangles.push_back({{3, 0.2f, 0.2f}, {3, 0.5f, 0.2f}, {3, 0.2f, 0.5f}});
-    const Ray ray{{-1, 0.3f, 0.3f}, {1, 0, 0}, 0.0f, kInfinity};
+    const testing::HitBeyondLeafExit example;
+    const TestScene& scene = example.scene;
+    const Ray& ray = example.ray;
     PluckerAccel accel;
     accel.build(scene.geometry(), plucker_options(6, 1));
     const std::vector<std::uint32_t> leaves = accel.leaves_along(ray);

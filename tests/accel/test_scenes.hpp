@@ -30,4 +30,15 @@ inline std::vector<Triangle> knot_triangles(int segments) {
     return triangles;
 }
 
+// The case that separates an exact leaf-to-leaf walk from one that returns at the first leaf with a hit:
+// triangle 0 is slanted, crosses `ray` at x = 3.5 and spans x in [0, 10], so the first leaves reference it
+// and find its hit beyond their exit; triangle 1, across the ray at x = 3 in a later leaf, is the closest.
+struct HitBeyondLeafExit {
+    TestScene scene{"hit beyond the leaf exit",
+                    {{{0, -2, 0.3f - 0.35f}, {10, -2, 0.3f + 0.65f}, {0, 2, 0.3f - 0.35f}},
+                     {{3, 0.2f, 0.2f}, {3, 0.5f, 0.2f}, {3, 0.2f, 0.5f}}},
+                    {}};
+    Ray ray{{-1, 0.3f, 0.3f}, {1, 0, 0}, 0.0f, kInfinity};
+};
+
 }  // namespace lancer::testing
