@@ -8,8 +8,20 @@
 
 #include "accel/build_util.hpp"
 
+#if LANCER_HAS_TBB
+#include <atomic>
+
+#include <tbb/parallel_for.h>
+#endif
+
 namespace lancer {
 namespace {
+
+#if LANCER_HAS_TBB
+// Primitives per task of the parallel cell filling: a fixed block, so that the pairs' order (and the grid)
+// does not depend on the thread count.
+constexpr std::size_t kPairBlock = 8192;
+#endif
 
 // Cubic cells of side s with prod_a max(1, extent_a / s) ~= target_cells (seed 004: resolution ~ cbrt(n) per
 // axis for a cube). An axis thinner than s gets one cell and leaves the budget to the others, so a flat box
@@ -140,8 +152,6 @@ bool GridAccel::fill_cells(std::size_t reference_budget) {
     struct CellReference {
         std::uint32_t cell, prim;
     };
-    std::vector<CellReference> pairs;
-    pairs.reserve(2 * geometry_.size());
     // The tolerance plus twice the margin by which primitive_overlaps_box grows any reference box
     // (grown_for_overlap), so that the candidate cells taken from a primitive's bounds include every cell the
     // overlap test can accept, whatever the rounding of the coordinate-to-index mapping.
@@ -150,27 +160,57 @@ bool GridAccel::fill_cells(std::size_t reference_budget) {
         const float magnitude = std::max(std::fabs(bounds_.lo[axis]), std::fabs(bounds_.hi[axis]));
         margin[axis] = tolerance_ + 2e-6f * (cell_size_[axis] + magnitude + 3.0f * tolerance_) + 1e-30f;
     }
-    const auto prim_count = static_cast<std::uint32_t>(geometry_.size());
-    for (std::uint32_t prim = 0; prim < prim_count; ++prim) {
-        const Box3f prim_bounds = primitive_bounds(geometry_, prim);
-        std::array<int, 3> first{}, last{};
-        for (int axis = 0; axis < 3; ++axis) {
-            first[axis] = cell_index(axis, prim_bounds.lo[axis] - margin[axis]);
-            last[axis] = cell_index(axis, prim_bounds.hi[axis] + margin[axis]);
-        }
-        // Seed 004: "une cellule : liste des objets l'intersectant" — the exact overlap, not the bounds.
-        for (int z = first[2]; z <= last[2]; ++z) {
-            for (int y = first[1]; y <= last[1]; ++y) {
-                for (int x = first[0]; x <= last[0]; ++x) {
-                    if (!primitive_overlaps_box(geometry_, prim, reference_box(x, y, z))) continue;
-                    if (pairs.size() == reference_budget) return false;
-                    const auto cell = static_cast<std::uint32_t>(
-                        x + resolution_[0] * (y + static_cast<std::int64_t>(resolution_[1]) * z));
-                    pairs.push_back({cell, prim});
+    // The pairs of primitives [begin, end), in primitive order; false past the budget.
+    auto list_pairs = [&](std::uint32_t begin, std::uint32_t end, std::vector<CellReference>& pairs) {
+        for (std::uint32_t prim = begin; prim < end; ++prim) {
+            const Box3f prim_bounds = primitive_bounds(geometry_, prim);
+            std::array<int, 3> first{}, last{};
+            for (int axis = 0; axis < 3; ++axis) {
+                first[axis] = cell_index(axis, prim_bounds.lo[axis] - margin[axis]);
+                last[axis] = cell_index(axis, prim_bounds.hi[axis] + margin[axis]);
+            }
+            // Seed 004: "une cellule : liste des objets l'intersectant" — the exact overlap, not the bounds.
+            for (int z = first[2]; z <= last[2]; ++z) {
+                for (int y = first[1]; y <= last[1]; ++y) {
+                    for (int x = first[0]; x <= last[0]; ++x) {
+                        if (!primitive_overlaps_box(geometry_, prim, reference_box(x, y, z))) continue;
+                        if (pairs.size() == reference_budget) return false;
+                        const auto cell = static_cast<std::uint32_t>(
+                            x + resolution_[0] * (y + static_cast<std::int64_t>(resolution_[1]) * z));
+                        pairs.push_back({cell, prim});
+                    }
                 }
             }
         }
+        return true;
+    };
+    const auto prim_count = static_cast<std::uint32_t>(geometry_.size());
+    std::vector<CellReference> pairs;
+#if LANCER_HAS_TBB
+    // Fixed blocks of primitives, each listing its pairs in primitive order, concatenated in block order:
+    // the pairs the serial loop lists, whatever the thread count.
+    const std::size_t block_count = (prim_count + kPairBlock - 1) / kPairBlock;
+    std::vector<std::vector<CellReference>> blocks(block_count);
+    std::atomic<bool> over_budget = false;
+    tbb::parallel_for(std::size_t{0}, block_count, [&](std::size_t block) {
+        if (over_budget) return;
+        const auto begin = static_cast<std::uint32_t>(block * kPairBlock);
+        const auto end = static_cast<std::uint32_t>(std::min<std::size_t>(prim_count, begin + kPairBlock));
+        if (!list_pairs(begin, end, blocks[block])) over_budget = true;
+    });
+    std::size_t total = 0;
+    for (const std::vector<CellReference>& block : blocks)
+        total += block.size();
+    if (over_budget || total > reference_budget) return false;
+    pairs.reserve(total);
+    for (std::vector<CellReference>& block : blocks) {
+        pairs.insert(pairs.end(), block.begin(), block.end());
+        std::vector<CellReference>().swap(block);
     }
+#else
+    pairs.reserve(2 * geometry_.size());
+    if (!list_pairs(0, prim_count, pairs)) return false;
+#endif
     // Counting sort by cell; stable, so each cell lists its primitives in ascending order (deterministic).
     const std::size_t cells = static_cast<std::size_t>(resolution_[0]) * resolution_[1] * resolution_[2];
     cell_begin_.assign(cells + 1, 0);

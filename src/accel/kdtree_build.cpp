@@ -8,6 +8,12 @@
 
 #include "accel/build_util.hpp"
 
+#if LANCER_HAS_TBB
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_invoke.h>
+#include <tbb/parallel_sort.h>
+#endif
+
 namespace lancer {
 
 int kdtree_depth_limit(const KdTreeOptions& options, std::size_t primitive_count) {
@@ -87,6 +93,49 @@ void merge_new_events(EventList& list, EventList& added) {
 
 enum class Side : std::uint8_t { Both, LeftOnly, RightOnly };
 
+// Nodes with more primitives than this build their two children as subtrees of their own (in parallel with
+// TBB) and splice them in, left then right: the serial layout. The rule depends on the data only, never on
+// the thread count, and the subtrees' SAH sums are added in the same tree order, so 1 and N threads build
+// the same tree, bit for bit.
+constexpr std::size_t kParallelSubtree = 4096;
+
+// Per primitive: the scratch of the left/right classification, valid for the node at hand only. One per
+// thread: a task reads it only between its classification and its recursion, so a thread that picks up
+// another task while it waits for its children finds the scratch free.
+class SideScratch {
+  public:
+    explicit SideScratch(std::size_t primitive_count) : primitive_count_(primitive_count) {}
+
+    [[nodiscard]] std::vector<Side>& local() {
+#if LANCER_HAS_TBB
+        std::vector<Side>& sides = per_thread_.local();
+#else
+        std::vector<Side>& sides = sides_;
+#endif
+        if (sides.size() != primitive_count_) sides.assign(primitive_count_, Side::Both);
+        return sides;
+    }
+
+  private:
+    std::size_t primitive_count_;
+#if LANCER_HAS_TBB
+    tbb::enumerable_thread_specific<std::vector<Side>> per_thread_;
+#else
+    std::vector<Side> sides_;
+#endif
+};
+
+// Runs `first` and `second`, concurrently with TBB.
+template <class First, class Second>
+void invoke_both(First&& first, Second&& second) {
+#if LANCER_HAS_TBB
+    tbb::parallel_invoke(std::forward<First>(first), std::forward<Second>(second));
+#else
+    first();
+    second();
+#endif
+}
+
 [[nodiscard]] double surface_area(const Box3f& box) {
     const double x = double{box.hi.x} - box.lo.x, y = double{box.hi.y} - box.lo.y,
                  z = double{box.hi.z} - box.lo.z;
@@ -95,8 +144,8 @@ enum class Side : std::uint8_t { Both, LeftOnly, RightOnly };
 
 class Builder {
   public:
-    Builder(const Geometry& geometry, const KdTreeOptions& options, KdTreeData& tree)
-        : geometry_(geometry), options_(options), tree_(tree), side_(geometry.size(), Side::Both) {}
+    Builder(const Geometry& geometry, const KdTreeOptions& options, KdTreeData& tree, SideScratch& scratch)
+        : geometry_(geometry), options_(options), tree_(tree), scratch_(scratch) {}
 
     void build() {
         std::vector<std::uint32_t> valid;
@@ -118,8 +167,9 @@ class Builder {
                 list.reserve(2 * valid.size());
             for (std::uint32_t prim : valid)
                 add_events(events, prim, primitive_bounds(geometry_, prim));
-            for (auto& list : events)
-                std::sort(list.begin(), list.end());
+            invoke_both(
+                [&] { sort_events(events[0]); },
+                [&] { invoke_both([&] { sort_events(events[1]); }, [&] { sort_events(events[2]); }); });
             build_node(std::move(events), tree_.bounds, valid.size(), 0);
         }
         KdTreeBuildStats& stats = tree_.stats;
@@ -133,6 +183,15 @@ class Builder {
     }
 
   private:
+    // Event is totally ordered (position, then type and primitive), so any sort gives the same list.
+    static void sort_events(EventList& list) {
+#if LANCER_HAS_TBB
+        tbb::parallel_sort(list.begin(), list.end());
+#else
+        std::sort(list.begin(), list.end());
+#endif
+    }
+
     struct Split {
         int axis = -1;
         float position = 0.0f;
@@ -209,11 +268,12 @@ class Builder {
         // Wald & Havran's "ClassifyLeftRightBoth": a primitive whose clipped box ends at or before the
         // plane is left only, one that starts at or after it right only, a planar one follows its position
         // or, in the plane, the side the cost chose; the rest straddle.
+        std::vector<Side>& sides = scratch_.local();
         const EventList& split_list = events[static_cast<std::size_t>(axis)];
         for (const Event& event : split_list)
-            side_[event.prim()] = Side::Both;
+            sides[event.prim()] = Side::Both;
         for (const Event& event : split_list) {
-            Side& side = side_[event.prim()];
+            Side& side = sides[event.prim()];
             switch (event.type()) {
                 case EventType::End:
                     if (event.position <= plane) side = Side::LeftOnly;
@@ -236,9 +296,9 @@ class Builder {
         for (const Event& event : split_list) {
             if (event.type() == EventType::End) continue;  // one event per primitive: its start or planar one
             const std::uint32_t prim = event.prim();
-            if (side_[prim] == Side::LeftOnly) {
+            if (sides[prim] == Side::LeftOnly) {
                 ++left_count;
-            } else if (side_[prim] == Side::RightOnly) {
+            } else if (sides[prim] == Side::RightOnly) {
                 ++right_count;
             } else {
                 const Box3f left_part = part_in(prim, left_box);
@@ -250,7 +310,7 @@ class Builder {
         // The splice proper: one linear pass per axis keeps the one-sided events in order.
         for (std::size_t a = 0; a < 3; ++a) {
             for (const Event& event : events[a]) {
-                const Side side = side_[event.prim()];
+                const Side side = sides[event.prim()];
                 if (side == Side::LeftOnly) {
                     left_events[a].push_back(event);
                 } else if (side == Side::RightOnly) {
@@ -265,10 +325,54 @@ class Builder {
             EventList().swap(new_right[a]);
         }
 
-        build_node(std::move(left_events), left_box, left_count, depth + 1);
+        if (count <= kParallelSubtree) {
+            build_node(std::move(left_events), left_box, left_count, depth + 1);
+            const auto above = static_cast<std::uint32_t>(tree_.nodes.size());
+            build_node(std::move(right_events), right_box, right_count, depth + 1);
+            tree_.nodes[index] = KdNode::inner(axis, plane, above);
+            return;
+        }
+        KdTreeData left_tree, right_tree;
+        left_tree.depth_limit = right_tree.depth_limit = tree_.depth_limit;
+        Builder left(geometry_, options_, left_tree, scratch_),
+            right(geometry_, options_, right_tree, scratch_);
+        invoke_both([&] { left.build_node(std::move(left_events), left_box, left_count, depth + 1); },
+                    [&] { right.build_node(std::move(right_events), right_box, right_count, depth + 1); });
+        splice(left);
         const auto above = static_cast<std::uint32_t>(tree_.nodes.size());
-        build_node(std::move(right_events), right_box, right_count, depth + 1);
+        splice(right);
         tree_.nodes[index] = KdNode::inner(axis, plane, above);
+    }
+
+    // Appends a subtree built by another Builder (its node and reference indices start at 0) and its sums.
+    void splice(const Builder& subtree) {
+        const KdTreeData& sub = subtree.tree_;
+        if (tree_.nodes.size() + sub.nodes.size() > KdNode::kMaxField)
+            throw std::length_error("kd-tree: too many nodes");
+        if (tree_.references.size() + sub.references.size() > std::numeric_limits<std::uint32_t>::max())
+            throw std::length_error("kd-tree: too many references");
+        const auto node_base = static_cast<std::uint32_t>(tree_.nodes.size());
+        const auto reference_base = static_cast<std::uint32_t>(tree_.references.size());
+        for (const KdNode& node : sub.nodes) {
+            if (!node.is_leaf()) {
+                tree_.nodes.push_back(
+                    KdNode::inner(node.axis(), node.split(), node.above_child() + node_base));
+            } else {
+                // One primitive is stored inline; otherwise the payload is an offset into the references.
+                const std::uint32_t count = node.primitive_count();
+                tree_.nodes.push_back(
+                    count == 1 ? node : KdNode::leaf(count, node.reference_offset() + reference_base));
+            }
+        }
+        tree_.references.insert(tree_.references.end(), sub.references.begin(), sub.references.end());
+        KdTreeBuildStats& stats = tree_.stats;
+        stats.leaves += sub.stats.leaves;
+        stats.empty_leaves += sub.stats.empty_leaves;
+        stats.references += sub.stats.references;
+        stats.max_refs_per_leaf = std::max(stats.max_refs_per_leaf, sub.stats.max_refs_per_leaf);
+        stats.max_depth = std::max(stats.max_depth, sub.stats.max_depth);
+        depth_sum_ += subtree.depth_sum_;
+        cost_sum_ += subtree.cost_sum_;
     }
 
     // Bounds of the part of the primitive in the box, empty when it misses the box. A sphere's clipped bounds
@@ -310,7 +414,7 @@ class Builder {
     const Geometry& geometry_;
     const KdTreeOptions& options_;
     KdTreeData& tree_;
-    std::vector<Side> side_;  // per primitive: scratch of the classification, valid for the node at hand
+    SideScratch& scratch_;
     double root_area_ = 0.0;
     double depth_sum_ = 0.0;
     double cost_sum_ = 0.0;  // sum of Ct SA(inner) + Ci N SA(leaf), divided by SA(root) at the end
@@ -321,7 +425,8 @@ class Builder {
 KdTreeData build_kdtree(const Geometry& geometry, const KdTreeOptions& options) {
     if (geometry.size() > kPrimitiveMask) throw std::length_error("kd-tree: more than 2^30 - 1 primitives");
     KdTreeData tree;
-    Builder(geometry, options, tree).build();
+    SideScratch scratch(geometry.size());
+    Builder(geometry, options, tree, scratch).build();
     return tree;
 }
 

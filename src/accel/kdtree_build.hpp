@@ -38,6 +38,8 @@ class KdNode {
     [[nodiscard]] float split() const { return std::bit_cast<float>(payload_); }
     [[nodiscard]] std::uint32_t above_child() const { return bits_ >> 2; }
     [[nodiscard]] std::uint32_t primitive_count() const { return bits_ >> 2; }
+    // A leaf of 0 or 2+ primitives: the offset of its first one in the references.
+    [[nodiscard]] std::uint32_t reference_offset() const { return payload_; }
     // The leaf's primitives, inline or in `references`.
     [[nodiscard]] const std::uint32_t* primitives(const std::uint32_t* references) const {
         return primitive_count() == 1 ? &payload_ : references + payload_;

@@ -9,6 +9,10 @@
 
 #include "accel/build_util.hpp"
 
+#if LANCER_HAS_TBB
+#include <tbb/parallel_for.h>
+#endif
+
 namespace lancer {
 
 OctreeCube octree_root_cube(const Box3f& bounds) {
@@ -23,6 +27,17 @@ OctreeCube octree_root_cube(const Box3f& bounds) {
 }
 
 namespace {
+
+// Subtrees with more references than this are split by a task per child (TBB), and split_references
+// sorts a cell's references among its children in blocks of this many, one task per block. Both thresholds
+// depend on the data only, never on the thread count, so 1 and N threads build the same tree.
+constexpr std::size_t kParallelSubtree = 4096;
+constexpr std::size_t kSplitBlock = 16384;
+
+void check_reference_count(std::size_t count) {
+    if (count >= std::numeric_limits<std::uint32_t>::max())
+        throw std::length_error("octree: more than 2^32 references");
+}
 
 [[nodiscard]] bool boxes_overlap(const Box3f& a, const Box3f& b) {
     return a.lo.x <= b.hi.x && a.lo.y <= b.hi.y && a.lo.z <= b.hi.z && b.lo.x <= a.hi.x && b.lo.y <= a.hi.y &&
@@ -47,14 +62,41 @@ std::array<std::vector<std::uint32_t>, 8> split_references(const Geometry& geome
                                                                  2u * cell.z + ((child >> 2) & 1u)));
         loose[child] = grown_for_overlap(grown_for_overlap(boxes[child]));
     }
-    std::array<std::vector<std::uint32_t>, 8> children;
-    for (const std::uint32_t prim : references) {
-        const Box3f bounds = primitive_bounds(geometry, prim);
-        for (std::size_t child = 0; child < 8; ++child) {
-            if (boxes_overlap(bounds, loose[child]) && primitive_overlaps_box(geometry, prim, boxes[child]))
-                children[child].push_back(prim);
+    using ChildLists = std::array<std::vector<std::uint32_t>, 8>;
+    auto sort_into = [&](std::span<const std::uint32_t> block, ChildLists& children) {
+        for (const std::uint32_t prim : block) {
+            const Box3f bounds = primitive_bounds(geometry, prim);
+            for (std::size_t child = 0; child < 8; ++child) {
+                if (boxes_overlap(bounds, loose[child]) &&
+                    primitive_overlaps_box(geometry, prim, boxes[child]))
+                    children[child].push_back(prim);
+            }
         }
+    };
+    ChildLists children;
+#if LANCER_HAS_TBB
+    if (references.size() > kSplitBlock) {
+        // Fixed blocks, concatenated in block order: the lists stay in increasing order, whatever the
+        // threads.
+        const std::size_t block_count = (references.size() + kSplitBlock - 1) / kSplitBlock;
+        std::vector<ChildLists> blocks(block_count);
+        tbb::parallel_for(std::size_t{0}, block_count, [&](std::size_t block) {
+            sort_into(references.subspan(block * kSplitBlock,
+                                         std::min(kSplitBlock, references.size() - block * kSplitBlock)),
+                      blocks[block]);
+        });
+        for (std::size_t child = 0; child < 8; ++child) {
+            std::size_t total = 0;
+            for (const ChildLists& block : blocks)
+                total += block[child].size();
+            children[child].reserve(total);
+            for (const ChildLists& block : blocks)
+                children[child].insert(children[child].end(), block[child].begin(), block[child].end());
+        }
+        return children;
     }
+#endif
+    sort_into(references, children);
     return children;
 }
 
@@ -71,6 +113,139 @@ bool split_separates_nothing(const std::array<std::vector<std::uint32_t>, 8>& ch
     return full >= 2;
 }
 
+namespace {
+
+// The 8 children of `cell`, in child order, with no children or references yet.
+std::array<OctreeCell, 8> child_cells(const OctreeCell& cell) {
+    std::array<OctreeCell, 8> children{};
+    for (std::uint32_t child = 0; child < 8; ++child) {
+        children[child].x = static_cast<std::uint16_t>(2u * cell.x + (child & 1u));
+        children[child].y = static_cast<std::uint16_t>(2u * cell.y + ((child >> 1) & 1u));
+        children[child].z = static_cast<std::uint16_t>(2u * cell.z + ((child >> 2) & 1u));
+        children[child].level = static_cast<std::uint8_t>(cell.level + 1);
+    }
+    return children;
+}
+
+// A subtree as the serial depth-first build lays it out: cells[0] is its root, then the root's 8 children,
+// then the descendants of child 0, of child 1, ...; leaf references in the same depth-first order. Child
+// and reference indices are local to the subtree.
+struct Subtree {
+    std::vector<OctreeCell> cells;
+    std::vector<std::uint32_t> references;
+};
+
+class OctreeBuilder {
+  public:
+    OctreeBuilder(const Geometry& geometry, const Octree& octree, std::size_t leaf_size)
+        : geometry_(geometry), octree_(octree), leaf_size_(leaf_size) {}
+
+    // The children's references, or nothing when `cell` stays a leaf.
+    [[nodiscard]] bool split(const OctreeCell& cell, std::span<const std::uint32_t> references,
+                             std::array<std::vector<std::uint32_t>, 8>& children) const {
+        if (cell.level >= octree_.max_depth || references.size() <= leaf_size_) return false;
+        children = split_references(geometry_, octree_, cell, references);
+        return !split_separates_nothing(children, references.size());
+    }
+
+    // Large subtrees: the children are built as subtrees of their own (in parallel with TBB) and spliced in
+    // child order, which reproduces the serial layout exactly.
+    [[nodiscard]] Subtree build(const OctreeCell& root, std::vector<std::uint32_t> references) const {
+        if (references.size() <= kParallelSubtree) return build_serial(root, std::move(references));
+        std::array<std::vector<std::uint32_t>, 8> children_references;
+        Subtree tree;
+        tree.cells.push_back(root);
+        if (!split(root, references, children_references)) {
+            tree.cells[0].ref_begin = 0;
+            tree.cells[0].ref_end = static_cast<std::uint32_t>(references.size());
+            tree.references = std::move(references);
+            return tree;
+        }
+        std::vector<std::uint32_t>().swap(references);  // the children hold them now
+        std::array<Subtree, 8> children;
+        const std::array<OctreeCell, 8> child_roots = child_cells(root);
+        auto build_child = [&](std::size_t child) {
+            children[child] = build(child_roots[child], std::move(children_references[child]));
+        };
+#if LANCER_HAS_TBB
+        tbb::parallel_for(std::size_t{0}, std::size_t{8}, build_child);
+#else
+        for (std::size_t child = 0; child < 8; ++child)
+            build_child(child);
+#endif
+        tree.cells[0].first_child = 1;
+        for (const Subtree& child : children)
+            tree.cells.push_back(child.cells[0]);
+        for (std::uint32_t child = 0; child < 8; ++child)
+            splice(tree, 1 + child, children[child]);
+        return tree;
+    }
+
+  private:
+    // The serial depth-first build, from an explicit stack.
+    [[nodiscard]] Subtree build_serial(const OctreeCell& root, std::vector<std::uint32_t> references) const {
+        struct Pending {
+            std::uint32_t cell;
+            std::vector<std::uint32_t> references;
+        };
+        Subtree tree;
+        tree.cells.push_back(root);
+        std::vector<Pending> stack;
+        stack.push_back({0, std::move(references)});
+        std::array<std::vector<std::uint32_t>, 8> children;
+        while (!stack.empty()) {
+            Pending pending = std::move(stack.back());
+            stack.pop_back();
+            const OctreeCell cell = tree.cells[pending.cell];
+            if (split(cell, pending.references, children)) {
+                const auto first_child = static_cast<std::uint32_t>(tree.cells.size());
+                tree.cells[pending.cell].first_child = first_child;
+                for (const OctreeCell& child : child_cells(cell))
+                    tree.cells.push_back(child);
+                // Reversed, so that child 0 is built first: depth-first order for cells and references.
+                for (std::uint32_t child = 8; child-- > 0;)
+                    stack.push_back({first_child + child, std::move(children[child])});
+                continue;
+            }
+            // LEAF
+            check_reference_count(tree.references.size() + pending.references.size());
+            OctreeCell& leaf = tree.cells[pending.cell];
+            leaf.ref_begin = static_cast<std::uint32_t>(tree.references.size());
+            tree.references.insert(tree.references.end(), pending.references.begin(),
+                                   pending.references.end());
+            leaf.ref_end = static_cast<std::uint32_t>(tree.references.size());
+        }
+        return tree;
+    }
+
+    // Appends `child`'s descendants and references to `tree`, whose cell `slot` is child's root.
+    static void splice(Subtree& tree, std::uint32_t slot, const Subtree& child) {
+        check_reference_count(tree.references.size() + child.references.size());
+        // child.cells[i], i >= 1, lands at base + i - 1.
+        const auto base = static_cast<std::uint32_t>(tree.cells.size());
+        const auto reference_base = static_cast<std::uint32_t>(tree.references.size());
+        auto relocated = [&](OctreeCell cell) {
+            if (cell.is_leaf()) {
+                cell.ref_begin += reference_base;
+                cell.ref_end += reference_base;
+            } else {
+                cell.first_child = base + cell.first_child - 1;
+            }
+            return cell;
+        };
+        tree.cells[slot] = relocated(child.cells[0]);
+        for (std::size_t i = 1; i < child.cells.size(); ++i)
+            tree.cells.push_back(relocated(child.cells[i]));
+        tree.references.insert(tree.references.end(), child.references.begin(), child.references.end());
+    }
+
+    const Geometry& geometry_;
+    const Octree& octree_;
+    std::size_t leaf_size_;
+};
+
+}  // namespace
+
 Octree build_octree(const Geometry& geometry, const OctreeOptions& options) {
     Octree octree;
     const Box3f bounds = geometry.bounds();
@@ -80,49 +255,11 @@ Octree build_octree(const Geometry& geometry, const OctreeOptions& options) {
     const auto leaf_size = static_cast<std::size_t>(std::max(options.leaf_size, 0));
     if (geometry.size() >= std::numeric_limits<std::uint32_t>::max())
         throw std::length_error("octree: primitive indices must fit 32 bits");
-
-    struct Pending {
-        std::uint32_t cell;
-        std::vector<std::uint32_t> references;
-    };
-    std::vector<Pending> stack;
-    octree.cells.emplace_back();
     std::vector<std::uint32_t> all(geometry.size());
     std::iota(all.begin(), all.end(), 0u);
-    stack.push_back({0, std::move(all)});
-
-    while (!stack.empty()) {
-        Pending pending = std::move(stack.back());
-        stack.pop_back();
-        const OctreeCell cell = octree.cells[pending.cell];
-        if (cell.level < octree.max_depth && pending.references.size() > leaf_size) {
-            auto children = split_references(geometry, octree, cell, pending.references);
-            if (!split_separates_nothing(children, pending.references.size())) {
-                const auto first_child = static_cast<std::uint32_t>(octree.cells.size());
-                octree.cells[pending.cell].first_child = first_child;
-                for (std::uint32_t child = 0; child < 8; ++child) {
-                    OctreeCell child_cell;
-                    child_cell.x = static_cast<std::uint16_t>(2u * cell.x + (child & 1u));
-                    child_cell.y = static_cast<std::uint16_t>(2u * cell.y + ((child >> 1) & 1u));
-                    child_cell.z = static_cast<std::uint16_t>(2u * cell.z + ((child >> 2) & 1u));
-                    child_cell.level = static_cast<std::uint8_t>(cell.level + 1);
-                    octree.cells.push_back(child_cell);
-                }
-                // Reversed, so that child 0 is built first: depth-first order for cells and references.
-                for (std::uint32_t child = 8; child-- > 0;)
-                    stack.push_back({first_child + child, std::move(children[child])});
-                continue;
-            }
-        }
-        // LEAF
-        if (octree.references.size() + pending.references.size() >= std::numeric_limits<std::uint32_t>::max())
-            throw std::length_error("octree: more than 2^32 references");
-        OctreeCell& leaf = octree.cells[pending.cell];
-        leaf.ref_begin = static_cast<std::uint32_t>(octree.references.size());
-        octree.references.insert(octree.references.end(), pending.references.begin(),
-                                 pending.references.end());
-        leaf.ref_end = static_cast<std::uint32_t>(octree.references.size());
-    }
+    Subtree tree = OctreeBuilder(geometry, octree, leaf_size).build(OctreeCell{}, std::move(all));
+    octree.cells = std::move(tree.cells);
+    octree.references = std::move(tree.references);
     return octree;
 }
 

@@ -1,0 +1,228 @@
+// Deterministic parallel builds (STYLE.md habit 7; lancer issue 6): every structure built inside a
+// 1-thread task arena and inside a 4-thread one must be the same structure, array for array, and so give
+// the same answers bit for bit. The scenes are large enough to take every parallel path of the builds
+// (subtrees and blocks of more than a few thousand references), and the second one makes the grid exceed
+// its reference budget, so that its coarsening runs in parallel too.
+#include <gtest/gtest.h>
+
+#include <tbb/task_arena.h>
+#include <bit>
+#include <cstring>
+#include <memory>
+#include <random>
+
+#include "accel/grid.hpp"
+#include "accel/kdtree.hpp"
+#include "accel/octree_build.hpp"
+#include "accel/plucker/plucker.hpp"
+#include "test_scenes.hpp"
+
+namespace lancer {
+namespace {
+
+using testing::append;
+using testing::TestScene;
+
+constexpr int kManyThreads = 4;
+
+TestScene mixed_scene() {
+    TestScene scene{"icosphere, soup and spheres", {}, {}};
+    append(scene.triangles, make_icosphere(5, {0, 0, 0}, 1.0f));
+    std::mt19937 rng(6);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
+    for (int i = 0; i < 6000; ++i) {
+        const Vec3f base = point(4.0f) - Vec3f(2.0f);
+        const float size = i % 10 == 0 ? 1.0f : 0.05f;
+        scene.triangles.push_back(
+            {base, base + point(size) - Vec3f(size / 2), base + point(size) - Vec3f(size / 2)});
+    }
+    for (int i = 0; i < 100; ++i)
+        scene.spheres.push_back({point(4.0f) - Vec3f(2.0f), 0.01f + 0.1f * unit(rng), 0});
+    return scene;
+}
+
+// Large triangles crossing the whole box: the grid's first resolution needs more references than its budget.
+TestScene overlapping_scene() {
+    TestScene scene{"large overlapping triangles", {}, {}};
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    auto point = [&] { return Vec3f(unit(rng), unit(rng), unit(rng)) * 10.0f; };
+    for (int i = 0; i < 3000; ++i)
+        scene.triangles.push_back({point(), point(), point()});
+    return scene;
+}
+
+std::vector<Ray> random_rays(const Box3f& bounds, std::size_t count) {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    const Vec3f extent = bounds.extent();
+    auto inside = [&] {
+        return bounds.lo + Vec3f(unit(rng) * extent.x, unit(rng) * extent.y, unit(rng) * extent.z);
+    };
+    std::vector<Ray> rays;
+    for (std::size_t i = 0; i < count; ++i) {
+        // Half from outside the box towards a point inside, half from inside in a random direction.
+        const Vec3f target = inside();
+        const Vec3f origin = i % 2 ? bounds.center() + (inside() - bounds.center()) * 3.0f : inside();
+        const Vec3f direction = i % 2 ? target - origin : inside() - inside();
+        rays.push_back({origin, direction, 0.0f, kInfinity});
+    }
+    return rays;
+}
+
+template <class Build>
+auto in_arena(int threads, Build&& build) {
+    tbb::task_arena arena(threads);
+    return arena.execute(std::forward<Build>(build));
+}
+
+std::unique_ptr<Accel> build_with_threads(std::string_view name, const Geometry& geometry,
+                                          const BuildOptions& options, int threads) {
+    return in_arena(threads, [&] {
+        std::unique_ptr<Accel> accel = make_accel(name);
+        accel->build(geometry, options);
+        return accel;
+    });
+}
+
+// Every field but the build time.
+void expect_same_stats(const AccelStats& one, const AccelStats& many) {
+    EXPECT_EQ(one.primitives, many.primitives);
+    EXPECT_EQ(one.nodes, many.nodes);
+    EXPECT_EQ(one.leaves, many.leaves);
+    EXPECT_EQ(one.empty_leaves, many.empty_leaves);
+    EXPECT_EQ(one.references, many.references);
+    EXPECT_EQ(one.max_depth, many.max_depth);
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(one.mean_depth), std::bit_cast<std::uint64_t>(many.mean_depth));
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(one.mean_refs_per_leaf),
+              std::bit_cast<std::uint64_t>(many.mean_refs_per_leaf));
+    EXPECT_EQ(one.max_refs_per_leaf, many.max_refs_per_leaf);
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(one.sah_cost), std::bit_cast<std::uint64_t>(many.sah_cost));
+    EXPECT_EQ(one.memory_by_array, many.memory_by_array);
+}
+
+// The closest hits and occlusion answers, compared bit for bit (t, u and v as bits, not as floats).
+void expect_same_answers(const Accel& one, const Accel& many, std::span<const Ray> rays) {
+    std::vector<Hit> hits_one(rays.size()), hits_many(rays.size());
+    one.intersect(rays, hits_one);
+    many.intersect(rays, hits_many);
+    std::size_t differing = 0, hit_count = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        differing += std::memcmp(&hits_one[i], &hits_many[i], sizeof(Hit)) != 0 ? 1 : 0;
+        hit_count += hits_one[i].hit() ? 1 : 0;
+    }
+    EXPECT_EQ(differing, 0u);
+    EXPECT_GT(hit_count, rays.size() / 10);  // the rays do reach the geometry
+    std::vector<std::uint8_t> occluded_one(rays.size()), occluded_many(rays.size());
+    one.occluded(rays, occluded_one);
+    many.occluded(rays, occluded_many);
+    EXPECT_EQ(occluded_one, occluded_many);
+}
+
+void expect_same_structure(std::string_view name, const TestScene& scene, const BuildOptions& options = {}) {
+    SCOPED_TRACE(scene.name);
+    const Geometry geometry = scene.geometry();
+    const auto one = build_with_threads(name, geometry, options, 1);
+    const auto many = build_with_threads(name, geometry, options, kManyThreads);
+    expect_same_stats(one->stats(), many->stats());
+    EXPECT_EQ(one->memory_bytes(), many->memory_bytes());
+    expect_same_answers(*one, *many, random_rays(geometry.bounds(), 5000));
+}
+
+class ParallelBuild : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(ParallelBuild, OneAndManyThreadsGiveTheSameStructureAndAnswers) {
+    expect_same_structure(GetParam(), mixed_scene());
+}
+
+INSTANTIATE_TEST_SUITE_P(Structures, ParallelBuild,
+                         ::testing::Values("grid", "octree", "plucker", "kdtree", "bvh"));
+
+TEST(ParallelBuildArrays, GridCoarsenedPastItsBudgetIsTheSame) {
+    const TestScene scene = overlapping_scene();
+    const Geometry geometry = scene.geometry();
+    BuildOptions options;
+    options.grid.density = 3.0f;  // 81000 cells, each triangle crossing hundreds of them
+    GridAccel grid;
+    grid.build(geometry, options);
+    const auto first_try =
+        GridAccel::choose_resolution(geometry.bounds(), geometry.size(), options.grid.density);
+    ASSERT_LT(grid.resolution()[0] * grid.resolution()[1] * grid.resolution()[2],
+              first_try[0] * first_try[1] * first_try[2]);  // the budget was exceeded, the grid coarsened
+    expect_same_structure("grid", scene, options);
+}
+
+// The arrays themselves, where the classes show them.
+TEST(ParallelBuildArrays, GridCellsListTheSamePrimitives) {
+    const TestScene scene = mixed_scene();
+    const Geometry geometry = scene.geometry();
+    const auto build = [&](int threads) {
+        auto grid = std::make_unique<GridAccel>();
+        in_arena(threads, [&] { grid->build(geometry, BuildOptions{}); });
+        return grid;
+    };
+    const auto one = build(1), many = build(kManyThreads);
+    ASSERT_EQ(one->resolution(), many->resolution());
+    const auto [nx, ny, nz] = one->resolution();
+    std::size_t differing = 0;
+    for (int z = 0; z < nz; ++z) {
+        for (int y = 0; y < ny; ++y) {
+            for (int x = 0; x < nx; ++x) {
+                const auto a = one->cell_primitives(x, y, z), b = many->cell_primitives(x, y, z);
+                differing += std::equal(a.begin(), a.end(), b.begin(), b.end()) ? 0 : 1;
+            }
+        }
+    }
+    EXPECT_EQ(differing, 0u);
+}
+
+TEST(ParallelBuildArrays, OctreeCellsAndReferences) {
+    const TestScene scene = mixed_scene();
+    const Geometry geometry = scene.geometry();
+    OctreeOptions options;
+    options.max_depth = 9;
+    const Octree one = in_arena(1, [&] { return build_octree(geometry, options); });
+    const Octree many = in_arena(kManyThreads, [&] { return build_octree(geometry, options); });
+    // 26k primitives: the root's split and the first levels' subtrees take the parallel paths.
+    ASSERT_GT(one.cells.size(), 1000u);
+    ASSERT_EQ(one.cells.size(), many.cells.size());
+    EXPECT_EQ(std::memcmp(one.cells.data(), many.cells.data(), one.cells.size() * sizeof(OctreeCell)), 0);
+    EXPECT_EQ(one.references, many.references);
+}
+
+TEST(ParallelBuildArrays, KdTreeNodesAndReferences) {
+    const TestScene scene = mixed_scene();
+    const Geometry geometry = scene.geometry();
+    const KdTreeData one = in_arena(1, [&] { return build_kdtree(geometry, KdTreeOptions{}); });
+    const KdTreeData many = in_arena(kManyThreads, [&] { return build_kdtree(geometry, KdTreeOptions{}); });
+    ASSERT_EQ(one.nodes.size(), many.nodes.size());
+    EXPECT_EQ(std::memcmp(one.nodes.data(), many.nodes.data(), one.nodes.size() * sizeof(KdNode)), 0);
+    EXPECT_EQ(one.references, many.references);
+}
+
+TEST(ParallelBuildArrays, PluckerLayoutArrays) {
+    const TestScene scene = mixed_scene();
+    const Geometry geometry = scene.geometry();
+    const auto build = [&](int threads) {
+        auto accel = std::make_unique<PluckerAccel>();
+        in_arena(threads, [&] { accel->build(geometry, BuildOptions{}); });
+        return accel;
+    };
+    const auto one = build(1), many = build(kManyThreads);
+    const plucker::PluckerLayout& a = one->layout();
+    const plucker::PluckerLayout& b = many->layout();
+    EXPECT_EQ(a.cells, b.cells);
+    EXPECT_EQ(a.locate, b.locate);
+    EXPECT_EQ(a.cube_map.level, b.cube_map.level);
+    EXPECT_EQ(a.cube_map.texels, b.cube_map.texels);
+    ASSERT_EQ(a.primitives.size(), b.primitives.size());
+    EXPECT_EQ(std::memcmp(a.primitives.data(), b.primitives.data(),
+                          a.primitives.size() * sizeof(plucker::PluckerPrimitive)),
+              0);
+    ASSERT_EQ(a.boxes.size(), b.boxes.size());
+    EXPECT_EQ(std::memcmp(a.boxes.data(), b.boxes.data(), a.boxes.size() * sizeof(plucker::PluckerBox)), 0);
+}
+
+}  // namespace
+}  // namespace lancer
