@@ -8,6 +8,10 @@
 #include "accel/plucker/balance.hpp"
 #include "accel/plucker/conventions.hpp"
 
+#if LANCER_HAS_TBB
+#include <tbb/parallel_for.h>
+#endif
+
 namespace lancer::plucker {
 namespace {
 
@@ -109,16 +113,14 @@ PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
     const std::uint32_t header = header_words(options.stored_boxes);
     const std::uint32_t geometry_words = box_words(options.stored_boxes);
 
-    // Neighbour lists and record sizes, then addresses.
+    // Neighbour lists and record sizes (each record's own: in parallel with TBB), then addresses.
     std::vector<std::array<std::vector<std::uint32_t>, 6>> neighbours(order.size());
-    std::vector<std::uint32_t> address(octree.cells.size(), 0);
-    std::size_t words = 0;
-    for (std::size_t record = 0; record < order.size(); ++record) {
+    std::vector<std::uint32_t> record_words(order.size());
+    auto find_neighbours = [&](std::size_t record) {
         const std::uint32_t index = order[record];
-        address[index] = static_cast<std::uint32_t>(std::min<std::size_t>(words, kAddressMask));
         if (!octree.cells[index].is_leaf()) {
-            words += geometry_words + 8;
-            continue;
+            record_words[record] = geometry_words + 8;
+            return;
         }
         std::size_t total = 0;
         for (int face = 0; face < 6; ++face) {
@@ -132,7 +134,19 @@ PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
             }
             total += list.size();
         }
-        words += header + total;
+        record_words[record] = header + static_cast<std::uint32_t>(total);
+    };
+#if LANCER_HAS_TBB
+    tbb::parallel_for(std::size_t{0}, order.size(), find_neighbours);
+#else
+    for (std::size_t record = 0; record < order.size(); ++record)
+        find_neighbours(record);
+#endif
+    std::vector<std::uint32_t> address(octree.cells.size(), 0);
+    std::size_t words = 0;
+    for (std::size_t record = 0; record < order.size(); ++record) {
+        address[order[record]] = static_cast<std::uint32_t>(std::min<std::size_t>(words, kAddressMask));
+        words += record_words[record];
     }
     if (words > kAddressMask) throw std::length_error("plucker layout: more than 2^31 words of cells");
 
