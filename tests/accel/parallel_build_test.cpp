@@ -77,13 +77,12 @@ auto in_arena(int threads, Build&& build) {
     return arena.execute(std::forward<Build>(build));
 }
 
-std::unique_ptr<Accel> build_with_threads(std::string_view name, const Geometry& geometry,
-                                          const BuildOptions& options, int threads) {
-    return in_arena(threads, [&] {
-        std::unique_ptr<Accel> accel = make_accel(name);
-        accel->build(geometry, options);
-        return accel;
-    });
+// `accel` built inside an arena of `threads` threads.
+template <class AccelT>
+std::unique_ptr<AccelT> built_with_threads(std::unique_ptr<AccelT> accel, const Geometry& geometry,
+                                           const BuildOptions& options, int threads) {
+    in_arena(threads, [&] { accel->build(geometry, options); });
+    return accel;
 }
 
 // Every field but the build time.
@@ -123,8 +122,8 @@ void expect_same_answers(const Accel& one, const Accel& many, std::span<const Ra
 void expect_same_structure(std::string_view name, const TestScene& scene, const BuildOptions& options = {}) {
     SCOPED_TRACE(scene.name);
     const Geometry geometry = scene.geometry();
-    const auto one = build_with_threads(name, geometry, options, 1);
-    const auto many = build_with_threads(name, geometry, options, kManyThreads);
+    const auto one = built_with_threads(make_accel(name), geometry, options, 1);
+    const auto many = built_with_threads(make_accel(name), geometry, options, kManyThreads);
     expect_same_stats(one->stats(), many->stats());
     EXPECT_EQ(one->memory_bytes(), many->memory_bytes());
     expect_same_answers(*one, *many, random_rays(geometry.bounds(), 5000));
@@ -153,16 +152,18 @@ TEST(ParallelBuildArrays, GridCoarsenedPastItsBudgetIsTheSame) {
     expect_same_structure("grid", scene, options);
 }
 
-// The arrays themselves, where the classes show them.
+// The arrays themselves, where the classes show them: plain data, compared byte for byte.
+template <class T>
+void expect_same_bytes(const std::vector<T>& one, const std::vector<T>& many) {
+    ASSERT_EQ(one.size(), many.size());
+    EXPECT_EQ(std::memcmp(one.data(), many.data(), one.size() * sizeof(T)), 0);
+}
+
 TEST(ParallelBuildArrays, GridCellsListTheSamePrimitives) {
     const TestScene scene = mixed_scene();
     const Geometry geometry = scene.geometry();
-    const auto build = [&](int threads) {
-        auto grid = std::make_unique<GridAccel>();
-        in_arena(threads, [&] { grid->build(geometry, BuildOptions{}); });
-        return grid;
-    };
-    const auto one = build(1), many = build(kManyThreads);
+    const auto one = built_with_threads(std::make_unique<GridAccel>(), geometry, {}, 1);
+    const auto many = built_with_threads(std::make_unique<GridAccel>(), geometry, {}, kManyThreads);
     ASSERT_EQ(one->resolution(), many->resolution());
     const auto [nx, ny, nz] = one->resolution();
     std::size_t differing = 0;
@@ -182,46 +183,36 @@ TEST(ParallelBuildArrays, OctreeCellsAndReferences) {
     const Geometry geometry = scene.geometry();
     OctreeOptions options;
     options.max_depth = 9;
-    const Octree one = in_arena(1, [&] { return build_octree(geometry, options); });
-    const Octree many = in_arena(kManyThreads, [&] { return build_octree(geometry, options); });
+    const auto build = [&] { return build_octree(geometry, options); };
+    const Octree one = in_arena(1, build), many = in_arena(kManyThreads, build);
     // 26k primitives: the root's split and the first levels' subtrees take the parallel paths.
     ASSERT_GT(one.cells.size(), 1000u);
-    ASSERT_EQ(one.cells.size(), many.cells.size());
-    EXPECT_EQ(std::memcmp(one.cells.data(), many.cells.data(), one.cells.size() * sizeof(OctreeCell)), 0);
+    expect_same_bytes(one.cells, many.cells);
     EXPECT_EQ(one.references, many.references);
 }
 
 TEST(ParallelBuildArrays, KdTreeNodesAndReferences) {
     const TestScene scene = mixed_scene();
     const Geometry geometry = scene.geometry();
-    const KdTreeData one = in_arena(1, [&] { return build_kdtree(geometry, KdTreeOptions{}); });
-    const KdTreeData many = in_arena(kManyThreads, [&] { return build_kdtree(geometry, KdTreeOptions{}); });
-    ASSERT_EQ(one.nodes.size(), many.nodes.size());
-    EXPECT_EQ(std::memcmp(one.nodes.data(), many.nodes.data(), one.nodes.size() * sizeof(KdNode)), 0);
+    const auto build = [&] { return build_kdtree(geometry, KdTreeOptions{}); };
+    const KdTreeData one = in_arena(1, build), many = in_arena(kManyThreads, build);
+    expect_same_bytes(one.nodes, many.nodes);
     EXPECT_EQ(one.references, many.references);
 }
 
 TEST(ParallelBuildArrays, PluckerLayoutArrays) {
     const TestScene scene = mixed_scene();
     const Geometry geometry = scene.geometry();
-    const auto build = [&](int threads) {
-        auto accel = std::make_unique<PluckerAccel>();
-        in_arena(threads, [&] { accel->build(geometry, BuildOptions{}); });
-        return accel;
-    };
-    const auto one = build(1), many = build(kManyThreads);
+    const auto one = built_with_threads(std::make_unique<PluckerAccel>(), geometry, {}, 1);
+    const auto many = built_with_threads(std::make_unique<PluckerAccel>(), geometry, {}, kManyThreads);
     const plucker::PluckerLayout& a = one->layout();
     const plucker::PluckerLayout& b = many->layout();
     EXPECT_EQ(a.cells, b.cells);
     EXPECT_EQ(a.locate, b.locate);
     EXPECT_EQ(a.cube_map.level, b.cube_map.level);
     EXPECT_EQ(a.cube_map.texels, b.cube_map.texels);
-    ASSERT_EQ(a.primitives.size(), b.primitives.size());
-    EXPECT_EQ(std::memcmp(a.primitives.data(), b.primitives.data(),
-                          a.primitives.size() * sizeof(plucker::PluckerPrimitive)),
-              0);
-    ASSERT_EQ(a.boxes.size(), b.boxes.size());
-    EXPECT_EQ(std::memcmp(a.boxes.data(), b.boxes.data(), a.boxes.size() * sizeof(plucker::PluckerBox)), 0);
+    expect_same_bytes(a.primitives, b.primitives);
+    expect_same_bytes(a.boxes, b.boxes);
 }
 
 }  // namespace
