@@ -96,7 +96,9 @@ struct KdTreeData {
 // when its best split costs strictly less.
 [[nodiscard]] double kdtree_leaf_cost(const KdTreeOptions& options, std::size_t count);
 
-// Builds the tree over every primitive of `geometry` (triangles then spheres). Primitives whose bounds are
+// Builds the tree over every primitive of `geometry` (triangles then spheres); with oneTBB, nodes of more
+// than 4,096 primitives build their children in parallel, into the same tree whatever the thread count
+// (docs/accel/parallel-build.md). Primitives whose bounds are
 // empty or NaN are left out: no ray can hit them. Throws std::length_error past 2^30 - 1 primitives or nodes.
 [[nodiscard]] KdTreeData build_kdtree(const Geometry& geometry, const KdTreeOptions& options);
 

@@ -140,7 +140,7 @@ class OctreeBuilder {
     OctreeBuilder(const Geometry& geometry, const Octree& octree, std::size_t leaf_size)
         : geometry_(geometry), octree_(octree), leaf_size_(leaf_size) {}
 
-    // The children's references, or nothing when `cell` stays a leaf.
+    // Whether `cell` is split (the stopping rules of build_octree); if so, `children` holds their references.
     [[nodiscard]] bool split(const OctreeCell& cell, std::span<const std::uint32_t> references,
                              std::array<std::vector<std::uint32_t>, 8>& children) const {
         if (cell.level >= octree_.max_depth || references.size() <= leaf_size_) return false;

@@ -96,7 +96,8 @@ struct Octree {
 // says may touch its closed box grown by the scene's geometric tolerance (docs/numerical-contract.md,
 // "Boxes": a hit the kernel reports a hair outside the cell it lies in is still found there). A split is
 // also refused when it separates nothing (split_separates_nothing). Deterministic: references stay in
-// increasing order.
+// increasing order. With oneTBB, subtrees of more than 4,096 references build in parallel and are spliced
+// in child order: the same arrays whatever the thread count (docs/accel/parallel-build.md).
 [[nodiscard]] Octree build_octree(const Geometry& geometry, const OctreeOptions& options);
 
 // The references each of the 8 children of `cell` would receive (child order above), in increasing order.
