@@ -52,6 +52,15 @@ LANCER_HOST_DEVICE inline bool hit_child_box(const Vec3f& origin, const Vec3f& i
     return t0 <= t1;
 }
 
+// The far children waiting, in local memory on the device (Aila & Laine's per-thread stack).
+struct TraversalStack {
+    std::int32_t entries[kBvhStackSize];
+    int size = 0;
+
+    LANCER_HOST_DEVICE void push(std::int32_t node) { entries[size++] = node; }
+    LANCER_HOST_DEVICE std::int32_t pop() { return size == 0 ? kStackEmpty : entries[--size]; }
+};
+
 // The vote of the speculative traversal on the host: one ray, alone in its warp.
 struct LoneLane {
     LANCER_HOST_DEVICE bool any_searching(bool searching) const { return searching; }
@@ -70,9 +79,7 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
     if (!is_valid_ray(ray) || bvh.node_count == 0) return best;
     const typename TriangleTestT::RayData triangle_ray(ray);
     const Vec3f inverse(1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z);
-    std::int32_t stack[kBvhStackSize];
-    int stack_size = 0;
-    const auto pop = [&]() { return stack_size == 0 ? kStackEmpty : stack[--stack_size]; };
+    TraversalStack stack;
 
     std::int32_t node = 0;
     std::int32_t postponed = 0;  // >= 0: no leaf postponed (the speculative traversal)
@@ -88,21 +95,21 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
             const bool hit1 = hit_child_box(ray.origin, inverse, {n.c1_lo_x, n.c1_lo_y, n.c1_lo_z},
                                             {n.c1_hi_x, n.c1_hi_y, n.c1_hi_z}, ray.tnear, limit, entry1);
             if (!hit0 && !hit1) {
-                node = pop();
+                node = stack.pop();
             } else {
                 node = hit0 ? n.child[0] : n.child[1];
                 if (hit0 && hit1) {
                     // Near child first; the far one waits on the stack.
                     std::int32_t far = n.child[1];
                     if (entry1 < entry0) far = node, node = n.child[1];
-                    stack[stack_size++] = far;
+                    stack.push(far);
                 }
             }
             if constexpr (kSpeculative) {
                 if (node < 0 && postponed >= 0) {
                     searching = false;
                     postponed = node;
-                    node = pop();
+                    node = stack.pop();
                 }
                 if (!vote.any_searching(searching)) break;
             }
@@ -122,10 +129,10 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
             }
             if constexpr (kSpeculative) {
                 postponed = node;
-                if (node < 0) node = pop();
+                if (node < 0) node = stack.pop();
             } else {
                 postponed = 0;
-                node = pop();
+                node = stack.pop();
             }
         }
     }

@@ -102,4 +102,24 @@ LANCER_HOST_DEVICE inline Ray camera_ray(const CameraFrame& camera, float film_x
     return ray;
 }
 
+// A frame's rays are numbered by tiles of 8 x 4 pixels, one warp each (Aila & Laine's primary rays: a
+// warp's rays stay coherent), tiles row by row. Indices past the film's edges name no pixel.
+inline constexpr int kTileWidth = 8, kTileHeight = 4;
+
+LANCER_HOST_DEVICE inline std::uint32_t frame_ray_count(const CameraFrame& camera) {
+    const auto tiles_x = static_cast<std::uint32_t>((camera.width + kTileWidth - 1) / kTileWidth);
+    const auto tiles_y = static_cast<std::uint32_t>((camera.height + kTileHeight - 1) / kTileHeight);
+    return tiles_x * tiles_y * static_cast<std::uint32_t>(kTileWidth * kTileHeight);
+}
+
+// The pixel of ray `index`, false past the film's edges.
+LANCER_HOST_DEVICE inline bool frame_pixel(const CameraFrame& camera, std::uint32_t index, int& x, int& y) {
+    constexpr auto kTileSize = static_cast<std::uint32_t>(kTileWidth * kTileHeight);
+    const auto tiles_x = static_cast<std::uint32_t>((camera.width + kTileWidth - 1) / kTileWidth);
+    const std::uint32_t tile = index / kTileSize, within = index % kTileSize;
+    x = static_cast<int>((tile % tiles_x) * kTileWidth + within % kTileWidth);
+    y = static_cast<int>((tile / tiles_x) * kTileHeight + within / kTileWidth);
+    return x < camera.width && y < camera.height;
+}
+
 }  // namespace lancer::gpu

@@ -202,6 +202,25 @@ TEST(CudaPorts, CameraRayIsThePinholeCamerasBitForBit) {
     }
 }
 
+// The kernels number a frame's rays by warp-sized tiles: every pixel must get exactly one ray, also when the
+// film is not a whole number of tiles.
+TEST(CudaPorts, FrameTilesCoverEveryPixelOnce) {
+    for (const auto& [width, height] : {std::pair{64, 32}, std::pair{37, 11}, std::pair{1, 1}}) {
+        gpu::CameraFrame frame;
+        frame.width = width, frame.height = height;
+        std::vector<int> rays_per_pixel(static_cast<std::size_t>(width * height), 0);
+        const std::uint32_t count = gpu::frame_ray_count(frame);
+        EXPECT_EQ(count % 32u, 0u);
+        for (std::uint32_t index = 0; index < count; ++index) {
+            int x = -1, y = -1;
+            if (gpu::frame_pixel(frame, index, x, y))
+                ++rays_per_pixel[static_cast<std::size_t>(y * width + x)];
+        }
+        for (const int rays : rays_per_pixel)
+            ASSERT_EQ(rays, 1) << width << "x" << height;
+    }
+}
+
 TEST(CudaPorts, HelpersRoundAsTheCpuCode) {
     EXPECT_EQ(gpu::gamma_of(3), gamma_bound(3));
     const float values[] = {0.0f, -0.0f, 1.5f, -2.0f, kInfinity, -kInfinity, std::nanf("")};

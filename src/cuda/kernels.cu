@@ -1,0 +1,163 @@
+// The kernels: thin wrappers that make each thread's ray (the canonical camera's, or one of a batch), call
+// the per-ray traversal of bvh_traversal.hpp or plucker_walk.hpp, and store the hit. Persistent threads
+// (Aila & Laine 2009, section 3.3) fetch warp-sized batches of ray indices from a global counter until the
+// rays run out, so that no warp waits on the slowest warp of its block.
+#include <cuda_runtime.h>
+
+#include "cuda/bvh_traversal.hpp"
+#include "cuda/cuda_check.hpp"
+#include "cuda/kernels.hpp"
+#include "cuda/plucker_walk.hpp"
+
+namespace lancer::gpu {
+namespace {
+
+constexpr unsigned kBlockSize = 128;
+constexpr unsigned kWarpSize = 32;
+
+// Seed 000 section 5.2: the lookup tables in constant memory.
+__constant__ PluckerTables c_tables;
+
+// The speculative traversal's vote over the lanes still in the loop.
+struct WarpVote {
+    LANCER_HOST_DEVICE bool any_searching(bool searching) const {
+#if defined(__CUDA_ARCH__)
+        return __any_sync(__activemask(), searching);
+#else
+        return searching;
+#endif
+    }
+};
+
+struct CameraRays {
+    CameraFrame camera;
+    __device__ bool get(std::uint32_t index, Ray& ray, std::uint32_t& slot) const {
+        int x, y;
+        if (!frame_pixel(camera, index, x, y)) return false;
+        ray = camera_ray(camera, static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
+        slot = static_cast<std::uint32_t>(y) * static_cast<std::uint32_t>(camera.width) +
+               static_cast<std::uint32_t>(x);
+        return true;
+    }
+};
+
+struct BatchRays {
+    const Ray* rays;
+    std::uint32_t count;
+    __device__ bool get(std::uint32_t index, Ray& ray, std::uint32_t& slot) const {
+        if (index >= count) return false;
+        ray = read_only_record(rays + index);
+        slot = index;
+        return true;
+    }
+};
+
+template <CudaKernel kKernel, class TriangleTestT>
+__device__ Hit trace_one(const LaunchScene& scene, const Ray& ray) {
+    if constexpr (kKernel == CudaKernel::Plucker) {
+        return trace_plucker<TriangleTestT>(scene.plucker, c_tables, ray);
+    } else if constexpr (kKernel == CudaKernel::WhileWhile) {
+        return trace_bvh<false, TriangleTestT>(scene.bvh, ray, WarpVote{});
+    } else {
+        return trace_bvh<true, TriangleTestT>(scene.bvh, ray, WarpVote{});
+    }
+}
+
+// One thread per ray.
+template <CudaKernel kKernel, class TriangleTestT, class Source>
+__global__ void __launch_bounds__(kBlockSize) trace_kernel(LaunchScene scene, Source source, Hit* hits) {
+    const std::uint32_t index = blockIdx.x * blockDim.x + threadIdx.x;
+    Ray ray;
+    std::uint32_t slot;
+    if (source.get(index, ray, slot)) hits[slot] = trace_one<kKernel, TriangleTestT>(scene, ray);
+}
+
+// Persistent threads: as many warps as fit on the GPU at once; lane 0 takes the next 32 ray indices and
+// hands them to the warp, until none are left.
+template <class TriangleTestT, class Source>
+__global__ void __launch_bounds__(kBlockSize)
+    persistent_kernel(LaunchScene scene, Source source, std::uint32_t count, Hit* hits,
+                      std::uint32_t* next_ray) {
+    const unsigned lane = threadIdx.x % kWarpSize;
+    while (true) {
+        std::uint32_t base = 0;
+        if (lane == 0) base = atomicAdd(next_ray, kWarpSize);
+        base = __shfl_sync(0xFFFFFFFFu, base, 0);
+        if (base >= count) return;
+        Ray ray;
+        std::uint32_t slot;
+        if (source.get(base + lane, ray, slot))
+            hits[slot] = trace_one<CudaKernel::SpeculativeWhileWhile, TriangleTestT>(scene, ray);
+    }
+}
+
+template <class TriangleTestT, class Source>
+void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count, Hit* hits,
+            std::uint32_t* next_ray) {
+    const unsigned blocks = (count + kBlockSize - 1) / kBlockSize;
+    switch (kernel) {
+        case CudaKernel::Plucker:
+            trace_kernel<CudaKernel::Plucker, TriangleTestT><<<blocks, kBlockSize>>>(scene, source, hits);
+            break;
+        case CudaKernel::WhileWhile:
+            trace_kernel<CudaKernel::WhileWhile, TriangleTestT><<<blocks, kBlockSize>>>(scene, source, hits);
+            break;
+        case CudaKernel::SpeculativeWhileWhile:
+            trace_kernel<CudaKernel::SpeculativeWhileWhile, TriangleTestT>
+                <<<blocks, kBlockSize>>>(scene, source, hits);
+            break;
+        case CudaKernel::Persistent: {
+            int device = 0, multiprocessors = 0, blocks_per_multiprocessor = 0;
+            check_cuda(cudaGetDevice(&device), "cudaGetDevice");
+            check_cuda(cudaDeviceGetAttribute(&multiprocessors, cudaDevAttrMultiProcessorCount, device),
+                       "cudaDeviceGetAttribute");
+            check_cuda(
+                cudaOccupancyMaxActiveBlocksPerMultiprocessor(
+                    &blocks_per_multiprocessor, persistent_kernel<TriangleTestT, Source>, kBlockSize, 0),
+                "cudaOccupancyMaxActiveBlocksPerMultiprocessor");
+            check_cuda(cudaMemset(next_ray, 0, sizeof(std::uint32_t)), "cudaMemset");
+            const auto resident = static_cast<unsigned>(multiprocessors * blocks_per_multiprocessor);
+            const unsigned persistent_blocks = resident < blocks ? resident : blocks;
+            persistent_kernel<TriangleTestT, Source>
+                <<<persistent_blocks, kBlockSize>>>(scene, source, count, hits, next_ray);
+            break;
+        }
+    }
+    check_cuda(cudaGetLastError(), "kernel launch");
+}
+
+template <class Source>
+void launch_test(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count,
+                 Hit* hits, std::uint32_t* next_ray) {
+    if (scene.watertight)
+        launch<WatertightTest>(kernel, scene, source, count, hits, next_ray);
+    else
+        launch<MollerTrumboreTest>(kernel, scene, source, count, hits, next_ray);
+}
+
+}  // namespace
+
+void upload_plucker_tables(const PluckerTables& tables) {
+    check_cuda(cudaMemcpyToSymbol(c_tables, &tables, sizeof(PluckerTables)), "cudaMemcpyToSymbol");
+}
+
+float launch_trace(CudaKernel kernel, const LaunchScene& scene, const LaunchRays& rays, Hit* hits,
+                   std::uint32_t* next_ray) {
+    cudaEvent_t start, stop;
+    check_cuda(cudaEventCreate(&start), "cudaEventCreate");
+    check_cuda(cudaEventCreate(&stop), "cudaEventCreate");
+    check_cuda(cudaEventRecord(start), "cudaEventRecord");
+    if (rays.rays != nullptr)
+        launch_test(kernel, scene, BatchRays{rays.rays, rays.count}, rays.count, hits, next_ray);
+    else
+        launch_test(kernel, scene, CameraRays{rays.camera}, frame_ray_count(rays.camera), hits, next_ray);
+    check_cuda(cudaEventRecord(stop), "cudaEventRecord");
+    check_cuda(cudaEventSynchronize(stop), "cudaEventSynchronize (the kernel)");
+    float ms = 0.0f;
+    check_cuda(cudaEventElapsedTime(&ms, start, stop), "cudaEventElapsedTime");
+    cudaEventDestroy(start);
+    cudaEventDestroy(stop);
+    return ms;
+}
+
+}  // namespace lancer::gpu
