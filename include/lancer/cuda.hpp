@@ -43,6 +43,9 @@ class CudaError : public std::runtime_error {
 struct CudaTrace {
     std::vector<Hit> hits;   // one per ray; a frame's row by row
     double kernel_ms = 0.0;  // the kernel alone (CUDA events), transfers excluded
+    // trace_frame(camera, true) only: per ray, the inner nodes and leaves (bvh) or the leaves (plucker)
+    // visited, TraversalCounters::nodes_visited's meaning (the heatmap).
+    std::vector<std::uint32_t> steps;
 };
 
 class CudaTracer {
@@ -55,8 +58,9 @@ class CudaTracer {
     CudaTracer(const CudaTracer&) = delete;
     CudaTracer& operator=(const CudaTracer&) = delete;
 
-    // The primary rays of `camera` (PinholeCamera's, through pixel centres), width x height.
-    [[nodiscard]] CudaTrace trace_frame(const Camera& camera);
+    // The primary rays of `camera` (PinholeCamera's, through pixel centres), width x height; with
+    // count_steps, each ray's traversal steps too (a slower kernel: for pictures, not for timing).
+    [[nodiscard]] CudaTrace trace_frame(const Camera& camera, bool count_steps = false);
     // Closest hits of a batch of rays.
     [[nodiscard]] CudaTrace trace(std::span<const Ray> rays);
     [[nodiscard]] std::string device_name() const;

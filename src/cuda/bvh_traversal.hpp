@@ -71,10 +71,20 @@ struct OtherLanesSearching {
     LANCER_HOST_DEVICE bool any_searching(bool) const { return true; }
 };
 
+// The per-ray cost the heatmap draws (the CPU's TraversalCounters::nodes_visited): inner nodes fetched and
+// leaves tested, or octree leaves entered. A policy, so that the frame kernels pay nothing for it.
+struct NoSteps {
+    LANCER_HOST_DEVICE void step() {}
+};
+struct CountSteps {
+    std::uint32_t steps = 0;
+    LANCER_HOST_DEVICE void step() { ++steps; }
+};
+
 // kSpeculative false: while-while (the vote is not used). Returns the closest hit (ties to the smaller
 // primitive index, as every CPU structure), a miss for an invalid ray.
-template <bool kSpeculative, class TriangleTestT, class Vote>
-LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote& vote) {
+template <bool kSpeculative, class TriangleTestT, class Vote, class Steps = NoSteps>
+LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote& vote, Steps&& steps = {}) {
     Hit best;
     if (!is_valid_ray(ray) || bvh.node_count == 0) return best;
     const typename TriangleTestT::RayData triangle_ray(ray);
@@ -88,6 +98,7 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
         bool searching = true;
         while (node >= 0 && node != kStackEmpty) {
             const AilaLaineNode n = read_only_record(bvh.nodes + node);
+            steps.step();
             const float limit = best.prim >= 0 ? best.t : ray.tfar;
             float entry0, entry1;
             const bool hit0 = hit_child_box(ray.origin, inverse, {n.c0_lo_x, n.c0_lo_y, n.c0_lo_z},
@@ -118,6 +129,7 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
         // The postponed leaf, then the one the inner loop stopped at, if any.
         while (postponed < 0) {
             const std::uint32_t first = leaf_first(postponed), count = leaf_count(postponed);
+            steps.step();
             for (std::uint32_t r = first; r < first + count; ++r) {
                 const TriangleRef reference = read_only_record(bvh.triangles + r);
                 const float tfar = best.prim >= 0 ? best.t : ray.tfar;

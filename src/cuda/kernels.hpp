@@ -26,9 +26,10 @@ struct LaunchRays {
 void upload_plucker_tables(const PluckerTables& tables);
 
 // Runs `kernel` over the rays, hits[slot] for each (a frame's slot: y * width + x), and returns the
-// kernel's milliseconds (CUDA events). `next_ray` is one device word, the persistent threads' counter.
+// kernel's milliseconds (CUDA events). A frame with `steps` not null also writes each ray's step count
+// there (NoSteps / CountSteps). `next_ray` is one device word, the persistent threads' counter.
 // Throws CudaError when a CUDA call fails.
 [[nodiscard]] float launch_trace(CudaKernel kernel, const LaunchScene& scene, const LaunchRays& rays,
-                                 Hit* hits, std::uint32_t* next_ray);
+                                 Hit* hits, std::uint32_t* steps, std::uint32_t* next_ray);
 
 }  // namespace lancer::gpu

@@ -146,8 +146,9 @@ LANCER_HOST_DEVICE inline float plucker_exit_lower_bound(float distance) {
 
 // The closest hit of one ray (ties to the smaller primitive index), a miss for an invalid ray. Triangles
 // only: the caller refuses layouts with spheres (CudaTracer, tests).
-template <class TriangleTestT>
-LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTables& tables, const Ray& ray) {
+template <class TriangleTestT, class Steps = NoSteps>
+LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTables& tables, const Ray& ray,
+                                     Steps&& steps = {}) {
     Hit best;
     if (!is_valid_ray(ray)) return best;
     const PluckerWalkRay walk_ray = make_walk_ray(octree, tables, ray);
@@ -158,6 +159,7 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
     const Vec3f& o = walk_ray.origin;
     while (true) {
         // LEAF
+        steps.step();
         const std::uint32_t* leaf = octree.cells + address;
         const std::uint32_t count = read_only(leaf + plucker::kTriangleCount);
         const std::uint32_t offset = read_only(leaf + plucker::kTriangleOffset);

@@ -70,18 +70,26 @@ struct CudaTracer::Impl {
     CudaKernel kernel;
     gpu::LaunchScene scene;
     DeviceBuffer nodes, triangles, cells, primitives, boxes, texels, locate;  // the structure, uploaded once
-    DeviceBuffer rays, hits, next_ray;                                        // per call, grown as needed
+    DeviceBuffer rays, hits, steps, next_ray;                                 // per call, grown as needed
 
-    CudaTrace run(const gpu::LaunchRays& launch, std::size_t hit_count) {
+    CudaTrace run(const gpu::LaunchRays& launch, std::size_t hit_count, bool count_steps) {
         hits.reserve(hit_count * sizeof(Hit));
+        if (count_steps) steps.reserve(hit_count * sizeof(std::uint32_t));
         next_ray.reserve(sizeof(std::uint32_t));
         CudaTrace result;
-        result.kernel_ms =
-            gpu::launch_trace(kernel, scene, launch, hits.as<Hit>(), next_ray.as<std::uint32_t>());
+        result.kernel_ms = gpu::launch_trace(kernel, scene, launch, hits.as<Hit>(),
+                                             count_steps ? steps.as<std::uint32_t>() : nullptr,
+                                             next_ray.as<std::uint32_t>());
         result.hits.resize(hit_count);
         gpu::check_cuda(
             cudaMemcpy(result.hits.data(), hits.as<Hit>(), hit_count * sizeof(Hit), cudaMemcpyDeviceToHost),
             "cudaMemcpy (hits)");
+        if (count_steps) {
+            result.steps.resize(hit_count);
+            gpu::check_cuda(cudaMemcpy(result.steps.data(), steps.as<std::uint32_t>(),
+                                       hit_count * sizeof(std::uint32_t), cudaMemcpyDeviceToHost),
+                            "cudaMemcpy (steps)");
+        }
         return result;
     }
 };
@@ -118,11 +126,12 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTes
 
 CudaTracer::~CudaTracer() = default;
 
-CudaTrace CudaTracer::trace_frame(const Camera& camera) {
+CudaTrace CudaTracer::trace_frame(const Camera& camera, bool count_steps) {
     gpu::LaunchRays launch;
     launch.camera = gpu::camera_frame(camera);
     return impl_->run(launch,
-                      static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height));
+                      static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height),
+                      count_steps);
 }
 
 CudaTrace CudaTracer::trace(std::span<const Ray> rays) {
@@ -134,7 +143,7 @@ CudaTrace CudaTracer::trace(std::span<const Ray> rays) {
     gpu::LaunchRays launch;
     launch.rays = impl_->rays.as<Ray>();
     launch.count = static_cast<std::uint32_t>(rays.size());
-    return impl_->run(launch, rays.size());
+    return impl_->run(launch, rays.size(), false);
 }
 
 std::string CudaTracer::device_name() const {

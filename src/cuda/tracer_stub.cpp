@@ -18,7 +18,7 @@ CudaTracer::CudaTracer(const Accel&, const Geometry&, TriangleTest, CudaKernel) 
     throw CudaError(kWithoutCuda);
 }
 CudaTracer::~CudaTracer() = default;
-CudaTrace CudaTracer::trace_frame(const Camera&) {
+CudaTrace CudaTracer::trace_frame(const Camera&, bool) {
     throw CudaError(kWithoutCuda);
 }
 CudaTrace CudaTracer::trace(std::span<const Ray>) {

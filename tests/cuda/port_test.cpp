@@ -202,6 +202,36 @@ TEST(CudaPorts, CameraRayIsThePinholeCamerasBitForBit) {
     }
 }
 
+// The heatmap's counts: the walk enters the leaves the CPU walk enters, one by one; the BVH traversals count
+// each inner node fetched and each leaf tested, at least one node for any ray that hits.
+TEST(CudaPorts, StepCountsAreTheCpuWalksLeaves) {
+    const TestScene scene = make_triangle_scenes()[0];
+    PluckerAccel plucker;
+    plucker.build(scene.geometry(), {});
+    BvhAccel bvh;
+    bvh.build(scene.geometry(), {});
+    const gpu::PluckerView view = gpu::plucker_view(plucker.layout());
+    const gpu::FlatBvh flat = gpu::flatten_bvh(bvh, scene.geometry());
+    const gpu::PluckerTables tables = gpu::plucker_tables();
+    const testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 2000, 21);
+    std::uint64_t leaves = 0;
+    for (const Ray& ray : set.rays) {
+        Hit expected;
+        TraversalCounters counters;
+        plucker.intersect({&ray, 1}, {&expected, 1}, &counters);
+        gpu::CountSteps walk_steps, bvh_steps;
+        (void)gpu::trace_plucker<gpu::MollerTrumboreTest>(view, tables, ray, walk_steps);
+        ASSERT_EQ(walk_steps.steps, counters.nodes_visited);
+        leaves += walk_steps.steps;
+        const Hit hit =
+            gpu::trace_bvh<true, gpu::MollerTrumboreTest>(flat.view(), ray, gpu::LoneLane{}, bvh_steps);
+        if (hit.hit()) {
+            EXPECT_GE(bvh_steps.steps, 2u);
+        }
+    }
+    EXPECT_GT(leaves, set.rays.size());
+}
+
 // The kernels number a frame's rays by warp-sized tiles: every pixel must get exactly one ray, also when the
 // film is not a whole number of tiles.
 TEST(CudaPorts, FrameTilesCoverEveryPixelOnce) {
