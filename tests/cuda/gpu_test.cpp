@@ -73,6 +73,30 @@ TEST(CudaGpu, KernelsAgreeWithTheCpuOnATriangleScene) {
     expect_kernels_agree(geometry, batch, canonical_view(geometry.bounds(), 256, 256), "torus knot");
 }
 
+// The heatmap's counts: the GPU walk enters the leaves the CPU walk enters, ray by ray.
+TEST(CudaGpu, PluckerStepsAreTheCpuWalksLeaves) {
+    std::string why;
+    if (!cuda_available(&why)) GTEST_SKIP() << why;
+    const TriangleMesh knot = make_torus_knot(300, 12);
+    std::vector<Triangle> triangles;
+    for (std::size_t i = 0; i < knot.triangle_count(); ++i)
+        triangles.push_back(knot.triangle(i));
+    const Geometry geometry{triangles, {}};
+    const std::unique_ptr<Accel> accel = make_accel("plucker");
+    accel->build(geometry, {});
+    CudaTracer tracer(*accel, geometry, TriangleTest::MollerTrumbore, CudaKernel::Plucker);
+    const Camera camera = canonical_view(geometry.bounds(), 128, 128);
+    const CudaTrace traced = tracer.trace_frame(camera, true);
+    const testing::RaySet frame = testing::canonical_view_rays(geometry.bounds(), 128);
+    ASSERT_EQ(traced.steps.size(), frame.rays.size());
+    for (std::size_t i = 0; i < frame.rays.size(); ++i) {
+        Hit hit;
+        TraversalCounters counters;
+        accel->intersect({&frame.rays[i], 1}, {&hit, 1}, &counters);
+        ASSERT_EQ(traced.steps[i], counters.nodes_visited) << "ray " << i;
+    }
+}
+
 TEST(CudaGpu, KernelsAgreeWithTheCpuOnTheStanfordMeshes) {
     std::string why;
     if (!cuda_available(&why)) GTEST_SKIP() << why;
