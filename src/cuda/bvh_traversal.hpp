@@ -128,17 +128,9 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
         if constexpr (!kSpeculative) postponed = node;
         // The postponed leaf, then the one the inner loop stopped at, if any.
         while (postponed < 0) {
-            const std::uint32_t first = leaf_first(postponed), count = leaf_count(postponed);
             steps.step();
-            for (std::uint32_t r = first; r < first + count; ++r) {
-                const TriangleRef reference = read_only_record(bvh.triangles + r);
-                const float tfar = best.prim >= 0 ? best.t : ray.tfar;
-                TriangleHitRecord candidate;
-                const auto prim = static_cast<std::int32_t>(reference.prim);
-                if (TriangleTestT::intersect(triangle_ray, reference.triangle, ray.tnear, tfar, candidate) &&
-                    is_closer(candidate.t, prim, best))
-                    best = {candidate.t, prim, candidate.u, candidate.v};
-            }
+            intersect_leaf<TriangleTestT>(bvh.triangles + leaf_first(postponed), leaf_count(postponed),
+                                          triangle_ray, ray, best);
             if constexpr (kSpeculative) {
                 postponed = node;
                 if (node < 0) node = stack.pop();

@@ -161,17 +161,8 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
         // LEAF
         steps.step();
         const std::uint32_t* leaf = octree.cells + address;
-        const std::uint32_t count = read_only(leaf + plucker::kTriangleCount);
-        const std::uint32_t offset = read_only(leaf + plucker::kTriangleOffset);
-        for (std::uint32_t r = 0; r < count; ++r) {
-            const plucker::PluckerPrimitive primitive = read_only_record(octree.primitives + offset + r);
-            const float tfar = best.prim >= 0 ? best.t : ray.tfar;
-            TriangleHitRecord candidate;
-            const auto prim = static_cast<std::int32_t>(primitive.prim);
-            if (TriangleTestT::intersect(triangle_ray, primitive.triangle, ray.tnear, tfar, candidate) &&
-                is_closer(candidate.t, prim, best))
-                best = {candidate.t, prim, candidate.u, candidate.v};
-        }
+        intersect_leaf<TriangleTestT>(octree.primitives + read_only(leaf + plucker::kTriangleOffset),
+                                      read_only(leaf + plucker::kTriangleCount), triangle_ray, ray, best);
         const float limit = best.prim >= 0 ? best.t : ray.tfar;
         // EXIT-FACE (4.2.1): three Pluecker products against the edges through the exit vertex.
         const plucker::PluckerBox* box = octree.boxes + read_only(leaf + plucker::kBoxWord);

@@ -9,8 +9,8 @@
 
 #include "accel/agreement.hpp"
 #include "accel/ray_sets.hpp"
+#include "accel/test_scenes.hpp"
 #include "lancer/cuda.hpp"
-#include "lancer/generate.hpp"
 #include "lancer/io.hpp"
 
 namespace lancer {
@@ -61,10 +61,7 @@ void expect_kernels_agree(const Geometry& geometry, std::span<const Ray> batch, 
 TEST(CudaGpu, KernelsAgreeWithTheCpuOnATriangleScene) {
     std::string why;
     if (!cuda_available(&why)) GTEST_SKIP() << why;
-    const TriangleMesh knot = make_torus_knot(400, 12);
-    std::vector<Triangle> triangles;
-    for (std::size_t i = 0; i < knot.triangle_count(); ++i)
-        triangles.push_back(knot.triangle(i));
+    const std::vector<Triangle> triangles = testing::knot_triangles(400);
     const Geometry geometry{triangles, {}};
     const testing::RaySet random = testing::random_rays(geometry.bounds(), 200'000, 31);
     testing::RaySet hostile = testing::hostile_rays(geometry.bounds());
@@ -77,10 +74,7 @@ TEST(CudaGpu, KernelsAgreeWithTheCpuOnATriangleScene) {
 TEST(CudaGpu, PluckerStepsAreTheCpuWalksLeaves) {
     std::string why;
     if (!cuda_available(&why)) GTEST_SKIP() << why;
-    const TriangleMesh knot = make_torus_knot(300, 12);
-    std::vector<Triangle> triangles;
-    for (std::size_t i = 0; i < knot.triangle_count(); ++i)
-        triangles.push_back(knot.triangle(i));
+    const std::vector<Triangle> triangles = testing::knot_triangles(300);
     const Geometry geometry{triangles, {}};
     const std::unique_ptr<Accel> accel = make_accel("plucker");
     accel->build(geometry, {});
