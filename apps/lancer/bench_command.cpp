@@ -18,6 +18,7 @@
 #include "accel/agreement.hpp"
 #include "commands.hpp"
 #include "common.hpp"
+#include "cuda_device.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
 
@@ -36,6 +37,7 @@ struct BenchOptions {
     std::vector<std::string> settings;
     std::string json_file;
     std::string svg_file;
+    DeviceChoice device;
 };
 
 struct Record {
@@ -233,9 +235,20 @@ void write_svg(const std::string& file, const std::vector<Record>& records) {
 }
 
 void run(const BenchOptions& options) {
+    options.device.require_available();
     const std::vector<int> thread_counts = parse_int_list(options.thread_list, "--threads");
     const std::vector<std::string> accels = parse_accels(options.accel_list);
     const std::vector<BenchMesh> meshes = load_meshes(options);
+    if (options.device.cuda()) {
+        std::vector<CudaBenchMesh> gpu_meshes;
+        for (const BenchMesh& mesh : meshes)
+            gpu_meshes.push_back({mesh.name, &mesh.scene});
+        const std::vector<std::string> requested =
+            options.accel_list == "all" ? std::vector<std::string>{"all"} : accels;
+        run_cuda_bench(options.device, gpu_meshes,
+                       {requested, options.size, options.frames, !options.moller_trumbore, options.settings});
+        return;
+    }
 
     fmt::print(
         "lancer bench: {}, {} hardware threads; {} {}; {}x{} canonical view, {} frames after 1 warm-up\n",
@@ -356,6 +369,7 @@ void add_bench_command(CLI::App& app) {
     command->add_option("--json", options->json_file,
                         "Write one record per mesh, structure and thread count");
     command->add_option("--svg", options->svg_file, "Draw the Mrays/s bars");
+    options->device.add_options(*command);
     command->callback([options] { run(*options); });
 }
 

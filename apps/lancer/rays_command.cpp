@@ -10,6 +10,7 @@
 
 #include "commands.hpp"
 #include "common.hpp"
+#include "cuda_device.hpp"
 
 namespace lancer::cli {
 namespace {
@@ -22,6 +23,7 @@ struct RaysOptions {
     std::string rays_file;
     std::string hits_file;
     AccelChoice accel;
+    DeviceChoice device;
     int threads = 0;
 };
 
@@ -49,13 +51,20 @@ void write_hits(const std::string& path, const std::vector<Hit>& hits) {
 }
 
 void run(const RaysOptions& options) {
+    options.device.require_available();
     const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
     const BuiltAccel& built = prepared.built;
     const std::vector<Ray> rays = read_rays(options.rays_file);
 
     std::vector<Hit> hits(rays.size());
     Stopwatch watch;
-    intersect_parallel(*built.accel, rays, hits, options.threads);
+    if (options.device.cuda()) {
+        hits = make_cuda_tracer(options.device, options.accel, *built.accel, prepared.geometry->view())
+                   ->trace(rays)
+                   .hits;
+    } else {
+        intersect_parallel(*built.accel, rays, hits, options.threads);
+    }
     const double trace_ms = watch.elapsed_ms();
     write_hits(options.hits_file, hits);
 
@@ -77,6 +86,7 @@ void add_rays_command(CLI::App& app) {
     command->add_option("--rays", options->rays_file, "Input: float32 x 8 per ray")->required();
     command->add_option("--hits", options->hits_file, "Output: 16 bytes per ray")->required();
     options->accel.add_options(*command);
+    options->device.add_options(*command);
     command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
     command->callback([options] { run(*options); });
 }

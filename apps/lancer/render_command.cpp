@@ -10,6 +10,7 @@
 
 #include "commands.hpp"
 #include "common.hpp"
+#include "cuda_device.hpp"
 #include "lancer/render.hpp"
 
 namespace lancer::cli {
@@ -21,6 +22,7 @@ struct RenderCommandOptions {
     std::string size;
     ShadingMode mode = ShadingMode::Whitted;
     AccelChoice accel;
+    DeviceChoice device;
     int threads = 0;
     int samples_per_pixel = 4;
     int max_depth = 5;
@@ -54,14 +56,20 @@ void print_summary(const RenderCommandOptions& options, const LoadedScene& loade
     }
     if (options.mode == ShadingMode::Heatmap) {
         const double rays = static_cast<double>(stats.counters.rays);
-        fmt::print("per primary ray: {:.2f} nodes visited, {:.2f} primitives tested\n",
-                   static_cast<double>(stats.counters.nodes_visited) / rays,
-                   static_cast<double>(stats.counters.prims_tested) / rays);
+        fmt::print("per primary ray: {:.2f} nodes visited",
+                   static_cast<double>(stats.counters.nodes_visited) / rays);
+        // The GPU kernels count nodes only.
+        if (!options.device.cuda())
+            fmt::print(", {:.2f} primitives tested", static_cast<double>(stats.counters.prims_tested) / rays);
+        fmt::print("\n");
     }
     fmt::print("wrote {}\n", options.output);
 }
 
 void run(const RenderCommandOptions& options) {
+    if (options.device.cuda() && options.mode != ShadingMode::Flat && options.mode != ShadingMode::Heatmap)
+        throw InputError("--device cuda renders --mode flat or heatmap only");
+    options.device.require_available();
     const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
     const LoadedScene& loaded = prepared.loaded;
     const Scene& scene = loaded.scene;
@@ -80,7 +88,10 @@ void run(const RenderCommandOptions& options) {
     render_options.min_weight = options.min_weight;
     render_options.fresnel = options.fresnel;
     RenderStats stats;
-    const Image image = render(scene, geometry, *built.accel, camera, render_options, &stats);
+    const Image image = options.device.cuda()
+                            ? render_on_cuda(options.device, options.accel, scene, geometry, *built.accel,
+                                             camera, options.mode, stats)
+                            : render(scene, geometry, *built.accel, camera, render_options, &stats);
     try {
         if (is_exr(options.output))
             write_exr(image, options.output);
@@ -132,6 +143,7 @@ void add_render_command(CLI::App& app) {
                       "Whitted mode: split transmission between reflection and refraction by Fresnel's "
                       "equations");
     options->accel.add_options(*command);
+    options->device.add_options(*command);
     command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
     command->callback([options] { run(*options); });
 }

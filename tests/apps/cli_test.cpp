@@ -127,6 +127,43 @@ TEST_F(Cli, BadInputExitsWithTwoAndSaysWhere) {
     EXPECT_EQ(result.exit_code, 2);
 }
 
+// --device cuda (issue 7): render takes --mode flat or heatmap only, on any machine; without a usable GPU
+// every command refuses with exit code 2 and says why; with one, `rays` answers as the CPU does.
+TEST_F(Cli, DeviceCudaRefusesClearlyOrAgreesWithTheCpu) {
+    const fs::path good = write("good.off", kMesh);
+    Result result =
+        run("render " + good.string() + " --device cuda --mode whitted -o " + (dir_ / "x.png").string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("--mode flat or heatmap only"), std::string::npos) << result.output;
+
+    const std::vector<Ray> rays = {{{0.7f, 0.2f, 1}, {0, 0, -1}, 0.0f, kInfinity},
+                                   {{1.5f, 0.2f, 1}, {0, 0, -1}, 0.0f, kInfinity},
+                                   {{5, 5, 1}, {0, 0, -1}, 0.0f, kInfinity}};
+    const fs::path rays_file = dir_ / "rays.bin";
+    std::ofstream(rays_file, std::ios::binary)
+        .write(reinterpret_cast<const char*>(rays.data()),
+               static_cast<std::streamsize>(rays.size() * sizeof(Ray)));
+    const std::string arguments = "rays " + good.string() + " --rays " + rays_file.string() + " --hits ";
+    ASSERT_EQ(run(arguments + (dir_ / "cpu.bin").string()).exit_code, 0);
+    result = run(arguments + (dir_ / "gpu.bin").string() + " --device cuda");
+    if (result.exit_code == 2) {
+        EXPECT_TRUE(result.output.find("--device cuda: no CUDA device (cudaGetDeviceCount: ") !=
+                        std::string::npos ||
+                    result.output.find("built without CUDA") != std::string::npos)
+            << result.output;
+        EXPECT_FALSE(fs::exists(dir_ / "gpu.bin"));
+        result = run("bench --device cuda --size 8 --frames 1 --mesh " + good.string());
+        EXPECT_EQ(result.exit_code, 2) << result.output;
+        EXPECT_NE(result.output.find("--device cuda: "), std::string::npos) << result.output;
+        return;
+    }
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    std::ifstream cpu(dir_ / "cpu.bin", std::ios::binary), gpu(dir_ / "gpu.bin", std::ios::binary);
+    const std::string cpu_bytes((std::istreambuf_iterator<char>(cpu)), {});
+    const std::string gpu_bytes((std::istreambuf_iterator<char>(gpu)), {});
+    EXPECT_EQ(cpu_bytes, gpu_bytes);
+}
+
 TEST_F(Cli, RenderWritesAPngAndReportsItsWork) {
     const fs::path mesh = write("mesh.off", kMesh);
     const fs::path png = dir_ / "out.png";

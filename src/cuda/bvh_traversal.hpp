@@ -1,0 +1,146 @@
+// The per-ray BVH traversals of Aila & Laine, "Understanding the efficiency of ray traversal on GPUs" (HPG
+// 2009, section 3 and their Appendix's kernels), over the 64-byte nodes of gpu_layout.hpp, for the device
+// and, in tests/cuda, the host:
+// - while-while: an inner loop over inner nodes until the ray reaches a leaf, then a loop over the leaf's
+//   triangles, so that the lanes of a warp that traverse and those that intersect do so in separate
+//   phases;
+// - speculative while-while: a ray that finds a leaf postpones it and goes on traversing until every lane
+//   of the warp has one (a warp vote), or it finds a second leaf; the postponed leaves are then tested
+//   together. The vote is a policy: __any_sync on the device, and on the host either this ray alone or
+//   "another lane still searches" (which drives every postponement path).
+// Deviation from the paper's code: the child boxes are tested with the CPU's slab test (core/intersect.hpp:
+// the far distance widened by 2 gamma(3), a NaN slab unbounded), not the paper's fma form, so that the
+// pruning is the CPU's, proven against brute force; and the stack holds the far child without its entry
+// distance (as the paper), so a popped node is culled by its children's boxes only.
+#pragma once
+
+#include "cuda/gpu_layout.hpp"
+#include "cuda/triangle.hpp"
+
+namespace lancer::gpu {
+
+// A leaf word can be 0x7FFFFFFF only for a BVH of 2^31 nodes: flatten_bvh refuses those.
+inline constexpr std::int32_t kStackEmpty = 0x7FFFFFFF;
+// Depth of the CPU BVH's inner nodes (BvhAccel::kMaxDepth) plus one: the far children pushed at once.
+inline constexpr int kBvhStackSize = 97;
+
+// The numerical contract's validity test (is_valid of lancer/ray.hpp) for host and device.
+LANCER_HOST_DEVICE inline bool is_finite_of(float a) {
+    return abs_of(a) <= 3.40282347e+38f;
+}
+LANCER_HOST_DEVICE inline bool is_valid_ray(const Ray& ray) {
+    return is_finite_of(ray.origin.x) && is_finite_of(ray.origin.y) && is_finite_of(ray.origin.z) &&
+           is_finite_of(ray.direction.x) && is_finite_of(ray.direction.y) && is_finite_of(ray.direction.z) &&
+           (ray.direction.x != 0.0f || ray.direction.y != 0.0f || ray.direction.z != 0.0f) &&
+           is_finite_of(ray.tnear) && !is_nan(ray.tfar) && ray.tnear <= ray.tfar;
+}
+
+// intersect_box of core/intersect.hpp for one child's box.
+LANCER_HOST_DEVICE inline bool hit_child_box(const Vec3f& origin, const Vec3f& inverse, const Vec3f& lo,
+                                             const Vec3f& hi, float tnear, float tfar, float& t_entry) {
+    float t0 = tnear, t1 = tfar;
+    for (int axis = 0; axis < 3; ++axis) {
+        const float near_plane = (lo[axis] - origin[axis]) * inverse[axis];
+        const float far_plane = (hi[axis] - origin[axis]) * inverse[axis];
+        float slab_near = min_of(near_plane, far_plane);
+        float slab_far = max_of(near_plane, far_plane) * (1.0f + 2.0f * gamma_of(3));
+        if (is_nan(near_plane) || is_nan(far_plane)) slab_near = -kInfinity, slab_far = kInfinity;
+        t0 = max_of(t0, slab_near);
+        t1 = min_of(t1, slab_far);
+    }
+    t_entry = t0;
+    return t0 <= t1;
+}
+
+// The far children waiting, in local memory on the device (Aila & Laine's per-thread stack).
+struct TraversalStack {
+    std::int32_t entries[kBvhStackSize];
+    int size = 0;
+
+    LANCER_HOST_DEVICE void push(std::int32_t node) { entries[size++] = node; }
+    LANCER_HOST_DEVICE std::int32_t pop() { return size == 0 ? kStackEmpty : entries[--size]; }
+};
+
+// The vote of the speculative traversal on the host: one ray, alone in its warp.
+struct LoneLane {
+    LANCER_HOST_DEVICE bool any_searching(bool searching) const { return searching; }
+};
+// The host's model of a warp whose other lanes never stop searching: every ray postpones its first leaf
+// and traverses on to a second one (the paper's other exit from the inner loop).
+struct OtherLanesSearching {
+    LANCER_HOST_DEVICE bool any_searching(bool) const { return true; }
+};
+
+// The per-ray cost the heatmap draws (the CPU's TraversalCounters::nodes_visited): inner nodes fetched and
+// leaves tested, or octree leaves entered. A policy, so that the frame kernels pay nothing for it.
+struct NoSteps {
+    LANCER_HOST_DEVICE void step() {}
+};
+struct CountSteps {
+    std::uint32_t steps = 0;
+    LANCER_HOST_DEVICE void step() { ++steps; }
+};
+
+// kSpeculative false: while-while (the vote is not used). Returns the closest hit (ties to the smaller
+// primitive index, as every CPU structure), a miss for an invalid ray.
+template <bool kSpeculative, class TriangleTestT, class Vote, class Steps = NoSteps>
+LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote& vote, Steps&& steps = {}) {
+    Hit best;
+    if (!is_valid_ray(ray) || bvh.node_count == 0) return best;
+    const typename TriangleTestT::RayData triangle_ray(ray);
+    const Vec3f inverse(1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z);
+    TraversalStack stack;
+
+    std::int32_t node = 0;
+    std::int32_t postponed = 0;  // >= 0: no leaf postponed (the speculative traversal)
+    while (node != kStackEmpty) {
+        // Inner nodes until a leaf (while-while) or until the warp has leaves (speculative).
+        bool searching = true;
+        while (node >= 0 && node != kStackEmpty) {
+            const AilaLaineNode n = read_only_record(bvh.nodes + node);
+            steps.step();
+            const float limit = best.prim >= 0 ? best.t : ray.tfar;
+            float entry0, entry1;
+            const bool hit0 = hit_child_box(ray.origin, inverse, {n.c0_lo_x, n.c0_lo_y, n.c0_lo_z},
+                                            {n.c0_hi_x, n.c0_hi_y, n.c0_hi_z}, ray.tnear, limit, entry0);
+            const bool hit1 = hit_child_box(ray.origin, inverse, {n.c1_lo_x, n.c1_lo_y, n.c1_lo_z},
+                                            {n.c1_hi_x, n.c1_hi_y, n.c1_hi_z}, ray.tnear, limit, entry1);
+            if (!hit0 && !hit1) {
+                node = stack.pop();
+            } else {
+                node = hit0 ? n.child[0] : n.child[1];
+                if (hit0 && hit1) {
+                    // Near child first; the far one waits on the stack.
+                    std::int32_t far = n.child[1];
+                    if (entry1 < entry0) far = node, node = n.child[1];
+                    stack.push(far);
+                }
+            }
+            if constexpr (kSpeculative) {
+                if (node < 0 && postponed >= 0) {
+                    searching = false;
+                    postponed = node;
+                    node = stack.pop();
+                }
+                if (!vote.any_searching(searching)) break;
+            }
+        }
+        if constexpr (!kSpeculative) postponed = node;
+        // The postponed leaf, then the one the inner loop stopped at, if any.
+        while (postponed < 0) {
+            steps.step();
+            intersect_leaf<TriangleTestT>(bvh.triangles + leaf_first(postponed), leaf_count(postponed),
+                                          triangle_ray, ray, best);
+            if constexpr (kSpeculative) {
+                postponed = node;
+                if (node < 0) node = stack.pop();
+            } else {
+                postponed = 0;
+                node = stack.pop();
+            }
+        }
+    }
+    return best;
+}
+
+}  // namespace lancer::gpu

@@ -1,0 +1,186 @@
+// The kernels: thin wrappers that make each thread's ray (the canonical camera's, or one of a batch), call
+// the per-ray traversal of bvh_traversal.hpp or plucker_walk.hpp, and store the hit. Persistent threads
+// (Aila & Laine 2009, section 3.3) fetch warp-sized batches of ray indices from a global counter until the
+// rays run out, so that no warp waits on the slowest warp of its block.
+#include <cuda_runtime.h>
+
+#include "cuda/bvh_traversal.hpp"
+#include "cuda/cuda_check.hpp"
+#include "cuda/kernels.hpp"
+#include "cuda/plucker_walk.hpp"
+
+namespace lancer::gpu {
+namespace {
+
+constexpr unsigned kBlockSize = 128;
+constexpr unsigned kWarpSize = 32;
+
+// Seed 000 section 5.2: the lookup tables in constant memory.
+__constant__ PluckerTables c_tables;
+
+// The speculative traversal's vote over the lanes still in the loop.
+struct WarpVote {
+    LANCER_HOST_DEVICE bool any_searching(bool searching) const {
+#if defined(__CUDA_ARCH__)
+        return __any_sync(__activemask(), searching);
+#else
+        return searching;
+#endif
+    }
+};
+
+struct CameraRays {
+    CameraFrame camera;
+    __device__ bool get(std::uint32_t index, Ray& ray, std::uint32_t& slot) const {
+        int x, y;
+        if (!frame_pixel(camera, index, x, y)) return false;
+        ray = camera_ray(camera, static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
+        slot = static_cast<std::uint32_t>(y) * static_cast<std::uint32_t>(camera.width) +
+               static_cast<std::uint32_t>(x);
+        return true;
+    }
+};
+
+struct BatchRays {
+    const Ray* rays;
+    std::uint32_t count;
+    __device__ bool get(std::uint32_t index, Ray& ray, std::uint32_t& slot) const {
+        if (index >= count) return false;
+        ray = read_only_record(rays + index);
+        slot = index;
+        return true;
+    }
+};
+
+template <CudaKernel kKernel, class TriangleTestT, class Steps>
+__device__ Hit trace_one(const LaunchScene& scene, const Ray& ray, Steps& steps) {
+    if constexpr (kKernel == CudaKernel::Plucker) {
+        return trace_plucker<TriangleTestT>(scene.plucker, c_tables, ray, steps);
+    } else if constexpr (kKernel == CudaKernel::WhileWhile) {
+        return trace_bvh<false, TriangleTestT>(scene.bvh, ray, WarpVote{}, steps);
+    } else {
+        return trace_bvh<true, TriangleTestT>(scene.bvh, ray, WarpVote{}, steps);
+    }
+}
+
+// Stores a ray's answer, and its step count when the kernel counts (the heatmap).
+template <CudaKernel kKernel, class TriangleTestT, bool kCount>
+__device__ void trace_and_store(const LaunchScene& scene, const Ray& ray, std::uint32_t slot, Hit* hits,
+                                std::uint32_t* steps) {
+    if constexpr (kCount) {
+        CountSteps counted;
+        hits[slot] = trace_one<kKernel, TriangleTestT>(scene, ray, counted);
+        steps[slot] = counted.steps;
+    } else {
+        NoSteps none;
+        hits[slot] = trace_one<kKernel, TriangleTestT>(scene, ray, none);
+    }
+}
+
+// One thread per ray.
+template <CudaKernel kKernel, class TriangleTestT, bool kCount, class Source>
+__global__ void __launch_bounds__(kBlockSize)
+    trace_kernel(LaunchScene scene, Source source, Hit* hits, std::uint32_t* steps) {
+    const std::uint32_t index = blockIdx.x * blockDim.x + threadIdx.x;
+    Ray ray;
+    std::uint32_t slot;
+    if (source.get(index, ray, slot))
+        trace_and_store<kKernel, TriangleTestT, kCount>(scene, ray, slot, hits, steps);
+}
+
+// Persistent threads: as many warps as fit on the GPU at once; lane 0 takes the next 32 ray indices and
+// hands them to the warp, until none are left.
+template <class TriangleTestT, bool kCount, class Source>
+__global__ void __launch_bounds__(kBlockSize)
+    persistent_kernel(LaunchScene scene, Source source, std::uint32_t count, Hit* hits, std::uint32_t* steps,
+                      std::uint32_t* next_ray) {
+    const unsigned lane = threadIdx.x % kWarpSize;
+    while (true) {
+        std::uint32_t base = 0;
+        if (lane == 0) base = atomicAdd(next_ray, kWarpSize);
+        base = __shfl_sync(0xFFFFFFFFu, base, 0);
+        if (base >= count) return;
+        Ray ray;
+        std::uint32_t slot;
+        if (source.get(base + lane, ray, slot))
+            trace_and_store<CudaKernel::SpeculativeWhileWhile, TriangleTestT, kCount>(scene, ray, slot, hits,
+                                                                                      steps);
+    }
+}
+
+template <class TriangleTestT, bool kCount, class Source>
+void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count, Hit* hits,
+            std::uint32_t* steps, std::uint32_t* next_ray) {
+    const unsigned blocks = (count + kBlockSize - 1) / kBlockSize;
+    switch (kernel) {
+        case CudaKernel::Plucker:
+            trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount>
+                <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+            break;
+        case CudaKernel::WhileWhile:
+            trace_kernel<CudaKernel::WhileWhile, TriangleTestT, kCount>
+                <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+            break;
+        case CudaKernel::SpeculativeWhileWhile:
+            trace_kernel<CudaKernel::SpeculativeWhileWhile, TriangleTestT, kCount>
+                <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+            break;
+        case CudaKernel::Persistent: {
+            const auto persistent = persistent_kernel<TriangleTestT, kCount, Source>;
+            int device = 0, multiprocessors = 0, blocks_per_multiprocessor = 0;
+            check_cuda(cudaGetDevice(&device), "cudaGetDevice");
+            check_cuda(cudaDeviceGetAttribute(&multiprocessors, cudaDevAttrMultiProcessorCount, device),
+                       "cudaDeviceGetAttribute");
+            check_cuda(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&blocks_per_multiprocessor, persistent,
+                                                                     kBlockSize, 0),
+                       "cudaOccupancyMaxActiveBlocksPerMultiprocessor");
+            check_cuda(cudaMemset(next_ray, 0, sizeof(std::uint32_t)), "cudaMemset");
+            const auto resident = static_cast<unsigned>(multiprocessors * blocks_per_multiprocessor);
+            const unsigned persistent_blocks = resident < blocks ? resident : blocks;
+            persistent<<<persistent_blocks, kBlockSize>>>(scene, source, count, hits, steps, next_ray);
+            break;
+        }
+    }
+    check_cuda(cudaGetLastError(), "kernel launch");
+}
+
+// Counting kernels only for frames (the heatmap): batches never count.
+template <bool kCount, class Source>
+void launch_test(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count,
+                 Hit* hits, std::uint32_t* steps, std::uint32_t* next_ray) {
+    if (scene.watertight)
+        launch<WatertightTest, kCount>(kernel, scene, source, count, hits, steps, next_ray);
+    else
+        launch<MollerTrumboreTest, kCount>(kernel, scene, source, count, hits, steps, next_ray);
+}
+
+}  // namespace
+
+void upload_plucker_tables(const PluckerTables& tables) {
+    check_cuda(cudaMemcpyToSymbol(c_tables, &tables, sizeof(PluckerTables)), "cudaMemcpyToSymbol");
+}
+
+float launch_trace(CudaKernel kernel, const LaunchScene& scene, const LaunchRays& rays, Hit* hits,
+                   std::uint32_t* steps, std::uint32_t* next_ray) {
+    cudaEvent_t start, stop;
+    check_cuda(cudaEventCreate(&start), "cudaEventCreate");
+    check_cuda(cudaEventCreate(&stop), "cudaEventCreate");
+    check_cuda(cudaEventRecord(start), "cudaEventRecord");
+    const std::uint32_t frame_rays = frame_ray_count(rays.camera);
+    if (rays.rays != nullptr)
+        launch_test<false>(kernel, scene, BatchRays{rays.rays, rays.count}, rays.count, hits, nullptr,
+                           next_ray);
+    else if (steps != nullptr)
+        launch_test<true>(kernel, scene, CameraRays{rays.camera}, frame_rays, hits, steps, next_ray);
+    else
+        launch_test<false>(kernel, scene, CameraRays{rays.camera}, frame_rays, hits, nullptr, next_ray);
+    check_cuda(cudaEventRecord(stop), "cudaEventRecord");
+    check_cuda(cudaEventSynchronize(stop), "cudaEventSynchronize (the kernel)");
+    float ms = 0.0f;
+    check_cuda(cudaEventElapsedTime(&ms, start, stop), "cudaEventElapsedTime");
+    cudaEventDestroy(start);
+    cudaEventDestroy(stop);
+    return ms;
+}
+
+}  // namespace lancer::gpu

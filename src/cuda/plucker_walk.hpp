@@ -1,0 +1,198 @@
+// The Pluecker octree walk of seed 000 section 4 (ENTRY 4.1, EXIT-FACE 4.2.1, NEIGHBOR 4.2.2, the loop of
+// 4.2.3) for the device and the host, over the serialised arrays as the CPU lays them out (gpu_layout.hpp,
+// PluckerView) and the tables in constant memory (PluckerTables). It is accel/plucker/walk.hpp's default
+// variant (2:1 balanced, stored boxes) with its deviations from the seed (docs/plucker-octree.md), written
+// without the standard library: the same operations in the same order, so that on the CPU it returns the
+// `plucker` structure's hits bit for bit (tests/cuda/plucker_port_test.cpp). The seed's branch-free
+// neighbour index (count / 4 times the sub-face, equation 10 and 5.3.2) is kept as walk.hpp's branch: on a
+// warp both cost about the same, and the branch keeps the two ports one reading (a profiler question,
+// docs/cuda.md).
+#pragma once
+
+#include "cuda/bvh_traversal.hpp"
+#include "cuda/gpu_layout.hpp"
+#include "cuda/triangle.hpp"
+
+namespace lancer::gpu {
+
+struct PluckerWalkRay {
+    Vec3f origin;
+    Vec3f direction;  // scaled: its largest component is +-1
+    Vec3f abs_direction;
+    std::uint32_t up[3];
+    std::uint8_t tie[3];
+    int octant;
+};
+
+// OctreeCube::plane: the exact float of face i of the cells of `level` on `axis`.
+LANCER_HOST_DEVICE inline float cube_plane(const PluckerView& octree, const PluckerTables& tables, int axis,
+                                           int level, std::uint32_t i) {
+    return octree.cube_lo[axis] + octree.cube_size * (static_cast<float>(i) * tables.inverse_powers[level]);
+}
+
+LANCER_HOST_DEVICE inline PluckerWalkRay make_walk_ray(const PluckerView& octree, const PluckerTables& tables,
+                                                       const Ray& ray) {
+    PluckerWalkRay walk_ray;
+    walk_ray.origin = ray.origin;
+    const Vec3f a = abs_of(ray.direction);
+    const float scale = max_of(a.x, max_of(a.y, a.z));
+    walk_ray.octant = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+        const float d = ray.direction[axis];
+        walk_ray.direction[axis] = d / scale;
+        walk_ray.abs_direction[axis] = abs_of(d);
+        const bool moves = walk_ray.direction[axis] != 0.0f;
+        const float centre = octree.cube_lo[axis] + 0.5f * octree.cube_size;
+        walk_ray.up[axis] = (moves ? d > 0.0f : ray.origin[axis] < centre) ? 1u : 0u;
+        walk_ray.octant |= static_cast<int>(walk_ray.up[axis]) << axis;
+    }
+    for (int axis = 0; axis < 3; ++axis)
+        walk_ray.tie[axis] =
+            tables.quadrant_tie[2 * axis + static_cast<int>(walk_ray.up[axis])][walk_ray.octant];
+    return walk_ray;
+}
+
+// walk.hpp's cell_index: the cell of `level` holding p on `axis`, ties to the ray's side, clamped.
+LANCER_HOST_DEVICE inline std::uint32_t plucker_cell_index(const PluckerView& octree,
+                                                           const PluckerTables& tables, int axis,
+                                                           std::uint32_t level, float p, std::uint32_t up) {
+    const std::uint32_t last = (1u << level) - 1u;
+    const float scaled = (p - octree.cube_lo[axis]) / octree.cube_size * static_cast<float>(1u << level);
+    std::uint32_t i =
+        scaled <= 0.0f ? 0u : min_of(last, static_cast<std::uint32_t>(min_of(scaled, 65536.0f)));
+    const int l = static_cast<int>(level);
+    while (i > 0 &&
+           (up ? p < cube_plane(octree, tables, axis, l, i) : p <= cube_plane(octree, tables, axis, l, i)))
+        --i;
+    while (i < last && (up ? p >= cube_plane(octree, tables, axis, l, i + 1)
+                           : p > cube_plane(octree, tables, axis, l, i + 1)))
+        ++i;
+    return i;
+}
+
+// walk.hpp's descend: the leaf holding p below tree cell `node`.
+LANCER_HOST_DEVICE inline std::uint32_t plucker_descend(const PluckerView& octree,
+                                                        const PluckerTables& tables, std::uint32_t node,
+                                                        int level, std::uint32_t x, std::uint32_t y,
+                                                        std::uint32_t z, const Vec3f& p,
+                                                        const PluckerWalkRay& ray) {
+    std::uint32_t coordinates[3] = {x, y, z};
+    std::uint32_t word = read_only(octree.locate + node);
+    while (word & 1u) {
+        std::uint32_t child = 0;
+        for (int axis = 0; axis < 3; ++axis) {
+            const float mid = cube_plane(octree, tables, axis, level + 1, 2u * coordinates[axis] + 1u);
+            const std::uint32_t bit = ray.up[axis] ? p[axis] >= mid : p[axis] > mid;
+            child |= bit << axis;
+            coordinates[axis] = 2u * coordinates[axis] + bit;
+        }
+        node = (word >> 1) + child;
+        word = read_only(octree.locate + node);
+        ++level;
+    }
+    return word >> 1;
+}
+
+// ENTRY (section 4.1): walk.hpp's entry_leaf.
+LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, const PluckerTables& tables,
+                                                  const Ray& ray, const PluckerWalkRay& walk_ray,
+                                                  std::uint32_t& address) {
+    float t_entry = -kInfinity, t_exit = kInfinity;
+    int entry_axis = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+        const float inverse = 1.0f / ray.direction[axis];
+        const float lo = cube_plane(octree, tables, axis, 0, 0) - octree.tolerance,
+                    hi = cube_plane(octree, tables, axis, 0, 1) + octree.tolerance;
+        const float t_lo = (lo - ray.origin[axis]) * inverse, t_hi = (hi - ray.origin[axis]) * inverse;
+        float slab_near = min_of(t_lo, t_hi), slab_far = max_of(t_lo, t_hi) * (1.0f + 2.0f * gamma_of(3));
+        if (is_nan(t_lo) || is_nan(t_hi)) slab_near = -kInfinity, slab_far = kInfinity;
+        if (slab_near > t_entry) t_entry = slab_near, entry_axis = axis;
+        t_exit = min_of(t_exit, slab_far);
+    }
+    if (!(max_of(t_entry, ray.tnear) <= min_of(t_exit, ray.tfar))) return false;
+    if (t_entry <= ray.tnear) {
+        const Vec3f p = ray.origin + ray.tnear * ray.direction;
+        address = plucker_descend(octree, tables, 0, 0, 0, 0, 0, p, walk_ray);
+        return true;
+    }
+    const std::uint32_t entry_up = walk_ray.up[entry_axis];
+    const int face = 2 * entry_axis + (entry_up ? 0 : 1);
+    const std::uint32_t level = octree.cube_map_level[face];
+    const int u = entry_axis == 0 ? 1 : 0, v = entry_axis == 2 ? 1 : 2;  // the in-face axes, increasing
+    Vec3f p = ray.origin + t_entry * ray.direction;
+    p[entry_axis] = entry_up ? cube_plane(octree, tables, entry_axis, 0, 0)
+                             : cube_plane(octree, tables, entry_axis, 0, 1);
+    const std::uint32_t i = plucker_cell_index(octree, tables, u, level, p[u], walk_ray.up[u]);
+    const std::uint32_t j = plucker_cell_index(octree, tables, v, level, p[v], walk_ray.up[v]);
+    const std::uint32_t texel = read_only(octree.texels + octree.cube_map_offset[face] + i + (j << level));
+    if (!(texel & plucker::kInnerBit)) {
+        address = texel;
+        return true;
+    }
+    std::uint32_t coordinates[3];
+    coordinates[entry_axis] = entry_up ? 0u : (1u << level) - 1u;
+    coordinates[u] = i;
+    coordinates[v] = j;
+    address = plucker_descend(octree, tables, texel & plucker::kAddressMask, static_cast<int>(level),
+                              coordinates[0], coordinates[1], coordinates[2], p, walk_ray);
+    return true;
+}
+
+// walk.hpp's exit_lower_bound: the exit distance shrunk by the rounding of the exit test.
+LANCER_HOST_DEVICE inline float plucker_exit_lower_bound(float distance) {
+    const float shrink = 2.0f * gamma_of(3);
+    return distance * (distance > 0.0f ? 1.0f - shrink : 1.0f + shrink);
+}
+
+// The closest hit of one ray (ties to the smaller primitive index), a miss for an invalid ray. Triangles
+// only: the caller refuses layouts with spheres (CudaTracer, tests).
+template <class TriangleTestT, class Steps = NoSteps>
+LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTables& tables, const Ray& ray,
+                                     Steps&& steps = {}) {
+    Hit best;
+    if (!is_valid_ray(ray)) return best;
+    const PluckerWalkRay walk_ray = make_walk_ray(octree, tables, ray);
+    std::uint32_t address;
+    if (!plucker_entry_leaf(octree, tables, ray, walk_ray, address)) return best;
+    const typename TriangleTestT::RayData triangle_ray(ray);
+    constexpr std::uint32_t kHeader = plucker::header_words(true);
+    const Vec3f& o = walk_ray.origin;
+    while (true) {
+        // LEAF
+        steps.step();
+        const std::uint32_t* leaf = octree.cells + address;
+        intersect_leaf<TriangleTestT>(octree.primitives + read_only(leaf + plucker::kTriangleOffset),
+                                      read_only(leaf + plucker::kTriangleCount), triangle_ray, ray, best);
+        const float limit = best.prim >= 0 ? best.t : ray.tfar;
+        // EXIT-FACE (4.2.1): three Pluecker products against the edges through the exit vertex.
+        const plucker::PluckerBox* box = octree.boxes + read_only(leaf + plucker::kBoxWord);
+        const float* planes = box->planes.data();
+        const Vec3f w(read_only(planes + 6 * walk_ray.up[0]) - o.x,
+                      read_only(planes + 1 + 6 * walk_ray.up[1]) - o.y,
+                      read_only(planes + 2 + 6 * walk_ray.up[2]) - o.z);
+        const Vec3f products = cross(walk_ray.direction, w);
+        const int pattern = (products.x > 0.0f) | (products.y > 0.0f) << 1 | (products.z > 0.0f) << 2;
+        const int face = tables.exit_face[walk_ray.octant][pattern];
+        const int axis = face >> 1;
+        const float ahead = walk_ray.up[axis] ? w[axis] : -w[axis];
+        if (limit * walk_ray.abs_direction[axis] <= plucker_exit_lower_bound(ahead)) return best;
+        // NEIGHBOR (4.2.2): the sub-face test only when four neighbours share the face.
+        const std::uint32_t ends = read_only(leaf + kHeader - 1);
+        const std::uint32_t start = plucker::neighbour_start(ends, face);
+        const std::uint32_t neighbours = plucker::neighbour_end(ends, face) - start;
+        if (neighbours == 0) return best;  // the root's boundary
+        std::uint32_t link_index = start;
+        if (neighbours == 4) {
+            const Vec3f to_centre(axis == 0 ? w.x : read_only(planes + 3) - o.x,
+                                  axis == 1 ? w.y : read_only(planes + 4) - o.y,
+                                  axis == 2 ? w.z : read_only(planes + 5) - o.z);
+            const Vec3f sub = cross(walk_ray.direction, to_centre);
+            const int signs = (sub.x > 0.0f) | (sub.y > 0.0f) << 1 | (sub.z > 0.0f) << 2;
+            const int zeros = (sub.x == 0.0f) | (sub.y == 0.0f) << 1 | (sub.z == 0.0f) << 2;
+            link_index += tables.neighbour_quadrant[face][signs | (zeros & walk_ray.tie[axis])];
+        }
+        address = read_only(leaf + kHeader + link_index);
+    }
+}
+
+}  // namespace lancer::gpu

@@ -1,0 +1,157 @@
+// CudaTracer with LANCER_CUDA: the arrays uploaded once (cudaMalloc, cudaMemcpy), the kernels launched by
+// kernels.cu, the hits copied back. Plain C++ over the CUDA runtime API.
+#include <cuda_runtime_api.h>
+
+#include <stdexcept>
+#include <utility>
+
+#include "accel/bvh.hpp"
+#include "accel/plucker/plucker.hpp"
+#include "cuda/cuda_check.hpp"
+#include "cuda/flatten.hpp"
+#include "cuda/kernels.hpp"
+#include "lancer/cuda.hpp"
+
+namespace lancer {
+namespace {
+
+// One device allocation, freed with its owner.
+class DeviceBuffer {
+  public:
+    DeviceBuffer() = default;
+    DeviceBuffer(const DeviceBuffer&) = delete;
+    DeviceBuffer& operator=(const DeviceBuffer&) = delete;
+    ~DeviceBuffer() {
+        if (data_ != nullptr) cudaFree(data_);
+    }
+
+    // At least `bytes` (one byte for an empty array, so that every view's pointer is valid).
+    void reserve(std::size_t bytes) {
+        if (bytes <= bytes_ && data_ != nullptr) return;
+        if (data_ != nullptr) cudaFree(std::exchange(data_, nullptr));
+        gpu::check_cuda(cudaMalloc(&data_, bytes == 0 ? 1 : bytes), "cudaMalloc");
+        bytes_ = bytes;
+    }
+    template <class T>
+    [[nodiscard]] T* upload(const std::vector<T>& values) {
+        reserve(values.size() * sizeof(T));
+        gpu::check_cuda(cudaMemcpy(data_, values.data(), values.size() * sizeof(T), cudaMemcpyHostToDevice),
+                        "cudaMemcpy (upload)");
+        return static_cast<T*>(data_);
+    }
+    template <class T>
+    [[nodiscard]] T* as() const {
+        return static_cast<T*>(data_);
+    }
+
+  private:
+    void* data_ = nullptr;
+    std::size_t bytes_ = 0;
+};
+
+}  // namespace
+
+bool cuda_available(std::string* why) {
+    int count = 0;
+    const cudaError_t status = cudaGetDeviceCount(&count);
+    if (status != cudaSuccess) {
+        if (why)
+            *why = std::string("no CUDA device (cudaGetDeviceCount: ") + cudaGetErrorString(status) + ")";
+        return false;
+    }
+    if (count == 0) {
+        if (why) *why = "no CUDA device (cudaGetDeviceCount: 0 devices)";
+        return false;
+    }
+    return true;
+}
+
+struct CudaTracer::Impl {
+    CudaKernel kernel;
+    gpu::LaunchScene scene;
+    DeviceBuffer nodes, triangles, cells, primitives, boxes, texels, locate;  // the structure, uploaded once
+    DeviceBuffer rays, hits, steps, next_ray;                                 // per call, grown as needed
+
+    CudaTrace run(const gpu::LaunchRays& launch, std::size_t hit_count, bool count_steps) {
+        hits.reserve(hit_count * sizeof(Hit));
+        if (count_steps) steps.reserve(hit_count * sizeof(std::uint32_t));
+        next_ray.reserve(sizeof(std::uint32_t));
+        CudaTrace result;
+        result.kernel_ms = gpu::launch_trace(kernel, scene, launch, hits.as<Hit>(),
+                                             count_steps ? steps.as<std::uint32_t>() : nullptr,
+                                             next_ray.as<std::uint32_t>());
+        result.hits.resize(hit_count);
+        gpu::check_cuda(
+            cudaMemcpy(result.hits.data(), hits.as<Hit>(), hit_count * sizeof(Hit), cudaMemcpyDeviceToHost),
+            "cudaMemcpy (hits)");
+        if (count_steps) {
+            result.steps.resize(hit_count);
+            gpu::check_cuda(cudaMemcpy(result.steps.data(), steps.as<std::uint32_t>(),
+                                       hit_count * sizeof(std::uint32_t), cudaMemcpyDeviceToHost),
+                            "cudaMemcpy (steps)");
+        }
+        return result;
+    }
+};
+
+CudaTracer::CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTest test, CudaKernel kernel)
+    : impl_(std::make_unique<Impl>()) {
+    std::string why;
+    if (!cuda_available(&why)) throw CudaError(why);
+    impl_->kernel = kernel;
+    impl_->scene.watertight = test == TriangleTest::Watertight;
+    if (kernel == CudaKernel::Plucker) {
+        const auto* plucker = dynamic_cast<const PluckerAccel*>(&accel);
+        if (plucker == nullptr)
+            throw std::invalid_argument("cuda: the plucker kernel traces a `plucker` structure");
+        const plucker::PluckerLayout& layout = plucker->layout();
+        gpu::PluckerView view = gpu::plucker_view(layout);  // checks the variant and the primitives
+        view.cells = impl_->cells.upload(layout.cells);
+        view.primitives = impl_->primitives.upload(layout.primitives);
+        view.boxes = impl_->boxes.upload(layout.boxes);
+        view.texels = impl_->texels.upload(layout.cube_map.texels);
+        view.locate = impl_->locate.upload(layout.locate);
+        impl_->scene.plucker = view;
+        gpu::upload_plucker_tables(gpu::plucker_tables());
+        return;
+    }
+    const auto* bvh = dynamic_cast<const BvhAccel*>(&accel);
+    if (bvh == nullptr)
+        throw std::invalid_argument("cuda: the " + std::string(cuda_kernel_name(kernel)) +
+                                    " kernel traces a `bvh` structure");
+    const gpu::FlatBvh flat = gpu::flatten_bvh(*bvh, geometry);
+    impl_->scene.bvh = {impl_->nodes.upload(flat.nodes), static_cast<std::uint32_t>(flat.nodes.size()),
+                        impl_->triangles.upload(flat.triangles)};
+}
+
+CudaTracer::~CudaTracer() = default;
+
+CudaTrace CudaTracer::trace_frame(const Camera& camera, bool count_steps) {
+    gpu::LaunchRays launch;
+    launch.camera = gpu::camera_frame(camera);
+    return impl_->run(launch,
+                      static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height),
+                      count_steps);
+}
+
+CudaTrace CudaTracer::trace(std::span<const Ray> rays) {
+    if (rays.size() >= (1u << 31)) throw std::invalid_argument("cuda: at most 2^31 rays per batch");
+    impl_->rays.reserve(rays.size() * sizeof(Ray));
+    gpu::check_cuda(
+        cudaMemcpy(impl_->rays.as<Ray>(), rays.data(), rays.size() * sizeof(Ray), cudaMemcpyHostToDevice),
+        "cudaMemcpy (rays)");
+    gpu::LaunchRays launch;
+    launch.rays = impl_->rays.as<Ray>();
+    launch.count = static_cast<std::uint32_t>(rays.size());
+    return impl_->run(launch, rays.size(), false);
+}
+
+std::string CudaTracer::device_name() const {
+    int device = 0;
+    cudaDeviceProp properties{};
+    gpu::check_cuda(cudaGetDevice(&device), "cudaGetDevice");
+    gpu::check_cuda(cudaGetDeviceProperties(&properties, device), "cudaGetDeviceProperties");
+    return properties.name;
+}
+
+}  // namespace lancer

@@ -1,0 +1,122 @@
+// The two triangle tests of core/intersect.hpp (Moller-Trumbore 1997; Woop, Benthin & Wald 2013) for the
+// host and the device: the same operations in the same order, so that with unfused products (g++
+// -ffp-contract=off, nvcc --fmad=false) and IEEE division (nvcc's default -prec-div=true) both return the
+// CPU's t, u and v bit for bit (tests/cuda/triangle_port_test.cpp). Spheres are not ported: the GPU path
+// traces triangle meshes (docs/cuda.md).
+#pragma once
+
+#include "cuda/host_device.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer::gpu {
+
+struct TriangleHitRecord {
+    float t, u, v;
+};
+
+struct MollerTrumboreTest {
+    static constexpr float kIllConditioned = 0x1p-20f;  // MollerTrumbore::kIllConditioned
+
+    struct RayData {
+        Vec3f origin, direction;
+        float direction_scale;
+        LANCER_HOST_DEVICE explicit RayData(const Ray& ray)
+            : origin(ray.origin), direction(ray.direction), direction_scale(0.0f) {
+            const Vec3f a = abs_of(ray.direction);
+            direction_scale = max_of(a.x, max_of(a.y, a.z));
+        }
+    };
+
+    LANCER_HOST_DEVICE static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
+                                             TriangleHitRecord& out) {
+        const Vec3f e1 = tri.v1 - tri.v0;
+        const Vec3f e2 = tri.v2 - tri.v0;
+        const Vec3f p = cross(ray.direction, e2);
+        const float det = dot(p, e1);
+        const Vec3f a1 = abs_of(e1), a2 = abs_of(e2);
+        if (!(abs_of(det) > kIllConditioned * ray.direction_scale * max_of(a1.x, max_of(a1.y, a1.z)) *
+                                max_of(a2.x, max_of(a2.y, a2.z))))
+            return false;
+        const float inv_det = 1.0f / det;
+        const Vec3f to_origin = ray.origin - tri.v0;
+        const float u = dot(to_origin, p) * inv_det;
+        if (!(u >= 0.0f && u <= 1.0f)) return false;
+        const Vec3f q = cross(to_origin, e1);
+        const float v = dot(ray.direction, q) * inv_det;
+        if (!(v >= 0.0f && u + v <= 1.0f)) return false;
+        const float t = dot(e2, q) * inv_det;
+        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
+        out = {t, u, v};
+        return true;
+    }
+};
+
+struct WatertightTest {
+    struct RayData {
+        Vec3f origin;
+        int kx, ky, kz;
+        float shear_x, shear_y, shear_z;
+
+        LANCER_HOST_DEVICE explicit RayData(const Ray& ray) : origin(ray.origin) {
+            const Vec3f a = abs_of(ray.direction);
+            // max_axis of lancer/vec.hpp, ties to the lower axis.
+            kz = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+            kx = kz == 2 ? 0 : kz + 1;
+            ky = kx == 2 ? 0 : kx + 1;
+            if (ray.direction[kz] < 0.0f) {
+                const int swapped = kx;
+                kx = ky, ky = swapped;
+            }
+            shear_x = ray.direction[kx] / ray.direction[kz];
+            shear_y = ray.direction[ky] / ray.direction[kz];
+            shear_z = 1.0f / ray.direction[kz];
+        }
+    };
+
+    LANCER_HOST_DEVICE static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
+                                             TriangleHitRecord& out) {
+        const Vec3f a = tri.v0 - ray.origin;
+        const Vec3f b = tri.v1 - ray.origin;
+        const Vec3f c = tri.v2 - ray.origin;
+        const float ax = a[ray.kx] - ray.shear_x * a[ray.kz], ay = a[ray.ky] - ray.shear_y * a[ray.kz];
+        const float bx = b[ray.kx] - ray.shear_x * b[ray.kz], by = b[ray.ky] - ray.shear_y * b[ray.kz];
+        const float cx = c[ray.kx] - ray.shear_x * c[ray.kz], cy = c[ray.ky] - ray.shear_y * c[ray.kz];
+        float w0 = bx * cy - by * cx;
+        float w1 = cx * ay - cy * ax;
+        float w2 = ax * by - ay * bx;
+        if (w0 == 0.0f || w1 == 0.0f || w2 == 0.0f) {
+            w0 = static_cast<float>(double(bx) * double(cy) - double(by) * double(cx));
+            w1 = static_cast<float>(double(cx) * double(ay) - double(cy) * double(ax));
+            w2 = static_cast<float>(double(ax) * double(by) - double(ay) * double(bx));
+        }
+        if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
+        const float det = w0 + w1 + w2;
+        if (det == 0.0f) return false;
+        const float az = ray.shear_z * a[ray.kz], bz = ray.shear_z * b[ray.kz], cz = ray.shear_z * c[ray.kz];
+        const float inv_det = 1.0f / det;
+        const float t = (w0 * az + w1 * bz + w2 * cz) * inv_det;
+        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
+        out = {t, w1 * inv_det, w2 * inv_det};
+        return true;
+    }
+};
+
+// A leaf's `count` triangle records from `records` (TriangleRef or PluckerPrimitive: a triangle and its
+// global index), each tested within [tnear, the closest hit so far]; the closest wins, ties to the smaller
+// index (closer() of lancer/ray.hpp).
+template <class TriangleTestT, class Record>
+LANCER_HOST_DEVICE void intersect_leaf(const Record* records, std::uint32_t count,
+                                       const typename TriangleTestT::RayData& triangle_ray, const Ray& ray,
+                                       Hit& best) {
+    for (std::uint32_t r = 0; r < count; ++r) {
+        const Record record = read_only_record(records + r);
+        const float tfar = best.prim >= 0 ? best.t : ray.tfar;
+        TriangleHitRecord candidate;
+        const auto prim = static_cast<std::int32_t>(record.prim);
+        if (TriangleTestT::intersect(triangle_ray, record.triangle, ray.tnear, tfar, candidate) &&
+            is_closer(candidate.t, prim, best))
+            best = {candidate.t, prim, candidate.u, candidate.v};
+    }
+}
+
+}  // namespace lancer::gpu

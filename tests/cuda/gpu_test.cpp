@@ -1,0 +1,136 @@
+// The kernels on a GPU against the CPU structures on the same rays (issue 7): the same hit or miss, the same
+// triangle or a tie, t within 1e-5 relative (compare_hits); bit-identical answers are counted and printed,
+// since the kernels are built to give them (--fmad=false, IEEE division and square root). Without a
+// device these tests skip, saying why; the tracer's refusal without a device is tested everywhere.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+
+#include "accel/agreement.hpp"
+#include "accel/ray_sets.hpp"
+#include "accel/test_scenes.hpp"
+#include "lancer/cuda.hpp"
+#include "lancer/io.hpp"
+
+namespace lancer {
+namespace {
+
+constexpr CudaKernel kKernels[] = {CudaKernel::Plucker, CudaKernel::WhileWhile,
+                                   CudaKernel::SpeculativeWhileWhile, CudaKernel::Persistent};
+
+std::string_view structure_of(CudaKernel kernel) {
+    return kernel == CudaKernel::Plucker ? "plucker" : "bvh";
+}
+
+std::size_t bit_identical(std::span<const Hit> expected, std::span<const Hit> actual) {
+    std::size_t same = 0;
+    for (std::size_t i = 0; i < expected.size(); ++i)
+        same += std::memcmp(&expected[i], &actual[i], sizeof(Hit)) == 0 ? 1 : 0;
+    return same;
+}
+
+// Every kernel, both triangle tests, a batch of rays and a frame of the canonical camera.
+void expect_kernels_agree(const Geometry& geometry, std::span<const Ray> batch, const Camera& camera,
+                          const std::string& scene_name) {
+    const testing::RaySet frame = testing::canonical_view_rays(geometry.bounds(), camera.width);
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        for (const CudaKernel kernel : kKernels) {
+            const std::unique_ptr<Accel> accel = make_accel(structure_of(kernel));
+            accel->build(geometry, build_options(test));
+            CudaTracer tracer(*accel, geometry, test, kernel);
+            for (const bool is_frame : {false, true}) {
+                const std::span<const Ray> rays = is_frame ? std::span<const Ray>(frame.rays) : batch;
+                const std::vector<Hit> expected = testing::trace_in_parallel(*accel, rays);
+                const CudaTrace traced = is_frame ? tracer.trace_frame(camera) : tracer.trace(rays);
+                ASSERT_EQ(traced.hits.size(), rays.size());
+                const Agreement agreement = compare_hits(rays, expected, traced.hits);
+                std::printf("%s, %s, %s, %s: %s, %zu bit-identical, kernel %.3f ms\n", scene_name.c_str(),
+                            is_frame ? "frame" : "batch", std::string(cuda_kernel_name(kernel)).c_str(),
+                            test == TriangleTest::Watertight ? "watertight" : "moller",
+                            agreement.summary().c_str(), bit_identical(expected, traced.hits),
+                            traced.kernel_ms);
+                EXPECT_EQ(agreement.mismatches, 0u)
+                    << scene_name << ", " << cuda_kernel_name(kernel) << ": " << agreement.summary();
+                EXPECT_GT(agreement.hits, 0u);
+            }
+        }
+    }
+}
+
+TEST(CudaGpu, KernelsAgreeWithTheCpuOnATriangleScene) {
+    std::string why;
+    if (!cuda_available(&why)) GTEST_SKIP() << why;
+    const std::vector<Triangle> triangles = testing::knot_triangles(400);
+    const Geometry geometry{triangles, {}};
+    const testing::RaySet random = testing::random_rays(geometry.bounds(), 200'000, 31);
+    testing::RaySet hostile = testing::hostile_rays(geometry.bounds());
+    std::vector<Ray> batch = random.rays;
+    batch.insert(batch.end(), hostile.rays.begin(), hostile.rays.end());
+    expect_kernels_agree(geometry, batch, canonical_view(geometry.bounds(), 256, 256), "torus knot");
+}
+
+// The heatmap's counts: the GPU walk enters the leaves the CPU walk enters, ray by ray.
+TEST(CudaGpu, PluckerStepsAreTheCpuWalksLeaves) {
+    std::string why;
+    if (!cuda_available(&why)) GTEST_SKIP() << why;
+    const std::vector<Triangle> triangles = testing::knot_triangles(300);
+    const Geometry geometry{triangles, {}};
+    const std::unique_ptr<Accel> accel = make_accel("plucker");
+    accel->build(geometry, {});
+    CudaTracer tracer(*accel, geometry, TriangleTest::MollerTrumbore, CudaKernel::Plucker);
+    const Camera camera = canonical_view(geometry.bounds(), 128, 128);
+    const CudaTrace traced = tracer.trace_frame(camera, true);
+    const testing::RaySet frame = testing::canonical_view_rays(geometry.bounds(), 128);
+    ASSERT_EQ(traced.steps.size(), frame.rays.size());
+    for (std::size_t i = 0; i < frame.rays.size(); ++i) {
+        Hit hit;
+        TraversalCounters counters;
+        accel->intersect({&frame.rays[i], 1}, {&hit, 1}, &counters);
+        ASSERT_EQ(traced.steps[i], counters.nodes_visited) << "ray " << i;
+    }
+}
+
+TEST(CudaGpu, KernelsAgreeWithTheCpuOnTheStanfordMeshes) {
+    std::string why;
+    if (!cuda_available(&why)) GTEST_SKIP() << why;
+    for (const char* name : {"bunny.obj", "armadillo.off", "dragon.ply"}) {
+        const std::filesystem::path file = std::filesystem::path(LANCER_SHARED_DIR) / "data/meshes" / name;
+        if (!std::filesystem::exists(file))
+            GTEST_SKIP() << file << " is absent (see README, 'The Stanford meshes')";
+        const Scene scene = load_scene(file);
+        const SceneGeometry geometry(scene);
+        const testing::RaySet random = testing::random_rays(geometry.view().bounds(), 1'000'000, 32);
+        expect_kernels_agree(geometry.view(), random.rays, canonical_view(geometry.view().bounds()), name);
+    }
+}
+
+// Here on every machine: without a device (or without CUDA) the tracer refuses at once, saying why.
+TEST(CudaGpu, WithoutADeviceTheTracerSaysWhy) {
+    std::string why;
+    if (cuda_available(&why)) GTEST_SKIP() << "a CUDA device is present: the refusal cannot be observed";
+    EXPECT_TRUE(why.starts_with("no CUDA device (cudaGetDeviceCount: ") ||
+                why.starts_with("built without CUDA"))
+        << why;
+    const std::vector<Triangle> triangles = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}};
+    const std::unique_ptr<Accel> accel = make_accel("bvh");
+    accel->build({triangles, {}}, {});
+    try {
+        CudaTracer tracer(*accel, {triangles, {}}, TriangleTest::MollerTrumbore, CudaKernel::Persistent);
+        ADD_FAILURE() << "CudaTracer was made without a device";
+    } catch (const CudaError& error) {
+        EXPECT_EQ(std::string(error.what()), why);
+    }
+}
+
+TEST(CudaGpu, KernelNamesRoundTrip) {
+    for (const CudaKernel kernel : kKernels)
+        EXPECT_EQ(parse_cuda_kernel(cuda_kernel_name(kernel)), kernel);
+    EXPECT_THROW((void)parse_cuda_kernel("warp-speed"), std::invalid_argument);
+    EXPECT_EQ(default_cuda_kernel("plucker"), CudaKernel::Plucker);
+    EXPECT_EQ(default_cuda_kernel("bvh"), CudaKernel::Persistent);
+    EXPECT_THROW((void)default_cuda_kernel("kdtree"), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace lancer

@@ -1,0 +1,333 @@
+// The GPU traversals run on the CPU (src/cuda/*.hpp compiled by g++) over the flattened arrays, against the
+// CPU structures on the same rays: the Pluecker walk against `plucker`, the Aila-Laine while-while and
+// speculative while-while traversals against `bvh`, bit for bit (t, primitive, u, v): the arithmetic is
+// the same, so any difference is a porting error. This proves the ports' logic; the launch, the transfers
+// and the device compiler are left to gpu_test.cpp, on a machine with a GPU.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <random>
+
+#include "accel/bvh.hpp"
+#include "accel/plucker/plucker.hpp"
+#include "accel/ray_sets.hpp"
+#include "accel/test_scenes.hpp"
+#include "core/intersect.hpp"
+#include "cuda/bvh_traversal.hpp"
+#include "cuda/flatten.hpp"
+#include "cuda/plucker_walk.hpp"
+#include "lancer/camera.hpp"
+#include "lancer/generate.hpp"
+#include "lancer/io.hpp"
+
+namespace lancer {
+namespace {
+
+using testing::TestScene;
+
+// Triangle scenes only (the GPU path traces triangles): smooth, random, flat, degenerate, and the case of a
+// hit beyond the leaf's exit.
+std::vector<TestScene> make_triangle_scenes() {
+    std::vector<TestScene> scenes;
+    std::mt19937 rng(77);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    const auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
+
+    TestScene smooth{"icosphere inside a knot", {}, {}};
+    testing::append(smooth.triangles, make_icosphere(3, {0, 0, 0}, 0.8f));
+    testing::append(smooth.triangles, make_torus_knot(200, 8));
+    scenes.push_back(std::move(smooth));
+
+    TestScene soup{"triangle soup of mixed sizes", {}, {}};
+    for (int i = 0; i < 2500; ++i) {
+        const Vec3f base = point(8.0f);
+        const float size = i % 7 == 0 ? 2.5f : 0.25f;
+        soup.triangles.push_back(
+            {base, base + point(size) - Vec3f(size / 2), base + point(size) - Vec3f(size / 2)});
+    }
+    scenes.push_back(std::move(soup));
+
+    TestScene grid{"a flat grid with shared edges", {}, {}};
+    for (int i = 0; i < 24; ++i) {
+        for (int j = 0; j < 24; ++j) {
+            const float x = static_cast<float>(i), z = static_cast<float>(j);
+            grid.triangles.push_back({{x, 0, z}, {x + 1, 0, z}, {x + 1, 0, z + 1}});
+            grid.triangles.push_back({{x, 0, z}, {x + 1, 0, z + 1}, {x, 0, z + 1}});
+        }
+    }
+    scenes.push_back(std::move(grid));
+
+    TestScene degenerate{"duplicates, slivers and points", {}, {}};
+    testing::append(degenerate.triangles, make_icosphere(2, {0, 0, 0}, 1.0f));
+    for (int i = 0; i < 150; ++i) {
+        const Vec3f a = point(2.0f) - Vec3f(1.0f), b = point(2.0f) - Vec3f(1.0f);
+        degenerate.triangles.push_back({a, b, 0.5f * (a + b)});
+        degenerate.triangles.push_back({a, a, a});
+        degenerate.triangles.push_back(degenerate.triangles[static_cast<std::size_t>(i)]);
+    }
+    scenes.push_back(std::move(degenerate));
+
+    scenes.push_back({"one triangle", {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}, {}});
+    scenes.push_back(testing::HitBeyondLeafExit{}.scene);
+    scenes.push_back({"empty", {}, {}});
+    return scenes;
+}
+
+std::vector<testing::RaySet> ray_sets_for(const TestScene& scene) {
+    Box3f bounds = scene.geometry().bounds();
+    if (bounds.empty()) bounds = {{-1, -1, -1}, {1, 1, 1}};
+    std::vector<testing::RaySet> sets = {
+        testing::random_rays(bounds, 3000, 11), testing::vertex_and_edge_rays(scene.triangles, 2000, 12),
+        testing::axis_parallel_rays(bounds, 2000, 13), testing::clipped_rays(bounds, 1500, 14),
+        testing::hostile_rays(bounds)};
+    testing::RaySet leaf_exit{"the ray of HitBeyondLeafExit", {testing::HitBeyondLeafExit{}.ray}};
+    sets.push_back(std::move(leaf_exit));
+    return sets;
+}
+
+// Bit for bit: a different float anywhere means the port does not compute what the CPU does.
+std::size_t count_differences(std::span<const Hit> expected, std::span<const Hit> actual,
+                              std::string& first) {
+    std::size_t differences = 0;
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+        if (std::memcmp(&expected[i], &actual[i], sizeof(Hit)) == 0) continue;
+        if (differences++ == 0) {
+            first = "ray " + std::to_string(i) + ": expected prim " + std::to_string(expected[i].prim) +
+                    " t " + std::to_string(expected[i].t) + ", got prim " + std::to_string(actual[i].prim) +
+                    " t " + std::to_string(actual[i].t);
+        }
+    }
+    return differences;
+}
+
+std::size_t count_hits(std::span<const Hit> hits) {
+    std::size_t count = 0;
+    for (const Hit& hit : hits)
+        count += hit.hit() ? 1 : 0;
+    return count;
+}
+
+template <class Trace>
+std::vector<Hit> trace_each(std::span<const Ray> rays, Trace&& trace) {
+    std::vector<Hit> hits(rays.size());
+    for (std::size_t i = 0; i < rays.size(); ++i)
+        hits[i] = trace(rays[i]);
+    return hits;
+}
+
+// The four GPU traversals of one triangle test on the CPU, against the two CPU structures.
+template <class TriangleTestT>
+void expect_ports_agree(const Geometry& geometry, TriangleTest test, std::span<const testing::RaySet> sets,
+                        const std::string& scene_name, std::size_t& hits_seen) {
+    BvhAccel bvh;
+    bvh.build(geometry, build_options(test));
+    PluckerAccel plucker;
+    plucker.build(geometry, build_options(test));
+    const gpu::FlatBvh flat = gpu::flatten_bvh(bvh, geometry);
+    const gpu::BvhView bvh_view = flat.view();
+    const gpu::PluckerView plucker_view = gpu::plucker_view(plucker.layout());
+    const gpu::PluckerTables tables = gpu::plucker_tables();
+    const char* test_name = test == TriangleTest::Watertight ? "watertight" : "moller";
+    for (const testing::RaySet& set : sets) {
+        std::vector<Hit> expected_bvh(set.rays.size()), expected_plucker(set.rays.size());
+        bvh.intersect(set.rays, expected_bvh);
+        plucker.intersect(set.rays, expected_plucker);
+        hits_seen += count_hits(expected_bvh);
+        const std::string where = scene_name + ", " + set.name + ", " + test_name + ": ";
+        std::string first;
+
+        const auto walk = trace_each(set.rays, [&](const Ray& ray) {
+            return gpu::trace_plucker<TriangleTestT>(plucker_view, tables, ray);
+        });
+        EXPECT_EQ(count_differences(expected_plucker, walk, first), 0u) << where << "plucker walk, " << first;
+
+        const auto while_while = trace_each(set.rays, [&](const Ray& ray) {
+            return gpu::trace_bvh<false, TriangleTestT>(bvh_view, ray, gpu::LoneLane{});
+        });
+        EXPECT_EQ(count_differences(expected_bvh, while_while, first), 0u)
+            << where << "while-while, " << first;
+
+        const auto speculative_alone = trace_each(set.rays, [&](const Ray& ray) {
+            return gpu::trace_bvh<true, TriangleTestT>(bvh_view, ray, gpu::LoneLane{});
+        });
+        EXPECT_EQ(count_differences(expected_bvh, speculative_alone, first), 0u)
+            << where << "speculative while-while (lone lane), " << first;
+
+        const auto speculative_postponing = trace_each(set.rays, [&](const Ray& ray) {
+            return gpu::trace_bvh<true, TriangleTestT>(bvh_view, ray, gpu::OtherLanesSearching{});
+        });
+        EXPECT_EQ(count_differences(expected_bvh, speculative_postponing, first), 0u)
+            << where << "speculative while-while (postponing), " << first;
+    }
+}
+
+TEST(CudaPorts, AgreeBitForBitWithTheCpuStructuresOnTheTestScenes) {
+    std::size_t hits_seen = 0;
+    for (const TestScene& scene : make_triangle_scenes()) {
+        const std::vector<testing::RaySet> sets = ray_sets_for(scene);
+        expect_ports_agree<gpu::MollerTrumboreTest>(scene.geometry(), TriangleTest::MollerTrumbore, sets,
+                                                    scene.name, hits_seen);
+        expect_ports_agree<gpu::WatertightTest>(scene.geometry(), TriangleTest::Watertight, sets, scene.name,
+                                                hits_seen);
+    }
+    // The comparison means something only if the rays hit: most scenes are hit by a good share of them.
+    EXPECT_GT(hits_seen, 20000u);
+}
+
+TEST(CudaPorts, AgreeBitForBitOnTheBunnysCanonicalView) {
+    const std::filesystem::path file = std::filesystem::path(LANCER_SHARED_DIR) / "data/meshes/bunny.obj";
+    if (!std::filesystem::exists(file))
+        GTEST_SKIP() << file << " is absent (see README, 'The Stanford meshes')";
+    const Scene scene = load_scene(file);
+    const SceneGeometry geometry(scene);
+    const std::vector<testing::RaySet> sets = {testing::canonical_view_rays(geometry.view().bounds(), 512)};
+    std::size_t hits_seen = 0;
+    expect_ports_agree<gpu::MollerTrumboreTest>(geometry.view(), TriangleTest::MollerTrumbore, sets, "bunny",
+                                                hits_seen);
+    EXPECT_GT(hits_seen, 512u * 512u / 10u);
+}
+
+TEST(CudaPorts, CameraRayIsThePinholeCamerasBitForBit) {
+    Camera camera = canonical_view({{-1, -2, -0.5f}, {3, 1, 2}}, 640, 480);
+    camera.up = {0.1f, 1.0f, 0.2f};
+    const PinholeCamera pinhole(camera);
+    const gpu::CameraFrame frame = gpu::camera_frame(camera);
+    for (int y = 0; y < camera.height; y += 7) {
+        for (int x = 0; x < camera.width; x += 5) {
+            const float fx = static_cast<float>(x) + 0.5f, fy = static_cast<float>(y) + 0.5f;
+            const Ray expected = pinhole.generate(fx, fy), actual = gpu::camera_ray(frame, fx, fy);
+            ASSERT_EQ(std::memcmp(&expected, &actual, sizeof(Ray)), 0) << "pixel " << x << ", " << y;
+        }
+    }
+}
+
+// The heatmap's counts: the walk enters the leaves the CPU walk enters, one by one; the BVH traversals count
+// each inner node fetched and each leaf tested, at least one node for any ray that hits.
+TEST(CudaPorts, StepCountsAreTheCpuWalksLeaves) {
+    const TestScene scene = make_triangle_scenes()[0];
+    PluckerAccel plucker;
+    plucker.build(scene.geometry(), {});
+    BvhAccel bvh;
+    bvh.build(scene.geometry(), {});
+    const gpu::PluckerView view = gpu::plucker_view(plucker.layout());
+    const gpu::FlatBvh flat = gpu::flatten_bvh(bvh, scene.geometry());
+    const gpu::PluckerTables tables = gpu::plucker_tables();
+    const testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 2000, 21);
+    std::uint64_t leaves = 0;
+    for (const Ray& ray : set.rays) {
+        Hit expected;
+        TraversalCounters counters;
+        plucker.intersect({&ray, 1}, {&expected, 1}, &counters);
+        gpu::CountSteps walk_steps, bvh_steps;
+        (void)gpu::trace_plucker<gpu::MollerTrumboreTest>(view, tables, ray, walk_steps);
+        ASSERT_EQ(walk_steps.steps, counters.nodes_visited);
+        leaves += walk_steps.steps;
+        const Hit hit =
+            gpu::trace_bvh<true, gpu::MollerTrumboreTest>(flat.view(), ray, gpu::LoneLane{}, bvh_steps);
+        if (hit.hit()) {
+            EXPECT_GE(bvh_steps.steps, 2u);
+        }
+    }
+    EXPECT_GT(leaves, set.rays.size());
+}
+
+// The kernels number a frame's rays by warp-sized tiles: every pixel must get exactly one ray, also when the
+// film is not a whole number of tiles.
+TEST(CudaPorts, FrameTilesCoverEveryPixelOnce) {
+    for (const auto& [width, height] : {std::pair{64, 32}, std::pair{37, 11}, std::pair{1, 1}}) {
+        gpu::CameraFrame frame;
+        frame.width = width, frame.height = height;
+        std::vector<int> rays_per_pixel(static_cast<std::size_t>(width * height), 0);
+        const std::uint32_t count = gpu::frame_ray_count(frame);
+        EXPECT_EQ(count % 32u, 0u);
+        for (std::uint32_t index = 0; index < count; ++index) {
+            int x = -1, y = -1;
+            if (gpu::frame_pixel(frame, index, x, y))
+                ++rays_per_pixel[static_cast<std::size_t>(y * width + x)];
+        }
+        for (const int rays : rays_per_pixel)
+            ASSERT_EQ(rays, 1) << width << "x" << height;
+    }
+}
+
+TEST(CudaPorts, HelpersRoundAsTheCpuCode) {
+    EXPECT_EQ(gpu::gamma_of(3), gamma_bound(3));
+    const float values[] = {0.0f, -0.0f, 1.5f, -2.0f, kInfinity, -kInfinity, std::nanf("")};
+    for (const float a : values) {
+        for (const float b : values) {
+            const float min_expected = std::min(a, b), max_expected = std::max(a, b);
+            const float min_actual = gpu::min_of(a, b), max_actual = gpu::max_of(a, b);
+            EXPECT_EQ(std::memcmp(&min_expected, &min_actual, sizeof(float)), 0) << a << ", " << b;
+            EXPECT_EQ(std::memcmp(&max_expected, &max_actual, sizeof(float)), 0) << a << ", " << b;
+        }
+        EXPECT_EQ(gpu::is_finite_of(a), std::isfinite(a)) << a;
+        if (!std::isnan(a)) {
+            EXPECT_EQ(gpu::abs_of(a), std::fabs(a)) << a;
+        }
+    }
+}
+
+TEST(CudaPorts, FlatBvhKeepsEveryChildBoxAndReference) {
+    const TestScene scene = make_triangle_scenes()[0];
+    BvhAccel bvh;
+    bvh.build(scene.geometry(), {});
+    const gpu::FlatBvh flat = gpu::flatten_bvh(bvh, scene.geometry());
+    std::size_t inner = 0;
+    for (const BvhNode& node : bvh.nodes())
+        inner += node.is_leaf() ? 0 : 1;
+    ASSERT_EQ(flat.nodes.size(), inner);
+    // Walk both trees together: every child's box, leaf range and triangle equal the CPU's.
+    std::vector<std::pair<std::uint32_t, std::int32_t>> pending = {{0u, 0}};
+    std::size_t references = 0;
+    while (!pending.empty()) {
+        const auto [cpu, gpu_node] = pending.back();
+        pending.pop_back();
+        const gpu::AilaLaineNode& node = flat.nodes[static_cast<std::size_t>(gpu_node)];
+        const std::uint32_t children[2] = {cpu + 1, bvh.nodes()[cpu].offset};
+        for (int c = 0; c < 2; ++c) {
+            const BvhNode& child = bvh.nodes()[children[c]];
+            const Vec3f lo = c == 0 ? Vec3f(node.c0_lo_x, node.c0_lo_y, node.c0_lo_z)
+                                    : Vec3f(node.c1_lo_x, node.c1_lo_y, node.c1_lo_z);
+            const Vec3f hi = c == 0 ? Vec3f(node.c0_hi_x, node.c0_hi_y, node.c0_hi_z)
+                                    : Vec3f(node.c1_hi_x, node.c1_hi_y, node.c1_hi_z);
+            EXPECT_EQ(lo, child.lo);
+            EXPECT_EQ(hi, child.hi);
+            if (!child.is_leaf()) {
+                ASSERT_GE(node.child[c], 0);
+                pending.push_back({children[c], node.child[c]});
+                continue;
+            }
+            ASSERT_LT(node.child[c], 0);
+            ASSERT_EQ(gpu::leaf_first(node.child[c]), child.offset);
+            ASSERT_EQ(gpu::leaf_count(node.child[c]), child.prim_count);
+            for (std::uint32_t r = child.offset; r < child.offset + child.prim_count; ++r) {
+                const std::uint32_t prim = bvh.prim_indices()[r];
+                EXPECT_EQ(flat.triangles[r].prim, prim);
+                EXPECT_EQ(std::memcmp(&flat.triangles[r].triangle, &scene.triangles[prim], sizeof(Triangle)),
+                          0);
+                ++references;
+            }
+        }
+    }
+    EXPECT_EQ(references, bvh.prim_indices().size());
+}
+
+TEST(CudaPorts, RefuseWhatTheKernelsDoNotTrace) {
+    const std::vector<Triangle> triangles = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}};
+    const std::vector<Sphere> spheres = {{{0, 0, 2}, 0.5f, 0}};
+    const Geometry with_spheres{triangles, spheres};
+    BvhAccel bvh;
+    bvh.build(with_spheres, {});
+    EXPECT_THROW((void)gpu::flatten_bvh(bvh, with_spheres), std::invalid_argument);
+    PluckerAccel plucker;
+    plucker.build(with_spheres, {});
+    EXPECT_THROW((void)gpu::plucker_view(plucker.layout()), std::invalid_argument);
+    BuildOptions unbalanced;
+    unbalanced.plucker.balanced = false;
+    plucker.build({triangles, {}}, unbalanced);
+    EXPECT_THROW((void)gpu::plucker_view(plucker.layout()), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace lancer
