@@ -20,10 +20,19 @@ constexpr double kPrimitiveCost = 1.0;
 // section 3: the node starts with the two binary children and repeatedly opens the inner child of largest
 // surface area (the one a ray is most likely to enter; the first of equal areas) until it has W children or
 // only leaves are left. An opened child's two children take its place, so the binary left-to-right order of
-// the subtrees is kept.
+// the subtrees is kept. A leaf's primitives are copied into triangle blocks appended to `blocks`.
 template <int W>
-std::uint32_t collapse(const std::vector<BvhNode>& binary, std::uint32_t binary_root,
-                       std::vector<WideBvhNode<W>>& wide) {
+struct CollapseInput {
+    const std::vector<BvhNode>& binary;
+    const std::vector<std::uint32_t>& prim_indices;
+    const Geometry& geometry;
+};
+
+template <int W>
+std::uint32_t collapse(const CollapseInput<W>& input, std::uint32_t binary_root,
+                       std::vector<WideBvhNode<W>>& wide,
+                       std::vector<typename WideBvhAccel<W>::Block>& blocks) {
+    const std::vector<BvhNode>& binary = input.binary;
     std::array<std::uint32_t, W> children{};
     int child_count = 0;
     if (binary[binary_root].is_leaf()) {
@@ -58,18 +67,20 @@ std::uint32_t collapse(const std::vector<BvhNode>& binary, std::uint32_t binary_
             wide[index].bounds[WideBvhNode<W>::kHi][axis][slot] = child.hi[axis];
         }
         if (child.is_leaf()) {
-            wide[index].child[slot] = child.offset;
+            wide[index].child[slot] = static_cast<std::uint32_t>(blocks.size());
             wide[index].prim_count[slot] = child.prim_count;
+            append_leaf_blocks(input.geometry,
+                               std::span(input.prim_indices).subspan(child.offset, child.prim_count), blocks);
         } else {
             // Not a reference into `wide`: the recursion may reallocate it.
-            const std::uint32_t child_index = collapse<W>(binary, children[slot], wide);
+            const std::uint32_t child_index = collapse<W>(input, children[slot], wide, blocks);
             wide[index].child[slot] = child_index;
         }
     }
     return index;
 }
 
-// A child as the traversal holds it: an inner node (prim_count 0) or a leaf range of prim_indices.
+// A child as the traversal holds it: an inner node (prim_count 0) or a leaf's first block.
 struct ChildRef {
     std::uint32_t child;
     std::uint32_t prim_count;
@@ -88,25 +99,28 @@ constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
 // are ordered by entry distance (insertion sort: ties keep slot order), the nearest is visited and the
 // others pushed, farthest first. A popped child is skipped when it is entered beyond the best hit.
 template <int W, bool kAnyHit, bool kCount, class TriangleTestT>
-bool traverse(const std::vector<WideBvhNode<W>>& nodes, const std::vector<std::uint32_t>& prim_indices,
-              const Geometry& geometry, const PreparedRay<TriangleTestT>& prepared, Hit& best,
-              TraversalCounters& counters) {
+bool traverse(const std::vector<WideBvhNode<W>>& nodes,
+              const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
+              const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters) {
+    constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
     if (nodes.empty()) return false;
     const Ray& ray = prepared.ray;
     const WideRay wide_ray{SlabRay(ray)};
+    const BlockRay<TriangleTestT, kLanes> block_ray(prepared, geometry);
     std::array<StackEntry, kStackSize<W>> stack;
     int stack_size = 0;
     ChildRef current{0, 0};
     while (true) {
         if constexpr (kCount) ++counters.nodes_visited;
         if (current.prim_count > 0) {
-            // LEAF
+            // LEAF: one SIMD test per block of kBlockLanes primitives.
             if constexpr (kCount) counters.prims_tested += current.prim_count;
-            for (std::uint32_t i = current.child; i < current.child + current.prim_count; ++i) {
+            const std::uint32_t end = current.child + block_count(current.prim_count, kLanes);
+            for (std::uint32_t b = current.child; b < end; ++b) {
                 if constexpr (kAnyHit) {
-                    if (occludes(geometry, prim_indices[i], prepared)) return true;
+                    if (occludes_block(geometry, blocks[b], block_ray)) return true;
                 } else {
-                    intersect_primitive(geometry, prim_indices[i], prepared, best);
+                    intersect_block(geometry, blocks[b], block_ray, best);
                 }
             }
         } else {
@@ -152,8 +166,8 @@ void WideBvhAccel<W>::build(const Geometry& geometry, const BuildOptions& option
     options_ = options;
     BvhBuildResult binary = build_bvh(geometry, options.bvh);
     nodes_.clear();
-    if (!binary.nodes.empty()) collapse<W>(binary.nodes, 0, nodes_);
-    prim_indices_ = std::move(binary.prim_indices);
+    blocks_.clear();
+    if (!binary.nodes.empty()) collapse<W>({binary.nodes, binary.prim_indices, geometry}, 0, nodes_, blocks_);
     build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -163,7 +177,7 @@ void WideBvhAccel<W>::intersect_batch(std::span<const Ray> rays, std::span<Hit> 
     intersect_each(options_.triangle_test, rays, hits, counters,
                    [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
                                                          Hit& best, TraversalCounters& counts) {
-                       traverse<W, false, kCount>(nodes_, prim_indices_, geometry_, prepared, best, counts);
+                       traverse<W, false, kCount>(nodes_, blocks_, geometry_, prepared, best, counts);
                    });
 }
 
@@ -174,8 +188,7 @@ void WideBvhAccel<W>::occluded_batch(std::span<const Ray> rays, std::span<std::u
                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
                                                         TraversalCounters& counts) {
                       Hit unused;
-                      return traverse<W, true, kCount>(nodes_, prim_indices_, geometry_, prepared, unused,
-                                                       counts);
+                      return traverse<W, true, kCount>(nodes_, blocks_, geometry_, prepared, unused, counts);
                   });
 }
 
@@ -184,9 +197,8 @@ AccelStats WideBvhAccel<W>::stats() const {
     AccelStats stats;
     stats.build_ms = build_ms_;
     stats.primitives = geometry_.size();
-    stats.references = prim_indices_.size();
     stats.memory_by_array = {{"nodes", nodes_.size() * sizeof(WideBvhNode<W>)},
-                             {"prim_indices", prim_indices_.size() * sizeof(std::uint32_t)}};
+                             {"blocks", blocks_.size() * sizeof(Block)}};
     if (nodes_.empty()) return stats;
 
     // Areas, depths and counts in one walk; leaves live in their parents' slots, at the parent's depth + 1.
@@ -213,6 +225,7 @@ AccelStats WideBvhAccel<W>::stats() const {
                 continue;
             }
             ++stats.leaves;
+            stats.references += node.prim_count[slot];
             depth_sum += depth + 1;
             stats.max_depth = std::max(stats.max_depth, depth + 1);
             stats.max_refs_per_leaf = std::max<std::size_t>(stats.max_refs_per_leaf, node.prim_count[slot]);
@@ -230,7 +243,7 @@ AccelStats WideBvhAccel<W>::stats() const {
 
 template <int W>
 std::size_t WideBvhAccel<W>::memory_bytes() const {
-    return nodes_.size() * sizeof(WideBvhNode<W>) + prim_indices_.size() * sizeof(std::uint32_t);
+    return nodes_.size() * sizeof(WideBvhNode<W>) + blocks_.size() * sizeof(Block);
 }
 
 template class WideBvhAccel<4>;
