@@ -15,19 +15,46 @@ namespace {
 constexpr double kNodeCost = 1.0;
 constexpr double kPrimitiveCost = 1.0;
 
+// The primitives under a binary node: the range [first, first + count) of prim_indices (depth first layout)
+// and whether the collapse keeps the whole subtree as one leaf: a binary leaf, or a subtree of at most
+// kBlockLanes primitives, which one triangle block tests at the cost of one of its leaves.
+struct SubtreeRange {
+    std::uint32_t first = 0, count = 0;
+    bool as_leaf = false;
+};
+
+// Children follow their parent in the depth-first array, so one backward pass sees them first.
+std::vector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, std::uint32_t merge_limit) {
+    std::vector<SubtreeRange> ranges(binary.size());
+    for (std::size_t i = binary.size(); i-- > 0;) {
+        const BvhNode& node = binary[i];
+        if (node.is_leaf()) {
+            ranges[i] = {node.offset, node.prim_count, true};
+            continue;
+        }
+        const SubtreeRange& left = ranges[i + 1];
+        const SubtreeRange& right = ranges[node.offset];
+        const std::uint32_t count = left.count + right.count;
+        ranges[i] = {left.first, count, count <= merge_limit && right.first == left.first + left.count};
+    }
+    return ranges;
+}
+
+template <int W>
+struct CollapseInput {
+    const std::vector<BvhNode>& binary;
+    const std::vector<SubtreeRange>& ranges;
+    const std::vector<std::uint32_t>& prim_indices;
+    const Geometry& geometry;
+};
+
 // Collapses the binary subtree under `binary_root` (an inner node, or the root leaf of a tiny scene) into
 // wide nodes appended depth first to `wide`, and returns the index of the first. Dammertz et al. 2008,
 // section 3: the node starts with the two binary children and repeatedly opens the inner child of largest
 // surface area (the one a ray is most likely to enter; the first of equal areas) until it has W children or
 // only leaves are left. An opened child's two children take its place, so the binary left-to-right order of
-// the subtrees is kept. A leaf's primitives are copied into triangle blocks appended to `blocks`.
-template <int W>
-struct CollapseInput {
-    const std::vector<BvhNode>& binary;
-    const std::vector<std::uint32_t>& prim_indices;
-    const Geometry& geometry;
-};
-
+// the subtrees is kept. Subtrees of at most one block of primitives count as leaves (SubtreeRange); a
+// leaf's primitives are copied into triangle blocks appended to `blocks`.
 template <int W>
 std::uint32_t collapse(const CollapseInput<W>& input, std::uint32_t binary_root,
                        std::vector<WideBvhNode<W>>& wide,
@@ -35,7 +62,7 @@ std::uint32_t collapse(const CollapseInput<W>& input, std::uint32_t binary_root,
     const std::vector<BvhNode>& binary = input.binary;
     std::array<std::uint32_t, W> children{};
     int child_count = 0;
-    if (binary[binary_root].is_leaf()) {
+    if (input.ranges[binary_root].as_leaf) {
         children[child_count++] = binary_root;
     } else {
         children[child_count++] = binary_root + 1;
@@ -46,7 +73,7 @@ std::uint32_t collapse(const CollapseInput<W>& input, std::uint32_t binary_root,
         float widest_area = -1.0f;
         for (int i = 0; i < child_count; ++i) {
             const BvhNode& candidate = binary[children[i]];
-            if (!candidate.is_leaf() && candidate.bounds().surface_area() > widest_area)
+            if (!input.ranges[children[i]].as_leaf && candidate.bounds().surface_area() > widest_area)
                 widest = i, widest_area = candidate.bounds().surface_area();
         }
         if (widest < 0) break;
@@ -66,11 +93,12 @@ std::uint32_t collapse(const CollapseInput<W>& input, std::uint32_t binary_root,
             wide[index].bounds[WideBvhNode<W>::kLo][axis][slot] = child.lo[axis];
             wide[index].bounds[WideBvhNode<W>::kHi][axis][slot] = child.hi[axis];
         }
-        if (child.is_leaf()) {
+        const SubtreeRange& range = input.ranges[children[slot]];
+        if (range.as_leaf) {
             wide[index].child[slot] = static_cast<std::uint32_t>(blocks.size());
-            wide[index].prim_count[slot] = child.prim_count;
+            wide[index].prim_count[slot] = range.count;
             append_leaf_blocks(input.geometry,
-                               std::span(input.prim_indices).subspan(child.offset, child.prim_count), blocks);
+                               std::span(input.prim_indices).subspan(range.first, range.count), blocks);
         } else {
             // Not a reference into `wide`: the recursion may reallocate it.
             const std::uint32_t child_index = collapse<W>(input, children[slot], wide, blocks);
@@ -167,7 +195,10 @@ void WideBvhAccel<W>::build(const Geometry& geometry, const BuildOptions& option
     BvhBuildResult binary = build_bvh(geometry, options.bvh);
     nodes_.clear();
     blocks_.clear();
-    if (!binary.nodes.empty()) collapse<W>({binary.nodes, binary.prim_indices, geometry}, 0, nodes_, blocks_);
+    if (!binary.nodes.empty()) {
+        const std::vector<SubtreeRange> ranges = subtree_ranges(binary.nodes, kBlockLanes);
+        collapse<W>({binary.nodes, ranges, binary.prim_indices, geometry}, 0, nodes_, blocks_);
+    }
     build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 

@@ -147,8 +147,8 @@ template <int W>
 class WideBvhAccel final : public Accel {
   public:
     static_assert(W == 4 || W == 8);
-    // Primitives per leaf block: 4, one SSE vector, the default leaf size of the binary build.
-    static constexpr int kBlockLanes = 4;
+    // Primitives per leaf block: one SSE vector for bvh4, one AVX2 vector for bvh8.
+    static constexpr int kBlockLanes = W;
     using Block = TriangleBlock<kBlockLanes>;
 
     [[nodiscard]] std::string_view name() const override { return W == 4 ? "bvh4" : "bvh8"; }
