@@ -50,45 +50,35 @@ struct BlockInputs {
     }
 };
 
-template <class TriangleTestT, int K>
-void BM_BlockKernel(benchmark::State& state) {
+// One leaf of K triangles per iteration: the block kernel (kBlock) or the scalar loop it replaces.
+template <class TriangleTestT, int K, bool kBlock>
+void BM_Leaf(benchmark::State& state) {
     static const BlockInputs<K> in;
     const Geometry geometry{in.triangles, {}};
     std::size_t b = 0;
     for (auto _ : state) {
         const PreparedRay<TriangleTestT> prepared(in.rays[b]);
         Hit best;
-        intersect_block(geometry, in.blocks[b], BlockRay<TriangleTestT, K>(prepared, geometry), best);
+        if constexpr (kBlock) {
+            intersect_block(geometry, in.blocks[b], BlockRay<TriangleTestT, K>(prepared, geometry), best);
+        } else {
+            for (std::size_t i = b * K; i < (b + 1) * K; ++i)
+                intersect_primitive(geometry, static_cast<std::uint32_t>(i), prepared, best);
+        }
         benchmark::DoNotOptimize(best);
         b = (b + 1) % kBlocks;
     }
     state.SetItemsProcessed(state.iterations() * K);
 }
 
-template <class TriangleTestT, int K>
-void BM_ScalarLoop(benchmark::State& state) {
-    static const BlockInputs<K> in;
-    const Geometry geometry{in.triangles, {}};
-    std::size_t b = 0;
-    for (auto _ : state) {
-        const PreparedRay<TriangleTestT> prepared(in.rays[b]);
-        Hit best;
-        for (std::size_t i = b * K; i < (b + 1) * K; ++i)
-            intersect_primitive(geometry, static_cast<std::uint32_t>(i), prepared, best);
-        benchmark::DoNotOptimize(best);
-        b = (b + 1) % kBlocks;
-    }
-    state.SetItemsProcessed(state.iterations() * K);
-}
-
-BENCHMARK(BM_BlockKernel<MollerTrumbore, 4>)->Name("block4/moller_trumbore");
-BENCHMARK(BM_ScalarLoop<MollerTrumbore, 4>)->Name("scalar4/moller_trumbore");
-BENCHMARK(BM_BlockKernel<Watertight, 4>)->Name("block4/watertight");
-BENCHMARK(BM_ScalarLoop<Watertight, 4>)->Name("scalar4/watertight");
-BENCHMARK(BM_BlockKernel<MollerTrumbore, 8>)->Name("block8/moller_trumbore");
-BENCHMARK(BM_ScalarLoop<MollerTrumbore, 8>)->Name("scalar8/moller_trumbore");
-BENCHMARK(BM_BlockKernel<Watertight, 8>)->Name("block8/watertight");
-BENCHMARK(BM_ScalarLoop<Watertight, 8>)->Name("scalar8/watertight");
+BENCHMARK(BM_Leaf<MollerTrumbore, 4, true>)->Name("block4/moller_trumbore");
+BENCHMARK(BM_Leaf<MollerTrumbore, 4, false>)->Name("scalar4/moller_trumbore");
+BENCHMARK(BM_Leaf<Watertight, 4, true>)->Name("block4/watertight");
+BENCHMARK(BM_Leaf<Watertight, 4, false>)->Name("scalar4/watertight");
+BENCHMARK(BM_Leaf<MollerTrumbore, 8, true>)->Name("block8/moller_trumbore");
+BENCHMARK(BM_Leaf<MollerTrumbore, 8, false>)->Name("scalar8/moller_trumbore");
+BENCHMARK(BM_Leaf<Watertight, 8, true>)->Name("block8/watertight");
+BENCHMARK(BM_Leaf<Watertight, 8, false>)->Name("scalar8/watertight");
 
 // A Stanford mesh of the shared data, loaded once; nullptr when the shared data is absent.
 const SceneGeometry* stanford_mesh(const std::string& file) {
