@@ -40,7 +40,6 @@ std::vector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, std
     return ranges;
 }
 
-template <int W>
 struct CollapseInput {
     const std::vector<BvhNode>& binary;
     const std::vector<SubtreeRange>& ranges;
@@ -56,7 +55,7 @@ struct CollapseInput {
 // the subtrees is kept. Subtrees of at most one block of primitives count as leaves (SubtreeRange); a
 // leaf's primitives are copied into triangle blocks appended to `blocks`.
 template <int W>
-std::uint32_t collapse(const CollapseInput<W>& input, std::uint32_t binary_root,
+std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
                        std::vector<WideBvhNode<W>>& wide,
                        std::vector<typename WideBvhAccel<W>::Block>& blocks) {
     const std::vector<BvhNode>& binary = input.binary;

@@ -12,8 +12,11 @@
 #include <random>
 #include <type_traits>
 
+#include "accel/agreement.hpp"
+#include "accel/brute.hpp"
 #include "accel/build_util.hpp"
 #include "lancer/generate.hpp"
+#include "ray_sets.hpp"
 #include "test_scenes.hpp"
 
 namespace lancer {
@@ -163,6 +166,45 @@ TEST(WideBvh, FewerNodesAndShallowerThanTheBinaryTree) {
     EXPECT_LT(s4.mean_depth, b.mean_depth);
     EXPECT_LT(s8.mean_depth, s4.mean_depth);
     EXPECT_GT(s8.sah_cost, 0.0);
+}
+
+// Binary leaves larger than a block (max_leaf_size 16) take several blocks, in a scene mixing spheres among
+// the triangles: closest hits and occlusion agree with brute force for both widths and both triangle tests.
+template <int W>
+void check_multi_block_leaves(TriangleTest test) {
+    // Twelve copies of one triangle: no split separates them, so they make one leaf of several blocks.
+    std::vector<Triangle> triangles = knot_triangles(300);
+    triangles.insert(triangles.end(), 12, triangles[7]);
+    const std::vector<Sphere> spheres = {
+        {{0, 0, 0}, 0.3f, 0}, {{1, 1, 0}, 0.1f, 0}, {{-1, 0, 0.5f}, 0.2f, 0}};
+    const Geometry geometry{triangles, spheres};
+    BuildOptions options = build_options(test);
+    options.bvh.max_leaf_size = 16;
+    WideBvhAccel<W> wide;
+    wide.build(geometry, options);
+    ASSERT_GT(wide.stats().max_refs_per_leaf, static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));
+    BruteAccel brute;
+    brute.build(geometry, options);
+    for (const testing::RaySet& set : {testing::random_rays(geometry.bounds(), 4000, 5),
+                                       testing::vertex_and_edge_rays(triangles, 4000, 6)}) {
+        std::vector<Hit> expected(set.rays.size()), actual(set.rays.size());
+        std::vector<std::uint8_t> occluded(set.rays.size());
+        brute.intersect(set.rays, expected);
+        wide.intersect(set.rays, actual);
+        wide.occluded(set.rays, occluded);
+        const Agreement hits = compare_hits(set.rays, expected, actual);
+        EXPECT_EQ(hits.mismatches, 0u) << set.name << ": " << hits.first_mismatch;
+        EXPECT_GT(hits.hits, set.rays.size() / 10) << set.name;
+        const Agreement occlusion = compare_occlusion(set.rays, expected, occluded);
+        EXPECT_EQ(occlusion.mismatches, 0u) << set.name << ": " << occlusion.first_mismatch;
+    }
+}
+
+TEST(WideBvh, LeavesOfSeveralBlocksAgreeWithBruteForce) {
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        check_multi_block_leaves<4>(test);
+        check_multi_block_leaves<8>(test);
+    }
 }
 
 // Random nodes and rays built to hit the slab test's edge cases: coordinates on a coarse grid so that origins
