@@ -15,18 +15,53 @@ namespace {
 constexpr double kNodeCost = 1.0;
 constexpr double kPrimitiveCost = 1.0;
 
+// The primitives under a binary node: the range [first, first + count) of prim_indices (depth first layout)
+// and whether the collapse keeps the whole subtree as one leaf: a binary leaf, or a subtree of at most
+// kBlockLanes primitives, which one triangle block tests at the cost of one of its leaves.
+struct SubtreeRange {
+    std::uint32_t first = 0, count = 0;
+    bool as_leaf = false;
+};
+
+// Children follow their parent in the depth-first array, so one backward pass sees them first.
+std::vector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, std::uint32_t merge_limit) {
+    std::vector<SubtreeRange> ranges(binary.size());
+    for (std::size_t i = binary.size(); i-- > 0;) {
+        const BvhNode& node = binary[i];
+        if (node.is_leaf()) {
+            ranges[i] = {node.offset, node.prim_count, true};
+            continue;
+        }
+        const SubtreeRange& left = ranges[i + 1];
+        const SubtreeRange& right = ranges[node.offset];
+        const std::uint32_t count = left.count + right.count;
+        ranges[i] = {left.first, count, count <= merge_limit && right.first == left.first + left.count};
+    }
+    return ranges;
+}
+
+struct CollapseInput {
+    const std::vector<BvhNode>& binary;
+    const std::vector<SubtreeRange>& ranges;
+    const std::vector<std::uint32_t>& prim_indices;
+    const Geometry& geometry;
+};
+
 // Collapses the binary subtree under `binary_root` (an inner node, or the root leaf of a tiny scene) into
 // wide nodes appended depth first to `wide`, and returns the index of the first. Dammertz et al. 2008,
 // section 3: the node starts with the two binary children and repeatedly opens the inner child of largest
 // surface area (the one a ray is most likely to enter; the first of equal areas) until it has W children or
 // only leaves are left. An opened child's two children take its place, so the binary left-to-right order of
-// the subtrees is kept.
+// the subtrees is kept. Subtrees of at most one block of primitives count as leaves (SubtreeRange); a
+// leaf's primitives are copied into triangle blocks appended to `blocks`.
 template <int W>
-std::uint32_t collapse(const std::vector<BvhNode>& binary, std::uint32_t binary_root,
-                       std::vector<WideBvhNode<W>>& wide) {
+std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
+                       std::vector<WideBvhNode<W>>& wide,
+                       std::vector<typename WideBvhAccel<W>::Block>& blocks) {
+    const std::vector<BvhNode>& binary = input.binary;
     std::array<std::uint32_t, W> children{};
     int child_count = 0;
-    if (binary[binary_root].is_leaf()) {
+    if (input.ranges[binary_root].as_leaf) {
         children[child_count++] = binary_root;
     } else {
         children[child_count++] = binary_root + 1;
@@ -37,7 +72,7 @@ std::uint32_t collapse(const std::vector<BvhNode>& binary, std::uint32_t binary_
         float widest_area = -1.0f;
         for (int i = 0; i < child_count; ++i) {
             const BvhNode& candidate = binary[children[i]];
-            if (!candidate.is_leaf() && candidate.bounds().surface_area() > widest_area)
+            if (!input.ranges[children[i]].as_leaf && candidate.bounds().surface_area() > widest_area)
                 widest = i, widest_area = candidate.bounds().surface_area();
         }
         if (widest < 0) break;
@@ -57,19 +92,22 @@ std::uint32_t collapse(const std::vector<BvhNode>& binary, std::uint32_t binary_
             wide[index].bounds[WideBvhNode<W>::kLo][axis][slot] = child.lo[axis];
             wide[index].bounds[WideBvhNode<W>::kHi][axis][slot] = child.hi[axis];
         }
-        if (child.is_leaf()) {
-            wide[index].child[slot] = child.offset;
-            wide[index].prim_count[slot] = child.prim_count;
+        const SubtreeRange& range = input.ranges[children[slot]];
+        if (range.as_leaf) {
+            wide[index].child[slot] = static_cast<std::uint32_t>(blocks.size());
+            wide[index].prim_count[slot] = range.count;
+            append_leaf_blocks(input.geometry,
+                               std::span(input.prim_indices).subspan(range.first, range.count), blocks);
         } else {
             // Not a reference into `wide`: the recursion may reallocate it.
-            const std::uint32_t child_index = collapse<W>(binary, children[slot], wide);
+            const std::uint32_t child_index = collapse<W>(input, children[slot], wide, blocks);
             wide[index].child[slot] = child_index;
         }
     }
     return index;
 }
 
-// A child as the traversal holds it: an inner node (prim_count 0) or a leaf range of prim_indices.
+// A child as the traversal holds it: an inner node (prim_count 0) or a leaf's first block.
 struct ChildRef {
     std::uint32_t child;
     std::uint32_t prim_count;
@@ -88,25 +126,28 @@ constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
 // are ordered by entry distance (insertion sort: ties keep slot order), the nearest is visited and the
 // others pushed, farthest first. A popped child is skipped when it is entered beyond the best hit.
 template <int W, bool kAnyHit, bool kCount, class TriangleTestT>
-bool traverse(const std::vector<WideBvhNode<W>>& nodes, const std::vector<std::uint32_t>& prim_indices,
-              const Geometry& geometry, const PreparedRay<TriangleTestT>& prepared, Hit& best,
-              TraversalCounters& counters) {
+bool traverse(const std::vector<WideBvhNode<W>>& nodes,
+              const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
+              const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters) {
+    constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
     if (nodes.empty()) return false;
     const Ray& ray = prepared.ray;
     const WideRay wide_ray{SlabRay(ray)};
+    const BlockRay<TriangleTestT, kLanes> block_ray(prepared, geometry);
     std::array<StackEntry, kStackSize<W>> stack;
     int stack_size = 0;
     ChildRef current{0, 0};
     while (true) {
         if constexpr (kCount) ++counters.nodes_visited;
         if (current.prim_count > 0) {
-            // LEAF
+            // LEAF: one SIMD test per block of kBlockLanes primitives.
             if constexpr (kCount) counters.prims_tested += current.prim_count;
-            for (std::uint32_t i = current.child; i < current.child + current.prim_count; ++i) {
+            const std::uint32_t end = current.child + block_count(current.prim_count, kLanes);
+            for (std::uint32_t b = current.child; b < end; ++b) {
                 if constexpr (kAnyHit) {
-                    if (occludes(geometry, prim_indices[i], prepared)) return true;
+                    if (occludes_block(geometry, blocks[b], block_ray)) return true;
                 } else {
-                    intersect_primitive(geometry, prim_indices[i], prepared, best);
+                    intersect_block(geometry, blocks[b], block_ray, best);
                 }
             }
         } else {
@@ -152,8 +193,11 @@ void WideBvhAccel<W>::build(const Geometry& geometry, const BuildOptions& option
     options_ = options;
     BvhBuildResult binary = build_bvh(geometry, options.bvh);
     nodes_.clear();
-    if (!binary.nodes.empty()) collapse<W>(binary.nodes, 0, nodes_);
-    prim_indices_ = std::move(binary.prim_indices);
+    blocks_.clear();
+    if (!binary.nodes.empty()) {
+        const std::vector<SubtreeRange> ranges = subtree_ranges(binary.nodes, kBlockLanes);
+        collapse<W>({binary.nodes, ranges, binary.prim_indices, geometry}, 0, nodes_, blocks_);
+    }
     build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -163,7 +207,7 @@ void WideBvhAccel<W>::intersect_batch(std::span<const Ray> rays, std::span<Hit> 
     intersect_each(options_.triangle_test, rays, hits, counters,
                    [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
                                                          Hit& best, TraversalCounters& counts) {
-                       traverse<W, false, kCount>(nodes_, prim_indices_, geometry_, prepared, best, counts);
+                       traverse<W, false, kCount>(nodes_, blocks_, geometry_, prepared, best, counts);
                    });
 }
 
@@ -174,8 +218,7 @@ void WideBvhAccel<W>::occluded_batch(std::span<const Ray> rays, std::span<std::u
                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
                                                         TraversalCounters& counts) {
                       Hit unused;
-                      return traverse<W, true, kCount>(nodes_, prim_indices_, geometry_, prepared, unused,
-                                                       counts);
+                      return traverse<W, true, kCount>(nodes_, blocks_, geometry_, prepared, unused, counts);
                   });
 }
 
@@ -184,9 +227,8 @@ AccelStats WideBvhAccel<W>::stats() const {
     AccelStats stats;
     stats.build_ms = build_ms_;
     stats.primitives = geometry_.size();
-    stats.references = prim_indices_.size();
     stats.memory_by_array = {{"nodes", nodes_.size() * sizeof(WideBvhNode<W>)},
-                             {"prim_indices", prim_indices_.size() * sizeof(std::uint32_t)}};
+                             {"blocks", blocks_.size() * sizeof(Block)}};
     if (nodes_.empty()) return stats;
 
     // Areas, depths and counts in one walk; leaves live in their parents' slots, at the parent's depth + 1.
@@ -213,6 +255,7 @@ AccelStats WideBvhAccel<W>::stats() const {
                 continue;
             }
             ++stats.leaves;
+            stats.references += node.prim_count[slot];
             depth_sum += depth + 1;
             stats.max_depth = std::max(stats.max_depth, depth + 1);
             stats.max_refs_per_leaf = std::max<std::size_t>(stats.max_refs_per_leaf, node.prim_count[slot]);
@@ -230,7 +273,7 @@ AccelStats WideBvhAccel<W>::stats() const {
 
 template <int W>
 std::size_t WideBvhAccel<W>::memory_bytes() const {
-    return nodes_.size() * sizeof(WideBvhNode<W>) + prim_indices_.size() * sizeof(std::uint32_t);
+    return nodes_.size() * sizeof(WideBvhNode<W>) + blocks_.size() * sizeof(Block);
 }
 
 template class WideBvhAccel<4>;

@@ -9,11 +9,9 @@
 #include <cstdint>
 #include <vector>
 
-#if defined(__AVX2__) || defined(__SSE4_1__)
-#include <immintrin.h>
-#endif
-
 #include "accel/bvh.hpp"
+#include "accel/simd_float.hpp"
+#include "accel/triangle_block.hpp"
 #include "core/intersect.hpp"
 
 namespace lancer {
@@ -27,9 +25,10 @@ struct alignas(32) WideBvhNode {
     static constexpr int kLo = 0, kHi = 1;
     // 24 W bytes: [lo | hi][axis][child].
     float bounds[2][3][W];
-    // 4 W bytes: an inner child's node index; a leaf child's first entry of prim_indices.
+    // 4 W bytes: an inner child's node index; a leaf child's first triangle block.
     std::uint32_t child[W] = {};
-    // 4 W bytes: the primitives of a leaf child; 0 for an inner child or an empty slot.
+    // 4 W bytes: the primitives of a leaf child (in block_count(prim_count, kBlockLanes) blocks); 0 for an
+    // inner child or an empty slot.
     std::uint32_t prim_count[W] = {};
 
     WideBvhNode() {
@@ -100,8 +99,9 @@ namespace wide_detail {
 // first, a NaN plane leaves the interval unchanged, as in intersect_children_scalar.
 template <class Ops>
 [[nodiscard]] inline unsigned intersect_children_simd(const float* lo_hi, const WideRay& ray, float tnear,
-                                                      float tfar, float* entry, int width) {
-    using Float = decltype(Ops::broadcast(0.0f));
+                                                      float tfar, float* entry) {
+    using Float = typename Ops::Float;
+    constexpr int width = Ops::kWidth;
     Float t0 = Ops::broadcast(tnear), t1 = Ops::broadcast(tfar);
     const Float widening = Ops::broadcast(kSlabExitWidening);
     for (int axis = 0; axis < 3; ++axis) {
@@ -117,39 +117,8 @@ template <class Ops>
         t1 = Ops::min(far_plane, t1);
     }
     Ops::store(entry, t0);
-    return Ops::mask_less_equal(t0, t1);
+    return Ops::mask(Ops::less_equal(t0, t1));
 }
-
-#if defined(__SSE4_1__)
-struct Sse4 {
-    static __m128 broadcast(float x) { return _mm_set1_ps(x); }
-    static __m128 load(const float* p) { return _mm_load_ps(p); }
-    static void store(float* p, __m128 x) { _mm_storeu_ps(p, x); }
-    static __m128 sub(__m128 a, __m128 b) { return _mm_sub_ps(a, b); }
-    static __m128 mul(__m128 a, __m128 b) { return _mm_mul_ps(a, b); }
-    static __m128 max(__m128 a, __m128 b) { return _mm_max_ps(a, b); }
-    static __m128 min(__m128 a, __m128 b) { return _mm_min_ps(a, b); }
-    static unsigned mask_less_equal(__m128 a, __m128 b) {
-        return static_cast<unsigned>(_mm_movemask_ps(_mm_cmple_ps(a, b)));
-    }
-};
-#endif
-
-#if defined(__AVX2__)
-struct Avx2 {
-    static __m256 broadcast(float x) { return _mm256_set1_ps(x); }
-    static __m256 load(const float* p) { return _mm256_load_ps(p); }
-    static void store(float* p, __m256 x) { _mm256_storeu_ps(p, x); }
-    static __m256 sub(__m256 a, __m256 b) { return _mm256_sub_ps(a, b); }
-    static __m256 mul(__m256 a, __m256 b) { return _mm256_mul_ps(a, b); }
-    static __m256 max(__m256 a, __m256 b) { return _mm256_max_ps(a, b); }
-    static __m256 min(__m256 a, __m256 b) { return _mm256_min_ps(a, b); }
-    // Ordered, non-signalling: a NaN compares false, as t0 <= t1 does in scalar code.
-    static unsigned mask_less_equal(__m256 a, __m256 b) {
-        return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)));
-    }
-};
-#endif
 
 }  // namespace wide_detail
 #endif
@@ -161,14 +130,14 @@ template <int W>
                                                  float tfar, float (&entry)[W]) {
 #if defined(__SSE4_1__)
     if constexpr (W == 4) {
-        return wide_detail::intersect_children_simd<wide_detail::Sse4>(&node.bounds[0][0][0], ray, tnear,
-                                                                       tfar, entry, W);
+        return wide_detail::intersect_children_simd<simd::Sse4>(&node.bounds[0][0][0], ray, tnear, tfar,
+                                                                entry);
     }
 #endif
 #if defined(__AVX2__)
     if constexpr (W == 8) {
-        return wide_detail::intersect_children_simd<wide_detail::Avx2>(&node.bounds[0][0][0], ray, tnear,
-                                                                       tfar, entry, W);
+        return wide_detail::intersect_children_simd<simd::Avx2>(&node.bounds[0][0][0], ray, tnear, tfar,
+                                                                entry);
     }
 #endif
     return intersect_children_scalar(node, ray, tnear, tfar, entry);
@@ -178,6 +147,9 @@ template <int W>
 class WideBvhAccel final : public Accel {
   public:
     static_assert(W == 4 || W == 8);
+    // Primitives per leaf block: one SSE vector for bvh4, one AVX2 vector for bvh8.
+    static constexpr int kBlockLanes = W;
+    using Block = TriangleBlock<kBlockLanes>;
 
     [[nodiscard]] std::string_view name() const override { return W == 4 ? "bvh4" : "bvh8"; }
     void build(const Geometry& geometry, const BuildOptions& options) override;
@@ -186,7 +158,7 @@ class WideBvhAccel final : public Accel {
 
     // The built hierarchy, for tests. The root is node 0 whenever the geometry is not empty.
     [[nodiscard]] const std::vector<WideBvhNode<W>>& nodes() const { return nodes_; }
-    [[nodiscard]] const std::vector<std::uint32_t>& prim_indices() const { return prim_indices_; }
+    [[nodiscard]] const std::vector<Block>& blocks() const { return blocks_; }
 
   private:
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
@@ -197,7 +169,7 @@ class WideBvhAccel final : public Accel {
     Geometry geometry_;
     BuildOptions options_;
     std::vector<WideBvhNode<W>> nodes_;
-    std::vector<std::uint32_t> prim_indices_;
+    std::vector<Block> blocks_;
     double build_ms_ = 0.0;
 };
 

@@ -1,14 +1,22 @@
-// The 4- and 8-wide BVHs: structural invariants of the collapse, shallower than the binary tree, and the
-// SIMD box test equal to intersect_box (hit or miss and entry distance) on random and face-plane rays.
-// Agreement with brute force is the oracle test's (every registered structure).
+// The 4- and 8-wide BVHs: structural invariants of the collapse, shallower than the binary tree, the SIMD
+// box test equal to intersect_box (hit or miss and entry distance) on random and face-plane rays, and the
+// triangle block kernels bit-identical to the scalar triangle tests. Agreement with brute force is the oracle
+// test's (every registered structure).
 #include "accel/bvh_wide.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
+#include <limits>
 #include <random>
+#include <type_traits>
 
+#include "accel/agreement.hpp"
+#include "accel/brute.hpp"
 #include "accel/build_util.hpp"
 #include "lancer/generate.hpp"
+#include "ray_sets.hpp"
 #include "test_scenes.hpp"
 
 namespace lancer {
@@ -26,9 +34,38 @@ bool is_inverted(const Box3f& box) {
            box.hi.x == -kInfinity && box.hi.y == -kInfinity && box.hi.z == -kInfinity;
 }
 
-// Every primitive in exactly one leaf slot whose box contains it; inner slots contain their node's children;
-// empty slots are inverted, hold nothing and come after the used ones; every node but a tiny scene's root
-// has at least two children.
+// Every primitive in exactly one leaf slot whose box contains it, in that leaf's blocks with its vertices
+// copied bit for bit (NaN for spheres and padding lanes, which come last); inner slots contain their node's
+// children; empty slots are inverted, hold nothing and come after the used ones; every node but a tiny
+// scene's root has at least two children.
+template <int W>
+void expect_valid_leaf(const WideBvhAccel<W>& bvh, const Geometry& geometry, std::uint32_t first_block,
+                       std::uint32_t prim_count, const Box3f& box, std::vector<int>& seen) {
+    using Block = typename WideBvhAccel<W>::Block;
+    constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
+    const std::uint32_t blocks = block_count(prim_count, kLanes);
+    ASSERT_LE(first_block + blocks, bvh.blocks().size());
+    for (std::uint32_t k = 0; k < blocks * kLanes; ++k) {
+        const Block& block = bvh.blocks()[first_block + k / kLanes];
+        const int lane = static_cast<int>(k % kLanes);
+        const std::uint32_t prim = block.prim[lane];
+        if (k >= prim_count) {
+            ASSERT_EQ(prim, Block::kNoPrimitive);
+            ASSERT_TRUE(std::isnan(block.vertex[0][0][lane]));
+            continue;
+        }
+        ASSERT_LT(prim, geometry.size());
+        ++seen[prim];
+        ASSERT_TRUE(contains(box, primitive_bounds(geometry, prim)));
+        if (prim < geometry.triangles.size()) {
+            const Triangle copy = block.triangle(lane), &tri = geometry.triangles[prim];
+            ASSERT_TRUE(copy.v0 == tri.v0 && copy.v1 == tri.v1 && copy.v2 == tri.v2) << "primitive " << prim;
+        } else {
+            ASSERT_TRUE(std::isnan(block.vertex[0][0][lane]));
+        }
+    }
+}
+
 template <int W>
 void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geometry, int max_leaf_size) {
     const std::vector<WideBvhNode<W>>& nodes = bvh.nodes();
@@ -46,12 +83,10 @@ void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geo
             ASSERT_EQ(used, slot) << "node " << i << ": a used slot after an empty one";
             ++used;
             if (node.prim_count[slot] > 0) {
-                ASSERT_LE(node.prim_count[slot], static_cast<std::uint32_t>(max_leaf_size));
-                for (std::uint32_t k = node.child[slot]; k < node.child[slot] + node.prim_count[slot]; ++k) {
-                    const std::uint32_t prim = bvh.prim_indices()[k];
-                    ++seen[prim];
-                    ASSERT_TRUE(contains(box, primitive_bounds(geometry, prim))) << "node " << i;
-                }
+                // A binary leaf, or a merged subtree of at most one block.
+                ASSERT_LE(node.prim_count[slot],
+                          static_cast<std::uint32_t>(std::max(max_leaf_size, WideBvhAccel<W>::kBlockLanes)));
+                expect_valid_leaf(bvh, geometry, node.child[slot], node.prim_count[slot], box, seen);
             } else {
                 ASSERT_GT(node.child[slot], i);
                 ASSERT_LT(node.child[slot], nodes.size());
@@ -69,8 +104,8 @@ void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geo
     const AccelStats stats = bvh.stats();
     EXPECT_EQ(stats.references, geometry.size());
     EXPECT_EQ(stats.nodes, nodes.size() + stats.leaves);
-    EXPECT_EQ(bvh.memory_bytes(),
-              nodes.size() * sizeof(WideBvhNode<W>) + geometry.size() * sizeof(std::uint32_t));
+    EXPECT_EQ(bvh.memory_bytes(), nodes.size() * sizeof(WideBvhNode<W>) +
+                                      bvh.blocks().size() * sizeof(typename WideBvhAccel<W>::Block));
 }
 
 template <int W>
@@ -81,6 +116,10 @@ void check_structure(const Geometry& geometry) {
         WideBvhAccel<W> wide;
         wide.build(geometry, options);
         expect_valid_wide_hierarchy(wide, geometry, leaf);
+        // Binary leaves of one primitive: the subtrees of up to one block were merged into leaves.
+        if (leaf == 1) {
+            EXPECT_EQ(wide.stats().max_refs_per_leaf, static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));
+        }
     }
 }
 
@@ -116,9 +155,10 @@ TEST(WideBvh, FewerNodesAndShallowerThanTheBinaryTree) {
     Bvh8Accel bvh8;
     bvh8.build(geometry, {});
     const AccelStats b = binary.stats(), s4 = bvh4.stats(), s8 = bvh8.stats();
-    // Same leaves, collapsed inner levels.
-    EXPECT_EQ(s4.leaves, b.leaves);
-    EXPECT_EQ(s8.leaves, b.leaves);
+    // The binary leaves, fewer where subtrees of one block (4 or 8 primitives) were merged; collapsed inner
+    // levels.
+    EXPECT_LT(s4.leaves, b.leaves);
+    EXPECT_LT(s8.leaves, s4.leaves);
     EXPECT_LT(s4.nodes, b.nodes);
     EXPECT_LT(s8.nodes, s4.nodes);
     EXPECT_LT(s4.max_depth, b.max_depth);
@@ -126,6 +166,45 @@ TEST(WideBvh, FewerNodesAndShallowerThanTheBinaryTree) {
     EXPECT_LT(s4.mean_depth, b.mean_depth);
     EXPECT_LT(s8.mean_depth, s4.mean_depth);
     EXPECT_GT(s8.sah_cost, 0.0);
+}
+
+// Binary leaves larger than a block (max_leaf_size 16) take several blocks, in a scene mixing spheres among
+// the triangles: closest hits and occlusion agree with brute force for both widths and both triangle tests.
+template <int W>
+void check_multi_block_leaves(TriangleTest test) {
+    // Twelve copies of one triangle: no split separates them, so they make one leaf of several blocks.
+    std::vector<Triangle> triangles = knot_triangles(300);
+    triangles.insert(triangles.end(), 12, triangles[7]);
+    const std::vector<Sphere> spheres = {
+        {{0, 0, 0}, 0.3f, 0}, {{1, 1, 0}, 0.1f, 0}, {{-1, 0, 0.5f}, 0.2f, 0}};
+    const Geometry geometry{triangles, spheres};
+    BuildOptions options = build_options(test);
+    options.bvh.max_leaf_size = 16;
+    WideBvhAccel<W> wide;
+    wide.build(geometry, options);
+    ASSERT_GT(wide.stats().max_refs_per_leaf, static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));
+    BruteAccel brute;
+    brute.build(geometry, options);
+    for (const testing::RaySet& set : {testing::random_rays(geometry.bounds(), 4000, 5),
+                                       testing::vertex_and_edge_rays(triangles, 4000, 6)}) {
+        std::vector<Hit> expected(set.rays.size()), actual(set.rays.size());
+        std::vector<std::uint8_t> occluded(set.rays.size());
+        brute.intersect(set.rays, expected);
+        wide.intersect(set.rays, actual);
+        wide.occluded(set.rays, occluded);
+        const Agreement hits = compare_hits(set.rays, expected, actual);
+        EXPECT_EQ(hits.mismatches, 0u) << set.name << ": " << hits.first_mismatch;
+        EXPECT_GT(hits.hits, set.rays.size() / 10) << set.name;
+        const Agreement occlusion = compare_occlusion(set.rays, expected, occluded);
+        EXPECT_EQ(occlusion.mismatches, 0u) << set.name << ": " << occlusion.first_mismatch;
+    }
+}
+
+TEST(WideBvh, LeavesOfSeveralBlocksAgreeWithBruteForce) {
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        check_multi_block_leaves<4>(test);
+        check_multi_block_leaves<8>(test);
+    }
 }
 
 // Random nodes and rays built to hit the slab test's edge cases: coordinates on a coarse grid so that origins
@@ -216,6 +295,206 @@ TEST(WideBvh, CountersSeeFewerNodesThanTheBinaryTree) {
     EXPECT_EQ(wide_hit.prim, binary_hit.prim);
     EXPECT_EQ(wide_hit.t, binary_hit.t);
     EXPECT_LT(wide_counters.nodes_visited, binary_counters.nodes_visited);
+}
+
+// Triangles that exercise the kernels' edge cases: random, on an integer grid (rays through their vertices
+// and edges give exactly zero watertight edge functions), sharing an edge or copying the previous triangle
+// (ties, resolved by index), with a repeated vertex, collinear, tiny, huge (overflowing products), or with a
+// NaN.
+std::vector<Triangle> adversarial_triangles(std::mt19937& rng, int count) {
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::uniform_int_distribution<int> grid(-2, 2), kind(0, 9);
+    auto point = [&] { return Vec3f(unit(rng), unit(rng), unit(rng)); };
+    auto grid_point = [&] {
+        return Vec3f(static_cast<float>(grid(rng)), static_cast<float>(grid(rng)),
+                     static_cast<float>(grid(rng)));
+    };
+    std::vector<Triangle> triangles = {{point(), point(), point()}};
+    while (static_cast<int>(triangles.size()) < count) {
+        const Triangle previous = triangles.back();
+        Triangle tri{point(), point(), point()};
+        switch (kind(rng)) {
+            case 0:
+                tri = {grid_point(), grid_point(), grid_point()};
+                break;
+            case 1:
+                tri = {grid_point(), grid_point(), grid_point()};
+                break;
+            case 2:
+                tri = {previous.v1, previous.v0, point()};
+                break;
+            case 3:
+                tri = previous;
+                break;
+            case 4:
+                tri.v1 = tri.v0;
+                break;
+            case 5:
+                tri.v2 = tri.v0 + 2.0f * (tri.v1 - tri.v0);
+                break;
+            case 6:
+                tri = {tri.v0, tri.v0 + 1e-7f * point(), tri.v0 + 1e-7f * point()};
+                break;
+            case 7:
+                tri = {1e30f * point(), 1e30f * point(), 1e30f * point()};
+                break;
+            case 8:
+                tri.v2.y = std::numeric_limits<float>::quiet_NaN();
+                break;
+            default:
+                break;
+        }
+        triangles.push_back(tri);
+    }
+    return triangles;
+}
+
+// A ray aimed at a triangle's vertex, edge midpoint or interior, or axis-parallel from a grid point, or
+// random; sometimes with a cut interval.
+Ray adversarial_ray(std::mt19937& rng, const Triangle& target) {
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f), positive(0.0f, 1.0f);
+    std::uniform_int_distribution<int> grid(-3, 3), kind(0, 5), axis(0, 2);
+    auto grid_point = [&] {
+        return Vec3f(static_cast<float>(grid(rng)), static_cast<float>(grid(rng)),
+                     static_cast<float>(grid(rng)));
+    };
+    Vec3f origin = 3.0f * Vec3f(unit(rng), unit(rng), unit(rng)), aim;
+    switch (kind(rng)) {
+        case 0:
+            aim = target.v0;
+            break;
+        case 1:
+            aim = 0.5f * (target.v0 + target.v1);
+            break;
+        case 2: {
+            const float a = positive(rng), b = positive(rng) * (1.0f - a);
+            aim = target.v0 + a * (target.v1 - target.v0) + b * (target.v2 - target.v0);
+            break;
+        }
+        case 3: {
+            origin = grid_point();
+            aim = origin;
+            aim[axis(rng)] += unit(rng) < 0.0f ? -1.0f : 1.0f;
+            break;
+        }
+        default:
+            aim = Vec3f(unit(rng), unit(rng), unit(rng));
+            break;
+    }
+    Ray ray{origin, aim - origin, 0.0f, kInfinity};
+    if (kind(rng) == 0) ray.tnear = positive(rng), ray.tfar = ray.tnear + positive(rng);
+    return ray;
+}
+
+bool same_bits(float a, float b) {
+    return std::bit_cast<std::uint32_t>(a) == std::bit_cast<std::uint32_t>(b);
+}
+
+struct KernelCheckCounts {
+    std::size_t lane_hits = 0, scalar_lanes = 0, closest_hits = 0, occluded = 0;
+};
+
+// For random blocks of K primitives of a mixed scene (spheres among the triangles, padding at the end):
+// every lane the block kernel decides agrees with the scalar test (hit or miss, and t, u, v bit for bit),
+// intersect_block gives the scalar loop's closest hit (bit for bit, ties to the smaller index) from a random
+// starting hit, and occludes_block the scalar loop's answer.
+template <class TriangleTestT, int K>
+void check_block_kernel(std::uint32_t seed, KernelCheckCounts& counts) {
+    std::mt19937 rng(seed);
+    const std::vector<Triangle> triangles = adversarial_triangles(rng, 400);
+    const std::vector<Sphere> spheres = {{{0, 0, 0}, 0.5f, 0}, {{1, 0, 0}, 0.25f, 0}};
+    const Geometry geometry{triangles, spheres};
+    std::uniform_int_distribution<std::uint32_t> any_prim(0, static_cast<std::uint32_t>(geometry.size() - 1));
+    std::uniform_int_distribution<std::uint32_t> any_triangle(
+        0, static_cast<std::uint32_t>(triangles.size() - 1));
+    std::uniform_int_distribution<int> lanes(1, K), choice(0, 9);
+    for (int trial = 0; trial < 20000; ++trial) {
+        // Mostly neighbours in the triangle list, so that shared edges and copies land in one block.
+        std::vector<std::uint32_t> prims;
+        const std::uint32_t start = any_triangle(rng);
+        const int used = lanes(rng);
+        for (int lane = 0; lane < used; ++lane) {
+            const std::uint32_t neighbour = std::min<std::uint32_t>(
+                start + static_cast<std::uint32_t>(lane), static_cast<std::uint32_t>(triangles.size() - 1));
+            const std::uint32_t prim = choice(rng) == 0 ? any_prim(rng) : neighbour;
+            if (std::find(prims.begin(), prims.end(), prim) == prims.end()) prims.push_back(prim);
+        }
+        std::shuffle(prims.begin(), prims.end(), rng);
+        std::vector<TriangleBlock<K>> blocks;
+        append_leaf_blocks(geometry, std::span<const std::uint32_t>(prims), blocks);
+        ASSERT_EQ(blocks.size(), 1u);
+        const TriangleBlock<K>& block = blocks[0];
+
+        const Ray ray = adversarial_ray(rng, triangles[start]);
+        if (!is_valid(ray)) continue;
+        const PreparedRay<TriangleTestT> prepared(ray);
+        const BlockRay<TriangleTestT, K> block_ray(prepared, geometry);
+
+        BlockHits<K> hits;
+        block_ray.kernel.test(block, ray.tnear, ray.tfar, hits);
+        counts.scalar_lanes += static_cast<std::size_t>(std::popcount(hits.scalar_lanes));
+        for (int lane = 0; lane < K; ++lane) {
+            const bool kernel_hit = (hits.hit_lanes >> lane) & 1u;
+            const bool is_triangle = lane < static_cast<int>(prims.size()) && prims[lane] < triangles.size();
+            if (!is_triangle) {
+                ASSERT_FALSE(kernel_hit) << "trial " << trial << ": a padding or sphere lane hit";
+                continue;
+            }
+            if ((hits.scalar_lanes >> lane) & 1u) continue;
+            TriangleHit expected;
+            const bool scalar_hit = TriangleTestT::intersect(prepared.triangle_data, triangles[prims[lane]],
+                                                             ray.tnear, ray.tfar, expected);
+            ASSERT_EQ(kernel_hit, scalar_hit) << "trial " << trial << " lane " << lane;
+            if (!kernel_hit) continue;
+            ++counts.lane_hits;
+            ASSERT_TRUE(same_bits(hits.t[lane], expected.t) && same_bits(hits.u[lane], expected.u) &&
+                        same_bits(hits.v[lane], expected.v))
+                << "trial " << trial << " lane " << lane;
+        }
+
+        Hit start_hit;
+        if (choice(rng) < 3)
+            start_hit = {4.0f * std::abs(static_cast<float>(choice(rng))) / 9.0f,
+                         static_cast<std::int32_t>(any_prim(rng)), 0.25f, 0.5f};
+        Hit expected = start_hit, actual = start_hit;
+        for (const std::uint32_t prim : prims)
+            intersect_primitive(geometry, prim, prepared, expected);
+        intersect_block(geometry, block, block_ray, actual);
+        ASSERT_EQ(actual.prim, expected.prim) << "trial " << trial;
+        ASSERT_TRUE(same_bits(actual.t, expected.t) && same_bits(actual.u, expected.u) &&
+                    same_bits(actual.v, expected.v))
+            << "trial " << trial;
+        counts.closest_hits += expected.prim != start_hit.prim;
+
+        bool expected_occluded = false;
+        for (const std::uint32_t prim : prims)
+            expected_occluded = expected_occluded || occludes(geometry, prim, prepared);
+        ASSERT_EQ(occludes_block(geometry, block, block_ray), expected_occluded) << "trial " << trial;
+        counts.occluded += expected_occluded;
+    }
+}
+
+template <class TriangleTestT>
+void check_block_kernels(std::uint32_t seed) {
+    KernelCheckCounts counts;
+    check_block_kernel<TriangleTestT, 4>(seed, counts);
+    check_block_kernel<TriangleTestT, 8>(seed + 1, counts);
+    // Not a degenerate sample: many lanes hit, many closest hits change, and the watertight test hands many
+    // lanes (grid triangles, repeated vertices) to its double fallback.
+    EXPECT_GT(counts.lane_hits, 6000u);
+    EXPECT_GT(counts.closest_hits, 5000u);
+    EXPECT_GT(counts.occluded, 5000u);
+    if constexpr (std::is_same_v<TriangleTestT, Watertight>) {
+        EXPECT_GT(counts.scalar_lanes, 1000u);
+    }
+}
+
+TEST(TriangleBlock, MollerTrumboreBlockEqualsScalarTest) {
+    check_block_kernels<MollerTrumbore>(11);
+}
+
+TEST(TriangleBlock, WatertightBlockEqualsScalarTest) {
+    check_block_kernels<Watertight>(21);
 }
 
 }  // namespace

@@ -1,0 +1,333 @@
+// Triangles in SIMD blocks: the leaves of the wide BVH store their primitives K at a time, vertices
+// pre-gathered in structure of arrays, and test a whole block against a ray with one vector Moller-Trumbore
+// or one vector watertight test (Embree's Triangle4v / Triangle8v; Wald, Benthin & Boulos, "Getting Rid of
+// Packets", RT 2008, section 4). docs/accel/bvh_wide.md has the design note.
+//
+// Bit-identical to the scalar kernels of core/intersect.hpp: every lane performs the same fp32 operations in
+// the same order (no fused multiply-add: -ffp-contract=off), with the same ill-conditioned band and the same
+// acceptance tests; lanes whose watertight edge functions come out exactly zero are handed to the scalar
+// test, which redoes them in double. The closest lane is chosen with closer(), ties to the smaller index.
+#pragma once
+
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <vector>
+
+#include "accel/primitive_test.hpp"
+#include "accel/simd_float.hpp"
+#include "core/intersect.hpp"
+
+namespace lancer {
+
+// One block of K primitives of a leaf: 36 K + 4 K bytes (160 for K = 4, 320 for K = 8), a multiple of the
+// vector size, so consecutive blocks stay aligned. A lane that holds no triangle (a padding lane, or a
+// sphere in a mixed scene, tested by the scalar path) has NaN vertices, which every vector acceptance test
+// rejects (NaN compares false), and never reaches the double fallback (NaN == 0 is false).
+template <int K>
+struct alignas(K * 4) TriangleBlock {
+    static constexpr std::uint32_t kNoPrimitive = std::numeric_limits<std::uint32_t>::max();
+    // 36 K bytes: vertex[v0 | v1 | v2][axis][lane], as in the Triangle.
+    float vertex[3][3][K];
+    // 4 K bytes: global primitive index of each lane; kNoPrimitive for padding.
+    std::uint32_t prim[K];
+
+    [[nodiscard]] Triangle triangle(int lane) const {
+        auto corner = [&](int v) {
+            return Vec3f(vertex[v][0][lane], vertex[v][1][lane], vertex[v][2][lane]);
+        };
+        return {corner(0), corner(1), corner(2)};
+    }
+};
+static_assert(sizeof(TriangleBlock<4>) == 160 && sizeof(TriangleBlock<8>) == 320);
+
+// Appends the blocks of one leaf: its primitives in order, K per block, the last block padded.
+template <int K>
+void append_leaf_blocks(const Geometry& geometry, std::span<const std::uint32_t> prims,
+                        std::vector<TriangleBlock<K>>& blocks) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (std::size_t first = 0; first < prims.size(); first += K) {
+        TriangleBlock<K>& block = blocks.emplace_back();
+        for (int lane = 0; lane < K; ++lane) {
+            const std::size_t i = first + static_cast<std::size_t>(lane);
+            block.prim[lane] = i < prims.size() ? prims[i] : TriangleBlock<K>::kNoPrimitive;
+            const bool is_triangle = i < prims.size() && prims[i] < geometry.triangles.size();
+            const Triangle tri = is_triangle ? geometry.triangles[prims[i]] : Triangle{};
+            const Vec3f corners[3] = {tri.v0, tri.v1, tri.v2};
+            for (int v = 0; v < 3; ++v) {
+                for (int axis = 0; axis < 3; ++axis)
+                    block.vertex[v][axis][lane] = is_triangle ? corners[v][axis] : nan;
+            }
+        }
+    }
+}
+
+[[nodiscard]] constexpr std::uint32_t block_count(std::uint32_t prim_count, int lanes) {
+    return (prim_count + static_cast<std::uint32_t>(lanes) - 1) / static_cast<std::uint32_t>(lanes);
+}
+
+// What a block test returns: the lanes hit in [tnear, tfar] with their t, u, v, and the lanes the scalar
+// test must decide (a watertight edge function exactly zero).
+template <int K>
+struct BlockHits {
+    alignas(32) float t[K];
+    alignas(32) float u[K];
+    alignas(32) float v[K];
+    unsigned hit_lanes = 0;
+    unsigned scalar_lanes = 0;
+};
+
+// The vector kernels, one per triangle test, on a ray broadcast once (BlockRay below).
+namespace block_detail {
+
+#if defined(__AVX2__) || defined(__SSE4_1__)
+template <class Ops>
+struct Vec3v {
+    typename Ops::Float x, y, z;
+};
+
+template <class Ops, int K>
+[[nodiscard]] inline Vec3v<Ops> load_vertex(const TriangleBlock<K>& block, int v) {
+    return {Ops::load(block.vertex[v][0]), Ops::load(block.vertex[v][1]), Ops::load(block.vertex[v][2])};
+}
+
+template <class Ops>
+[[nodiscard]] inline Vec3v<Ops> sub(const Vec3v<Ops>& a, const Vec3v<Ops>& b) {
+    return {Ops::sub(a.x, b.x), Ops::sub(a.y, b.y), Ops::sub(a.z, b.z)};
+}
+// dot() and cross() of lancer/vec.hpp, term for term.
+template <class Ops>
+[[nodiscard]] inline typename Ops::Float dot(const Vec3v<Ops>& a, const Vec3v<Ops>& b) {
+    return Ops::add(Ops::add(Ops::mul(a.x, b.x), Ops::mul(a.y, b.y)), Ops::mul(a.z, b.z));
+}
+template <class Ops>
+[[nodiscard]] inline Vec3v<Ops> cross(const Vec3v<Ops>& a, const Vec3v<Ops>& b) {
+    return {Ops::sub(Ops::mul(a.y, b.z), Ops::mul(a.z, b.y)),
+            Ops::sub(Ops::mul(a.z, b.x), Ops::mul(a.x, b.z)),
+            Ops::sub(Ops::mul(a.x, b.y), Ops::mul(a.y, b.x))};
+}
+// max_component(abs(e)). std::max and maxps differ only on NaN, and a NaN edge component makes det NaN
+// (every product with it is NaN), which the band test rejects either way.
+template <class Ops>
+[[nodiscard]] inline typename Ops::Float max_abs_component(const Vec3v<Ops>& a) {
+    return Ops::max(Ops::abs(a.x), Ops::max(Ops::abs(a.y), Ops::abs(a.z)));
+}
+
+// MollerTrumbore::intersect on K lanes.
+template <class Ops>
+struct MollerTrumboreBlock {
+    Vec3v<Ops> origin, direction;
+    typename Ops::Float band_scale;  // kIllConditioned * direction_scale, the first product of the band
+
+    explicit MollerTrumboreBlock(const MollerTrumbore::RayData& ray)
+        : origin{Ops::broadcast(ray.origin.x), Ops::broadcast(ray.origin.y), Ops::broadcast(ray.origin.z)},
+          direction{Ops::broadcast(ray.direction.x), Ops::broadcast(ray.direction.y),
+                    Ops::broadcast(ray.direction.z)},
+          band_scale(Ops::broadcast(MollerTrumbore::kIllConditioned * ray.direction_scale)) {}
+
+    template <int K>
+    void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
+        using Float = typename Ops::Float;
+        const Vec3v<Ops> v0 = load_vertex<Ops>(block, 0);
+        const Vec3v<Ops> e1 = sub(load_vertex<Ops>(block, 1), v0);
+        const Vec3v<Ops> e2 = sub(load_vertex<Ops>(block, 2), v0);
+        const Vec3v<Ops> p = cross(direction, e2);
+        const Float det = dot(p, e1);
+        Float accept = Ops::greater(
+            Ops::abs(det), Ops::mul(Ops::mul(band_scale, max_abs_component(e1)), max_abs_component(e2)));
+        const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
+        const Vec3v<Ops> to_origin = sub(origin, v0);
+        const Float u = Ops::mul(dot(to_origin, p), inv_det);
+        const Float zero = Ops::broadcast(0.0f), one = Ops::broadcast(1.0f);
+        accept = Ops::bit_and(accept, Ops::bit_and(Ops::greater_equal(u, zero), Ops::less_equal(u, one)));
+        const Vec3v<Ops> q = cross(to_origin, e1);
+        const Float v = Ops::mul(dot(direction, q), inv_det);
+        accept = Ops::bit_and(
+            accept, Ops::bit_and(Ops::greater_equal(v, zero), Ops::less_equal(Ops::add(u, v), one)));
+        const Float t = Ops::mul(dot(e2, q), inv_det);
+        accept = Ops::bit_and(accept, Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
+                                                                Ops::less_equal(t, Ops::broadcast(tfar))),
+                                                   Ops::less(t, Ops::broadcast(kInfinity))));
+        out.hit_lanes = Ops::mask(accept);
+        out.scalar_lanes = 0;
+        Ops::store(out.t, t), Ops::store(out.u, u), Ops::store(out.v, v);
+    }
+};
+
+// Watertight::intersect on K lanes. The ray's axis permutation is the same for every lane, so a[kx] is the
+// load of the kx row of the block.
+template <class Ops>
+struct WatertightBlock {
+    typename Ops::Float origin_x, origin_y, origin_z;  // the origin's kx, ky, kz components
+    typename Ops::Float shear_x, shear_y, shear_z;
+    int kx, ky, kz;
+
+    explicit WatertightBlock(const Watertight::RayData& ray)
+        : origin_x(Ops::broadcast(ray.origin[ray.kx])),
+          origin_y(Ops::broadcast(ray.origin[ray.ky])),
+          origin_z(Ops::broadcast(ray.origin[ray.kz])),
+          shear_x(Ops::broadcast(ray.shear_x)),
+          shear_y(Ops::broadcast(ray.shear_y)),
+          shear_z(Ops::broadcast(ray.shear_z)),
+          kx(ray.kx),
+          ky(ray.ky),
+          kz(ray.kz) {}
+
+    // A vertex relative to the origin: (x, y) sheared into ray space, z the unsheared a[kz].
+    template <int K>
+    [[nodiscard]] Vec3v<Ops> sheared(const TriangleBlock<K>& block, int v) const {
+        const typename Ops::Float z = Ops::sub(Ops::load(block.vertex[v][kz]), origin_z);
+        return {Ops::sub(Ops::sub(Ops::load(block.vertex[v][kx]), origin_x), Ops::mul(shear_x, z)),
+                Ops::sub(Ops::sub(Ops::load(block.vertex[v][ky]), origin_y), Ops::mul(shear_y, z)), z};
+    }
+
+    template <int K>
+    void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
+        using Float = typename Ops::Float;
+        const Vec3v<Ops> a = sheared(block, 0), b = sheared(block, 1), c = sheared(block, 2);
+        const Float w0 = Ops::sub(Ops::mul(b.x, c.y), Ops::mul(b.y, c.x));
+        const Float w1 = Ops::sub(Ops::mul(c.x, a.y), Ops::mul(c.y, a.x));
+        const Float w2 = Ops::sub(Ops::mul(a.x, b.y), Ops::mul(a.y, b.x));
+        const Float zero = Ops::broadcast(0.0f);
+        const Float any_zero =
+            Ops::bit_or(Ops::bit_or(Ops::equal(w0, zero), Ops::equal(w1, zero)), Ops::equal(w2, zero));
+        const Float any_negative =
+            Ops::bit_or(Ops::bit_or(Ops::less(w0, zero), Ops::less(w1, zero)), Ops::less(w2, zero));
+        const Float any_positive =
+            Ops::bit_or(Ops::bit_or(Ops::greater(w0, zero), Ops::greater(w1, zero)), Ops::greater(w2, zero));
+        const Float det = Ops::add(Ops::add(w0, w1), w2);
+        const Float az = Ops::mul(shear_z, a.z), bz = Ops::mul(shear_z, b.z), cz = Ops::mul(shear_z, c.z);
+        const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
+        const Float t =
+            Ops::mul(Ops::add(Ops::add(Ops::mul(w0, az), Ops::mul(w1, bz)), Ops::mul(w2, cz)), inv_det);
+        const Float t_accepted = Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
+                                                           Ops::less_equal(t, Ops::broadcast(tfar))),
+                                              Ops::less(t, Ops::broadcast(kInfinity)));
+        const unsigned scalar_lanes = Ops::mask(any_zero);
+        const unsigned rejected =
+            Ops::mask(Ops::bit_and(any_negative, any_positive)) | Ops::mask(Ops::equal(det, zero));
+        out.hit_lanes = Ops::mask(t_accepted) & ~rejected & ~scalar_lanes;
+        out.scalar_lanes = scalar_lanes;
+        Ops::store(out.t, t), Ops::store(out.u, Ops::mul(w1, inv_det)),
+            Ops::store(out.v, Ops::mul(w2, inv_det));
+    }
+};
+#endif
+
+// Without SSE4.1 / AVX2: the scalar kernel lane by lane, on the block's copy of the vertices.
+template <class TriangleTestT>
+struct ScalarBlock {
+    typename TriangleTestT::RayData ray;
+
+    explicit ScalarBlock(const typename TriangleTestT::RayData& data) : ray(data) {}
+
+    template <int K>
+    void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
+        out.hit_lanes = 0, out.scalar_lanes = 0;
+        for (int lane = 0; lane < K; ++lane) {
+            TriangleHit hit;
+            if (!TriangleTestT::intersect(ray, block.triangle(lane), tnear, tfar, hit)) continue;
+            out.hit_lanes |= 1u << lane;
+            out.t[lane] = hit.t, out.u[lane] = hit.u, out.v[lane] = hit.v;
+        }
+    }
+};
+
+template <class TriangleTestT, class Ops>
+struct VectorKernel;
+#if defined(__AVX2__) || defined(__SSE4_1__)
+template <class Ops>
+struct VectorKernel<MollerTrumbore, Ops> {
+    using type = MollerTrumboreBlock<Ops>;
+};
+template <class Ops>
+struct VectorKernel<Watertight, Ops> {
+    using type = WatertightBlock<Ops>;
+};
+#endif
+
+}  // namespace block_detail
+
+// The block kernel of a triangle test for K lanes: SSE for 4, AVX2 for 8 where the compiler targets them,
+// the scalar kernel lane by lane otherwise. Same hits, t, u and v in every case.
+template <class TriangleTestT, int K>
+struct BlockKernelFor {
+    using type = block_detail::ScalarBlock<TriangleTestT>;
+};
+#if defined(__SSE4_1__)
+template <class TriangleTestT>
+struct BlockKernelFor<TriangleTestT, 4> {
+    using type = typename block_detail::VectorKernel<TriangleTestT, simd::Sse4>::type;
+};
+#endif
+#if defined(__AVX2__)
+template <class TriangleTestT>
+struct BlockKernelFor<TriangleTestT, 8> {
+    using type = typename block_detail::VectorKernel<TriangleTestT, simd::Avx2>::type;
+};
+#endif
+template <class TriangleTestT, int K>
+using BlockKernel = typename BlockKernelFor<TriangleTestT, K>::type;
+
+// A ray prepared for the scalar kernels and broadcast for the block kernel, once per ray.
+template <class TriangleTestT, int K>
+struct BlockRay {
+    const PreparedRay<TriangleTestT>& prepared;
+    BlockKernel<TriangleTestT, K> kernel;
+    bool has_spheres;
+
+    BlockRay(const PreparedRay<TriangleTestT>& p, const Geometry& geometry)
+        : prepared(p), kernel(p.triangle_data), has_spheres(!geometry.spheres.empty()) {}
+};
+
+// The lanes of `block` that the scalar path tests: spheres (in mixed scenes) and the kernel's scalar lanes.
+template <int K>
+[[nodiscard]] inline unsigned scalar_lanes(const TriangleBlock<K>& block, const Geometry& geometry,
+                                           bool has_spheres, unsigned kernel_scalar_lanes) {
+    unsigned lanes = kernel_scalar_lanes;
+    if (has_spheres) {
+        for (int lane = 0; lane < K; ++lane) {
+            if (block.prim[lane] >= geometry.triangles.size() &&
+                block.prim[lane] != TriangleBlock<K>::kNoPrimitive)
+                lanes |= 1u << lane;
+        }
+    }
+    return lanes;
+}
+
+// intersect_primitive on every lane of a block: the closest hit in [tnear, best t] (ties to the smaller
+// index, closer()) overwrites `best`. The lanes are tested against the same tfar; taking them through
+// closer() in turn gives the answer of the scalar loop, whose shrinking tfar only drops lanes closer()
+// rejects anyway.
+template <class TriangleTestT, int K>
+inline void intersect_block(const Geometry& geometry, const TriangleBlock<K>& block,
+                            const BlockRay<TriangleTestT, K>& ray, Hit& best) {
+    BlockHits<K> hits;
+    ray.kernel.test(block, ray.prepared.ray.tnear, best.hit() ? best.t : ray.prepared.ray.tfar, hits);
+    for (unsigned lanes = hits.hit_lanes; lanes != 0; lanes &= lanes - 1) {
+        const int lane = std::countr_zero(lanes);
+        const auto prim = static_cast<std::int32_t>(block.prim[lane]);
+        if (closer(hits.t[lane], prim, best)) best = {hits.t[lane], prim, hits.u[lane], hits.v[lane]};
+    }
+    for (unsigned lanes = scalar_lanes(block, geometry, ray.has_spheres, hits.scalar_lanes); lanes != 0;
+         lanes &= lanes - 1)
+        intersect_primitive(geometry, block.prim[std::countr_zero(lanes)], ray.prepared, best);
+}
+
+// occludes on every lane of a block: any hit in [tnear, tfar].
+template <class TriangleTestT, int K>
+[[nodiscard]] inline bool occludes_block(const Geometry& geometry, const TriangleBlock<K>& block,
+                                         const BlockRay<TriangleTestT, K>& ray) {
+    BlockHits<K> hits;
+    ray.kernel.test(block, ray.prepared.ray.tnear, ray.prepared.ray.tfar, hits);
+    if (hits.hit_lanes != 0) return true;
+    for (unsigned lanes = scalar_lanes(block, geometry, ray.has_spheres, hits.scalar_lanes); lanes != 0;
+         lanes &= lanes - 1) {
+        if (occludes(geometry, block.prim[std::countr_zero(lanes)], ray.prepared)) return true;
+    }
+    return false;
+}
+
+}  // namespace lancer
