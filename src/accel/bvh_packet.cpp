@@ -6,10 +6,7 @@
 #include <cmath>
 #include <vector>
 
-#if defined(__AVX2__)
-#include <immintrin.h>
-#endif
-
+#include "accel/bvh_wide.hpp"
 #include "accel/primitive_test.hpp"
 
 namespace lancer {
@@ -18,9 +15,6 @@ namespace {
 constexpr int kPacketSize = BvhPacketAccel::kPacketSize;
 using LaneMask = std::uint64_t;  // bit i: ray i of the packet
 static_assert(kPacketSize <= 64 && kPacketSize % 8 == 0);
-
-// intersect_box's widening of the slab exit (pbrt-v4, Bounds3::IntersectP).
-constexpr float kSlabExitWidening = 1.0f + 2.0f * gamma_bound(3);
 
 // The slab-test view of a packet, one array per coordinate so that 8 rays load in one instruction. Unused
 // lanes hold zeros and are masked off.
@@ -36,7 +30,7 @@ struct PacketSlabs {
 // slab is then the same face for every lane, and min/max of the two plane distances become a choice made
 // once. The NaN of a zero direction component on a face's plane (0 * inf) leaves the interval unchanged,
 // because max_ps / min_ps return their second operand, the interval, when either is NaN: the unbounded slab
-// of intersect_box (the same argument as bvh_wide.hpp's wide_detail).
+// of intersect_box (the same argument as bvh_wide.hpp's wide_detail, whose operations these are).
 template <class Ops>
 [[nodiscard]] unsigned box_lanes(const PacketSlabs& slabs, const BvhNode& node, int first) {
     auto t0 = Ops::load(&slabs.tnear[static_cast<std::size_t>(first)]);
@@ -58,24 +52,12 @@ template <class Ops>
 }
 
 #if defined(__AVX2__)
-struct Avx2Lanes {
-    static constexpr int kWidth = 8;
-    static __m256 broadcast(float x) { return _mm256_set1_ps(x); }
-    static __m256 load(const float* p) { return _mm256_load_ps(p); }
-    static __m256 sub(__m256 a, __m256 b) { return _mm256_sub_ps(a, b); }
-    static __m256 mul(__m256 a, __m256 b) { return _mm256_mul_ps(a, b); }
-    static __m256 max(__m256 a, __m256 b) { return _mm256_max_ps(a, b); }
-    static __m256 min(__m256 a, __m256 b) { return _mm256_min_ps(a, b); }
-    // Ordered, non-signalling: a NaN compares false, as t0 <= t1 does in intersect_box.
-    static unsigned mask_less_equal(__m256 a, __m256 b) {
-        return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)));
-    }
-};
-using PacketLanes = Avx2Lanes;
+// bvh_wide's 8-wide operations, the same NaN rules.
+using PacketLanes = wide_detail::Avx2;
+constexpr int kLaneWidth = 8;
 #else
 // One lane, with the SIMD instructions' NaN rules (second operand when either is NaN).
 struct ScalarLane {
-    static constexpr int kWidth = 1;
     static float broadcast(float x) { return x; }
     static float load(const float* p) { return *p; }
     static float sub(float a, float b) { return a - b; }
@@ -85,14 +67,14 @@ struct ScalarLane {
     static unsigned mask_less_equal(float a, float b) { return a <= b ? 1u : 0u; }
 };
 using PacketLanes = ScalarLane;
+constexpr int kLaneWidth = 1;
 #endif
 
 // The rays of `mask` whose search interval [tnear, tlimit] meets the node's box.
 [[nodiscard]] LaneMask intersect_box_packet(const PacketSlabs& slabs, const BvhNode& node, LaneMask mask) {
-    constexpr int kWidth = PacketLanes::kWidth;
-    constexpr LaneMask kGroup = (LaneMask{1} << kWidth) - 1;
+    constexpr LaneMask kGroup = (LaneMask{1} << kLaneWidth) - 1;
     LaneMask result = 0;
-    for (int first = 0; first < kPacketSize; first += kWidth) {
+    for (int first = 0; first < kPacketSize; first += kLaneWidth) {
         const LaneMask lanes = (mask >> first) & kGroup;
         if (lanes == 0) continue;
         result |= (static_cast<LaneMask>(box_lanes<PacketLanes>(slabs, node, first)) & lanes) << first;
@@ -145,9 +127,9 @@ class PacketTracer {
 
     // Front to back as `bvh`: the near child (by the packet's direction sign on the split axis) first, the
     // far one pushed with the rays that met the parent. kAnyHit: a ray leaves the packet at its first hit.
-    // On return best[i] is ray i's closest hit (kAnyHit false) or occluded[i] says whether it hit anything.
-    template <bool kAnyHit, bool kCount>
-    void trace(std::span<Hit> best, std::span<std::uint8_t> occluded, TraversalCounters& counts) {
+    // `answers` starts as misses; on return answers[i] is ray i's closest hit (Hit) or occlusion (uint8).
+    template <bool kAnyHit, bool kCount, class Answer>
+    void trace(std::span<Answer> answers, TraversalCounters& counts) {
         const std::vector<BvhNode>& nodes = bvh_.nodes();
         const std::vector<std::uint32_t>& prim_indices = bvh_.prim_indices();
         LaneMask alive = valid_;
@@ -178,13 +160,13 @@ class PacketTracer {
                     if constexpr (kAnyHit) {
                         for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i) {
                             if (occludes(geometry_, prim_indices[i], prepared)) {
-                                occluded[lane] = 1;
+                                answers[lane] = 1;
                                 alive &= ~(LaneMask{1} << lane);
                                 break;
                             }
                         }
                     } else {
-                        Hit& hit = best[lane];
+                        Hit& hit = answers[lane];
                         for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i)
                             intersect_primitive(geometry_, prim_indices[i], prepared, hit);
                         if (hit.hit()) slabs_.tlimit[lane] = hit.t;
@@ -206,19 +188,30 @@ class PacketTracer {
     LaneMask valid_ = 0;
 };
 
-// Cuts the batch into packets of consecutive rays: coherent(tracer, first, count) traces a loaded coherent
-// packet, single(first, count) the rays of an incoherent one through `bvh`.
-template <class TriangleTestT, class Coherent, class Single>
-void for_each_packet(const BvhAccel& bvh, const Geometry& geometry, std::span<const Ray> rays,
-                     Coherent&& coherent, Single&& single) {
-    PacketTracer<TriangleTestT> tracer(bvh, geometry);
-    for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
-        const std::size_t count = std::min<std::size_t>(kPacketSize, rays.size() - first);
-        if (tracer.load(rays.subspan(first, count)))
-            coherent(tracer, first, count);
-        else
-            single(first, count);
-    }
+// Cuts the batch into packets of consecutive rays, traces the coherent ones and hands the others to `bvh`.
+// Answer: Hit (closest hit) or std::uint8_t (occlusion, kAnyHit).
+template <bool kAnyHit, class Answer>
+void trace_batch(const BvhAccel& bvh, const Geometry& geometry, TriangleTest test, std::span<const Ray> rays,
+                 std::span<Answer> answers, TraversalCounters* counters) {
+    dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        TraversalCounters counts;
+        PacketTracer<TriangleTestT> tracer(bvh, geometry);
+        for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
+            const std::size_t count = std::min<std::size_t>(kPacketSize, rays.size() - first);
+            const std::span<const Ray> packet_rays = rays.subspan(first, count);
+            const std::span<Answer> packet_answers = answers.subspan(first, count);
+            if (tracer.load(packet_rays)) {
+                std::fill(packet_answers.begin(), packet_answers.end(), Answer{});
+                tracer.template trace<kAnyHit, kCount>(packet_answers, counts);
+                if constexpr (kCount) counts.rays += count;
+            } else if constexpr (kAnyHit) {
+                bvh.occluded(packet_rays, packet_answers, kCount ? &counts : nullptr);
+            } else {
+                bvh.intersect(packet_rays, packet_answers, kCount ? &counts : nullptr);
+            }
+        }
+        if constexpr (kCount) *counters += counts;
+    });
 }
 
 }  // namespace
@@ -231,42 +224,12 @@ void BvhPacketAccel::build(const Geometry& geometry, const BuildOptions& options
 
 void BvhPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                      TraversalCounters* counters) const {
-    dispatch_policies(triangle_test_, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        TraversalCounters counts;
-        for_each_packet<TriangleTestT>(
-            bvh_, geometry_, rays,
-            [&](PacketTracer<TriangleTestT>& tracer, std::size_t first, std::size_t count) {
-                const std::span<Hit> packet_hits = hits.subspan(first, count);
-                std::fill(packet_hits.begin(), packet_hits.end(), Hit{});
-                tracer.template trace<false, kCount>(packet_hits, {}, counts);
-                if constexpr (kCount) counts.rays += count;
-            },
-            [&](std::size_t first, std::size_t count) {
-                bvh_.intersect(rays.subspan(first, count), hits.subspan(first, count),
-                               kCount ? &counts : nullptr);
-            });
-        if constexpr (kCount) *counters += counts;
-    });
+    trace_batch<false>(bvh_, geometry_, triangle_test_, rays, hits, counters);
 }
 
 void BvhPacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                     TraversalCounters* counters) const {
-    dispatch_policies(triangle_test_, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        TraversalCounters counts;
-        for_each_packet<TriangleTestT>(
-            bvh_, geometry_, rays,
-            [&](PacketTracer<TriangleTestT>& tracer, std::size_t first, std::size_t count) {
-                const std::span<std::uint8_t> packet_occluded = occluded.subspan(first, count);
-                std::fill(packet_occluded.begin(), packet_occluded.end(), std::uint8_t{0});
-                tracer.template trace<true, kCount>({}, packet_occluded, counts);
-                if constexpr (kCount) counts.rays += count;
-            },
-            [&](std::size_t first, std::size_t count) {
-                bvh_.occluded(rays.subspan(first, count), occluded.subspan(first, count),
-                              kCount ? &counts : nullptr);
-            });
-        if constexpr (kCount) *counters += counts;
-    });
+    trace_batch<true>(bvh_, geometry_, triangle_test_, rays, occluded, counters);
 }
 
 }  // namespace lancer
