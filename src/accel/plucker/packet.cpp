@@ -90,22 +90,30 @@ void walk_packet(const PluckerLayout& layout, const Boxes& boxes,
 }
 
 // Cuts the batch into packets of consecutive rays and calls
-// packet.template operator()<kBalanced>(boxes, prepared, valid, first, count) for each, with the policies and
-// the layout's variant dispatched once per batch.
-template <class TriangleTestT, class Packet>
-void for_each_packet(const PluckerLayout& layout, std::span<const Ray> rays, Packet&& packet) {
-    dispatch_layout(layout, [&]<bool kBalanced>(const auto& boxes) {
-        std::vector<PreparedRay<TriangleTestT>> prepared;
-        prepared.reserve(kPacketSize);
-        for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
-            const std::size_t count = std::min<std::size_t>(kPacketSize, rays.size() - first);
-            prepared.clear();
-            LaneMask valid = 0;
-            for (std::size_t lane = 0; lane < count; ++lane) {
-                prepared.emplace_back(rays[first + lane]);
-                if (is_valid(rays[first + lane])) valid |= LaneMask{1} << lane;
+// packet.template operator()<kCount, kBalanced>(boxes, prepared, valid, first, count, counts) for each, with
+// the policies and the layout's variant dispatched once per batch.
+template <class Packet>
+void for_each_packet(const PluckerLayout& layout, TriangleTest test, std::span<const Ray> rays,
+                     TraversalCounters* counters, Packet&& packet) {
+    dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        TraversalCounters counts;
+        dispatch_layout(layout, [&]<bool kBalanced>(const auto& boxes) {
+            std::vector<PreparedRay<TriangleTestT>> prepared;
+            prepared.reserve(kPacketSize);
+            for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
+                const std::size_t count = std::min<std::size_t>(kPacketSize, rays.size() - first);
+                prepared.clear();
+                LaneMask valid = 0;
+                for (std::size_t lane = 0; lane < count; ++lane) {
+                    prepared.emplace_back(rays[first + lane]);
+                    if (is_valid(rays[first + lane])) valid |= LaneMask{1} << lane;
+                }
+                packet.template operator()<kCount, kBalanced>(boxes, prepared, valid, first, count, counts);
             }
-            packet.template operator()<kBalanced>(boxes, prepared, valid, first, count);
+        });
+        if constexpr (kCount) {
+            counts.rays = rays.size();
+            *counters += counts;
         }
     });
 }
@@ -121,82 +129,72 @@ void PluckerPacketAccel::build(const Geometry& geometry, const BuildOptions& opt
 void PluckerPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                          TraversalCounters* counters) const {
     const PluckerLayout& layout = plucker_.layout();
-    dispatch_policies(triangle_test_, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        TraversalCounters counts;
-        for_each_packet<TriangleTestT>(
-            layout, rays,
-            [&]<bool kBalanced>(const auto& boxes, const auto& prepared, LaneMask valid, std::size_t first,
-                                std::size_t count) {
-                std::array<Hit, kPacketSize> best;
-                walk_packet<kBalanced, kCount>(
-                    layout, boxes, prepared, valid,
-                    [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
-                        const std::uint32_t primitive_count = record[plucker::kTriangleCount];
-                        const PluckerPrimitive* leaf =
-                            layout.primitives.data() + record[plucker::kTriangleOffset];
-                        if constexpr (kCount)
-                            counts.prims_tested += static_cast<std::uint64_t>(primitive_count) *
-                                                   static_cast<std::uint64_t>(std::popcount(group));
-                        for (std::uint32_t r = 0; r < primitive_count; ++r) {
-                            const PluckerPrimitive& primitive = leaf[r];
-                            const auto prim = static_cast<std::int32_t>(primitive.prim);
-                            for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
-                                const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
-                                TriangleHit candidate;
-                                if (intersect_leaf_primitive(layout, geometry_, primitive, prepared[lane],
-                                                             limits[lane], candidate) &&
-                                    closer(candidate.t, prim, best[lane])) {
-                                    best[lane] = {candidate.t, prim, candidate.u, candidate.v};
-                                    limits[lane] = candidate.t;
-                                }
+    for_each_packet(
+        layout, triangle_test_, rays, counters,
+        [&]<bool kCount, bool kBalanced>(const auto& boxes, const auto& prepared, LaneMask valid,
+                                         std::size_t first, std::size_t count, TraversalCounters& counts) {
+            std::array<Hit, kPacketSize> best;
+            walk_packet<kBalanced, kCount>(
+                layout, boxes, prepared, valid,
+                [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
+                    const std::uint32_t primitive_count = record[plucker::kTriangleCount];
+                    const PluckerPrimitive* leaf =
+                        layout.primitives.data() + record[plucker::kTriangleOffset];
+                    if constexpr (kCount)
+                        counts.prims_tested += static_cast<std::uint64_t>(primitive_count) *
+                                               static_cast<std::uint64_t>(std::popcount(group));
+                    // Each primitive loaded once for the whole group.
+                    for (std::uint32_t r = 0; r < primitive_count; ++r) {
+                        const auto prim = static_cast<std::int32_t>(leaf[r].prim);
+                        for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
+                            const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
+                            TriangleHit candidate;
+                            if (intersect_leaf_primitive(layout, geometry_, leaf[r], prepared[lane],
+                                                         limits[lane], candidate) &&
+                                closer(candidate.t, prim, best[lane])) {
+                                best[lane] = {candidate.t, prim, candidate.u, candidate.v};
+                                limits[lane] = candidate.t;
                             }
                         }
-                    },
-                    counts);
-                std::copy_n(best.begin(), count, hits.begin() + static_cast<std::ptrdiff_t>(first));
-                if constexpr (kCount) counts.rays += count;
-            });
-        if constexpr (kCount) *counters += counts;
-    });
+                    }
+                },
+                counts);
+            std::copy_n(best.begin(), count, hits.begin() + static_cast<std::ptrdiff_t>(first));
+        });
 }
 
 void PluckerPacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                         TraversalCounters* counters) const {
     const PluckerLayout& layout = plucker_.layout();
-    dispatch_policies(triangle_test_, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        TraversalCounters counts;
-        for_each_packet<TriangleTestT>(
-            layout, rays,
-            [&]<bool kBalanced>(const auto& boxes, const auto& prepared, LaneMask valid, std::size_t first,
-                                std::size_t count) {
-                LaneMask hit = 0;
-                walk_packet<kBalanced, kCount>(
-                    layout, boxes, prepared, valid,
-                    [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
-                        const std::uint32_t primitive_count = record[plucker::kTriangleCount];
-                        const PluckerPrimitive* leaf =
-                            layout.primitives.data() + record[plucker::kTriangleOffset];
-                        for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
-                            const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
-                            for (std::uint32_t r = 0; r < primitive_count; ++r) {
-                                if constexpr (kCount) ++counts.prims_tested;
-                                TriangleHit candidate;
-                                if (intersect_leaf_primitive(layout, geometry_, leaf[r], prepared[lane],
-                                                             prepared[lane].ray.tfar, candidate)) {
-                                    hit |= LaneMask{1} << lane;
-                                    limits[lane] = -kInfinity;  // any hit ends the ray's walk
-                                    break;
-                                }
+    for_each_packet(
+        layout, triangle_test_, rays, counters,
+        [&]<bool kCount, bool kBalanced>(const auto& boxes, const auto& prepared, LaneMask valid,
+                                         std::size_t first, std::size_t count, TraversalCounters& counts) {
+            LaneMask hit = 0;
+            walk_packet<kBalanced, kCount>(
+                layout, boxes, prepared, valid,
+                [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
+                    const std::uint32_t primitive_count = record[plucker::kTriangleCount];
+                    const PluckerPrimitive* leaf =
+                        layout.primitives.data() + record[plucker::kTriangleOffset];
+                    for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
+                        const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
+                        for (std::uint32_t r = 0; r < primitive_count; ++r) {
+                            if constexpr (kCount) ++counts.prims_tested;
+                            TriangleHit candidate;
+                            if (intersect_leaf_primitive(layout, geometry_, leaf[r], prepared[lane],
+                                                         prepared[lane].ray.tfar, candidate)) {
+                                hit |= LaneMask{1} << lane;
+                                limits[lane] = -kInfinity;  // any hit ends the ray's walk
+                                break;
                             }
                         }
-                    },
-                    counts);
-                for (std::size_t lane = 0; lane < count; ++lane)
-                    occluded[first + lane] = (hit >> lane) & 1u;
-                if constexpr (kCount) counts.rays += count;
-            });
-        if constexpr (kCount) *counters += counts;
-    });
+                    }
+                },
+                counts);
+            for (std::size_t lane = 0; lane < count; ++lane)
+                occluded[first + lane] = (hit >> lane) & 1u;
+        });
 }
 
 }  // namespace lancer
