@@ -1,6 +1,7 @@
 // lancer bench: the throughput of every structure on the canonical view of shared/bench/VIEWS.md, Embree
 // beside lancer in the same process on the same rays and threads. Every structure's hits are checked
-// against the first structure's before it is timed; a disagreement fails the bench (exit code 1).
+// against the first structure's before it is timed, pixel by pixel; a disagreement fails the bench (exit
+// code 1). Rays go to the structures in 8x8 pixel tiles, tiles in scanline order (trace_frame).
 #include <fmt/core.h>
 #include <fmt/os.h>
 #include <tbb/blocked_range.h>
@@ -121,35 +122,67 @@ std::vector<BenchMesh> load_meshes(const BenchOptions& options) {
     return meshes;
 }
 
-// One frame as VIEWS.md times it: generate every ray from the camera, trace it, store its closest hit.
+// Rays are generated in square tiles of kTileSide x kTileSide pixels, each tile contiguous in the batch and
+// the tiles in scanline order (partial tiles at the right and bottom edges), so that consecutive rays are
+// coherent: the packet structures (bvh_packet, plucker_packet) trace one tile per packet and Embree's 8- and
+// 16-wide packet modes get coherent packets too. Every structure gets the same order; hits are stored and
+// compared at their pixel.
+constexpr int kTileSide = 8;
+
+// Calls visit(i, j) for every pixel of the tile rows [first_row, last_row), tile after tile.
+template <class Visit>
+void for_each_tile_pixel(int width, int height, int first_row, int last_row, Visit&& visit) {
+    for (int tile_row = first_row; tile_row < last_row; ++tile_row) {
+        const int y0 = tile_row * kTileSide, y1 = std::min(height, y0 + kTileSide);
+        for (int x0 = 0; x0 < width; x0 += kTileSide) {
+            const int x1 = std::min(width, x0 + kTileSide);
+            for (int j = y0; j < y1; ++j) {
+                for (int i = x0; i < x1; ++i)
+                    visit(i, j);
+            }
+        }
+    }
+}
+
+int tile_rows(const PinholeCamera& camera) {
+    return (camera.height() + kTileSide - 1) / kTileSide;
+}
+
+// One frame as VIEWS.md times it: generate every ray from the camera, trace it, store its closest hit at its
+// pixel. One task per row of tiles.
 void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hit>& hits,
                  tbb::task_arena& arena) {
-    const int width = camera.width();
+    const int width = camera.width(), height = camera.height();
     arena.execute([&] {
         tbb::parallel_for(
-            tbb::blocked_range<int>(0, camera.height(), 4), [&](const tbb::blocked_range<int>& rows) {
+            tbb::blocked_range<int>(0, tile_rows(camera), 1), [&](const tbb::blocked_range<int>& rows) {
                 std::vector<Ray> rays;
-                rays.reserve(static_cast<std::size_t>(rows.size()) * static_cast<std::size_t>(width));
-                for (int j = rows.begin(); j < rows.end(); ++j) {
-                    for (int i = 0; i < width; ++i) {
-                        rays.push_back(
-                            camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
-                    }
-                }
-                const auto first = static_cast<std::size_t>(rows.begin()) * static_cast<std::size_t>(width);
-                accel.intersect(rays, std::span(hits).subspan(first, rays.size()));
+                std::vector<std::size_t> pixels;
+                const auto size =
+                    static_cast<std::size_t>(rows.size() * kTileSide) * static_cast<std::size_t>(width);
+                rays.reserve(size);
+                pixels.reserve(size);
+                for_each_tile_pixel(width, height, rows.begin(), rows.end(), [&](int i, int j) {
+                    rays.push_back(
+                        camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
+                    pixels.push_back(static_cast<std::size_t>(j) * static_cast<std::size_t>(width) +
+                                     static_cast<std::size_t>(i));
+                });
+                std::vector<Hit> tile_hits(rays.size());
+                accel.intersect(rays, tile_hits);
+                for (std::size_t k = 0; k < rays.size(); ++k)
+                    hits[pixels[k]] = tile_hits[k];
             });
     });
 }
 
+// The frame's rays in trace_frame's tile order (index k is a pixel; every structure sees the same order).
 std::vector<Ray> view_rays(const PinholeCamera& camera) {
     std::vector<Ray> rays;
     rays.reserve(static_cast<std::size_t>(camera.width()) * static_cast<std::size_t>(camera.height()));
-    for (int j = 0; j < camera.height(); ++j) {
-        for (int i = 0; i < camera.width(); ++i) {
-            rays.push_back(camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
-        }
-    }
+    for_each_tile_pixel(camera.width(), camera.height(), 0, tile_rows(camera), [&](int i, int j) {
+        rays.push_back(camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
+    });
     return rays;
 }
 

@@ -5,6 +5,7 @@
 
 #include "accel/brute.hpp"
 #include "accel/bvh.hpp"
+#include "accel/bvh_packet.hpp"
 #include "accel/bvh_wide.hpp"
 #if LANCER_HAS_EMBREE
 #include "accel/embree.hpp"
@@ -12,6 +13,7 @@
 #include "accel/grid.hpp"
 #include "accel/kdtree.hpp"
 #include "accel/octree.hpp"
+#include "accel/plucker/packet.hpp"
 #include "accel/plucker/plucker.hpp"
 #include "lancer/accel.hpp"
 
@@ -29,8 +31,10 @@ const std::vector<Entry>& registry() {
         {"grid", [] { return std::make_unique<GridAccel>(); }},
         {"octree", [] { return std::make_unique<OctreeAccel>(); }},
         {"plucker", [] { return std::make_unique<PluckerAccel>(); }},
+        {"plucker_packet", [] { return std::make_unique<PluckerPacketAccel>(); }},
         {"kdtree", [] { return std::make_unique<KdTreeAccel>(); }},
         {"bvh", [] { return std::make_unique<BvhAccel>(); }},
+        {"bvh_packet", [] { return std::make_unique<BvhPacketAccel>(); }},
         {"bvh4", [] { return std::make_unique<Bvh4Accel>(); }},
         {"bvh8", [] { return std::make_unique<Bvh8Accel>(); }},
 #if LANCER_HAS_EMBREE

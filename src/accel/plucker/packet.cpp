@@ -1,0 +1,200 @@
+#include "accel/plucker/packet.hpp"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <vector>
+
+#include "accel/plucker/walk.hpp"
+#include "accel/primitive_test.hpp"
+
+namespace lancer {
+namespace {
+
+using plucker::PluckerLayout;
+using plucker::PluckerPrimitive;
+
+constexpr int kPacketSize = PluckerPacketAccel::kPacketSize;
+using LaneMask = std::uint64_t;  // bit i: ray i of the packet
+static_assert(kPacketSize <= 64);
+
+// Calls body.template operator()<kBalanced>(boxes) with the layout's variant, as PluckerAccel does.
+template <class Body>
+void dispatch_layout(const PluckerLayout& layout, Body&& body) {
+    const plucker::StoredBoxes stored{layout.boxes.data()};
+    const plucker::ComputedBoxes computed{layout.cube};
+    if (layout.options.balanced) {
+        layout.options.stored_boxes ? body.template operator()<true>(stored)
+                                    : body.template operator()<true>(computed);
+    } else {
+        layout.options.stored_boxes ? body.template operator()<false>(stored)
+                                    : body.template operator()<false>(computed);
+    }
+}
+
+// A primitive of a leaf record against one ray within [tnear, tfar]: the test of `plucker`'s leaf loop.
+template <class TriangleTestT>
+[[nodiscard]] bool intersect_leaf_primitive(const PluckerLayout& layout, const Geometry& geometry,
+                                            const PluckerPrimitive& primitive,
+                                            const PreparedRay<TriangleTestT>& prepared, float tfar,
+                                            TriangleHit& candidate) {
+    const Ray& ray = prepared.ray;
+    return primitive.prim < layout.triangle_count
+               ? TriangleTestT::intersect(prepared.triangle_data, primitive.triangle, ray.tnear, tfar,
+                                          candidate)
+               : intersect_sphere(ray, geometry.spheres[primitive.prim - layout.triangle_count], ray.tnear,
+                                  tfar, candidate);
+}
+
+// The walk of `plucker` (walk.hpp, section 4.2.3) for the rays of `valid`, grouped by leaf. Each group is
+// the rays whose current leaf is the first walking ray's; visit_leaf(record, group, limits) tests them and
+// lowers limits[i], the end of ray i's search interval (below tnear ends its walk, as in walk()); then each
+// ray of the group takes its own EXIT-FACE and NEIGHBOR steps.
+template <bool kBalanced, bool kCount, class Boxes, class TriangleTestT, class LeafVisitor>
+void walk_packet(const PluckerLayout& layout, const Boxes& boxes,
+                 const std::vector<PreparedRay<TriangleTestT>>& prepared, LaneMask valid,
+                 LeafVisitor&& visit_leaf, TraversalCounters& counts) {
+    using Walker = plucker::Walker<kBalanced, Boxes>;
+    const Walker walker(layout, boxes);
+    std::array<typename Walker::State, kPacketSize> states;
+    std::array<float, kPacketSize> limits{};
+    // Each ray's current leaf, side by side so that finding a group is one pass of compares.
+    std::array<std::uint32_t, kPacketSize> addresses{};
+    LaneMask walking = 0;
+    // ENTRY, ray by ray: the rays of a tile share their origin but enter the root at different points.
+    for (LaneMask lanes = valid; lanes != 0; lanes &= lanes - 1) {
+        const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
+        if (!walker.enter(prepared[lane].ray, states[lane])) continue;
+        walking |= LaneMask{1} << lane;
+        limits[lane] = prepared[lane].ray.tfar;
+        addresses[lane] = states[lane].address;
+    }
+    while (walking != 0) {
+        const std::uint32_t address = addresses[static_cast<std::size_t>(std::countr_zero(walking))];
+        LaneMask same_leaf = 0;
+        for (std::size_t lane = 0; lane < kPacketSize; ++lane)
+            same_leaf |= static_cast<LaneMask>(addresses[lane] == address) << lane;
+        const LaneMask group = same_leaf & walking;
+        // LEAF
+        if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(group));
+        visit_leaf(layout.cells.data() + address, group, limits);
+        // EXIT-FACE, NEIGHBOR
+        for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
+            const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
+            if (limits[lane] < prepared[lane].ray.tnear ||
+                !walker.template advance<kCount>(states[lane], limits[lane], &counts))
+                walking &= ~(LaneMask{1} << lane);
+            addresses[lane] = states[lane].address;
+        }
+    }
+}
+
+// Cuts the batch into packets of consecutive rays and calls
+// packet.template operator()<kCount, kBalanced>(boxes, prepared, valid, first, count, counts) for each, with
+// the policies and the layout's variant dispatched once per batch.
+template <class Packet>
+void for_each_packet(const PluckerLayout& layout, TriangleTest test, std::span<const Ray> rays,
+                     TraversalCounters* counters, Packet&& packet) {
+    dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        TraversalCounters counts;
+        dispatch_layout(layout, [&]<bool kBalanced>(const auto& boxes) {
+            std::vector<PreparedRay<TriangleTestT>> prepared;
+            prepared.reserve(kPacketSize);
+            for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
+                const std::size_t count = std::min<std::size_t>(kPacketSize, rays.size() - first);
+                prepared.clear();
+                LaneMask valid = 0;
+                for (std::size_t lane = 0; lane < count; ++lane) {
+                    prepared.emplace_back(rays[first + lane]);
+                    if (is_valid(rays[first + lane])) valid |= LaneMask{1} << lane;
+                }
+                packet.template operator()<kCount, kBalanced>(boxes, prepared, valid, first, count, counts);
+            }
+        });
+        if constexpr (kCount) {
+            counts.rays = rays.size();
+            *counters += counts;
+        }
+    });
+}
+
+}  // namespace
+
+void PluckerPacketAccel::build(const Geometry& geometry, const BuildOptions& options) {
+    plucker_.build(geometry, options);
+    geometry_ = geometry;
+    triangle_test_ = options.triangle_test;
+}
+
+void PluckerPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                         TraversalCounters* counters) const {
+    const PluckerLayout& layout = plucker_.layout();
+    for_each_packet(
+        layout, triangle_test_, rays, counters,
+        [&]<bool kCount, bool kBalanced>(const auto& boxes, const auto& prepared, LaneMask valid,
+                                         std::size_t first, std::size_t count, TraversalCounters& counts) {
+            std::array<Hit, kPacketSize> best;
+            walk_packet<kBalanced, kCount>(
+                layout, boxes, prepared, valid,
+                [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
+                    const std::uint32_t primitive_count = record[plucker::kTriangleCount];
+                    const PluckerPrimitive* leaf =
+                        layout.primitives.data() + record[plucker::kTriangleOffset];
+                    if constexpr (kCount)
+                        counts.prims_tested += static_cast<std::uint64_t>(primitive_count) *
+                                               static_cast<std::uint64_t>(std::popcount(group));
+                    // Each primitive loaded once for the whole group.
+                    for (std::uint32_t r = 0; r < primitive_count; ++r) {
+                        const auto prim = static_cast<std::int32_t>(leaf[r].prim);
+                        for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
+                            const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
+                            TriangleHit candidate;
+                            if (intersect_leaf_primitive(layout, geometry_, leaf[r], prepared[lane],
+                                                         limits[lane], candidate) &&
+                                closer(candidate.t, prim, best[lane])) {
+                                best[lane] = {candidate.t, prim, candidate.u, candidate.v};
+                                limits[lane] = candidate.t;
+                            }
+                        }
+                    }
+                },
+                counts);
+            std::copy_n(best.begin(), count, hits.begin() + static_cast<std::ptrdiff_t>(first));
+        });
+}
+
+void PluckerPacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                                        TraversalCounters* counters) const {
+    const PluckerLayout& layout = plucker_.layout();
+    for_each_packet(
+        layout, triangle_test_, rays, counters,
+        [&]<bool kCount, bool kBalanced>(const auto& boxes, const auto& prepared, LaneMask valid,
+                                         std::size_t first, std::size_t count, TraversalCounters& counts) {
+            LaneMask hit = 0;
+            walk_packet<kBalanced, kCount>(
+                layout, boxes, prepared, valid,
+                [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
+                    const std::uint32_t primitive_count = record[plucker::kTriangleCount];
+                    const PluckerPrimitive* leaf =
+                        layout.primitives.data() + record[plucker::kTriangleOffset];
+                    for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
+                        const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
+                        for (std::uint32_t r = 0; r < primitive_count; ++r) {
+                            if constexpr (kCount) ++counts.prims_tested;
+                            TriangleHit candidate;
+                            if (intersect_leaf_primitive(layout, geometry_, leaf[r], prepared[lane],
+                                                         prepared[lane].ray.tfar, candidate)) {
+                                hit |= LaneMask{1} << lane;
+                                limits[lane] = -kInfinity;  // any hit ends the ray's walk
+                                break;
+                            }
+                        }
+                    }
+                },
+                counts);
+            for (std::size_t lane = 0; lane < count; ++lane)
+                occluded[first + lane] = (hit >> lane) & 1u;
+        });
+}
+
+}  // namespace lancer

@@ -1,0 +1,247 @@
+// The packet structures against their single-ray siblings, bit for bit (bvh_packet / bvh, plucker_packet /
+// plucker), and against brute force, on the batches that reach the packet code: tiles of a pinhole camera
+// (coherent), rays of mixed direction signs (bvh_packet's fallback), batches that end in a partial packet,
+// rays clipped by tnear and tfar, zero direction components and invalid rays inside coherent packets. The
+// oracle test's ray sets have random directions, so most of their packets are incoherent: here the same
+// adversarial sets are sorted by direction octant, which makes their packets coherent.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <random>
+
+#include "accel/agreement.hpp"
+#include "accel/brute.hpp"
+#include "lancer/camera.hpp"
+#include "lancer/generate.hpp"
+#include "ray_sets.hpp"
+#include "test_scenes.hpp"
+
+namespace lancer {
+namespace {
+
+using testing::TestScene;
+
+struct Pair {
+    std::string_view packet, single;
+};
+const Pair kPairs[] = {{"bvh_packet", "bvh"}, {"plucker_packet", "plucker"}};
+
+void PrintTo(const Pair& pair, std::ostream* os) {
+    *os << pair.packet << " against " << pair.single;
+}
+
+// Torus knot, icosphere and spheres; and a plane of triangles whose shared edges make exact ties.
+std::vector<TestScene> scenes() {
+    std::vector<TestScene> all;
+    TestScene mixed{"knot, icosphere and spheres", testing::knot_triangles(200), {}};
+    testing::append(mixed.triangles, make_icosphere(3, {0.5f, 0.2f, 0.1f}, 0.8f));
+    std::mt19937 rng(6);
+    std::uniform_real_distribution<float> unit(-1.5f, 1.5f);
+    for (int i = 0; i < 20; ++i)
+        mixed.spheres.push_back({{unit(rng), unit(rng), unit(rng)}, 0.1f + 0.05f * unit(rng), 0});
+    all.push_back(std::move(mixed));
+    TestScene plane{"triangles of one plane", {}, {}};
+    for (int i = 0; i < 30; ++i) {
+        for (int j = 0; j < 30; ++j) {
+            const float x = static_cast<float>(i), y = static_cast<float>(j);
+            plane.triangles.push_back({{x, y, 0}, {x + 1, y, 0}, {x + 1, y + 1, 0}});
+            plane.triangles.push_back({{x, y, 0}, {x + 1, y + 1, 0}, {x, y + 1, 0}});
+        }
+    }
+    all.push_back(std::move(plane));
+    return all;
+}
+
+// Primary rays of a width x height view of `bounds`, in 8x8 tiles (tiles in scanline order), as lancer bench
+// traces them; sizes that are not multiples of 8 leave partial tiles, so packets straddle tiles.
+std::vector<Ray> tile_rays(const Box3f& bounds, int width, int height) {
+    const PinholeCamera camera(canonical_view(bounds, width, height));
+    std::vector<Ray> rays;
+    for (int y0 = 0; y0 < height; y0 += 8) {
+        for (int x0 = 0; x0 < width; x0 += 8) {
+            for (int j = y0; j < std::min(height, y0 + 8); ++j) {
+                for (int i = x0; i < std::min(width, x0 + 8); ++i)
+                    rays.push_back(
+                        camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f));
+            }
+        }
+    }
+    return rays;
+}
+
+// Rays grouped by the sign bits of their direction, in a stable order: consecutive rays then share them.
+std::vector<Ray> sorted_by_octant(std::vector<Ray> rays) {
+    const auto octant = [](const Ray& ray) {
+        return (std::signbit(ray.direction.x) ? 1 : 0) | (std::signbit(ray.direction.y) ? 2 : 0) |
+               (std::signbit(ray.direction.z) ? 4 : 0);
+    };
+    std::stable_sort(rays.begin(), rays.end(),
+                     [&](const Ray& a, const Ray& b) { return octant(a) < octant(b); });
+    return rays;
+}
+
+// Rays whose closest hit, or whose occlusion, differs in any bit between the two structures.
+std::size_t bitwise_differences(const Accel& packet, const Accel& single, std::span<const Ray> rays) {
+    std::vector<Hit> packet_hits(rays.size()), single_hits(rays.size());
+    packet.intersect(rays, packet_hits);
+    single.intersect(rays, single_hits);
+    std::vector<std::uint8_t> packet_occluded(rays.size()), single_occluded(rays.size());
+    packet.occluded(rays, packet_occluded);
+    single.occluded(rays, single_occluded);
+    std::size_t differences = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        const Hit& a = packet_hits[i];
+        const Hit& b = single_hits[i];
+        const bool same = std::bit_cast<std::uint32_t>(a.t) == std::bit_cast<std::uint32_t>(b.t) &&
+                          a.prim == b.prim &&
+                          std::bit_cast<std::uint32_t>(a.u) == std::bit_cast<std::uint32_t>(b.u) &&
+                          std::bit_cast<std::uint32_t>(a.v) == std::bit_cast<std::uint32_t>(b.v) &&
+                          packet_occluded[i] == single_occluded[i];
+        differences += same ? 0 : 1;
+    }
+    return differences;
+}
+
+std::size_t hit_count(const Accel& accel, std::span<const Ray> rays) {
+    std::vector<Hit> hits(rays.size());
+    accel.intersect(rays, hits);
+    return static_cast<std::size_t>(
+        std::count_if(hits.begin(), hits.end(), [](const Hit& h) { return h.hit(); }));
+}
+
+class PacketTest : public ::testing::TestWithParam<Pair> {
+  protected:
+    // Calls check(packet, single, scene, test) for both triangle tests on every scene.
+    template <class Check>
+    void for_each_build(Check&& check) {
+        for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+            for (const TestScene& scene : scenes()) {
+                const std::unique_ptr<Accel> packet = make_accel(GetParam().packet);
+                const std::unique_ptr<Accel> single = make_accel(GetParam().single);
+                packet->build(scene.geometry(), build_options(test));
+                single->build(scene.geometry(), build_options(test));
+                SCOPED_TRACE(scene.name + (test == TriangleTest::Watertight ? ", watertight" : ", moller"));
+                check(*packet, *single, scene, test);
+            }
+        }
+    }
+};
+
+TEST_P(PacketTest, CameraTilesGiveTheSingleRayHitsBitForBit) {
+    for_each_build([](const Accel& packet, const Accel& single, const TestScene& scene, TriangleTest) {
+        const std::vector<Ray> rays = tile_rays(scene.geometry().bounds(), 93, 61);  // partial tiles
+        EXPECT_EQ(bitwise_differences(packet, single, rays), 0u);
+        EXPECT_GT(hit_count(packet, rays), rays.size() / 20);  // the view sees the scene
+    });
+}
+
+TEST_P(PacketTest, MixedSignRaysFallBackWithTheSameHits) {
+    for_each_build([](const Accel& packet, const Accel& single, const TestScene& scene, TriangleTest) {
+        const testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 3000, 7);
+        EXPECT_EQ(bitwise_differences(packet, single, set.rays), 0u);
+        EXPECT_GT(hit_count(packet, set.rays), set.rays.size() / 20);
+    });
+}
+
+TEST_P(PacketTest, PartialPacketsAtTheEndOfABatch) {
+    for_each_build([](const Accel& packet, const Accel& single, const TestScene& scene, TriangleTest) {
+        const std::vector<Ray> rays = tile_rays(scene.geometry().bounds(), 64, 64);
+        for (std::size_t size : {1u, 7u, 63u, 65u, 130u, 1000u}) {
+            const std::span<const Ray> batch(rays.data() + 1000, size);  // from the middle of the view
+            EXPECT_EQ(bitwise_differences(packet, single, batch), 0u) << size << " rays";
+        }
+    });
+}
+
+// The same tile rays with tnear and tfar cut around the surface: some hits are clipped away, some are not.
+TEST_P(PacketTest, ClippedRaysInCoherentPackets) {
+    for_each_build([](const Accel& packet, const Accel& single, const TestScene& scene, TriangleTest) {
+        std::vector<Ray> rays = tile_rays(scene.geometry().bounds(), 64, 48);
+        std::vector<Hit> unclipped(rays.size());
+        single.intersect(rays, unclipped);
+        std::mt19937 rng(9);
+        std::uniform_real_distribution<float> fraction(0.5f, 1.5f);
+        std::size_t clipped_away = 0;
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            if (!unclipped[i].hit()) continue;
+            // Mix rays whose interval holds their first hit with rays that start past it or end before it.
+            rays[i].tnear = unclipped[i].t * (i % 3 == 0 ? fraction(rng) : 0.5f);
+            rays[i].tfar = std::max(rays[i].tnear, unclipped[i].t * (i % 3 == 1 ? fraction(rng) : 2.0f));
+        }
+        std::vector<Hit> clipped(rays.size());
+        single.intersect(rays, clipped);
+        for (std::size_t i = 0; i < rays.size(); ++i)
+            clipped_away += unclipped[i].hit() && clipped[i].prim != unclipped[i].prim ? 1 : 0;
+        EXPECT_GT(clipped_away, 0u);
+        EXPECT_EQ(bitwise_differences(packet, single, rays), 0u);
+    });
+}
+
+// Zero direction components (rays along a face of every box) and invalid rays (NaN, zero direction) among
+// the coherent rays of a packet: the invalid ones miss, the others keep their single-ray hits.
+TEST_P(PacketTest, ZeroComponentsAndInvalidRaysInsideAPacket) {
+    for_each_build([](const Accel& packet, const Accel& single, const TestScene& scene, TriangleTest) {
+        const Box3f bounds = scene.geometry().bounds();
+        std::vector<Ray> rays;
+        for (int k = 0; k < 256; ++k) {
+            const float s = (static_cast<float>(k) + 0.5f) / 256.0f;
+            const Vec3f p = bounds.lo + s * (bounds.hi - bounds.lo);
+            // Parallel to x, then in the xy plane, all with non-negative components.
+            rays.push_back({{bounds.lo.x - 1.0f, p.y, p.z}, {1, 0, 0}, 0.0f, kInfinity});
+            rays.push_back({{bounds.lo.x - 1.0f, bounds.lo.y, p.z}, {1, s, 0}, 0.0f, kInfinity});
+            rays.push_back({{bounds.lo.x - 1.0f, p.y, bounds.hi.z}, {1, 0, 0}, 0.0f, kInfinity});
+        }
+        rays[5].direction = {std::nanf(""), 1, 0};
+        rays[70] = {{0, 0, 0}, {0, 0, 0}, 0.0f, kInfinity};
+        rays[140].tnear = 2.0f, rays[140].tfar = 1.0f;
+        EXPECT_EQ(bitwise_differences(packet, single, rays), 0u);
+        std::vector<Hit> hits(rays.size());
+        packet.intersect(rays, hits);
+        EXPECT_FALSE(hits[5].hit() || hits[70].hit() || hits[140].hit());
+    });
+}
+
+// The oracle's adversarial sets (vertex and edge rays, axis-parallel rays, clipped rays), sorted so that
+// their packets are coherent: the same hits as `single` bit for bit, and as brute force.
+TEST_P(PacketTest, AdversarialSetsSortedIntoCoherentPackets) {
+    for_each_build([](const Accel& packet, const Accel& single, const TestScene& scene, TriangleTest test) {
+        const Box3f bounds = scene.geometry().bounds();
+        BruteAccel brute;
+        brute.build(scene.geometry(), build_options(test));
+        for (const testing::RaySet& set :
+             {testing::vertex_and_edge_rays(scene.triangles, 3000, 12),
+              testing::axis_parallel_rays(bounds, 3000, 13), testing::clipped_rays(bounds, 2000, 14)}) {
+            const std::vector<Ray> rays = sorted_by_octant(set.rays);
+            EXPECT_EQ(bitwise_differences(packet, single, rays), 0u) << set.name;
+            std::vector<Hit> expected(rays.size()), hits(rays.size());
+            brute.intersect(rays, expected);
+            packet.intersect(rays, hits);
+            const Agreement agreement = compare_hits(rays, expected, hits);
+            EXPECT_EQ(agreement.mismatches, 0u) << set.name << ": " << agreement.summary();
+            EXPECT_GT(agreement.hits, rays.size() / 50) << set.name;
+        }
+    });
+}
+
+TEST_P(PacketTest, CountersSeeEveryRayOfEveryPacket) {
+    const TestScene scene = scenes()[0];
+    const std::unique_ptr<Accel> packet = make_accel(GetParam().packet);
+    packet->build(scene.geometry(), {});
+    const std::vector<Ray> rays = tile_rays(scene.geometry().bounds(), 40, 30);
+    std::vector<Hit> hits(rays.size()), counted(rays.size());
+    packet->intersect(rays, hits);
+    TraversalCounters counters;
+    packet->intersect(rays, counted, &counters);
+    EXPECT_EQ(counters.rays, rays.size());
+    EXPECT_GT(counters.nodes_visited, 0u);
+    EXPECT_GT(counters.prims_tested, 0u);
+    for (std::size_t i = 0; i < hits.size(); ++i)
+        ASSERT_EQ(hits[i].prim, counted[i].prim);
+}
+
+INSTANTIATE_TEST_SUITE_P(Packets, PacketTest, ::testing::ValuesIn(kPairs),
+                         [](const auto& param_info) { return std::string(param_info.param.packet); });
+
+}  // namespace
+}  // namespace lancer
