@@ -8,6 +8,7 @@
 
 #include "accel/bvh_wide.hpp"
 #include "accel/primitive_test.hpp"
+#include "accel/simd_float.hpp"
 
 namespace lancer {
 namespace {
@@ -30,7 +31,7 @@ struct PacketSlabs {
 // slab is then the same face for every lane, and min/max of the two plane distances become a choice made
 // once. The NaN of a zero direction component on a face's plane (0 * inf) leaves the interval unchanged,
 // because max_ps / min_ps return their second operand, the interval, when either is NaN: the unbounded slab
-// of intersect_box (the same argument as bvh_wide.hpp's wide_detail, whose operations these are).
+// of intersect_box (the same argument as bvh_wide.hpp's intersect_children_simd, whose operations these are).
 template <class Ops>
 [[nodiscard]] unsigned box_lanes(const PacketSlabs& slabs, const BvhNode& node, int first) {
     auto t0 = Ops::load(&slabs.tnear[static_cast<std::size_t>(first)]);
@@ -48,12 +49,12 @@ template <class Ops>
         t0 = Ops::max(near_plane, t0);
         t1 = Ops::min(far_plane, t1);
     }
-    return Ops::mask_less_equal(t0, t1);
+    return Ops::mask(Ops::less_equal(t0, t1));
 }
 
 #if defined(__AVX2__)
-// bvh_wide's 8-wide operations, the same NaN rules.
-using PacketLanes = wide_detail::Avx2;
+// The wide BVH's 8-wide operations (simd_float.hpp), the same NaN rules.
+using PacketLanes = simd::Avx2;
 constexpr int kLaneWidth = 8;
 #else
 // One lane, with the SIMD instructions' NaN rules (second operand when either is NaN).
@@ -64,7 +65,8 @@ struct ScalarLane {
     static float mul(float a, float b) { return a * b; }
     static float max(float a, float b) { return a > b ? a : b; }
     static float min(float a, float b) { return a < b ? a : b; }
-    static unsigned mask_less_equal(float a, float b) { return a <= b ? 1u : 0u; }
+    static bool less_equal(float a, float b) { return a <= b; }
+    static unsigned mask(bool lane) { return lane ? 1u : 0u; }
 };
 using PacketLanes = ScalarLane;
 constexpr int kLaneWidth = 1;
