@@ -97,8 +97,10 @@ struct ComputedBoxes {
                                               std::uint32_t up) {
     const std::uint32_t last = (1u << level) - 1u;
     const float scaled = (p - cube.lo[axis]) / cube.size * static_cast<float>(1u << level);
+    // NaN (a root cube of size 0: the scene is one point; fuzz/rays_fuzz.cpp) starts at 0 like a negative
+    // estimate: converting it would be undefined, and the exact planes below settle the index either way.
     std::uint32_t i =
-        scaled <= 0.0f ? 0u : std::min(last, static_cast<std::uint32_t>(std::min(scaled, 65536.0f)));
+        !(scaled > 0.0f) ? 0u : std::min(last, static_cast<std::uint32_t>(std::min(scaled, 65536.0f)));
     // The estimate may be off by one near a plane: settle it against the exact planes.
     const int l = static_cast<int>(level);
     while (i > 0 && (up ? p < cube.plane(axis, l, i) : p <= cube.plane(axis, l, i)))
