@@ -36,6 +36,13 @@ std::vector<FuzzCase> fuzz_cases() {
         // ray at o + tnear d); the hit behind the origin at t = -1 must be found.
         {{"hit behind the origin", {{{-1, -1, 0}, {1, -1, 0}, {0, 1, 0}}}, {}},
          {{{0, 0, 1}, {0, 0, 1}, -5.0f, kInfinity}, {{0, 0, 1}, {0, 0, 1}, -5.0f, -1.5f}}},
+        // A ray whose whole interval [0, 0] lies 1 unit outside the scene's box, inside its geometric
+        // tolerance (2^40 here): the sphere kernel reports a hit at t = 0 by rounding; the octree's walk did
+        // not grow its root by the tolerance and missed it.
+        {{"interval in the tolerance margin",
+          {{{1, 0x1.a0a02p+33f, 0x1p+24f}, {0x1p+24f, 0x1p+24f, 0x1p+24f}, {0x1p+24f, 0x1p+60f, 0x1p+24f}}},
+          {{{0x1p+24f, 0x1p+24f, 0x1p+24f}, 0x1p+24f, 0}, {{0x1p+24f, 0x1p+24f, 0x1p+24f}, 0x1p+24f, 0}}},
+         {{{0x1p+24f, 0x1p+24f, -1}, {-1, 1, 1}, 0, 0}}},
     };
 }
 
