@@ -20,6 +20,8 @@ using testing::TestScene;
 struct FuzzCase {
     TestScene scene;
     std::vector<Ray> rays;
+    // false: the rays start beyond 2^60, outside Embree's domain, where embree.cpp answers misses.
+    bool within_embree_domain = true;
 };
 
 // The fuzzer's inputs, hex floats as LANCER_FUZZ_PRINT=1 prints them.
@@ -43,6 +45,14 @@ std::vector<FuzzCase> fuzz_cases() {
           {{{1, 0x1.a0a02p+33f, 0x1p+24f}, {0x1p+24f, 0x1p+24f, 0x1p+24f}, {0x1p+24f, 0x1p+60f, 0x1p+24f}}},
           {{{0x1p+24f, 0x1p+24f, 0x1p+24f}, 0x1p+24f, 0}, {{0x1p+24f, 0x1p+24f, 0x1p+24f}, 0x1p+24f, 0}}},
          {{{0x1p+24f, 0x1p+24f, -1}, {-1, 1, 1}, 0, 0}}},
+        // A ray from 6.5e19 away through a vertex, its whole path through the scene within an ulp of
+        // t = -1.08: the slab exits were widened by multiplying by 1 + 2 gamma(3), which shrinks a negative
+        // distance, and the grid, the Pluecker octree and the BVHs lost the box (intersect_box).
+        {{"far origin, negative t",
+          {{{0, 0, 0}, {1, 0, 0x1.c0a0ap-35f}, {1, 0, 0}}, {{1, 0, 0}, {1, 0, -5}, {0.5f, 0.5f, 1}}},
+          {{{-0x1.4p-2f, -1, 0}, 0x1.3cp+2f, 0}, {{0, 0, 0}, 1, 0}}},
+         {{{0, 0x1.c0a0ap+65f, 0}, {0, 0x1.a0a0cp+65f, 0}, -5.0f, 0.5f}},
+         false},
     };
 }
 
@@ -63,6 +73,7 @@ TEST(FuzzRegression, EveryStructureAgreesWithBruteForce) {
                 const std::unique_ptr<Accel> accel = make_accel(name);
                 accel->build(geometry, build_options(test));
                 const std::vector<Hit> hits = trace(*accel, fuzz_case.rays);
+                if (name == "embree" && !fuzz_case.within_embree_domain) continue;
                 std::vector<std::uint8_t> occluded(fuzz_case.rays.size());
                 accel->occluded(fuzz_case.rays, occluded);
                 const std::string context = fuzz_case.scene.name + ", " + std::string(name);

@@ -142,8 +142,7 @@ struct ComputedBoxes {
         const float lo = cube.plane(axis, 0, 0) - layout.tolerance,
                     hi = cube.plane(axis, 0, 1) + layout.tolerance;
         const float t_lo = (lo - ray.origin[axis]) * inverse, t_hi = (hi - ray.origin[axis]) * inverse;
-        float slab_near = std::min(t_lo, t_hi),
-              slab_far = std::max(t_lo, t_hi) * (1.0f + 2.0f * gamma_bound(3));
+        float slab_near = std::min(t_lo, t_hi), slab_far = widened_slab_exit(std::max(t_lo, t_hi));
         // NaN: the origin on the plane and no motion along the axis: the ray runs inside the closed slab.
         if (std::isnan(t_lo) || std::isnan(t_hi)) slab_near = -kInfinity, slab_far = kInfinity;
         if (slab_near > t_entry) t_entry = slab_near, entry_axis = axis;
