@@ -1,5 +1,6 @@
 #include "accel/embree.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <optional>
@@ -24,13 +25,17 @@ float direction_scale(const Ray& ray) {
     return scale;
 }
 
-// A ray as Embree is given it: lancer's t = Embree's t * scale + t_offset.
+// A ray as Embree is given it: lancer's t = Embree's t * scale + t_offset, kept in the caller's
+// [tnear, tfar], which the rounded shift back could leave by an ulp (fuzz/rays_fuzz.cpp).
 struct EmbreeRay {
     Ray ray;
     float scale = 1.0f;
     float t_offset = 0.0f;
+    float tnear = 0.0f, tfar = kInfinity;  // the caller's interval
 
-    [[nodiscard]] float lancer_t(float embree_t) const { return embree_t * scale + t_offset; }
+    [[nodiscard]] float lancer_t(float embree_t) const {
+        return std::clamp(embree_t * scale + t_offset, tnear, tfar);
+    }
 };
 
 // The ray in Embree's domain, or none: invalid rays (is_valid) and origins beyond kEmbreeLargest miss.
@@ -39,6 +44,7 @@ struct EmbreeRay {
 std::optional<EmbreeRay> to_embree(const Ray& ray) {
     if (!is_valid(ray)) return std::nullopt;
     EmbreeRay query{ray};
+    query.tnear = ray.tnear, query.tfar = ray.tfar;
     if (ray.tnear < 0.0f) {
         query.ray.origin = ray.origin + ray.direction * ray.tnear;
         query.ray.tnear = 0.0f;
