@@ -42,6 +42,7 @@ python3 "$source_dir/fuzz/make_seeds.py" "$source_dir" "$shared_data" "$build/se
 export TMPDIR=$build/tmp
 export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$source_dir/fuzz/lsan.supp}
 report=$build/fuzz-report.txt
 printf '%-10s %12s %8s %8s %8s %8s\n' harness executions exec/s corpus coverage findings >"$report"
 status=0
