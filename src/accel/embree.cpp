@@ -16,12 +16,18 @@ constexpr unsigned int kSphereGeometry = 1;
 // Embree asserts that coordinates stay below FLT_LARGE (1.8e18). A larger direction is scaled by a power of
 // two (exact, t is scaled back); an origin that far away is outside Embree's domain and answered as a miss.
 constexpr float kEmbreeLargest = 0x1p60f;
+// Embree also asserts `ray.valid()` on a direction whose components are all denormal (fuzz/rays_fuzz.cpp,
+// docs/robustness.md): so tiny a direction is scaled up the same way.
+constexpr float kEmbreeSmallest = 0x1p-60f;
 
 // The power of two that brings the direction inside Embree's domain (1 for ordinary rays).
 float direction_scale(const Ray& ray) {
+    const float largest = max_component(abs(ray.direction));
     float scale = 1.0f;
-    while (max_component(abs(ray.direction)) * scale > kEmbreeLargest)
+    while (largest * scale > kEmbreeLargest)
         scale *= 0x1p-32f;
+    while (largest * scale < kEmbreeSmallest)
+        scale *= 0x1p32f;
     return scale;
 }
 

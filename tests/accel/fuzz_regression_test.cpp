@@ -66,6 +66,15 @@ std::vector<FuzzCase> fuzz_cases() {
           {{{1, 0.5f, 0x1.ep-1f}, 1, 0}}},
          {{{-1, -0x1.ep-1f, 0x1.ep-1f}, {-1, -0x1.ep+0f, 1}, -0x1.ep-1f, 0}},
          false},
+        // Directions whose components are all denormal: Embree asserted `ray.valid()` and aborted (embree.cpp
+        // now scales such a direction up by a power of two, as it scales huge ones down).
+        {{"denormal directions",
+          {{{2, -5, 2}, {-5, 0x1p-149f, 0x1p-149f}, Vec3f(0x1p-149f)}},
+          {{Vec3f(0x1p-149f), 0x1p-149f, 0}, {Vec3f(0x1p-149f), 0x1p-149f, 0}}},
+         {{{0x1p-149f, -0x1.08p+1f, 0x1p-149f}, Vec3f(0x1p-149f), 0, kInfinity},
+          {{0.5f, 0x1p-149f, 0x1p-149f}, Vec3f(0x1p-149f), 0x1p-149f, 0x1p-149f},
+          {{-1, -1, -1}, {0x1p-140f, 0x1p-141f, 0x1p-142f}, 0, kInfinity}},
+         false},  // ray 0 crosses the first triangle on its edge: Embree's kernel and ours round differently
     };
 }
 
