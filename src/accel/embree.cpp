@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <optional>
 #include <stdexcept>
@@ -82,7 +83,9 @@ void fill_packet_ray(const Ray& ray, RTCRayNt<N>& out, int lane) {
 // Embree numbers primitives per geometry; lancer's global numbering puts the spheres after the triangles.
 Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, float v,
            unsigned int triangle_count) {
-    if (geometry == RTC_INVALID_GEOMETRY_ID) return Hit{};
+    // A t that overflows when scaled back (a tiny direction, direction_scale) is no hit, as in lancer's own
+    // kernels: a hit is at a finite distance (docs/numerical-contract.md).
+    if (geometry == RTC_INVALID_GEOMETRY_ID || !std::isfinite(t)) return Hit{};
     const unsigned int global = geometry == kSphereGeometry ? triangle_count + primitive : primitive;
     return {t, static_cast<std::int32_t>(global), u, v};
 }
