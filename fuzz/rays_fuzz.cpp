@@ -1,10 +1,12 @@
 // libFuzzer harness: `rays` queries on every registered structure (accel_names()) with both triangle
 // tests. The input is a tiny scene (up to 8 triangles and 2 spheres, finite as load_scene guarantees) and up
 // to 32 rays of arbitrary floats: NaN, infinities, zero and denormal directions, huge coordinates,
-// tnear > tfar. Every structure must agree with brute force (0 mismatches, src/accel/agreement.hpp) and
-// invalid rays must miss; Embree, with its own kernels, must answer cleanly (accel_check.hpp).
+// tnear > tfar. Every structure must agree with brute force (0 mismatches, src/accel/agreement.hpp) on the
+// rays of in_agreement_domain and answer every ray cleanly (invalid rays miss); Embree, with its own kernels,
+// must answer cleanly (accel_check.hpp).
 #include <fuzzer/FuzzedDataProvider.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -119,6 +121,19 @@ void print(const FuzzScene& scene) {
     }
 }
 
+// Agreement with brute force is asked of rays whose origin lies within 2^12 times the scene's largest
+// coordinate. Farther away the points of the ray are an ulp of the origin apart, coarser than the scene's
+// geometric tolerance, and even brute force's answer is rounding noise: a ray from 4.5e11 away "hits" a
+// 5-unit triangle its line misses, and the grid disagrees (open finding 11, docs/robustness.md;
+// DISABLED_FarOriginRoundingNoise in tests/accel/fuzz_regression_test.cpp). Every ray still gets a clean
+// answer from every structure.
+bool in_agreement_domain(const Ray& ray, const Geometry& geometry) {
+    const Box3f bounds = geometry.bounds();
+    if (bounds.empty()) return true;
+    const float scene_scale = std::max(max_component(abs(bounds.lo)), max_component(abs(bounds.hi)));
+    return max_component(abs(ray.origin)) <= 0x1p12f * scene_scale;
+}
+
 }  // namespace
 }  // namespace lancer::fuzz
 
@@ -130,14 +145,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     static const bool print = std::getenv("LANCER_FUZZ_PRINT") != nullptr;
     if (print) fuzz::print(scene), std::fflush(stdout);
     const Geometry geometry = scene.geometry();
+    std::vector<Ray> near_rays;  // in the agreement domain
+    for (const Ray& ray : scene.rays) {
+        if (fuzz::in_agreement_domain(ray, geometry)) near_rays.push_back(ray);
+    }
     for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
-        const std::vector<Hit> oracle = fuzz::oracle_hits(geometry, test, scene.rays);
+        const std::vector<Hit> oracle = fuzz::oracle_hits(geometry, test, near_rays);
         for (const std::string_view name : accel_names()) {
             if (name == "brute") continue;
             const std::unique_ptr<Accel> accel = make_accel(name);
             if (name != "embree") {
                 accel->build(geometry, build_options(test));
-                fuzz::check_agrees_with_oracle(*accel, scene.rays, oracle, geometry);
+                fuzz::check_clean_answers(*accel, scene.rays, geometry);
+                fuzz::check_agrees_with_oracle(*accel, near_rays, oracle, geometry);
                 continue;
             }
             for (const EmbreePacket packet :
