@@ -91,8 +91,10 @@ FuzzScene next_scene(FuzzedDataProvider& input) {
         Sphere sphere;
         sphere.center = next_vertex(input);
         sphere.radius = std::fabs(next_float(input));
-        // load_scene's promise: a positive radius and a finite box.
-        if (sphere.radius > 0.0f && is_finite(sphere.bounds().lo) && is_finite(sphere.bounds().hi))
+        // load_scene's promise: a positive radius and a finite box; within 2^100 as the vertices (finding 8).
+        const Box3f bounds = sphere.bounds();
+        if (sphere.radius > 0.0f && is_finite(bounds.lo) && is_finite(bounds.hi) &&
+            std::max(max_component(abs(bounds.lo)), max_component(abs(bounds.hi))) <= 0x1p100f)
             scene.spheres.push_back(sphere);
     }
     while (scene.rays.size() < 32 && input.remaining_bytes() > 0) {
