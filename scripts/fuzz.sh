@@ -34,12 +34,16 @@ cmake -S "$source_dir" -B "$build" -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TY
 cmake --build "$build" -j"${FUZZ_BUILD_JOBS:-2}" --target "${harnesses[@]}" make_plo_seeds
 
 # Seeds are rebuilt every run; the corpus each harness grows is kept between runs.
-rm -rf "$build/seeds" "$build/tmp"
+rm -rf "$build/seeds"
+# A scratch folder per run (the harnesses write their inputs there), so that two runs side by side do not
+# remove each other's files.
 mkdir -p "$build/tmp"
+scratch=$(mktemp -d "$build/tmp/run.XXXXXX")
+trap 'rm -rf "$scratch"' EXIT
 python3 "$source_dir/fuzz/make_seeds.py" "$source_dir" "$shared_data" "$build/seeds"
 "$build/fuzz/make_plo_seeds" "$build/seeds/plo_fuzz" >/dev/null
 
-export TMPDIR=$build/tmp
+export TMPDIR=$scratch
 export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$source_dir/fuzz/lsan.supp}
