@@ -47,7 +47,7 @@ export TMPDIR=$scratch
 export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$source_dir/fuzz/lsan.supp}
-report=$build/fuzz-report.txt
+report=$scratch/report.txt
 printf '%-10s %12s %8s %8s %8s %8s\n' harness executions exec/s corpus coverage findings >"$report"
 status=0
 for harness in "${harnesses[@]}"; do
