@@ -148,6 +148,32 @@ TEST(FuzzRegression, DISABLED_FarOriginRoundingNoise) {
     EXPECT_EQ(compare_hits(rays, trace(*brute, rays), trace(*grid, rays)).mismatches, 0u);
 }
 
+// Open finding (docs/robustness.md, finding 13): a ray starting on the scene's upper y face, with a
+// direction near the float range; brute force counts the surface hit at t = -0, the BVH misses it.
+TEST(FuzzRegression, DISABLED_SurfaceHitWithAHugeDirection) {
+    const TestScene scene{
+        "huge direction",
+        {{{-0x1.3cp+2f, 2, 0x1.7p+1f}, {-0x1.12fcfcp-124f, -0x1.be002p+7f, -4}, {-4, 1, 1}},
+         {{-5, -5, -0x1.3cp+2f}, {-0x1.ep-1f, -0x1.ep-1f, 1}, {-1, -1, 1}},
+         {{-1, -0x1.ep-1f, 0x1.ep-1f}, {-1, -1, 1}, {-0x1.ep-1f, -0x1.ep-1f, 1}},
+         {Vec3f(-5), {-5, -0x1.6p+0f, 0x1.dp+0f}, {0x1.9p+0f, 0x1.1p+0f, 0x1.cp+0f}},
+         {{0x1.3p+0f, 0x1.5p+0f, 0x1.1p+1f},
+          {0x1.ep+0f, 0.3125f, 0.1875f},
+          {0x1.b8p+1f, 0x1.7p+1f, 0x1.7p+1f}},
+         {Vec3f(0x1.7p+1f), Vec3f(0x1.7p+1f), {-0x1.58p+1f, 0x1.7p+1f, -5}},
+         {{-0x1.3p+2f, 0x1.7p+1f, 0x1.7p+1f}, Vec3f(0x1.7p+1f), {-0x1.48p+1f, 0x1.7p+1f, 0x1.7p+1f}},
+         {Vec3f(0x1.7p+1f), Vec3f(0x1.7p+1f), Vec3f(0)}},
+        {}};
+    const std::vector<Ray> rays = {
+        {{-0x1.ep-1f, 0x1.7p+1f, 0x1.7p+1f}, {0x1.7p+1f, 0x1.fc05fep+125f, 1}, 0, 0.5f}};
+    const std::unique_ptr<Accel> brute = make_accel("brute"), bvh = make_accel("bvh");
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        brute->build(scene.geometry(), build_options(test));
+        bvh->build(scene.geometry(), build_options(test));
+        EXPECT_EQ(compare_hits(rays, trace(*brute, rays), trace(*bvh, rays)).mismatches, 0u);
+    }
+}
+
 // Open finding (docs/robustness.md, finding 8): a scene from -FLT_MAX to 2 has no finite octree root cube
 // (lo + size must reach hi), and the octree misses a hit that brute force finds near the origin.
 // fuzz/rays_fuzz.cpp keeps scene coordinates within 2^100 until the scene contract bounds them.
