@@ -244,10 +244,12 @@ class BinnedBuilder {
         }
         std::size_t middle;
         if (split.axis >= 0 && !exact) {
-            const auto first_right = std::partition(
-                refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                refs_.begin() + static_cast<std::ptrdiff_t>(end),
-                [&](const BuildRef& ref) { return bin_of(ref.centroid, split.axis, centroids) < split.bin; });
+            const auto first_right =
+                std::partition(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                               refs_.begin() + static_cast<std::ptrdiff_t>(end),
+                               [&, &centroids = centroids](const BuildRef& ref) {
+                                   return bin_of(ref.centroid, split.axis, centroids) < split.bin;
+                               });
             middle = static_cast<std::size_t>(first_right - refs_.begin());
         } else {
             // The exact split's order, or an object median when nothing separates the centroids.
@@ -263,8 +265,9 @@ class BinnedBuilder {
         const auto [first, second] = slots.set_inner(slot, bounds, split.axis, middle - begin);
 #if LANCER_HAS_TBB
         if (count > kParallelSubtree) {
-            tbb::parallel_invoke([&] { build(slots, first, begin, middle, depth + 1); },
-                                 [&] { build(slots, second, middle, end, depth + 1); });
+            // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
+            tbb::parallel_invoke([&, left = first] { build(slots, left, begin, middle, depth + 1); },
+                                 [&, right = second] { build(slots, right, middle, end, depth + 1); });
             return;
         }
 #endif

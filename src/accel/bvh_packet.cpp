@@ -36,7 +36,9 @@ template <class Ops>
 [[nodiscard]] unsigned box_lanes(const PacketSlabs& slabs, const BvhNode& node, int first) {
     auto t0 = Ops::load(&slabs.tnear[static_cast<std::size_t>(first)]);
     auto t1 = Ops::load(&slabs.tlimit[static_cast<std::size_t>(first)]);
-    const auto widening = Ops::broadcast(kSlabExitWidening);
+    // widened_slab_exit lane by lane: the factor chosen by the exit distance's sign.
+    const auto grow = Ops::broadcast(kSlabExitGrow), shrink = Ops::broadcast(kSlabExitShrink);
+    const auto zero = Ops::broadcast(0.0f);
     for (std::size_t axis = 0; axis < 3; ++axis) {
         const int a = static_cast<int>(axis);
         const float near_bound = slabs.negative[axis] ? node.hi[a] : node.lo[a];
@@ -44,8 +46,9 @@ template <class Ops>
         const auto origin = Ops::load(&slabs.origin[axis][static_cast<std::size_t>(first)]);
         const auto inv_direction = Ops::load(&slabs.inv_direction[axis][static_cast<std::size_t>(first)]);
         const auto near_plane = Ops::mul(Ops::sub(Ops::broadcast(near_bound), origin), inv_direction);
+        const auto far_distance = Ops::mul(Ops::sub(Ops::broadcast(far_bound), origin), inv_direction);
         const auto far_plane =
-            Ops::mul(Ops::mul(Ops::sub(Ops::broadcast(far_bound), origin), inv_direction), widening);
+            Ops::mul(far_distance, Ops::select_if_greater(far_distance, zero, grow, shrink));
         t0 = Ops::max(near_plane, t0);
         t1 = Ops::min(far_plane, t1);
     }
@@ -65,6 +68,9 @@ struct ScalarLane {
     static float mul(float a, float b) { return a * b; }
     static float max(float a, float b) { return a > b ? a : b; }
     static float min(float a, float b) { return a < b ? a : b; }
+    static float select_if_greater(float a, float b, float if_greater, float otherwise) {
+        return a > b ? if_greater : otherwise;
+    }
     static bool less_equal(float a, float b) { return a <= b; }
     static unsigned mask(bool lane) { return lane ? 1u : 0u; }
 };

@@ -63,9 +63,6 @@ struct WideRay {
     }
 };
 
-// The exit widening of intersect_box, as the same fp32 expression.
-inline constexpr float kSlabExitWidening = 1.0f + 2.0f * gamma_bound(3);
-
 // The slab test of intersect_box on every child of `node`, one child at a time: bit i of the result is set
 // when child i is hit within [tnear, tfar], with entry[i] its entry distance. The NaN rule of intersect_box
 // (a ray in a face plane, 0 * inf, has that slab unbounded) holds per plane: a NaN plane distance leaves the
@@ -81,8 +78,8 @@ template <int W>
             const int side = ray.entry_side[axis];
             const float near_plane =
                 (node.bounds[side][axis][slot] - ray.origin[axis]) * ray.inv_direction[axis];
-            const float far_plane = (node.bounds[1 - side][axis][slot] - ray.origin[axis]) *
-                                    ray.inv_direction[axis] * kSlabExitWidening;
+            const float far_plane = widened_slab_exit((node.bounds[1 - side][axis][slot] - ray.origin[axis]) *
+                                                      ray.inv_direction[axis]);
             t0 = near_plane > t0 ? near_plane : t0;  // maxps operand order: NaN keeps t0
             t1 = far_plane < t1 ? far_plane : t1;    // minps operand order: NaN keeps t1
         }
@@ -103,16 +100,19 @@ template <class Ops>
     using Float = typename Ops::Float;
     constexpr int width = Ops::kWidth;
     Float t0 = Ops::broadcast(tnear), t1 = Ops::broadcast(tfar);
-    const Float widening = Ops::broadcast(kSlabExitWidening);
+    // widened_slab_exit, lane by lane: the factor chosen by the distance's sign.
+    const Float grow = Ops::broadcast(kSlabExitGrow), shrink = Ops::broadcast(kSlabExitShrink);
+    const Float zero = Ops::broadcast(0.0f);
     for (int axis = 0; axis < 3; ++axis) {
         const int side = ray.entry_side[axis];
         const Float origin = Ops::broadcast(ray.origin[axis]);
         const Float inv_direction = Ops::broadcast(ray.inv_direction[axis]);
         const Float near_plane =
             Ops::mul(Ops::sub(Ops::load(lo_hi + (side * 3 + axis) * width), origin), inv_direction);
-        const Float far_plane = Ops::mul(
-            Ops::mul(Ops::sub(Ops::load(lo_hi + ((1 - side) * 3 + axis) * width), origin), inv_direction),
-            widening);
+        const Float far_distance =
+            Ops::mul(Ops::sub(Ops::load(lo_hi + ((1 - side) * 3 + axis) * width), origin), inv_direction);
+        const Float far_plane =
+            Ops::mul(far_distance, Ops::select_if_greater(far_distance, zero, grow, shrink));
         t0 = Ops::max(near_plane, t0);
         t1 = Ops::min(far_plane, t1);
     }

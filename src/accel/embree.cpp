@@ -1,7 +1,10 @@
 #include "accel/embree.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -14,17 +17,52 @@ constexpr unsigned int kSphereGeometry = 1;
 // Embree asserts that coordinates stay below FLT_LARGE (1.8e18). A larger direction is scaled by a power of
 // two (exact, t is scaled back); an origin that far away is outside Embree's domain and answered as a miss.
 constexpr float kEmbreeLargest = 0x1p60f;
-
-bool in_embree_domain(const Ray& ray) {
-    return is_valid(ray) && max_component(abs(ray.origin)) <= kEmbreeLargest;
-}
+// Embree also asserts `ray.valid()` on a direction whose components are all denormal (fuzz/rays_fuzz.cpp,
+// docs/robustness.md): so tiny a direction is scaled up the same way.
+constexpr float kEmbreeSmallest = 0x1p-60f;
 
 // The power of two that brings the direction inside Embree's domain (1 for ordinary rays).
 float direction_scale(const Ray& ray) {
+    const float largest = max_component(abs(ray.direction));
     float scale = 1.0f;
-    while (max_component(abs(ray.direction)) * scale > kEmbreeLargest)
+    while (largest * scale > kEmbreeLargest)
         scale *= 0x1p-32f;
+    while (largest * scale < kEmbreeSmallest)
+        scale *= 0x1p32f;
     return scale;
+}
+
+// A ray as Embree is given it: lancer's t = Embree's t * scale + t_offset, kept in the caller's
+// [tnear, tfar], which the rounded shift back could leave by an ulp (fuzz/rays_fuzz.cpp).
+struct EmbreeRay {
+    Ray ray;
+    float scale = 1.0f;
+    float t_offset = 0.0f;
+    float tnear = 0.0f, tfar = kInfinity;  // the caller's interval
+
+    [[nodiscard]] float lancer_t(float embree_t) const {
+        return std::clamp(embree_t * scale + t_offset, tnear, tfar);
+    }
+};
+
+// The ray in Embree's domain, or none: invalid rays (is_valid) and origins beyond kEmbreeLargest miss.
+// Embree also asserts tnear >= 0 (Debian's build keeps its assertions; found by fuzz/rays_fuzz.cpp,
+// docs/robustness.md): a ray whose interval starts behind its origin starts at o + tnear d instead.
+std::optional<EmbreeRay> to_embree(const Ray& ray) {
+    if (!is_valid(ray)) return std::nullopt;
+    EmbreeRay query{ray};
+    query.tnear = ray.tnear, query.tfar = ray.tfar;
+    if (ray.tnear < 0.0f) {
+        query.ray.origin = ray.origin + ray.direction * ray.tnear;
+        query.ray.tnear = 0.0f;
+        query.ray.tfar = ray.tfar - ray.tnear;
+        query.t_offset = ray.tnear;
+    }
+    if (!is_finite(query.ray.origin) || max_component(abs(query.ray.origin)) > kEmbreeLargest)
+        return std::nullopt;
+    query.scale = direction_scale(query.ray);
+    query.ray.direction *= query.scale, query.ray.tnear /= query.scale, query.ray.tfar /= query.scale;
+    return query;
 }
 
 void fill_ray(const Ray& ray, RTCRay& out) {
@@ -45,7 +83,9 @@ void fill_packet_ray(const Ray& ray, RTCRayNt<N>& out, int lane) {
 // Embree numbers primitives per geometry; lancer's global numbering puts the spheres after the triangles.
 Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, float v,
            unsigned int triangle_count) {
-    if (geometry == RTC_INVALID_GEOMETRY_ID) return Hit{};
+    // A t that overflows when scaled back (a tiny direction, direction_scale) is no hit, as in lancer's own
+    // kernels: a hit is at a finite distance (docs/numerical-contract.md).
+    if (geometry == RTC_INVALID_GEOMETRY_ID || !std::isfinite(t)) return Hit{};
     const unsigned int global = geometry == kSphereGeometry ? triangle_count + primitive : primitive;
     return {t, static_cast<std::int32_t>(global), u, v};
 }
@@ -67,20 +107,17 @@ void intersect_packets(RTCScene scene, std::span<const Ray> rays, std::span<Hit>
     for (std::size_t first = 0; first < rays.size(); first += N) {
         alignas(64) RTCRayHitNt<N> packet;
         alignas(64) int valid[N];
-        float scales[N];
+        std::optional<EmbreeRay> queries[N];
         const std::size_t lanes = std::min<std::size_t>(N, rays.size() - first);
         for (int lane = 0; lane < N; ++lane) {
-            const bool used = static_cast<std::size_t>(lane) < lanes && in_embree_domain(rays[first + lane]);
-            valid[lane] = used ? -1 : 0;
-            scales[lane] = used ? direction_scale(rays[first + lane]) : 1.0f;
-            Ray scaled = used ? rays[first + lane] : Ray{};
-            scaled.direction *= scales[lane], scaled.tnear /= scales[lane], scaled.tfar /= scales[lane];
-            fill_packet_ray(scaled, packet.ray, lane);
+            if (static_cast<std::size_t>(lane) < lanes) queries[lane] = to_embree(rays[first + lane]);
+            valid[lane] = queries[lane] ? -1 : 0;
+            fill_packet_ray(queries[lane] ? queries[lane]->ray : Ray{}, packet.ray, lane);
             packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
         }
         intersect(valid, scene, &context, reinterpret_cast<RtcPacket*>(&packet));
         for (std::size_t lane = 0; lane < lanes; ++lane) {
-            hits[first + lane] = valid[lane] ? to_hit(packet.ray.tfar[lane] * scales[lane],
+            hits[first + lane] = valid[lane] ? to_hit(queries[lane]->lancer_t(packet.ray.tfar[lane]),
                                                       packet.hit.geomID[lane], packet.hit.primID[lane],
                                                       packet.hit.u[lane], packet.hit.v[lane], triangle_count)
                                              : Hit{};
@@ -170,16 +207,14 @@ void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits
     rtcInitIntersectContext(&context);
     for (std::size_t i = 0; i < rays.size(); ++i) {
         hits[i] = Hit{};
-        if (!in_embree_domain(rays[i])) continue;
-        const float scale = direction_scale(rays[i]);
-        Ray scaled = rays[i];
-        scaled.direction *= scale, scaled.tnear /= scale, scaled.tfar /= scale;
+        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i]);
+        if (!embree_ray) continue;
         RTCRayHit query;
-        fill_ray(scaled, query.ray);
+        fill_ray(embree_ray->ray, query.ray);
         query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(scene_, &context, &query);
-        hits[i] = to_hit(query.ray.tfar * scale, query.hit.geomID, query.hit.primID, query.hit.u, query.hit.v,
-                         triangle_count_);
+        hits[i] = to_hit(embree_ray->lancer_t(query.ray.tfar), query.hit.geomID, query.hit.primID,
+                         query.hit.u, query.hit.v, triangle_count_);
     }
 }
 
@@ -190,12 +225,10 @@ void EmbreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8
     rtcInitIntersectContext(&context);
     for (std::size_t i = 0; i < rays.size(); ++i) {
         occluded[i] = 0;
-        if (!in_embree_domain(rays[i])) continue;
-        const float scale = direction_scale(rays[i]);
-        Ray scaled = rays[i];
-        scaled.direction *= scale, scaled.tnear /= scale, scaled.tfar /= scale;
+        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i]);
+        if (!embree_ray) continue;
         RTCRay query;
-        fill_ray(scaled, query);
+        fill_ray(embree_ray->ray, query);
         rtcOccluded1(scene_, &context, &query);
         occluded[i] = query.tfar == -kInfinity ? 1 : 0;  // Embree marks an occluded ray with tfar = -inf
     }

@@ -81,6 +81,7 @@ void OctreeAccel::build(const Geometry& geometry, const BuildOptions& options) {
     options_ = options;
     Octree octree = build_octree(geometry, options.octree);
     cube_ = octree.cube;
+    tolerance_ = octree.tolerance;
     nodes_.resize(octree.cells.size());
     std::transform(octree.cells.begin(), octree.cells.end(), nodes_.begin(), [](const OctreeCell& cell) {
         return cell.is_leaf() ? OctreeNode{cell.ref_begin, cell.ref_count()}
@@ -136,12 +137,15 @@ std::size_t OctreeAccel::memory_bytes() const {
 template <bool kCount, class LeafVisitor>
 void OctreeAccel::walk(const Ray& ray, LeafVisitor&& visit_leaf, TraversalCounters* counters) const {
     // ENTRY: the root's parameters. A NaN (origin on a face plane, no motion along that axis) makes the slab
-    // unbounded, as intersect_box does: the ray runs along the face, inside the closed box.
+    // unbounded, as intersect_box does: the ray runs along the face, inside the closed box. The root is grown
+    // by the geometric tolerance like every structure's outer box (docs/numerical-contract.md): a ray whose
+    // whole [tnear, tfar] lies in that margin still finds the hit a kernel reports there
+    // (fuzz/rays_fuzz.cpp).
     const WalkRay walk_ray(ray);
     Frame root{};
     for (int axis = 0; axis < 3; ++axis) {
         const bool mirrored = (walk_ray.mirror >> axis) & 1;
-        const float lo = cube_.plane(axis, 0, 0), hi = cube_.plane(axis, 0, 1);
+        const float lo = cube_.plane(axis, 0, 0) - tolerance_, hi = cube_.plane(axis, 0, 1) + tolerance_;
         root.t0[axis] = walk_ray.distance(axis, mirrored ? hi : lo, -kInfinity);
         root.t1[axis] = walk_ray.distance(axis, mirrored ? lo : hi, kInfinity);
     }

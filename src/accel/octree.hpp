@@ -107,6 +107,7 @@ class OctreeAccel final : public Accel {
     Geometry geometry_;
     BuildOptions options_;
     OctreeCube cube_;
+    float tolerance_ = 0.0f;  // the scene's geometric tolerance: the root's outer faces are grown by it
     std::vector<OctreeNode> nodes_;
     std::vector<std::uint32_t> references_;
     AccelStats stats_;

@@ -38,6 +38,11 @@ struct Sse4 {
     static Float equal(Float a, Float b) { return _mm_cmpeq_ps(a, b); }
     static Float bit_and(Float a, Float b) { return _mm_and_ps(a, b); }
     static Float bit_or(Float a, Float b) { return _mm_or_ps(a, b); }
+    // a > b ? if_greater : otherwise, per lane (ordered: a NaN lane takes `otherwise`, as the scalar
+    // ternary).
+    static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
+        return _mm_blendv_ps(otherwise, if_greater, _mm_cmpgt_ps(a, b));
+    }
     static unsigned mask(Float a) { return static_cast<unsigned>(_mm_movemask_ps(a)); }
 };
 #endif
@@ -64,6 +69,9 @@ struct Avx2 {
     static Float equal(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_EQ_OQ); }
     static Float bit_and(Float a, Float b) { return _mm256_and_ps(a, b); }
     static Float bit_or(Float a, Float b) { return _mm256_or_ps(a, b); }
+    static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
+        return _mm256_blendv_ps(otherwise, if_greater, _mm256_cmp_ps(a, b, _CMP_GT_OQ));
+    }
     static unsigned mask(Float a) { return static_cast<unsigned>(_mm256_movemask_ps(a)); }
 };
 #endif

@@ -33,8 +33,18 @@ struct SlabRay {
           inv_direction(1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z) {}
 };
 
-// On success [t_entry, t_exit] is the part of [tnear, tfar] inside the box. t_exit is widened by
-// 1 + 2 gamma(3) so that rounding never misses a box whose face a hit lies on (pbrt-v4, Bounds3::IntersectP).
+// A slab's exit distance moved away from the entry by 2 gamma(3) of its magnitude (pbrt-v4,
+// Bounds3::IntersectP), towards +inf whatever its sign: multiplying a negative distance by 1 + 2 gamma(3)
+// would shrink the interval, and a valid ray with tnear < 0 then lost a box it crosses within rounding
+// (fuzz/rays_fuzz.cpp, docs/robustness.md).
+inline constexpr float kSlabExitGrow = 1.0f + 2.0f * gamma_bound(3);
+inline constexpr float kSlabExitShrink = 1.0f - 2.0f * gamma_bound(3);
+[[nodiscard]] inline float widened_slab_exit(float t) {
+    return t * (t > 0.0f ? kSlabExitGrow : kSlabExitShrink);
+}
+
+// On success [t_entry, t_exit] is the part of [tnear, tfar] inside the box, t_exit widened
+// (widened_slab_exit) so that rounding never misses a box whose face a hit lies on.
 [[nodiscard]] inline bool intersect_box(const SlabRay& ray, const Box3f& box, float tnear, float tfar,
                                         float& t_entry, float& t_exit) {
     float t0 = tnear, t1 = tfar;
@@ -42,7 +52,7 @@ struct SlabRay {
         float near_plane = (box.lo[axis] - ray.origin[axis]) * ray.inv_direction[axis];
         float far_plane = (box.hi[axis] - ray.origin[axis]) * ray.inv_direction[axis];
         float slab_near = std::min(near_plane, far_plane);
-        float slab_far = std::max(near_plane, far_plane) * (1.0f + 2.0f * gamma_bound(3));
+        float slab_far = widened_slab_exit(std::max(near_plane, far_plane));
         if (std::isnan(near_plane) || std::isnan(far_plane)) slab_near = -kInfinity, slab_far = kInfinity;
         t0 = std::max(t0, slab_near);
         t1 = std::min(t1, slab_far);

@@ -43,7 +43,7 @@ LANCER_HOST_DEVICE inline bool hit_child_box(const Vec3f& origin, const Vec3f& i
         const float near_plane = (lo[axis] - origin[axis]) * inverse[axis];
         const float far_plane = (hi[axis] - origin[axis]) * inverse[axis];
         float slab_near = min_of(near_plane, far_plane);
-        float slab_far = max_of(near_plane, far_plane) * (1.0f + 2.0f * gamma_of(3));
+        float slab_far = widened_exit(max_of(near_plane, far_plane));
         if (is_nan(near_plane) || is_nan(far_plane)) slab_near = -kInfinity, slab_far = kInfinity;
         t0 = max_of(t0, slab_near);
         t1 = min_of(t1, slab_far);

@@ -45,6 +45,12 @@ LANCER_HOST_DEVICE inline float gamma_of(int n) {
     return (static_cast<float>(n) * kHalfUlp) / (1.0f - static_cast<float>(n) * kHalfUlp);
 }
 
+// widened_slab_exit of core/intersect.hpp: the exit moved away from the entry by 2 gamma(3) of its magnitude,
+// towards +inf whatever its sign.
+LANCER_HOST_DEVICE inline float widened_exit(float t) {
+    return t * (t > 0.0f ? 1.0f + 2.0f * gamma_of(3) : 1.0f - 2.0f * gamma_of(3));
+}
+
 // closer() of lancer/ray.hpp: the smaller t, then the smaller primitive index.
 LANCER_HOST_DEVICE inline bool is_closer(float t, std::int32_t prim, const Hit& best) {
     return t < best.t || (t == best.t && prim < best.prim);

@@ -104,7 +104,7 @@ LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, con
         const float lo = cube_plane(octree, tables, axis, 0, 0) - octree.tolerance,
                     hi = cube_plane(octree, tables, axis, 0, 1) + octree.tolerance;
         const float t_lo = (lo - ray.origin[axis]) * inverse, t_hi = (hi - ray.origin[axis]) * inverse;
-        float slab_near = min_of(t_lo, t_hi), slab_far = max_of(t_lo, t_hi) * (1.0f + 2.0f * gamma_of(3));
+        float slab_near = min_of(t_lo, t_hi), slab_far = widened_exit(max_of(t_lo, t_hi));
         if (is_nan(t_lo) || is_nan(t_hi)) slab_near = -kInfinity, slab_far = kInfinity;
         if (slab_near > t_entry) t_entry = slab_near, entry_axis = axis;
         t_exit = min_of(t_exit, slab_far);

@@ -151,6 +151,9 @@ class NffReader {
         }
         plane.normal = normal / norm;
         plane.offset = offset / norm;
+        // A tiny normal divides a finite offset beyond the float range (fuzz/nff_fuzz.cpp).
+        if (!std::isfinite(plane.offset))
+            reader_.fail(keyword.line, "a plane offset d / |n| beyond the float range");
         if (const std::optional<Token> flag = reader_.peek(); flag && flag->text == "checkered") {
             (void)reader_.next();
             plane.checkered = true;

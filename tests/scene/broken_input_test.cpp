@@ -63,6 +63,9 @@ const BrokenFile kBrokenFiles[] = {
     {"empty.nff", 1, "unexpected end of file: expected a keyword"},
     {"overflowing_sphere.nff", 0, "a sphere reaches beyond the float range"},
     {"overflowing_cone.nff", 0, "mesh 'overflowing_cone' has a vertex beyond the float range"},
+    {"plane_offset_overflow.nff", 2, "a plane offset d / |n| beyond the float range"},
+    // Found by fuzz/obj_fuzz.cpp: assimp leaks while it rejects this file (docs/robustness.md).
+    {"assimp_leak_point_face.obj", 0, "assimp: "},
     {"truncated_header.ply", 9, "unexpected end of file: expected a PLY header keyword"},
     {"truncated_in_vertices.ply", 4, "announces 6 vertex elements"},
     {"truncated_in_faces.ply", 20, "unexpected end of file: expected 5 face elements, got 4"},

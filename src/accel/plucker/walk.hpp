@@ -97,8 +97,10 @@ struct ComputedBoxes {
                                               std::uint32_t up) {
     const std::uint32_t last = (1u << level) - 1u;
     const float scaled = (p - cube.lo[axis]) / cube.size * static_cast<float>(1u << level);
+    // NaN (a root cube of size 0: the scene is one point; fuzz/rays_fuzz.cpp) starts at 0 like a negative
+    // estimate: converting it would be undefined, and the exact planes below settle the index either way.
     std::uint32_t i =
-        scaled <= 0.0f ? 0u : std::min(last, static_cast<std::uint32_t>(std::min(scaled, 65536.0f)));
+        !(scaled > 0.0f) ? 0u : std::min(last, static_cast<std::uint32_t>(std::min(scaled, 65536.0f)));
     // The estimate may be off by one near a plane: settle it against the exact planes.
     const int l = static_cast<int>(level);
     while (i > 0 && (up ? p < cube.plane(axis, l, i) : p <= cube.plane(axis, l, i)))
@@ -140,8 +142,7 @@ struct ComputedBoxes {
         const float lo = cube.plane(axis, 0, 0) - layout.tolerance,
                     hi = cube.plane(axis, 0, 1) + layout.tolerance;
         const float t_lo = (lo - ray.origin[axis]) * inverse, t_hi = (hi - ray.origin[axis]) * inverse;
-        float slab_near = std::min(t_lo, t_hi),
-              slab_far = std::max(t_lo, t_hi) * (1.0f + 2.0f * gamma_bound(3));
+        float slab_near = std::min(t_lo, t_hi), slab_far = widened_slab_exit(std::max(t_lo, t_hi));
         // NaN: the origin on the plane and no motion along the axis: the ray runs inside the closed slab.
         if (std::isnan(t_lo) || std::isnan(t_hi)) slab_near = -kInfinity, slab_far = kInfinity;
         if (slab_near > t_entry) t_entry = slab_near, entry_axis = axis;

@@ -1,0 +1,8 @@
+// libFuzzer harness: the NFF reader (src/scene/nff_loader.cpp) on arbitrary bytes.
+#include "fuzz_support.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    using namespace lancer::fuzz;
+    load_and_check(write_scratch_file("input.nff", as_text(data, size)));
+    return 0;
+}

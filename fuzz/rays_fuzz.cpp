@@ -1,0 +1,180 @@
+// libFuzzer harness: `rays` queries on every registered structure (accel_names()) with both triangle
+// tests. The input is a tiny scene (up to 8 triangles and 2 spheres, finite as load_scene guarantees) and up
+// to 32 rays of arbitrary floats: NaN, infinities, zero and denormal directions, huge coordinates,
+// tnear > tfar. Every structure must agree with brute force (0 mismatches, src/accel/agreement.hpp) on the
+// rays of in_agreement_domain and answer every ray cleanly (invalid rays miss); Embree, with its own kernels,
+// must answer cleanly (accel_check.hpp).
+#include <fuzzer/FuzzedDataProvider.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <memory>
+#include <string_view>
+#include <vector>
+
+#include "accel_check.hpp"
+
+namespace lancer::fuzz {
+namespace {
+
+using Limits = std::numeric_limits<float>;
+
+// The values that break arithmetic: signed zeros, denormals, the float range's ends, overflow, NaN.
+constexpr float kSpecialValues[] = {
+    0.0f,
+    -0.0f,
+    1.0f,
+    -1.0f,
+    Limits::denorm_min(),
+    -Limits::denorm_min(),
+    Limits::min(),
+    Limits::max(),
+    -Limits::max(),
+    Limits::infinity(),
+    -Limits::infinity(),
+    Limits::quiet_NaN(),
+    -Limits::quiet_NaN(),
+    1e-30f,
+    1e30f,
+    -1e30f,
+    0x1p24f,
+    0x1p60f,
+    1e-7f,
+    0.5f,
+};
+constexpr int kSpecialCount = static_cast<int>(std::size(kSpecialValues));
+
+// One tag byte, then: a multiple of 1/16 in [-5, 5) (tag < 160: coordinates that line triangles up, share
+// edges and aim rays at them), a special value, or any 32-bit pattern.
+float next_float(FuzzedDataProvider& input) {
+    const int tag = input.ConsumeIntegral<std::uint8_t>();
+    if (tag < 160) return static_cast<float>(tag - 80) / 16.0f;
+    if (tag < 160 + kSpecialCount) return kSpecialValues[tag - 160];
+    return std::bit_cast<float>(input.ConsumeIntegral<std::uint32_t>());
+}
+
+Vec3f next_vec(FuzzedDataProvider& input) {
+    const float x = next_float(input), y = next_float(input);
+    return {x, y, next_float(input)};
+}
+
+// A scene vertex: what load_scene lets through is finite (it rejects the rest), and here also within 2^100:
+// a scene spanning the float range (-FLT_MAX to 2) has no finite octree root cube and the octree misses hits
+// (open finding 8, docs/robustness.md; DISABLED_SceneSpanningTheFloatRange in fuzz_regression_test.cpp).
+Vec3f next_vertex(FuzzedDataProvider& input) {
+    const Vec3f v = next_vec(input);
+    return is_finite(v) && max_component(abs(v)) <= 0x1p100f ? v : Vec3f(0.0f);
+}
+
+struct FuzzScene {
+    std::vector<Triangle> triangles;
+    std::vector<Sphere> spheres;
+    std::vector<Ray> rays;
+
+    [[nodiscard]] Geometry geometry() const { return {triangles, spheres}; }
+};
+
+FuzzScene next_scene(FuzzedDataProvider& input) {
+    FuzzScene scene;
+    const int triangle_count = input.ConsumeIntegralInRange(0, 8);
+    for (int i = 0; i < triangle_count; ++i) {
+        const Vec3f v0 = next_vertex(input), v1 = next_vertex(input);
+        scene.triangles.push_back({v0, v1, next_vertex(input)});
+    }
+    const int sphere_count = input.ConsumeIntegralInRange(0, 2);
+    for (int i = 0; i < sphere_count; ++i) {
+        Sphere sphere;
+        sphere.center = next_vertex(input);
+        sphere.radius = std::fabs(next_float(input));
+        // load_scene's promise: a positive radius and a finite box; within 2^100 as the vertices (finding 8).
+        const Box3f bounds = sphere.bounds();
+        if (sphere.radius > 0.0f && is_finite(bounds.lo) && is_finite(bounds.hi) &&
+            std::max(max_component(abs(bounds.lo)), max_component(abs(bounds.hi))) <= 0x1p100f)
+            scene.spheres.push_back(sphere);
+    }
+    while (scene.rays.size() < 32 && input.remaining_bytes() > 0) {
+        Ray ray;
+        ray.origin = next_vec(input);
+        ray.direction = next_vec(input);
+        ray.tnear = next_float(input);
+        ray.tfar = input.ConsumeBool() ? kInfinity : next_float(input);
+        scene.rays.push_back(ray);
+    }
+    return scene;
+}
+
+// LANCER_FUZZ_PRINT=1 prints the decoded input (C99 hex floats), to turn a finding into a regression test.
+void print(const FuzzScene& scene) {
+    const auto vec = [](const Vec3f& v) { std::printf("{%a, %a, %a}", v.x, v.y, v.z); };
+    for (const Triangle& triangle : scene.triangles) {
+        std::printf("triangle "), vec(triangle.v0), vec(triangle.v1), vec(triangle.v2), std::printf("\n");
+    }
+    for (const Sphere& sphere : scene.spheres) {
+        std::printf("sphere "), vec(sphere.center), std::printf(" %a\n", sphere.radius);
+    }
+    for (const Ray& ray : scene.rays) {
+        std::printf("ray "), vec(ray.origin), vec(ray.direction),
+            std::printf(" %a %a\n", ray.tnear, ray.tfar);
+    }
+}
+
+// Agreement with brute force is asked of rays whose origin lies within 2^12 times the scene's largest
+// coordinate. Farther away the points of the ray are an ulp of the origin apart, coarser than the scene's
+// geometric tolerance, and even brute force's answer is rounding noise: a ray from 4.5e11 away "hits" a
+// 5-unit triangle its line misses, and the grid disagrees (open finding 11, docs/robustness.md;
+// DISABLED_FarOriginRoundingNoise in tests/accel/fuzz_regression_test.cpp). Every ray still gets a clean
+// answer from every structure.
+bool in_agreement_domain(const Ray& ray, const Geometry& geometry) {
+    const Box3f bounds = geometry.bounds();
+    if (bounds.empty()) return true;
+    const float scene_scale = std::max(max_component(abs(bounds.lo)), max_component(abs(bounds.hi)));
+    return max_component(abs(ray.origin)) <= 0x1p12f * scene_scale;
+}
+
+}  // namespace
+}  // namespace lancer::fuzz
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    using namespace lancer;
+    FuzzedDataProvider input(data, size);
+    const fuzz::FuzzScene scene = fuzz::next_scene(input);
+    if (scene.rays.empty()) return 0;
+    static const bool print = std::getenv("LANCER_FUZZ_PRINT") != nullptr;
+    if (print) fuzz::print(scene), std::fflush(stdout);
+    const Geometry geometry = scene.geometry();
+    std::vector<Ray> near_rays;  // in the agreement domain
+    for (const Ray& ray : scene.rays) {
+        if (fuzz::in_agreement_domain(ray, geometry)) near_rays.push_back(ray);
+    }
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        const std::vector<Hit> oracle = fuzz::oracle_hits(geometry, test, near_rays);
+        for (const std::string_view name : accel_names()) {
+            if (name == "brute") continue;
+            const std::unique_ptr<Accel> accel = make_accel(name);
+            if (name != "embree") {
+                accel->build(geometry, build_options(test));
+                fuzz::check_clean_answers(*accel, scene.rays, geometry);
+                fuzz::check_agrees_with_oracle(*accel, near_rays, oracle, geometry);
+                continue;
+            }
+            // Embree's geometry must stay within +-FLT_LARGE (1.8e18): beyond, it asserted `ray.valid()` on a
+            // scene with a vertex at -3.2e29 (open finding 12, docs/robustness.md).
+            if (max_component(abs(geometry.bounds().lo)) > 0x1p60f ||
+                max_component(abs(geometry.bounds().hi)) > 0x1p60f)
+                continue;
+            for (const EmbreePacket packet :
+                 {EmbreePacket::Single, EmbreePacket::Packet8, EmbreePacket::Packet16}) {
+                BuildOptions options = build_options(test);
+                options.embree_packet = packet;
+                accel->build(geometry, options);
+                fuzz::check_clean_answers(*accel, scene.rays, geometry);
+            }
+        }
+    }
+    return 0;
+}

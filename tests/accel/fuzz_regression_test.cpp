@@ -1,0 +1,200 @@
+// The inputs fuzz/rays_fuzz.cpp found, replayed in the normal suite (docs/robustness.md, "Fuzzing"): every
+// structure agrees with brute force on them (0 mismatches); every hit lies in [tnear, tfar]; Embree, where
+// its domain and kernels allow (FuzzCase::embree_agrees), agrees within its own rounding (embree_test.cpp).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "accel/agreement.hpp"
+#include "lancer/accel.hpp"
+#include "test_scenes.hpp"
+
+namespace lancer {
+namespace {
+
+using testing::TestScene;
+
+struct FuzzCase {
+    TestScene scene;
+    std::vector<Ray> rays;
+    // false: Embree is only asked for clean answers (hits inside [tnear, tfar]), not brute force's: the rays
+    // start beyond 2^60, outside its domain where embree.cpp answers misses, or hit exactly at a vertex,
+    // which its own kernels may miss.
+    bool embree_agrees = true;
+};
+
+// The fuzzer's inputs, hex floats as LANCER_FUZZ_PRINT=1 prints them.
+std::vector<FuzzCase> fuzz_cases() {
+    const Vec3f corner(-0x1.4p+2f);  // (-5, -5, -5)
+    return {
+        // A scene that is one point: the Pluecker octree's root cube has size 0, and cell_index converted
+        // the NaN (p - lo) / size to an integer (UBSan: walk.hpp; fixed to start from cell 0).
+        {{"one-point scene", {{corner, corner, corner}}, {}},
+         {{corner, {-5.0f, -5.0f, 0x1.017e14p-126f}, -5.0f, 0x1.1p+0f},
+          {corner, {1.0f, 0.0f, -5.0f}, 0x1.2p+2f, 0x1.2p+2f},
+          {corner, corner, -5.0f, -5.0f}}},
+        // A negative tnear, valid under the contract: Embree asserts tnear >= 0 (embree.cpp now starts such a
+        // ray at o + tnear d); the hit behind the origin at t = -1 must be found.
+        {{"hit behind the origin", {{{-1, -1, 0}, {1, -1, 0}, {0, 1, 0}}}, {}},
+         {{{0, 0, 1}, {0, 0, 1}, -5.0f, kInfinity}, {{0, 0, 1}, {0, 0, 1}, -5.0f, -1.5f}}},
+        // A ray whose whole interval [0, 0] lies 1 unit outside the scene's box, inside its geometric
+        // tolerance (2^40 here): the sphere kernel reports a hit at t = 0 by rounding; the octree's walk did
+        // not grow its root by the tolerance and missed it.
+        {{"interval in the tolerance margin",
+          {{{1, 0x1.a0a02p+33f, 0x1p+24f}, {0x1p+24f, 0x1p+24f, 0x1p+24f}, {0x1p+24f, 0x1p+60f, 0x1p+24f}}},
+          {{{0x1p+24f, 0x1p+24f, 0x1p+24f}, 0x1p+24f, 0}, {{0x1p+24f, 0x1p+24f, 0x1p+24f}, 0x1p+24f, 0}}},
+         {{{0x1p+24f, 0x1p+24f, -1}, {-1, 1, 1}, 0, 0}}},
+        // A ray from 6.5e19 away through a vertex, its whole path through the scene within an ulp of
+        // t = -1.08: the slab exits were widened by multiplying by 1 + 2 gamma(3), which shrinks a negative
+        // distance, and the grid, the Pluecker octree and the BVHs lost the box (intersect_box).
+        {{"far origin, negative t",
+          {{{0, 0, 0}, {1, 0, 0x1.c0a0ap-35f}, {1, 0, 0}}, {{1, 0, 0}, {1, 0, -5}, {0.5f, 0.5f, 1}}},
+          {{{-0x1.4p-2f, -1, 0}, 0x1.3cp+2f, 0}, {{0, 0, 0}, 1, 0}}},
+         {{{0, 0x1.c0a0ap+65f, 0}, {0, 0x1.a0a0cp+65f, 0}, -5.0f, 0.5f}},
+         false},
+        // A ray starting on a vertex with [tnear, tfar] = [-0.9375, 0]: Embree, given the ray from
+        // o + tnear d, found the vertex at t = 0.9375 and the shift back rounded it an ulp past tfar = 0.
+        {{"Embree's shift back past tfar",
+          {{Vec3f(-5.0f), Vec3f(-5.0f), Vec3f(-5.0f)},
+           {{0, 0, 1}, {-1, -0x1.ep-1f, 0x1.ep-1f}, {-0x1.ep-1f, -5, -0x1.5p+1f}},
+           {{-1, -5, -0x1.3p+2f}, {1, 0.5f, 0x1.ep-1f}, {1, -1, -0x1.ep-1f}},
+           {{0x1.ep-1f, -0x1.ep-1f, -1}, {0x1.ep-1f, -0x1.ep-1f, -0x1.ep-1f}, {1, -1, -5}}},
+          {{{1, 0.5f, 0x1.ep-1f}, 1, 0}}},
+         {{{-1, -0x1.ep-1f, 0x1.ep-1f}, {-1, -0x1.ep+0f, 1}, -0x1.ep-1f, 0}},
+         false},
+        // Directions whose components are all denormal: Embree asserted `ray.valid()` and aborted (embree.cpp
+        // now scales such a direction up by a power of two, as it scales huge ones down).
+        {{"denormal directions",
+          {{{2, -5, 2}, {-5, 0x1p-149f, 0x1p-149f}, Vec3f(0x1p-149f)}},
+          {{Vec3f(0x1p-149f), 0x1p-149f, 0}, {Vec3f(0x1p-149f), 0x1p-149f, 0}}},
+         {{{0x1p-149f, -0x1.08p+1f, 0x1p-149f}, Vec3f(0x1p-149f), 0, kInfinity},
+          {{0.5f, 0x1p-149f, 0x1p-149f}, Vec3f(0x1p-149f), 0x1p-149f, 0x1p-149f},
+          {{-1, -1, -1}, {0x1p-140f, 0x1p-141f, 0x1p-142f}, 0, kInfinity}},
+         false},  // ray 0 crosses the first triangle on its edge: Embree's kernel and ours round differently
+    };
+}
+
+std::vector<Hit> trace(const Accel& accel, std::span<const Ray> rays) {
+    std::vector<Hit> hits(rays.size());
+    accel.intersect(rays, hits);
+    return hits;
+}
+
+TEST(FuzzRegression, EveryStructureAgreesWithBruteForce) {
+    for (const FuzzCase& fuzz_case : fuzz_cases()) {
+        const Geometry geometry = fuzz_case.scene.geometry();
+        for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+            const std::unique_ptr<Accel> brute = make_accel("brute");
+            brute->build(geometry, build_options(test));
+            const std::vector<Hit> expected = trace(*brute, fuzz_case.rays);
+            for (const std::string_view name : accel_names()) {
+                const std::unique_ptr<Accel> accel = make_accel(name);
+                accel->build(geometry, build_options(test));
+                const std::vector<Hit> hits = trace(*accel, fuzz_case.rays);
+                std::vector<std::uint8_t> occluded(fuzz_case.rays.size());
+                accel->occluded(fuzz_case.rays, occluded);
+                const std::string context = fuzz_case.scene.name + ", " + std::string(name);
+                for (std::size_t i = 0; i < hits.size(); ++i) {
+                    if (!hits[i].hit()) continue;
+                    EXPECT_GE(hits[i].t, fuzz_case.rays[i].tnear) << context << ", ray " << i;
+                    EXPECT_LE(hits[i].t, fuzz_case.rays[i].tfar) << context << ", ray " << i;
+                }
+                if (name == "embree" && !fuzz_case.embree_agrees) continue;
+                EXPECT_EQ(compare_occlusion(fuzz_case.rays, expected, occluded).mismatches, 0u) << context;
+                if (name != "embree") {
+                    EXPECT_EQ(compare_hits(fuzz_case.rays, expected, hits).mismatches, 0u) << context;
+                    continue;
+                }
+                for (std::size_t i = 0; i < hits.size(); ++i) {
+                    ASSERT_EQ(hits[i].hit(), expected[i].hit()) << context << ", ray " << i;
+                    if (hits[i].hit()) {
+                        EXPECT_NEAR(hits[i].t, expected[i].t, 1e-5f) << context << ", ray " << i;
+                    }
+                }
+            }
+        }
+    }
+}
+
+// The second case's point: the answer is a hit at t = -1, not a miss (the check above would pass on misses).
+TEST(FuzzRegression, NegativeTnearFindsTheHitBehindTheOrigin) {
+    const FuzzCase behind = fuzz_cases()[1];
+    for (const std::string_view name : accel_names()) {
+        const std::unique_ptr<Accel> accel = make_accel(name);
+        accel->build(behind.scene.geometry(), {});
+        const std::vector<Hit> hits = trace(*accel, behind.rays);
+        EXPECT_EQ(hits[0].prim, 0) << name;
+        EXPECT_NEAR(hits[0].t, -1.0f, 1e-6f) << name;
+        EXPECT_FALSE(hits[1].hit()) << name << ": tfar = -1.5 ends before the triangle";
+    }
+}
+
+// Open finding (docs/robustness.md, finding 11): a ray from 4.5e11 away, along the diagonal through the
+// origin; at t = -1 it is exactly at (0, 0, 0), but its points are 2^15 apart there. Brute force reports the
+// 5-unit triangle, which the line misses by more than a unit; the grid does not. Rounding noise on either
+// side: fuzz/rays_fuzz.cpp asks agreement only of origins within 2^12 times the scene's coordinates.
+TEST(FuzzRegression, DISABLED_FarOriginRoundingNoise) {
+    const TestScene scene{"far origin noise",
+                          {{{0, -0x1.3cp+2f, 0}, {0, -0x1.3cp+2f, 0.25f}, {0.75f, -0x1.2p+0f, 0}}},
+                          {{{1, 0, -5}, 1, 0}, {{-1, 0.5f, 0}, 1, 0}}};
+    const std::vector<Ray> rays = {{Vec3f(-0x1.a5a5a4p+38f), Vec3f(-0x1.a5a5a4p+38f), -1, 1}};
+    const std::unique_ptr<Accel> brute = make_accel("brute"), grid = make_accel("grid");
+    brute->build(scene.geometry(), {});
+    grid->build(scene.geometry(), {});
+    EXPECT_EQ(compare_hits(rays, trace(*brute, rays), trace(*grid, rays)).mismatches, 0u);
+}
+
+// Open finding (docs/robustness.md, finding 13): a ray starting on the scene's upper y face, with a
+// direction near the float range; brute force counts the surface hit at t = -0, the BVH misses it.
+TEST(FuzzRegression, DISABLED_SurfaceHitWithAHugeDirection) {
+    const TestScene scene{
+        "huge direction",
+        {{{-0x1.3cp+2f, 2, 0x1.7p+1f}, {-0x1.12fcfcp-124f, -0x1.be002p+7f, -4}, {-4, 1, 1}},
+         {{-5, -5, -0x1.3cp+2f}, {-0x1.ep-1f, -0x1.ep-1f, 1}, {-1, -1, 1}},
+         {{-1, -0x1.ep-1f, 0x1.ep-1f}, {-1, -1, 1}, {-0x1.ep-1f, -0x1.ep-1f, 1}},
+         {Vec3f(-5), {-5, -0x1.6p+0f, 0x1.dp+0f}, {0x1.9p+0f, 0x1.1p+0f, 0x1.cp+0f}},
+         {{0x1.3p+0f, 0x1.5p+0f, 0x1.1p+1f},
+          {0x1.ep+0f, 0.3125f, 0.1875f},
+          {0x1.b8p+1f, 0x1.7p+1f, 0x1.7p+1f}},
+         {Vec3f(0x1.7p+1f), Vec3f(0x1.7p+1f), {-0x1.58p+1f, 0x1.7p+1f, -5}},
+         {{-0x1.3p+2f, 0x1.7p+1f, 0x1.7p+1f}, Vec3f(0x1.7p+1f), {-0x1.48p+1f, 0x1.7p+1f, 0x1.7p+1f}},
+         {Vec3f(0x1.7p+1f), Vec3f(0x1.7p+1f), Vec3f(0)}},
+        {}};
+    const std::vector<Ray> rays = {
+        {{-0x1.ep-1f, 0x1.7p+1f, 0x1.7p+1f}, {0x1.7p+1f, 0x1.fc05fep+125f, 1}, 0, 0.5f}};
+    const std::unique_ptr<Accel> brute = make_accel("brute"), bvh = make_accel("bvh");
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        brute->build(scene.geometry(), build_options(test));
+        bvh->build(scene.geometry(), build_options(test));
+        EXPECT_EQ(compare_hits(rays, trace(*brute, rays), trace(*bvh, rays)).mismatches, 0u);
+    }
+}
+
+// Open finding (docs/robustness.md, finding 8): a scene from -FLT_MAX to 2 has no finite octree root cube
+// (lo + size must reach hi), and the octree misses a hit that brute force finds near the origin.
+// fuzz/rays_fuzz.cpp keeps scene coordinates within 2^100 until the scene contract bounds them.
+TEST(FuzzRegression, DISABLED_SceneSpanningTheFloatRange) {
+    const float m = -std::numeric_limits<float>::max();
+    const TestScene scene{"float range",
+                          {{{0, 0, -0x1.3cp+2f}, {1, 0.5f, 0.5f}, {1, 0, 0x1p-4f}},
+                           {{-1, 2, -5}, {1, 1, m}, Vec3f(m)},
+                           {Vec3f(m), Vec3f(m), Vec3f(m)},
+                           {Vec3f(m), {m, 0.3125f, m}, Vec3f(m)},
+                           {Vec3f(m), Vec3f(m), {m, 0.3125f, 0.1875f}},
+                           {{-0.5f, 0x1.c8p+1f, 0x1.cp-1f}, {0, -5, 1}, {-1, -5, -0x1.3p+2f}},
+                           {{1, 0.5f, 0}, {-5, -4, 0}, {-5, 0.5f, 0.5f}},
+                           {{1, 0, 0}, {-1, 0, -0x1.3cp+2f}, {1, 0.25f, 0.75f}}},
+                          {{{0, 2, -5}, 1, 0}}};
+    const std::vector<Ray> rays = {{{0, 0, 1}, {0, 0, -5}, -0.5f, kInfinity}};
+    const std::unique_ptr<Accel> brute = make_accel("brute"), octree = make_accel("octree");
+    brute->build(scene.geometry(), {});
+    octree->build(scene.geometry(), {});
+    EXPECT_EQ(compare_hits(rays, trace(*brute, rays), trace(*octree, rays)).mismatches, 0u);
+}
+
+}  // namespace
+}  // namespace lancer
