@@ -3,7 +3,7 @@ BUILD_DIR := build
 PRESET := release
 JOBS ?= $(shell nproc)
 
-.PHONY: demo test build deps
+.PHONY: demo test build deps build-sanitize test-sanitize
 
 deps:
 	@bash scripts/deps.sh
@@ -18,3 +18,12 @@ demo: build
 
 test: build
 	@ctest --preset $(PRESET) -j $(JOBS)
+
+# The whole suite under AddressSanitizer + UBSan in build-sanitize/ (docs/robustness.md, "Sanitizers and
+# limits"): any report fails the test that caused it.
+build-sanitize: deps
+	@cmake --preset sanitize >/dev/null
+	@cmake --build --preset sanitize -j $(JOBS)
+
+test-sanitize: build-sanitize
+	@ctest --preset sanitize -j $(JOBS)

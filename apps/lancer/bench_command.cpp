@@ -400,6 +400,7 @@ void add_bench_command(CLI::App& app) {
                       "Moller-Trumbore instead of the default watertight test (Embree then runs its fast, "
                       "non-robust test: the two leak through different edges, so they may disagree)");
     command->add_option("--set", options->settings, "Structure option KEY=VALUE (repeatable)");
+    add_memory_limit_option(*command);
     command->add_option("--json", options->json_file,
                         "Write one record per mesh, structure and thread count");
     command->add_option("--svg", options->svg_file, "Draw the Mrays/s bars");

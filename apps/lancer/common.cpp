@@ -6,18 +6,54 @@
 #include <unistd.h>
 
 #include <charconv>
+#include <new>
 
 #include "accel/plucker/plucker.hpp"
 #include "accel/plucker/serialise.hpp"
 #include "lancer/io.hpp"
+#include "lancer/memory.hpp"
 
 namespace lancer::cli {
 
 LoadedScene load_timed(const std::filesystem::path& file) {
     Stopwatch watch;
-    LoadedScene loaded{load_scene(file), 0.0};
-    loaded.load_ms = watch.elapsed_ms();
-    return loaded;
+    try {
+        LoadedScene loaded{load_scene(file), 0.0};
+        loaded.load_ms = watch.elapsed_ms();
+        return loaded;
+    } catch (const std::bad_alloc&) {
+        throw out_of_memory(file.string(), "loading");
+    }
+}
+
+void add_memory_limit_option(CLI::App& command) {
+    command
+        .add_option_function<std::string>(
+            "--max-memory",
+            [](const std::string& size) {
+                std::size_t limit = 0;
+                try {
+                    limit = parse_memory_size(size);
+                } catch (const std::invalid_argument& error) {
+                    throw CLI::ValidationError("--max-memory", error.what());
+                }
+                if (limit <= allocated_bytes()) {
+                    throw CLI::ValidationError("--max-memory", size + " is less than the " +
+                                                                   std::to_string(allocated_bytes()) +
+                                                                   " bytes lancer has allocated at start");
+                }
+                set_memory_limit(limit);
+            },
+            "Bound on what loading and building may allocate, e.g. 512M, 2G (exit code 2 beyond it)")
+        ->type_name("SIZE");
+}
+
+InputError out_of_memory(const std::string& subject, const std::string& phase) {
+    const std::size_t limit = memory_limit();
+    set_memory_limit(0);
+    if (limit == 0) return InputError(subject + ": ran out of memory while " + phase);
+    return InputError(subject + ": needs more than --max-memory " + format_memory_size(limit) + " while " +
+                      phase);
 }
 
 void AccelChoice::add_options(CLI::App& command) {
@@ -28,6 +64,7 @@ void AccelChoice::add_options(CLI::App& command) {
         command.add_option("--accel", name, "Acceleration structure: " + names)->capture_default_str();
     command.add_flag("--watertight", watertight, "Watertight triangle test (Woop, Benthin & Wald 2013)");
     command.add_option("--set", settings, "Structure option KEY=VALUE, e.g. bvh.builder=sweep (repeatable)");
+    add_memory_limit_option(command);
 }
 
 BuildOptions AccelChoice::build_options() const {
@@ -51,7 +88,13 @@ BuiltAccel build_timed(const AccelChoice& choice, const Geometry& geometry) {
         throw InputError(error.what());
     }
     Stopwatch watch;
-    built.accel->build(geometry, options);
+    try {
+        built.accel->build(geometry, options);
+    } catch (const std::bad_alloc&) {
+        built.accel.reset();
+        throw out_of_memory("the scene (" + std::to_string(geometry.size()) + " primitives)",
+                            "building " + choice.name);
+    }
     built.build_ms = watch.elapsed_ms();
     return built;
 }
@@ -85,7 +128,11 @@ PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice
     PreparedScene prepared;
     if (file.extension() != ".plo") {
         prepared.loaded = load_timed(file);
-        prepared.geometry = std::make_unique<SceneGeometry>(prepared.loaded.scene);
+        try {
+            prepared.geometry = std::make_unique<SceneGeometry>(prepared.loaded.scene);
+        } catch (const std::bad_alloc&) {
+            throw out_of_memory(file.string(), "loading");
+        }
         prepared.built = build_timed(choice, prepared.geometry->view());
         return prepared;
     }
@@ -99,6 +146,8 @@ PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice
         stored = plucker::read_plucker_file(file);
     } catch (const plucker::PluckerFileError& error) {
         throw InputError(error.what());
+    } catch (const std::bad_alloc&) {
+        throw out_of_memory(file.string(), "loading");
     }
     prepared.loaded.scene = scene_of(stored);
     prepared.geometry = std::make_unique<SceneGeometry>(prepared.loaded.scene);

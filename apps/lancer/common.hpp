@@ -44,7 +44,17 @@ struct LoadedScene {
     double load_ms = 0.0;
 };
 
+// Throws LoadError, or InputError when loading passes --max-memory.
 [[nodiscard]] LoadedScene load_timed(const std::filesystem::path& file);
+
+// --max-memory SIZE (512M, 2G): the bound of include/lancer/memory.hpp, set as soon as the flag is parsed, so
+// that loading and building run under it. AccelChoice::add_options adds it.
+void add_memory_limit_option(CLI::App& command);
+
+// The InputError for a std::bad_alloc that `subject` met while `phase` ("building octree"): "needs more
+// than --max-memory 512M" under a limit, "ran out of memory" without one. Lifts the limit first, so that the
+// message itself can be allocated.
+[[nodiscard]] InputError out_of_memory(const std::string& subject, const std::string& phase);
 
 // The structure a command builds: --accel NAME, --watertight, --set KEY=VALUE (repeatable).
 struct AccelChoice {
@@ -63,7 +73,7 @@ struct BuiltAccel {
     double build_ms = 0.0;
 };
 
-// Throws InputError for an unknown structure name or a malformed --set.
+// Throws InputError for an unknown structure name, a malformed --set or a build that passes --max-memory.
 [[nodiscard]] BuiltAccel build_timed(const AccelChoice& choice, const Geometry& geometry);
 
 // What a command works on: a scene file with the chosen structure built on it, or a Pluecker octree file

@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <exception>
+#include <new>
 
 #include "commands.hpp"
 #include "common.hpp"
@@ -29,6 +30,10 @@ int main(int argc, char** argv) {
         return 2;
     } catch (const lancer::cli::InputError& error) {
         fmt::print(stderr, "lancer: {}\n", error.what());
+        return 2;
+    } catch (const std::bad_alloc&) {
+        // Past loading and building (which say which phase failed): rays, images, the bench's records.
+        fmt::print(stderr, "lancer: {}\n", lancer::cli::out_of_memory("the command", "running").what());
         return 2;
     } catch (const lancer::cli::CheckFailure& error) {
         fmt::print(stderr, "lancer: {}\n", error.what());

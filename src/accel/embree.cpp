@@ -4,9 +4,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <new>
 #include <optional>
 #include <stdexcept>
 #include <string>
+
+#include "core/memory_limit.hpp"
 
 namespace lancer {
 namespace {
@@ -90,8 +93,22 @@ Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, floa
     return {t, static_cast<std::int32_t>(global), u, v};
 }
 
+// Embree's allocations count against --max-memory (include/lancer/memory.hpp) like operator new's. A request
+// refused before it is made (post == false) fails the build with RTC_ERROR_OUT_OF_MEMORY; one reported after
+// the fact cannot be refused, only counted.
+bool monitor_memory(void*, ssize_t bytes, bool post) {
+    if (bytes < 0) {
+        memory::subtract(static_cast<std::size_t>(-bytes));
+        return true;
+    }
+    if (!post && !memory::fits(static_cast<std::size_t>(bytes))) return false;
+    memory::add(static_cast<std::size_t>(bytes));
+    return true;
+}
+
 void check(RTCDevice device, const char* what) {
     const RTCError error = rtcGetDeviceError(device);
+    if (error == RTC_ERROR_OUT_OF_MEMORY) throw std::bad_alloc();
     if (error != RTC_ERROR_NONE)
         throw std::runtime_error(std::string("embree: ") + what + " failed (error " +
                                  std::to_string(static_cast<int>(error)) + ")");
@@ -129,6 +146,7 @@ void intersect_packets(RTCScene scene, std::span<const Ray> rays, std::span<Hit>
 
 EmbreeAccel::EmbreeAccel() : device_(rtcNewDevice(nullptr)) {
     if (device_ == nullptr) throw std::runtime_error("embree: cannot create a device");
+    rtcSetDeviceMemoryMonitorFunction(device_, monitor_memory, nullptr);
 }
 
 EmbreeAccel::~EmbreeAccel() {

@@ -11,6 +11,7 @@
 
 #if LANCER_HAS_TBB
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 #endif
 
 namespace lancer {
@@ -169,6 +170,10 @@ class OctreeBuilder {
         };
 #if LANCER_HAS_TBB
         tbb::parallel_for(std::size_t{0}, std::size_t{8}, build_child);
+        // A child that threw (std::bad_alloc past --max-memory) cancels every task of the build: a nested
+        // parallel_for then returns normally with some children not built. Only the outermost call rethrows,
+        // so the others leave at once instead of splicing subtrees that do not exist.
+        if (tbb::is_current_task_group_canceling()) return {};
 #else
         for (std::size_t child = 0; child < 8; ++child)
             build_child(child);

@@ -103,7 +103,11 @@ class AssimpConverter {
                 polygon_.push_back(mesh.positions[face.mIndices[k]]);
             }
             corners_.clear();
-            triangulate_polygon(polygon_, corners_);
+            if (!triangulate_polygon(polygon_, corners_)) {
+                fail("mesh " + mesh.name + ": face " + std::to_string(f) + " is a concave polygon of " +
+                     std::to_string(face.mNumIndices) + " vertices, more than the " +
+                     std::to_string(kMaxEarClippedVertices) + " ear clipping takes");
+            }
             for (const std::uint32_t corner : corners_)
                 mesh.indices.push_back(face.mIndices[corner]);
         }

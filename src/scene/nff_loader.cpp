@@ -247,7 +247,11 @@ class NffReader {
 
         const std::uint32_t material = current_material();
         triangles_.clear();
-        triangulate_polygon(polygon_, triangles_);
+        if (!triangulate_polygon(polygon_, triangles_)) {
+            reader_.fail(count_token.line, "expected a convex polygon or one of at most " +
+                                               std::to_string(kMaxEarClippedVertices) +
+                                               " vertices, got a concave one of " + std::to_string(count));
+        }
         for (std::size_t i = 0; i < triangles_.size(); i += 3) {
             add_triangle(first + triangles_[i], first + triangles_[i + 1], first + triangles_[i + 2],
                          material);

@@ -124,16 +124,18 @@ Vec3f polygon_normal(std::span<const Vec3f> polygon) {
     return corner != Vec3f{} ? corner : newell_normal(polygon);
 }
 
-void triangulate_polygon(std::span<const Vec3f> polygon, std::vector<std::uint32_t>& triangles) {
+bool triangulate_polygon(std::span<const Vec3f> polygon, std::vector<std::uint32_t>& triangles) {
     const auto n = static_cast<std::uint32_t>(polygon.size());
-    if (n < 3) return;
+    if (n < 3) return true;
     const std::vector<Point2> points = project(polygon);
     if (n > 3 && !is_convex(points)) {
+        if (n > kMaxEarClippedVertices) return false;
         clip_ears(points, triangles);
-        return;
+        return true;
     }
     for (std::uint32_t k = 1; k + 1 < n; ++k)
         triangles.insert(triangles.end(), {0u, k, k + 1});
+    return true;
 }
 
 }  // namespace lancer

@@ -15,6 +15,7 @@ namespace lancer {
 namespace {
 
 using testing::append;
+using testing::knot_triangles;
 using testing::TestScene;
 
 std::vector<TestScene> make_scenes() {
@@ -76,6 +77,21 @@ std::vector<TestScene> make_scenes() {
     }
     degenerate.spheres.push_back({{0.3f, 0.3f, 0.3f}, 0.0f, 0});  // zero radius
     scenes.push_back(std::move(degenerate));
+
+    // 1e6 from the origin floats are 1/16 apart: a closed mesh of radius 50 keeps its shape, but cell
+    // boundaries, slab tests and barycentrics all work with few bits left below the offset.
+    TestScene far{"far from the origin (1e6 offset)", {}, {}};
+    const Vec3f offset(1e6f, -1e6f, 1e6f);
+    append(far.triangles, make_icosphere(3, offset, 50.0f));
+    for (Triangle triangle : knot_triangles(200)) {
+        for (Vec3f* vertex : {&triangle.v0, &triangle.v1, &triangle.v2})
+            *vertex = *vertex * 40.0f + offset + Vec3f(120.0f, 0.0f, 0.0f);
+        far.triangles.push_back(triangle);
+    }
+    for (int i = 0; i < 20; ++i)
+        far.spheres.push_back({offset + point(200.0f) - Vec3f(100.0f), 2.0f + 10.0f * unit(rng), 0});
+    far.spheres.push_back({offset + Vec3f(0.0f, 80.0f, 0.0f), 0.0f, 0});  // zero radius, far away
+    scenes.push_back(std::move(far));
     return scenes;
 }
 

@@ -1,7 +1,8 @@
 // The Pluecker octree's layout variants (section 6 of seed 000: no 2:1 rule, no stored boxes, Morton order,
 // and their combinations) on the Stanford meshes: every ray of the canonical view and 10^6 random rays,
 // against the BVH (which stanford_test.cpp checks against brute force on a sample). The registry's default
-// layout is covered by stanford_test.cpp itself.
+// layout is covered by stanford_test.cpp itself. A sanitized build traces 1/testing::kSanitizedStride of
+// each.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -24,8 +25,10 @@ TEST_P(PluckerStanford, EveryLayoutAgreesWithTheBvh) {
     const Scene scene = load_scene(file);
     const SceneGeometry geometry(scene);
     const Box3f bounds = geometry.view().bounds();
-    const std::vector<testing::RaySet> sets = {testing::canonical_view_rays(bounds),
-                                               testing::random_rays(bounds, 1'000'000, 19)};
+    std::vector<testing::RaySet> sets = {testing::canonical_view_rays(bounds),
+                                         testing::random_rays(bounds, 1'000'000, 19)};
+    for (testing::RaySet& set : sets)
+        testing::keep_every(set, testing::kSanitizedStride);
     const std::unique_ptr<Accel> reference = make_accel("bvh");
     reference->build(geometry.view(), {});
     std::vector<std::vector<Hit>> expected;

@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <cstdio>
 #include <limits>
 
 #include "lancer/camera.hpp"
@@ -117,6 +118,17 @@ RaySet canonical_view_rays(const Box3f& bounds, int size) {
         }
     }
     return set;
+}
+
+void keep_every(RaySet& set, std::size_t stride) {
+    if (stride <= 1) return;
+    const std::size_t total = set.rays.size();
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < total; i += stride)
+        set.rays[kept++] = set.rays[i];
+    set.rays.resize(kept);
+    std::printf("%s: sanitized build, tracing 1/%zu of the rays (%zu of %zu)\n", set.name.c_str(), stride,
+                kept, total);
 }
 
 std::vector<Hit> trace_in_parallel(const Accel& accel, std::span<const Ray> rays) {

@@ -27,6 +27,15 @@ RaySet axis_parallel_rays(const Box3f& bounds, std::size_t count, std::uint32_t 
 RaySet clipped_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed);
 // The primary rays of shared/bench/VIEWS.md's canonical view, size x size, row by row.
 RaySet canonical_view_rays(const Box3f& bounds, int size = 1024);
+// Under AddressSanitizer + UBSan (LANCER_SANITIZED, docs/robustness.md) the Stanford tests trace every
+// kSanitizedStride-th ray of their sets, so that the sanitized suite stays within CI's time; 1 otherwise.
+#ifdef LANCER_SANITIZED
+inline constexpr std::size_t kSanitizedStride = 16;
+#else
+inline constexpr std::size_t kSanitizedStride = 1;
+#endif
+// Keeps every stride-th ray of the set and prints how many it kept when it drops any.
+void keep_every(RaySet& set, std::size_t stride);
 // Closest hits of all rays, in parallel over oneTBB (large ray sets of the Stanford tests).
 std::vector<Hit> trace_in_parallel(const Accel& accel, std::span<const Ray> rays);
 // NaN, infinite, zero-direction, tnear > tfar, denormal directions: all must miss, except denormal ones

@@ -3,10 +3,14 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "lancer/ray.hpp"
 
@@ -298,6 +302,150 @@ TEST_F(Cli, InfoCountsTrianglesAfterFanTriangulation) {
     const Result result = run("info " + write("mesh.off", kMesh).string());
     ASSERT_EQ(result.exit_code, 0) << result.output;
     EXPECT_NE(result.output.find("triangles   3"), std::string::npos) << result.output;
+}
+
+// Hostile inputs (issue 8): each exits with code 2 and names the file, the line and what was expected, before
+// any large allocation (tests/scene/broken_input_test.cpp proves the last with an allocation probe).
+TEST_F(Cli, HostileFilesExitWithTwoAndSayWhereAndWhat) {
+    const fs::path broken = fs::path(LANCER_SOURCE_DIR) / "tests" / "scene" / "data" / "broken";
+    const std::pair<const char*, const char*> cases[] = {
+        {"huge_vertex_count.off", "huge_vertex_count.off:2: the file announces 1000000000000 vertices"},
+        {"index_out_of_range.off", "index_out_of_range.off:15: face index 17 out of range [0, 12)"},
+        {"truncated_in_faces.off",
+         "truncated_in_faces.off:8: unexpected end of file: expected 3 faces, got 2"},
+        {"truncated_in_vertices.ply", "truncated_in_vertices.ply:4: the file announces 6 vertex elements"},
+        {"huge_polygon.nff", "huge_polygon.nff:1: the file announces 100000 polygon vertices"},
+    };
+    for (const auto& [name, expected] : cases) {
+        for (const char* command : {"info", "stats"}) {
+            const Result result = run(std::string(command) + " " + (broken / name).string());
+            EXPECT_EQ(result.exit_code, 2) << command << " " << name << ": " << result.output;
+            EXPECT_NE(result.output.find(expected), std::string::npos) << result.output;
+        }
+    }
+}
+
+// The outline of the square [0, side]^2 through every integer point of its edges, exactly convex in float.
+std::vector<std::string> square_outline(int side) {
+    std::vector<std::string> points;
+    for (int i = 0; i < side; ++i)
+        points.push_back(std::to_string(i) + " 0 0");
+    for (int i = 0; i < side; ++i)
+        points.push_back(std::to_string(side) + " " + std::to_string(i) + " 0");
+    for (int i = side; i > 0; --i)
+        points.push_back(std::to_string(i) + " " + std::to_string(side) + " 0");
+    for (int i = side; i > 0; --i)
+        points.push_back("0 " + std::to_string(i) + " 0");
+    return points;
+}
+
+TEST_F(Cli, AHundredThousandVertexPolygonLoadsOrIsRefusedAtOnce) {
+    const std::vector<std::string> square = square_outline(25'000);
+    std::string off = "OFF\n100000 1 0\n", face = "100000", convex_nff = "p 100000\n",
+                concave_nff = "p 100000\n";
+    for (std::size_t i = 0; i < square.size(); ++i) {
+        off += square[i] + "\n";
+        face += " " + std::to_string(i);
+        convex_nff += square[i] + "\n";
+    }
+    off += face + "\n";
+    // A notch in every fourth vertex: concave, past the ear clipping bound (src/scene/polygon.hpp).
+    for (std::size_t i = 0; i < 100'000; ++i) {
+        const double angle = 2.0 * 3.14159265358979 * static_cast<double>(i) / 100'000.0;
+        const double radius = i % 4 == 2 ? 0.9 : 1.0;
+        concave_nff += std::to_string(radius * std::cos(angle)) + " " +
+                       std::to_string(radius * std::sin(angle)) + " 0\n";
+    }
+    for (const auto& [name, text] : {std::pair{"polygon.off", off}, {"convex.nff", convex_nff}}) {
+        const Result result = run("info " + write(name, text).string());
+        EXPECT_EQ(result.exit_code, 0) << name << ": " << result.output;
+        EXPECT_NE(result.output.find("triangles   99998"), std::string::npos)
+            << name << ": " << result.output;
+    }
+    const Result concave = run("stats " + write("concave.nff", concave_nff).string());
+    EXPECT_EQ(concave.exit_code, 2) << concave.output;
+    EXPECT_NE(
+        concave.output.find("concave.nff:1: expected a convex polygon or one of at most 2048 vertices, got a "
+                            "concave one of 100000"),
+        std::string::npos)
+        << concave.output;
+}
+
+// A torus of 2 * 400 * 24 = 19200 triangles as an OFF file of about 700 kB: about 1 MB to load, several more
+// to build.
+std::string torus_off() {
+    std::string vertices, faces;
+    const int segments = 400, sides = 24;
+    for (int i = 0; i < segments; ++i) {
+        const double s = 2.0 * 3.14159265358979 * i / segments;
+        for (int j = 0; j < sides; ++j) {
+            const double a = 2.0 * 3.14159265358979 * j / sides;
+            const double r = 1.0 + 0.3 * std::cos(a);
+            vertices += std::to_string(r * std::cos(s)) + " " + std::to_string(r * std::sin(s)) + " " +
+                        std::to_string(0.3 * std::sin(a)) + "\n";
+            const int p = i * sides + j, q = (i + 1) % segments * sides + j;
+            const int p1 = i * sides + (j + 1) % sides, q1 = (i + 1) % segments * sides + (j + 1) % sides;
+            faces += "3 " + std::to_string(p) + " " + std::to_string(q) + " " + std::to_string(q1) + "\n";
+            faces += "3 " + std::to_string(p) + " " + std::to_string(q1) + " " + std::to_string(p1) + "\n";
+        }
+    }
+    return "OFF\n" + std::to_string(segments * sides) + " " + std::to_string(2 * segments * sides) + " 0\n" +
+           vertices + faces;
+}
+
+TEST_F(Cli, MaxMemoryBoundsLoadingAndBuilding) {
+    const fs::path scene = write("torus.off", torus_off());
+    const fs::path plo = dir_ / "torus.plo";
+
+    // Less than the program itself holds at start (CLI11, oneTBB): refused with the flag.
+    Result result = run("stats " + scene.string() + " --max-memory 1K");
+    EXPECT_EQ(result.exit_code, 2) << result.output;
+    EXPECT_NE(result.output.find("--max-memory: 1K is less than the"), std::string::npos) << result.output;
+
+    // Too little to load the 700 kB file: refused while loading, before the structure.
+    result = run("stats " + scene.string() + " --accel octree --max-memory 512K");
+    EXPECT_EQ(result.exit_code, 2) << result.output;
+    EXPECT_NE(result.output.find("torus.off: needs more than --max-memory 512K while loading"),
+              std::string::npos)
+        << result.output;
+
+    // Enough to load (under 2 MB), too little for the structures: each says which build.
+    std::vector<std::string> accels = {"octree", "plucker", "bvh", "kdtree", "grid"};
+    // Embree's allocations reach the count through its device memory monitor, when lancer has Embree.
+    if (run("stats --help").output.find("embree") != std::string::npos) accels.push_back("embree");
+    for (const std::string command : {"stats", "render", "rays", "convert"}) {
+        for (const std::string& accel : accels) {
+            if (command == "convert" && accel != "plucker") continue;
+            // The default grid fits in 0.3 MB here: 16 times the density asks for 16^3 times the cells.
+            std::string arguments = command + " " + scene.string() + " --accel " + accel +
+                                    " --max-memory 3M" + (accel == "grid" ? " --set grid.density=16" : "");
+            if (command == "render") arguments += " --size 8x8 -o " + (dir_ / "x.png").string();
+            if (command == "rays")
+                arguments +=
+                    " --rays " + (dir_ / "none.bin").string() + " --hits " + (dir_ / "h.bin").string();
+            if (command == "convert") arguments += " -o " + plo.string();
+            result = run(arguments);
+            EXPECT_EQ(result.exit_code, 2) << arguments << ": " << result.output;
+            EXPECT_NE(result.output.find("needs more than --max-memory 3M while building " + accel),
+                      std::string::npos)
+                << arguments << ": " << result.output;
+        }
+    }
+
+    result = run("stats " + scene.string() + " --accel octree --max-memory 2G");
+    EXPECT_EQ(result.exit_code, 0) << result.output;
+    result = run("bench --mesh " + scene.string() + " --accel bvh --size 16 --frames 1 --max-memory 2G");
+    EXPECT_EQ(result.exit_code, 0) << result.output;
+    result = run("bench --mesh " + scene.string() + " --accel bvh --size 16 --frames 1 --max-memory 512K");
+    EXPECT_EQ(result.exit_code, 2) << result.output;
+    EXPECT_NE(result.output.find("torus.off: needs more than --max-memory 512K while loading"),
+              std::string::npos)
+        << result.output;
+
+    result = run("stats " + scene.string() + " --max-memory 12Q");
+    EXPECT_EQ(result.exit_code, 2) << result.output;
+    EXPECT_NE(result.output.find("expected a memory size such as 512M or 2G, got '12Q'"), std::string::npos)
+        << result.output;
 }
 
 }  // namespace

@@ -67,14 +67,14 @@ Check check_triangles(const std::vector<Vec3f>& outline, const std::vector<std::
 TEST(TriangulatePolygon, ConvexPolygonIsTheFanFromTheFirstVertex) {
     const std::vector<Vec3f> pentagon = {{0, 0, 0}, {2, 0, 0}, {3, 1, 0}, {1, 2, 0}, {-1, 1, 0}};
     std::vector<std::uint32_t> triangles;
-    triangulate_polygon(pentagon, triangles);
+    ASSERT_TRUE(triangulate_polygon(pentagon, triangles));
     EXPECT_EQ(triangles, (std::vector<std::uint32_t>{0, 1, 2, 0, 2, 3, 0, 3, 4}));
 }
 
 TEST(TriangulatePolygon, AppendsAfterWhatIsThere) {
     const std::vector<Vec3f> triangle = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
     std::vector<std::uint32_t> triangles = {7, 7, 7};
-    triangulate_polygon(triangle, triangles);
+    ASSERT_TRUE(triangulate_polygon(triangle, triangles));
     EXPECT_EQ(triangles, (std::vector<std::uint32_t>{7, 7, 7, 0, 1, 2}));
 }
 
@@ -82,7 +82,7 @@ TEST(TriangulatePolygon, ConcaveLIsEarClippedWithoutSpillingOutside) {
     // Fanning from vertex 0 would cover the notch: triangle (0, 3, 4) lies partly outside the L.
     const std::vector<Vec3f> l_shape = {{0, 0, 0}, {2, 0, 0}, {2, 1, 0}, {1, 1, 0}, {1, 2, 0}, {0, 2, 0}};
     std::vector<std::uint32_t> triangles;
-    triangulate_polygon(l_shape, triangles);
+    ASSERT_TRUE(triangulate_polygon(l_shape, triangles));
     ASSERT_EQ(triangles.size(), 3u * 4u);
     const Check check = check_triangles(l_shape, triangles, {0, 0, 1});
     EXPECT_NEAR(check.area, 3.0, 1e-9);
@@ -108,7 +108,7 @@ TEST(TriangulatePolygon, GearKeepsAreaAndWindingInEveryPlaneAndOrientation) {
     for (const auto& [a, b] : frames) {
         const std::vector<Vec3f> outline = rotate(flat, a, b);
         std::vector<std::uint32_t> triangles;
-        triangulate_polygon(outline, triangles);
+        ASSERT_TRUE(triangulate_polygon(outline, triangles));
         ASSERT_EQ(triangles.size(), 3 * (outline.size() - 2));
         const Check check = check_triangles(outline, triangles, cross(a, b));
         EXPECT_NEAR(check.area, expected_area, 1e-4 * expected_area);
@@ -124,7 +124,7 @@ TEST(TriangulatePolygon, FarFromTheOriginKeepsAreaAndWinding) {
     for (Vec3f& p : outline)
         p += Vec3f(1000.0f, -2000.0f, 500.0f);
     std::vector<std::uint32_t> triangles;
-    triangulate_polygon(outline, triangles);
+    ASSERT_TRUE(triangulate_polygon(outline, triangles));
     ASSERT_EQ(triangles.size(), 3 * (outline.size() - 2));
     const Check check = check_triangles(outline, triangles, cross(a, b_orthogonal));
     const double expected_area = shoelace(flat) / 2.0;
@@ -135,7 +135,7 @@ TEST(TriangulatePolygon, FarFromTheOriginKeepsAreaAndWinding) {
 TEST(TriangulatePolygon, UsesEveryVertexAndOnlyValidIndices) {
     const std::vector<Vec3f> outline = gear(8, 2.0f, 1.0f);
     std::vector<std::uint32_t> triangles;
-    triangulate_polygon(outline, triangles);
+    ASSERT_TRUE(triangulate_polygon(outline, triangles));
     std::vector<bool> used(outline.size(), false);
     for (const std::uint32_t index : triangles) {
         ASSERT_LT(index, outline.size());
@@ -151,7 +151,7 @@ TEST(TriangulatePolygon, DegenerateOutlinesStillEndWithNMinusTwoTriangles) {
     const std::vector<Vec3f> bow_tie = {{0, 0, 0}, {2, 2, 0}, {2, 0, 0}, {0, 2, 0}, {-1, 1, 0}};
     for (const auto& outline : {line, bow_tie}) {
         std::vector<std::uint32_t> triangles;
-        triangulate_polygon(outline, triangles);
+        ASSERT_TRUE(triangulate_polygon(outline, triangles));
         EXPECT_EQ(triangles.size(), 3 * (outline.size() - 2));
         for (const std::uint32_t index : triangles)
             EXPECT_LT(index, outline.size());
@@ -163,11 +163,57 @@ TEST(TriangulatePolygon, ARepeatedVertexDoesNotBlockEars) {
     const std::vector<Vec3f> outline = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {2, 1, 0},
                                         {2, 2, 0}, {1, 2, 0}, {1, 1, 0}, {0, 1, 0}};
     std::vector<std::uint32_t> triangles;
-    triangulate_polygon(outline, triangles);
+    ASSERT_TRUE(triangulate_polygon(outline, triangles));
     ASSERT_EQ(triangles.size(), 3u * 6u);
     const Check check = check_triangles(outline, triangles, {0, 0, 1});
     EXPECT_NEAR(check.area, 2.0, 1e-9);
     EXPECT_TRUE(check.winding_kept);
+}
+
+// The outline of the square [0, side]^2 through every integer point of its edges: exactly convex in float
+// (its flat corners turn by exactly 0), 4 * side vertices.
+std::vector<Vec3f> square_of_integer_points(int side) {
+    std::vector<Vec3f> outline;
+    for (int i = 0; i < side; ++i)
+        outline.push_back({static_cast<float>(i), 0.0f, 0.0f});
+    for (int i = 0; i < side; ++i)
+        outline.push_back({static_cast<float>(side), static_cast<float>(i), 0.0f});
+    for (int i = side; i > 0; --i)
+        outline.push_back({static_cast<float>(i), static_cast<float>(side), 0.0f});
+    for (int i = side; i > 0; --i)
+        outline.push_back({0.0f, static_cast<float>(i), 0.0f});
+    return outline;
+}
+
+TEST(TriangulatePolygon, AHundredThousandVertexConvexPolygonIsAFan) {
+    const std::vector<Vec3f> outline = square_of_integer_points(25'000);
+    ASSERT_EQ(outline.size(), 100'000u);
+    std::vector<std::uint32_t> triangles;
+    ASSERT_TRUE(triangulate_polygon(outline, triangles));
+    ASSERT_EQ(triangles.size(), 3 * (outline.size() - 2));
+    for (std::size_t i = 0; i < triangles.size(); i += 3) {
+        const std::uint32_t k = static_cast<std::uint32_t>(i / 3) + 1;
+        ASSERT_EQ(triangles[i], 0u);
+        ASSERT_EQ(triangles[i + 1], k);
+        ASSERT_EQ(triangles[i + 2], k + 1);
+    }
+    const Check check = check_triangles(outline, triangles, {0, 0, 1});
+    EXPECT_NEAR(check.area, 25'000.0 * 25'000.0, 1e-6 * 25'000.0 * 25'000.0);
+}
+
+TEST(TriangulatePolygon, AConcavePolygonPastTheEarClippingBoundIsRefused) {
+    // A gear is concave at every notch: 5 vertices per tooth.
+    const std::vector<Vec3f> at_bound = gear(static_cast<int>(kMaxEarClippedVertices / 5), 2.0f, 1.5f);
+    std::vector<std::uint32_t> triangles;
+    ASSERT_TRUE(triangulate_polygon(at_bound, triangles));
+    EXPECT_EQ(triangles.size(), 3 * (at_bound.size() - 2));
+    EXPECT_NEAR(check_triangles(at_bound, triangles, {0, 0, 1}).area, shoelace(at_bound) / 2.0,
+                1e-3 * shoelace(at_bound));
+
+    const std::vector<Vec3f> past_bound = gear(20'000, 2.0f, 1.5f);
+    triangles.clear();
+    EXPECT_FALSE(triangulate_polygon(past_bound, triangles));
+    EXPECT_TRUE(triangles.empty());
 }
 
 TEST(PolygonNormal, FollowsTheFirstCornerAndFallsBackToNewell) {
