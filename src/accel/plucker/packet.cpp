@@ -18,20 +18,6 @@ constexpr int kPacketSize = PluckerPacketAccel::kPacketSize;
 using LaneMask = std::uint64_t;  // bit i: ray i of the packet
 static_assert(kPacketSize <= 64);
 
-// Calls body.template operator()<kBalanced>(boxes) with the layout's variant, as PluckerAccel does.
-template <class Body>
-void dispatch_layout(const PluckerLayout& layout, Body&& body) {
-    const plucker::StoredBoxes stored{layout.boxes.data()};
-    const plucker::ComputedBoxes computed{layout.cube};
-    if (layout.options.balanced) {
-        layout.options.stored_boxes ? body.template operator()<true>(stored)
-                                    : body.template operator()<true>(computed);
-    } else {
-        layout.options.stored_boxes ? body.template operator()<false>(stored)
-                                    : body.template operator()<false>(computed);
-    }
-}
-
 // A primitive of a leaf record against one ray within [tnear, tfar]: the test of `plucker`'s leaf loop.
 template <class TriangleTestT>
 [[nodiscard]] bool intersect_leaf_primitive(const PluckerLayout& layout, const Geometry& geometry,
@@ -97,7 +83,7 @@ void for_each_packet(const PluckerLayout& layout, TriangleTest test, std::span<c
                      TraversalCounters* counters, Packet&& packet) {
     dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
-        dispatch_layout(layout, [&]<bool kBalanced>(const auto& boxes) {
+        plucker::dispatch_layout(layout, [&]<bool kBalanced>(const auto& boxes) {
             std::vector<PreparedRay<TriangleTestT>> prepared;
             prepared.reserve(kPacketSize);
             for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {

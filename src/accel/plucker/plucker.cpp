@@ -93,23 +93,10 @@ std::size_t PluckerAccel::memory_bytes() const {
     return bytes;
 }
 
-template <class Body>
-void PluckerAccel::dispatch_layout(Body&& body) const {
-    const plucker::StoredBoxes stored{layout_.boxes.data()};
-    const plucker::ComputedBoxes computed{layout_.cube};
-    if (layout_.options.balanced) {
-        layout_.options.stored_boxes ? body.template operator()<true>(stored)
-                                     : body.template operator()<true>(computed);
-    } else {
-        layout_.options.stored_boxes ? body.template operator()<false>(stored)
-                                     : body.template operator()<false>(computed);
-    }
-}
-
 void PluckerAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                    TraversalCounters* counters) const {
     dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        dispatch_layout([&]<bool kBalanced>(const auto& boxes) {
+        plucker::dispatch_layout(layout_, [&]<bool kBalanced>(const auto& boxes) {
             TraversalCounters local;  // summed here, so that the hot loop does not write through the pointer
             const plucker::PluckerPrimitive* primitives = layout_.primitives.data();
             const std::uint32_t triangle_count = layout_.triangle_count;
@@ -157,7 +144,7 @@ void PluckerAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hit
 void PluckerAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                   TraversalCounters* counters) const {
     dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        dispatch_layout([&]<bool kBalanced>(const auto& boxes) {
+        plucker::dispatch_layout(layout_, [&]<bool kBalanced>(const auto& boxes) {
             TraversalCounters local;
             const plucker::PluckerPrimitive* primitives = layout_.primitives.data();
             const std::uint32_t triangle_count = layout_.triangle_count;
@@ -202,7 +189,7 @@ void PluckerAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint
 std::vector<std::uint32_t> PluckerAccel::leaves_along(const Ray& ray) const {
     std::vector<std::uint32_t> leaves;
     if (!is_valid(ray)) return leaves;
-    dispatch_layout([&]<bool kBalanced>(const auto& boxes) {
+    plucker::dispatch_layout(layout_, [&]<bool kBalanced>(const auto& boxes) {
         plucker::walk<kBalanced, false>(
             layout_, boxes, ray,
             [&](const std::uint32_t* record, float limit) {

@@ -36,9 +36,6 @@ class PluckerAccel final : public Accel {
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                         TraversalCounters* counters) const override;
 
-    // Calls body.template operator()<kBalanced, Boxes>(boxes) with the layout's variant, once per batch.
-    template <class Body>
-    void dispatch_layout(Body&& body) const;
     void compute_layout_stats();
 
     Geometry geometry_;

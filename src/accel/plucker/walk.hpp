@@ -317,4 +317,19 @@ void walk(const PluckerLayout& layout, const Boxes& boxes, const Ray& ray, LeafV
     }
 }
 
+// Calls body.template operator()<kBalanced>(boxes) with the layout's variant (2:1 rule or not, stored or
+// computed cell boxes): the one branch on the layout, taken once per batch by every walk of it.
+template <class Body>
+void dispatch_layout(const PluckerLayout& layout, Body&& body) {
+    const StoredBoxes stored{layout.boxes.data()};
+    const ComputedBoxes computed{layout.cube};
+    if (layout.options.balanced) {
+        layout.options.stored_boxes ? body.template operator()<true>(stored)
+                                    : body.template operator()<true>(computed);
+    } else {
+        layout.options.stored_boxes ? body.template operator()<false>(stored)
+                                    : body.template operator()<false>(computed);
+    }
+}
+
 }  // namespace lancer::plucker
