@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "lancer/box.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
 
@@ -138,34 +139,33 @@ class Accel {
     virtual ~Accel() = default;
 
     [[nodiscard]] virtual std::string_view name() const = 0;
-    // The structure may keep the spans of `geometry`: the caller keeps them alive and unchanged.
-    virtual void build(const Geometry& geometry, const BuildOptions& options) = 0;
+    // The structure may keep the spans of `geometry`: the caller keeps them alive and unchanged. Throws
+    // std::invalid_argument when a coordinate lies outside the contract's domain (kCoordinateLimit).
+    void build(const Geometry& geometry, const BuildOptions& options);
     // Closest hit of each ray in [tnear, tfar]; hits.size() == rays.size(). Invalid rays miss (is_valid).
+    // Rays from far away are first moved near the scene along their line (docs/numerical-contract.md, "Far
+    // origins"), the same way for every structure.
     void intersect(std::span<const Ray> rays, std::span<Hit> hits,
-                   TraversalCounters* counters = nullptr) const {
-        check_batch(rays.size(), hits.size());
-        intersect_batch(rays, hits, counters);
-    }
+                   TraversalCounters* counters = nullptr) const;
     // Any hit in [tnear, tfar]: occluded[i] = 1 when ray i hits something, 0 otherwise.
     void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                  TraversalCounters* counters = nullptr) const {
-        check_batch(rays.size(), occluded.size());
-        occluded_batch(rays, occluded, counters);
-    }
+                  TraversalCounters* counters = nullptr) const;
     [[nodiscard]] virtual AccelStats stats() const = 0;
     // Bytes the structure itself needs at trace time, the geometry it was built on excluded.
     [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
 
   protected:
+    virtual void build_structure(const Geometry& geometry, const BuildOptions& options) = 0;
     virtual void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                  TraversalCounters* counters) const = 0;
     virtual void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                 TraversalCounters* counters) const = 0;
+    // What build does before build_structure, for a structure that gets its arrays another way (a file):
+    // checks the domain and records the scene's box for far rays.
+    void accept_geometry(const Geometry& geometry);
 
   private:
-    static void check_batch(std::size_t ray_count, std::size_t answer_count) {
-        if (ray_count != answer_count) throw std::invalid_argument("Accel: one answer slot per ray expected");
-    }
+    Box3f bounds_;  // of the geometry's primitives that can be hit: what makes an origin far
 };
 
 // The names `--accel` accepts, in the order `lancer bench --accel all` measures them.

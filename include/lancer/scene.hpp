@@ -2,6 +2,7 @@
 // it.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -90,6 +91,17 @@ struct TriangleMesh {
 
 // What an acceleration structure is built over. Global primitive numbering: triangles first, in mesh order
 // then file order, [0, T); then spheres, [T, T + S). The spans must outlive the structure built on them.
+// The coordinate domain of the numerical contract: every coordinate of a triangle vertex, and of the box of a
+// sphere that can be hit (radius > 0), lies in [-2^60, 2^60]. Intel Embree documents the same range for its
+// geometry (FLT_LARGE = 1.8e18), and the octrees' root cube (lo plus a power-of-two size) stays finite in it.
+// load_scene rejects a scene beyond it with a LoadError, Accel::build with std::invalid_argument.
+inline constexpr float kCoordinateLimit = 0x1p60f;
+[[nodiscard]] inline bool in_coordinate_domain(Vec3f p) {
+    // Written so that NaN fails.
+    return std::fabs(p.x) <= kCoordinateLimit && std::fabs(p.y) <= kCoordinateLimit &&
+           std::fabs(p.z) <= kCoordinateLimit;
+}
+
 struct Geometry {
     std::span<const Triangle> triangles;
     std::span<const Sphere> spheres;

@@ -6,7 +6,7 @@
 
 namespace lancer {
 
-void BruteAccel::build(const Geometry& geometry, const BuildOptions& options) {
+void BruteAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     geometry_ = geometry;
     options_ = options;
 }

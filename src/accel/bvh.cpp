@@ -8,7 +8,7 @@
 
 namespace lancer {
 
-void BvhAccel::build(const Geometry& geometry, const BuildOptions& options) {
+void BvhAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     geometry_ = geometry;
     options_ = options;

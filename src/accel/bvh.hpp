@@ -29,7 +29,6 @@ static_assert(sizeof(BvhNode) == 32);
 class BvhAccel final : public Accel {
   public:
     [[nodiscard]] std::string_view name() const override { return "bvh"; }
-    void build(const Geometry& geometry, const BuildOptions& options) override;
     [[nodiscard]] AccelStats stats() const override;
     [[nodiscard]] std::size_t memory_bytes() const override;
 
@@ -42,6 +41,7 @@ class BvhAccel final : public Accel {
     static constexpr int kMaxDepth = 96;
 
   private:
+    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,

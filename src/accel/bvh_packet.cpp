@@ -224,7 +224,7 @@ void trace_batch(const BvhAccel& bvh, const Geometry& geometry, TriangleTest tes
 
 }  // namespace
 
-void BvhPacketAccel::build(const Geometry& geometry, const BuildOptions& options) {
+void BvhPacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     bvh_.build(geometry, options);
     geometry_ = geometry;
     triangle_test_ = options.triangle_test;

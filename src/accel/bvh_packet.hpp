@@ -21,11 +21,11 @@ class BvhPacketAccel final : public Accel {
 
     [[nodiscard]] std::string_view name() const override { return "bvh_packet"; }
     // The build of `bvh`, untouched.
-    void build(const Geometry& geometry, const BuildOptions& options) override;
     [[nodiscard]] AccelStats stats() const override { return bvh_.stats(); }
     [[nodiscard]] std::size_t memory_bytes() const override { return bvh_.memory_bytes(); }
 
   private:
+    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,

@@ -187,7 +187,7 @@ bool traverse(const std::vector<WideBvhNode<W>>& nodes,
 }  // namespace
 
 template <int W>
-void WideBvhAccel<W>::build(const Geometry& geometry, const BuildOptions& options) {
+void WideBvhAccel<W>::build_structure(const Geometry& geometry, const BuildOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     geometry_ = geometry;
     options_ = options;

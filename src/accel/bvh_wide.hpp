@@ -152,7 +152,6 @@ class WideBvhAccel final : public Accel {
     using Block = TriangleBlock<kBlockLanes>;
 
     [[nodiscard]] std::string_view name() const override { return W == 4 ? "bvh4" : "bvh8"; }
-    void build(const Geometry& geometry, const BuildOptions& options) override;
     [[nodiscard]] AccelStats stats() const override;
     [[nodiscard]] std::size_t memory_bytes() const override;
 
@@ -161,6 +160,7 @@ class WideBvhAccel final : public Accel {
     [[nodiscard]] const std::vector<Block>& blocks() const { return blocks_; }
 
   private:
+    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,

@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "accel/build_util.hpp"
+#include "core/intersect.hpp"
 #include "core/memory_limit.hpp"
 
 namespace lancer {
@@ -50,16 +52,23 @@ struct EmbreeRay {
 
 // The ray in Embree's domain, or none: invalid rays (is_valid) and origins beyond kEmbreeLargest miss.
 // Embree also asserts tnear >= 0 (Debian's build keeps its assertions; found by fuzz/rays_fuzz.cpp,
-// docs/robustness.md): a ray whose interval starts behind its origin starts at o + tnear d instead.
-std::optional<EmbreeRay> to_embree(const Ray& ray) {
+// docs/robustness.md): a ray whose interval starts behind its origin starts where it enters the scene's box
+// (grown by the geometric tolerance) instead, so that the origin Embree sees lies near the scene even when
+// tnear is far behind (a far ray moved near the scene by Accel::intersect comes with tnear < 0).
+std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box) {
     if (!is_valid(ray)) return std::nullopt;
     EmbreeRay query{ray};
     query.tnear = ray.tnear, query.tfar = ray.tfar;
     if (ray.tnear < 0.0f) {
-        query.ray.origin = ray.origin + ray.direction * ray.tnear;
+        float entry = 0.0f, exit = 0.0f;
+        if (!intersect_box(SlabRay(ray), scene_box, ray.tnear, ray.tfar, entry, exit) || !(entry <= exit))
+            return std::nullopt;
+        // Nothing lies in [tnear, entry): from an entry ahead of the origin, Embree's [0, tfar] is enough.
+        const float start = std::min(entry, 0.0f);
+        query.ray.origin = ray.origin + ray.direction * start;
         query.ray.tnear = 0.0f;
-        query.ray.tfar = ray.tfar - ray.tnear;
-        query.t_offset = ray.tnear;
+        query.ray.tfar = ray.tfar - start;
+        query.t_offset = start;
     }
     if (!is_finite(query.ray.origin) || max_component(abs(query.ray.origin)) > kEmbreeLargest)
         return std::nullopt;
@@ -116,7 +125,7 @@ void check(RTCDevice device, const char* what) {
 
 // The packet variants: lanes of invalid rays are masked off and answered as misses.
 template <int N, class RtcPacket>
-void intersect_packets(RTCScene scene, std::span<const Ray> rays, std::span<Hit> hits,
+void intersect_packets(RTCScene scene, const Box3f& scene_box, std::span<const Ray> rays, std::span<Hit> hits,
                        unsigned int triangle_count,
                        void (*intersect)(const int*, RTCScene, RTCIntersectContext*, RtcPacket*)) {
     RTCIntersectContext context;
@@ -127,7 +136,8 @@ void intersect_packets(RTCScene scene, std::span<const Ray> rays, std::span<Hit>
         std::optional<EmbreeRay> queries[N];
         const std::size_t lanes = std::min<std::size_t>(N, rays.size() - first);
         for (int lane = 0; lane < N; ++lane) {
-            if (static_cast<std::size_t>(lane) < lanes) queries[lane] = to_embree(rays[first + lane]);
+            if (static_cast<std::size_t>(lane) < lanes)
+                queries[lane] = to_embree(rays[first + lane], scene_box);
             valid[lane] = queries[lane] ? -1 : 0;
             fill_packet_ray(queries[lane] ? queries[lane]->ray : Ray{}, packet.ray, lane);
             packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
@@ -159,11 +169,14 @@ void EmbreeAccel::release_scene() {
     scene_ = nullptr;
 }
 
-void EmbreeAccel::build(const Geometry& geometry, const BuildOptions& options) {
+void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     release_scene();
     packet_ = options.embree_packet;
     triangle_count_ = static_cast<unsigned int>(geometry.triangles.size());
+    scene_box_ = geometry.bounds();
+    const float tolerance = geometric_tolerance(scene_box_);
+    scene_box_.lo -= Vec3f(tolerance), scene_box_.hi += Vec3f(tolerance);
     primitive_count_ = geometry.size();
     buffer_bytes_ = 0;
     scene_ = rtcNewScene(device_);
@@ -214,18 +227,18 @@ void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits
                                   TraversalCounters* counters) const {
     if (counters != nullptr) counters->rays += rays.size();  // Embree exposes no traversal counts
     if (packet_ == EmbreePacket::Packet8) {
-        intersect_packets<8, RTCRayHit8>(scene_, rays, hits, triangle_count_, rtcIntersect8);
+        intersect_packets<8, RTCRayHit8>(scene_, scene_box_, rays, hits, triangle_count_, rtcIntersect8);
         return;
     }
     if (packet_ == EmbreePacket::Packet16) {
-        intersect_packets<16, RTCRayHit16>(scene_, rays, hits, triangle_count_, rtcIntersect16);
+        intersect_packets<16, RTCRayHit16>(scene_, scene_box_, rays, hits, triangle_count_, rtcIntersect16);
         return;
     }
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     for (std::size_t i = 0; i < rays.size(); ++i) {
         hits[i] = Hit{};
-        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i]);
+        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_);
         if (!embree_ray) continue;
         RTCRayHit query;
         fill_ray(embree_ray->ray, query.ray);
@@ -243,7 +256,7 @@ void EmbreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8
     rtcInitIntersectContext(&context);
     for (std::size_t i = 0; i < rays.size(); ++i) {
         occluded[i] = 0;
-        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i]);
+        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_);
         if (!embree_ray) continue;
         RTCRay query;
         fill_ray(embree_ray->ray, query);

@@ -21,12 +21,12 @@ class EmbreeAccel final : public Accel {
     EmbreeAccel& operator=(const EmbreeAccel&) = delete;
 
     [[nodiscard]] std::string_view name() const override { return "embree"; }
-    void build(const Geometry& geometry, const BuildOptions& options) override;
     [[nodiscard]] AccelStats stats() const override;
     // Embree does not expose its node memory; this counts the vertex and index buffers it was given.
     [[nodiscard]] std::size_t memory_bytes() const override { return buffer_bytes_; }
 
   private:
+    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
@@ -35,6 +35,7 @@ class EmbreeAccel final : public Accel {
 
     RTCDevice device_ = nullptr;
     RTCScene scene_ = nullptr;
+    Box3f scene_box_;  // grown by the geometric tolerance: where a ray with tnear < 0 starts (embree.cpp)
     unsigned int triangle_count_ = 0;
     std::size_t primitive_count_ = 0;
     std::size_t buffer_bytes_ = 0;

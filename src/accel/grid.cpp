@@ -94,7 +94,7 @@ std::size_t GridAccel::max_references(std::size_t primitive_count) {
         std::min(budget, static_cast<double>(std::numeric_limits<CellOffset>::max())));
 }
 
-void GridAccel::build(const Geometry& geometry, const BuildOptions& options) {
+void GridAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     geometry_ = geometry;
     options_ = options;

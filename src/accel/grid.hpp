@@ -24,7 +24,6 @@ class GridAccel final : public Accel {
     static_assert(sizeof(CellOffset) == 4);
 
     [[nodiscard]] std::string_view name() const override { return "grid"; }
-    void build(const Geometry& geometry, const BuildOptions& options) override;
     [[nodiscard]] AccelStats stats() const override;
     [[nodiscard]] std::size_t memory_bytes() const override;
 
@@ -47,6 +46,7 @@ class GridAccel final : public Accel {
     [[nodiscard]] std::span<const std::uint32_t> cell_primitives(int x, int y, int z) const;
 
   private:
+    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,

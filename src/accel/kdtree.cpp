@@ -80,7 +80,7 @@ static_assert(sizeof(StackEntry) == 12);
 
 }  // namespace
 
-void KdTreeAccel::build(const Geometry& geometry, const BuildOptions& options) {
+void KdTreeAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     geometry_ = geometry;
     options_ = options;

@@ -12,7 +12,6 @@ namespace lancer {
 class KdTreeAccel final : public Accel {
   public:
     [[nodiscard]] std::string_view name() const override { return "kdtree"; }
-    void build(const Geometry& geometry, const BuildOptions& options) override;
     [[nodiscard]] AccelStats stats() const override;
     [[nodiscard]] std::size_t memory_bytes() const override;
 
@@ -20,6 +19,7 @@ class KdTreeAccel final : public Accel {
     [[nodiscard]] const KdTreeData& tree() const { return tree_; }
 
   private:
+    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,

@@ -75,7 +75,7 @@ inline void enter_node(const WalkRay& ray, const OctreeCube& cube, int level, Fr
 
 }  // namespace
 
-void OctreeAccel::build(const Geometry& geometry, const BuildOptions& options) {
+void OctreeAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     geometry_ = geometry;
     options_ = options;

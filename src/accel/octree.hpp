@@ -87,7 +87,6 @@ static_assert(sizeof(OctreeNode) == 8);
 class OctreeAccel final : public Accel {
   public:
     [[nodiscard]] std::string_view name() const override { return "octree"; }
-    void build(const Geometry& geometry, const BuildOptions& options) override;
     [[nodiscard]] AccelStats stats() const override { return stats_; }
     [[nodiscard]] std::size_t memory_bytes() const override;
 
@@ -96,6 +95,7 @@ class OctreeAccel final : public Accel {
     [[nodiscard]] std::vector<std::uint32_t> leaves_along(const Ray& ray) const;
 
   private:
+    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,

@@ -39,6 +39,8 @@ void fold_uniform_materials(TriangleMesh& mesh) {
 
 // The invariants scene.hpp promises to every consumer, checked once here whatever the format: a reader bug
 // or a file that slipped past assimp's checks becomes a LoadError, not a wild read at render time.
+constexpr const char* kDomain = "[-2^60, 2^60]";
+
 void check_scene(const Scene& scene, const std::filesystem::path& file) {
     const auto fail = [&](const std::string& message) { throw LoadError(file, 0, message); };
     const std::size_t material_count = scene.materials.size();
@@ -50,9 +52,11 @@ void check_scene(const Scene& scene, const std::filesystem::path& file) {
     };
     for (const TriangleMesh& mesh : scene.meshes) {
         const std::string name = "mesh '" + mesh.name + "'";
-        // Finite values can still overflow on the way (a huge cone radius): structures need finite bounds.
+        // Finite values can still overflow on the way (a huge cone radius); the structures take coordinates
+        // within the contract's domain (kCoordinateLimit, docs/numerical-contract.md).
         for (const Vec3f& position : mesh.positions) {
-            if (!is_finite(position)) fail(name + " has a vertex beyond the float range");
+            if (!in_coordinate_domain(position))
+                fail(name + " has a vertex outside the coordinate domain " + kDomain);
         }
         if (mesh.indices.size() % 3 != 0) fail(name + " has an index count that is not a multiple of 3");
         for (const std::uint32_t index : mesh.indices) {
@@ -77,7 +81,8 @@ void check_scene(const Scene& scene, const std::filesystem::path& file) {
     for (const Sphere& sphere : scene.spheres) {
         check_material(sphere.material, "a sphere");
         const Box3f bounds = sphere.bounds();
-        if (!is_finite(bounds.lo) || !is_finite(bounds.hi)) fail("a sphere reaches beyond the float range");
+        if (!in_coordinate_domain(bounds.lo) || !in_coordinate_domain(bounds.hi))
+            fail("a sphere reaches outside the coordinate domain " + std::string(kDomain));
     }
 }
 

@@ -61,8 +61,12 @@ const BrokenFile kBrokenFiles[] = {
     {"cone_opposite_radii.nff", 1, "expected cone radii of one sign"},
     {"huge_polygon.nff", 1, "announces 100000 polygon vertices"},
     {"empty.nff", 1, "unexpected end of file: expected a keyword"},
-    {"overflowing_sphere.nff", 0, "a sphere reaches beyond the float range"},
-    {"overflowing_cone.nff", 0, "mesh 'overflowing_cone' has a vertex beyond the float range"},
+    {"overflowing_sphere.nff", 0, "a sphere reaches outside the coordinate domain [-2^60, 2^60]"},
+    {"overflowing_cone.nff", 0,
+     "mesh 'overflowing_cone' has a vertex outside the coordinate domain [-2^60, 2^60]"},
+    // Finite, but beyond the contract's domain (fuzz findings 8 and 12, docs/robustness.md).
+    {"vertex_beyond_domain.off", 0, "has a vertex outside the coordinate domain [-2^60, 2^60]"},
+    {"sphere_beyond_domain.nff", 0, "a sphere reaches outside the coordinate domain [-2^60, 2^60]"},
     {"plane_offset_overflow.nff", 2, "a plane offset d / |n| beyond the float range"},
     // Found by fuzz/obj_fuzz.cpp: assimp leaks while it rejects this file (docs/robustness.md).
     {"assimp_leak_point_face.obj", 0, "assimp: "},

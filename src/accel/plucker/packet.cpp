@@ -106,7 +106,7 @@ void for_each_packet(const PluckerLayout& layout, TriangleTest test, std::span<c
 
 }  // namespace
 
-void PluckerPacketAccel::build(const Geometry& geometry, const BuildOptions& options) {
+void PluckerPacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     plucker_.build(geometry, options);
     geometry_ = geometry;
     triangle_test_ = options.triangle_test;

@@ -17,7 +17,7 @@ int PluckerAccel::automatic_depth(std::size_t primitive_count) {
     return std::clamp(static_cast<int>(std::lround(0.8 * log_count - 5.0)), 2, kOctreeMaxLevel);
 }
 
-void PluckerAccel::build(const Geometry& geometry, const BuildOptions& options) {
+void PluckerAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     geometry_ = geometry;
     options_ = options;
@@ -36,6 +36,7 @@ void PluckerAccel::build(const Geometry& geometry, const BuildOptions& options) 
 }
 
 void PluckerAccel::adopt(const Geometry& geometry, const BuildOptions& options, PluckerLayout layout) {
+    accept_geometry(geometry);
     geometry_ = geometry;
     options_ = options;
     options_.plucker.balanced = layout.options.balanced;

@@ -15,7 +15,6 @@ namespace lancer {
 class PluckerAccel final : public Accel {
   public:
     [[nodiscard]] std::string_view name() const override { return "plucker"; }
-    void build(const Geometry& geometry, const BuildOptions& options) override;
     [[nodiscard]] AccelStats stats() const override { return stats_; }
     [[nodiscard]] std::size_t memory_bytes() const override;
 
@@ -31,6 +30,7 @@ class PluckerAccel final : public Accel {
     [[nodiscard]] std::vector<std::uint32_t> leaves_along(const Ray& ray) const;
 
   private:
+    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
