@@ -120,12 +120,14 @@ template <class Ops>
 struct MollerTrumboreBlock {
     Vec3v<Ops> origin, direction;
     typename Ops::Float band_scale;  // kIllConditioned * direction_scale, the first product of the band
+    typename Ops::Float t_scale;
 
     explicit MollerTrumboreBlock(const MollerTrumbore::RayData& ray)
         : origin{Ops::broadcast(ray.origin.x), Ops::broadcast(ray.origin.y), Ops::broadcast(ray.origin.z)},
           direction{Ops::broadcast(ray.direction.x), Ops::broadcast(ray.direction.y),
                     Ops::broadcast(ray.direction.z)},
-          band_scale(Ops::broadcast(MollerTrumbore::kIllConditioned * ray.direction_scale)) {}
+          band_scale(Ops::broadcast(MollerTrumbore::kIllConditioned * ray.direction_scale)),
+          t_scale(Ops::broadcast(ray.t_scale)) {}
 
     template <int K>
     void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
@@ -135,8 +137,11 @@ struct MollerTrumboreBlock {
         const Vec3v<Ops> e2 = sub(load_vertex<Ops>(block, 2), v0);
         const Vec3v<Ops> p = cross(direction, e2);
         const Float det = dot(p, e1);
-        Float accept = Ops::greater(
-            Ops::abs(det), Ops::mul(Ops::mul(band_scale, max_abs_component(e1)), max_abs_component(e2)));
+        const Float abs_det = Ops::abs(det);
+        Float accept = Ops::bit_and(
+            Ops::greater(abs_det,
+                         Ops::mul(Ops::mul(band_scale, max_abs_component(e1)), max_abs_component(e2))),
+            Ops::less(abs_det, Ops::broadcast(kInfinity)));
         const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
         const Vec3v<Ops> to_origin = sub(origin, v0);
         const Float u = Ops::mul(dot(to_origin, p), inv_det);
@@ -146,7 +151,7 @@ struct MollerTrumboreBlock {
         const Float v = Ops::mul(dot(direction, q), inv_det);
         accept = Ops::bit_and(
             accept, Ops::bit_and(Ops::greater_equal(v, zero), Ops::less_equal(Ops::add(u, v), one)));
-        const Float t = Ops::mul(dot(e2, q), inv_det);
+        const Float t = Ops::mul(Ops::mul(dot(e2, q), inv_det), t_scale);
         accept = Ops::bit_and(accept, Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
                                                                 Ops::less_equal(t, Ops::broadcast(tfar))),
                                                    Ops::less(t, Ops::broadcast(kInfinity))));

@@ -3,6 +3,7 @@
 // intermediate values by writing each acceptance test so that a NaN comparison fails it.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -70,14 +71,34 @@ struct TriangleHit {
 // [t u v] = 1 / ((D x E2) . E1) [((T x E1) . E2), ((D x E2) . T), ((T x E1) . D)], T = O - V0.
 struct MollerTrumbore {
     static constexpr float kIllConditioned = 0x1p-20f;
+    // Directions whose largest component lies in this range are used as given (every ordinary ray).
+    static constexpr float kDirectionLowest = 0x1p-32f, kDirectionHighest = 0x1p32f;
 
+    // det = (d x e2) . e1 is a product of the direction with two edges: a direction near the float range
+    // (8.4e37 in fuzz finding 13, docs/robustness.md) overflows it, or a denormal one underflows it. Such a
+    // direction is scaled by a power of two into [1/2, 1) and t scaled back: u and v do not depend on the
+    // direction's length, and a power of two changes no bit of the products, so a ray and its scaled copy
+    // get the same answer wherever the unscaled arithmetic neither overflows nor underflows.
     struct RayData {
         Vec3f origin, direction;
-        float direction_scale;  // max |d_i|
+        float direction_scale;  // max |d_i| of `direction`
+        float t_scale = 1.0f;   // the ray's t = t along `direction` * t_scale, a power of two
+
         explicit RayData(const Ray& ray)
             : origin(ray.origin),
               direction(ray.direction),
-              direction_scale(max_component(abs(ray.direction))) {}
+              direction_scale(max_component(abs(ray.direction))) {
+            if (direction_scale >= kDirectionLowest && direction_scale <= kDirectionHighest) return;
+            int exponent = 0;
+            static_cast<void>(std::frexp(direction_scale, &exponent));
+            // Within +-126 both 2^-exponent and t_scale are normal floats; a denormal direction (2^-149 at
+            // least) comes out at 2^-23 or more, a huge one below 4.
+            exponent = std::clamp(exponent, -126, 126);
+            direction = {std::ldexp(direction.x, -exponent), std::ldexp(direction.y, -exponent),
+                         std::ldexp(direction.z, -exponent)};
+            direction_scale = std::ldexp(direction_scale, -exponent);
+            t_scale = std::ldexp(1.0f, -exponent);
+        }
     };
 
     [[nodiscard]] static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
@@ -90,9 +111,11 @@ struct MollerTrumbore {
         // and t are mostly rounding noise (a zero-area triangle would report hits far from its segment), so
         // the ill-conditioned band |det| < 2^-20 |d| |e1| |e2| (max norms, about 1e-6 rad of grazing angle
         // times the triangle's own angle) is a miss too.
-        if (!(std::fabs(det) >
-              kIllConditioned * ray.direction_scale * max_component(abs(e1)) * max_component(abs(e2))))
-            return false;
+        // A det beyond the float range (edges whose product passes 2^127) makes inv_det 0 and u = v = t = 0:
+        // a hit at the origin whatever the triangle. It is a miss.
+        const float band =
+            kIllConditioned * ray.direction_scale * max_component(abs(e1)) * max_component(abs(e2));
+        if (!(std::fabs(det) > band && std::fabs(det) < kInfinity)) return false;
         const float inv_det = 1.0f / det;
         const Vec3f to_origin = ray.origin - tri.v0;
         const float u = dot(to_origin, p) * inv_det;
@@ -100,7 +123,7 @@ struct MollerTrumbore {
         const Vec3f q = cross(to_origin, e1);
         const float v = dot(ray.direction, q) * inv_det;
         if (!(v >= 0.0f && u + v <= 1.0f)) return false;
-        const float t = dot(e2, q) * inv_det;
+        const float t = dot(e2, q) * inv_det * ray.t_scale;
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit
         out = {t, u, v};
         return true;

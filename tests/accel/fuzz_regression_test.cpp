@@ -188,29 +188,88 @@ TEST(FuzzRegression, FarOriginHitsWhatTheLineHits) {
     }
 }
 
-// Open finding (docs/robustness.md, finding 13): a ray starting on the scene's upper y face, with a
-// direction near the float range; brute force counts the surface hit at t = -0, the BVH misses it.
-TEST(FuzzRegression, DISABLED_SurfaceHitWithAHugeDirection) {
-    const TestScene scene{
-        "huge direction",
-        {{{-0x1.3cp+2f, 2, 0x1.7p+1f}, {-0x1.12fcfcp-124f, -0x1.be002p+7f, -4}, {-4, 1, 1}},
-         {{-5, -5, -0x1.3cp+2f}, {-0x1.ep-1f, -0x1.ep-1f, 1}, {-1, -1, 1}},
-         {{-1, -0x1.ep-1f, 0x1.ep-1f}, {-1, -1, 1}, {-0x1.ep-1f, -0x1.ep-1f, 1}},
-         {Vec3f(-5), {-5, -0x1.6p+0f, 0x1.dp+0f}, {0x1.9p+0f, 0x1.1p+0f, 0x1.cp+0f}},
-         {{0x1.3p+0f, 0x1.5p+0f, 0x1.1p+1f},
-          {0x1.ep+0f, 0.3125f, 0.1875f},
-          {0x1.b8p+1f, 0x1.7p+1f, 0x1.7p+1f}},
-         {Vec3f(0x1.7p+1f), Vec3f(0x1.7p+1f), {-0x1.58p+1f, 0x1.7p+1f, -5}},
-         {{-0x1.3p+2f, 0x1.7p+1f, 0x1.7p+1f}, Vec3f(0x1.7p+1f), {-0x1.48p+1f, 0x1.7p+1f, 0x1.7p+1f}},
-         {Vec3f(0x1.7p+1f), Vec3f(0x1.7p+1f), Vec3f(0)}},
-        {}};
-    const std::vector<Ray> rays = {
-        {{-0x1.ep-1f, 0x1.7p+1f, 0x1.7p+1f}, {0x1.7p+1f, 0x1.fc05fep+125f, 1}, 0, 0.5f}};
-    const std::unique_ptr<Accel> brute = make_accel("brute"), bvh = make_accel("bvh");
+// Fuzz finding 13 (docs/robustness.md): a ray starting on the scene's upper y face with a direction near the
+// float range. Moller-Trumbore's det = (d x e2) . e1 overflowed to +inf, inv_det was 0 and u = v = t = 0
+// passed every test: a hit at t = -0 on triangle 4, which the ray passes 2 units away from (u = -0.67,
+// v = -0.74 in double). Brute force and the structures that test that triangle reported it; the BVH, whose
+// leaf box excludes the triangle, did not. The scene's triangles, and rays with a huge component.
+TestScene huge_direction_scene() {
+    return {"huge direction",
+            {{{-0x1.3cp+2f, 2, 0x1.7p+1f}, {-0x1.12fcfcp-124f, -0x1.be002p+7f, -4}, {-4, 1, 1}},
+             {{-5, -5, -0x1.3cp+2f}, {-0x1.ep-1f, -0x1.ep-1f, 1}, {-1, -1, 1}},
+             {{-1, -0x1.ep-1f, 0x1.ep-1f}, {-1, -1, 1}, {-0x1.ep-1f, -0x1.ep-1f, 1}},
+             {Vec3f(-5), {-5, -0x1.6p+0f, 0x1.dp+0f}, {0x1.9p+0f, 0x1.1p+0f, 0x1.cp+0f}},
+             {{0x1.3p+0f, 0x1.5p+0f, 0x1.1p+1f},
+              {0x1.ep+0f, 0.3125f, 0.1875f},
+              {0x1.b8p+1f, 0x1.7p+1f, 0x1.7p+1f}},
+             {Vec3f(0x1.7p+1f), Vec3f(0x1.7p+1f), {-0x1.58p+1f, 0x1.7p+1f, -5}},
+             {{-0x1.3p+2f, 0x1.7p+1f, 0x1.7p+1f}, Vec3f(0x1.7p+1f), {-0x1.48p+1f, 0x1.7p+1f, 0x1.7p+1f}},
+             {Vec3f(0x1.7p+1f), Vec3f(0x1.7p+1f), Vec3f(0)}},
+            {}};
+}
+
+TEST(FuzzRegression, SurfaceHitWithAHugeDirection) {
+    const TestScene scene = huge_direction_scene();
+    const Vec3f origin(-0x1.ep-1f, 0x1.7p+1f, 0x1.7p+1f);
+    // The fuzzer's ray (d.y = 8.4e37), the same downwards, and rays whose x component is 1e36 or 1e37,
+    // which also reported false hits at t = -0 (on triangle 0) before the fix.
+    std::vector<Ray> rays;
+    for (const float sign : {1.0f, -1.0f}) {
+        rays.push_back({origin, {0x1.7p+1f, sign * 0x1.fc05fep+125f, 1}, 0, 0.5f});
+        for (const float huge : {1e36f, 1e37f})
+            rays.push_back({origin, {sign * huge, 0x1.7p+1f, 1}, 0, 0.5f});
+    }
     for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        const std::unique_ptr<Accel> brute = make_accel("brute");
         brute->build(scene.geometry(), build_options(test));
-        bvh->build(scene.geometry(), build_options(test));
-        EXPECT_EQ(compare_hits(rays, trace(*brute, rays), trace(*bvh, rays)).mismatches, 0u);
+        const std::vector<Hit> expected = trace(*brute, rays);
+        // The fuzzer's rays pass 2 units from every triangle (the x rays graze triangle 4's vertex 2).
+        EXPECT_FALSE(expected[0].hit() || expected[3].hit());
+        for (const std::string_view name : accel_names()) {
+            if (name == "embree") continue;  // Embree's own kernels: embree_test.cpp
+            const std::unique_ptr<Accel> accel = make_accel(name);
+            accel->build(scene.geometry(), build_options(test));
+            std::vector<std::uint8_t> occluded(rays.size());
+            accel->occluded(rays, occluded);
+            EXPECT_EQ(compare_hits(rays, expected, trace(*accel, rays)).mismatches, 0u) << name;
+            EXPECT_EQ(compare_occlusion(rays, expected, occluded).mismatches, 0u) << name;
+        }
+    }
+}
+
+// The other side of finding 13: a direction scaled by a power of two is the same ray, and finds the same
+// primitive at t scaled back exactly. At 2^120 the largest component of ray 0 passes 2^126 (its reciprocal,
+// which the box tests use, is denormal). Before the fix Moller-Trumbore's det overflowed at 2^120 and it
+// missed triangles that the unscaled rays hit.
+TEST(FuzzRegression, AHugeDirectionFindsWhatItsUnscaledCopyFinds) {
+    const TestScene scene = huge_direction_scene();
+    const Vec3f origin(7, 6.5f, -8);
+    std::vector<Ray> unscaled;
+    for (const Triangle& triangle : scene.triangles) {
+        const Vec3f centroid = (triangle.v0 + triangle.v1 + triangle.v2) * (1.0f / 3.0f);
+        unscaled.push_back({origin, centroid - origin, 0, kInfinity});
+    }
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore}) {
+        for (const std::string_view name : accel_names()) {
+            if (name == "embree") continue;
+            const std::unique_ptr<Accel> accel = make_accel(name);
+            accel->build(scene.geometry(), build_options(test));
+            const std::vector<Hit> expected = trace(*accel, unscaled);
+            for (const int exponent : {-100, 100, 120}) {
+                std::vector<Ray> scaled = unscaled;
+                for (Ray& ray : scaled)
+                    ray.direction = ray.direction * std::ldexp(1.0f, exponent);
+                const std::vector<Hit> hits = trace(*accel, scaled);
+                for (std::size_t i = 0; i < hits.size(); ++i) {
+                    const std::string context =
+                        std::string(name) + ", 2^" + std::to_string(exponent) + ", ray " + std::to_string(i);
+                    ASSERT_EQ(hits[i].prim, expected[i].prim) << context;
+                    if (expected[i].hit()) {
+                        EXPECT_EQ(hits[i].t, std::ldexp(expected[i].t, -exponent)) << context;
+                    }
+                }
+            }
+        }
     }
 }
 
