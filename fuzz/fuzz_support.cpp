@@ -56,7 +56,7 @@ void check_scene_contract(const Scene& scene) {
     const std::size_t material_count = scene.materials.size();
     for (const TriangleMesh& mesh : scene.meshes) {
         for (const Vec3f& position : mesh.positions) {
-            if (!is_finite(position)) finding("a loaded vertex is not finite");
+            if (!in_coordinate_domain(position)) finding("a loaded vertex is outside the coordinate domain");
         }
         if (mesh.indices.size() % 3 != 0) finding("a loaded mesh has an index count not a multiple of 3");
         for (const std::uint32_t index : mesh.indices) {
@@ -74,8 +74,8 @@ void check_scene_contract(const Scene& scene) {
     for (const Sphere& sphere : scene.spheres) {
         if (sphere.material >= material_count) finding("a loaded sphere's material is out of range");
         const Box3f bounds = sphere.bounds();
-        if (!is_finite(bounds.lo) || !is_finite(bounds.hi) || !(sphere.radius > 0.0f))
-            finding("a loaded sphere is not finite or has no positive radius");
+        if (!in_coordinate_domain(bounds.lo) || !in_coordinate_domain(bounds.hi) || !(sphere.radius > 0.0f))
+            finding("a loaded sphere is outside the coordinate domain or has no positive radius");
     }
     for (const Plane& plane : scene.planes) {
         if (plane.material >= material_count) finding("a loaded plane's material is out of range");
