@@ -143,13 +143,15 @@ class Accel {
     // std::invalid_argument when a coordinate lies outside the contract's domain (kCoordinateLimit).
     void build(const Geometry& geometry, const BuildOptions& options);
     // Closest hit of each ray in [tnear, tfar]; hits.size() == rays.size(). Invalid rays miss (is_valid).
-    // Rays from far away are first moved near the scene along their line (docs/numerical-contract.md, "Far
-    // origins"), the same way for every structure.
+    // Rays are first conditioned the same way for every structure (docs/numerical-contract.md, "Ray
+    // conditioning"): extreme directions scaled by a power of two, far rays moved near the scene.
     void intersect(std::span<const Ray> rays, std::span<Hit> hits,
                    TraversalCounters* counters = nullptr) const;
     // Any hit in [tnear, tfar]: occluded[i] = 1 when ray i hits something, 0 otherwise.
     void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                   TraversalCounters* counters = nullptr) const;
+    // The box of the primitives that can be hit, as built (empty before): what makes a ray's origin far.
+    [[nodiscard]] const Box3f& bounds() const { return bounds_; }
     [[nodiscard]] virtual AccelStats stats() const = 0;
     // Bytes the structure itself needs at trace time, the geometry it was built on excluded.
     [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
@@ -165,7 +167,7 @@ class Accel {
     void accept_geometry(const Geometry& geometry);
 
   private:
-    Box3f bounds_;  // of the geometry's primitives that can be hit: what makes an origin far
+    Box3f bounds_;
 };
 
 // The names `--accel` accepts, in the order `lancer bench --accel all` measures them.

@@ -61,11 +61,13 @@ class CudaTracer {
     // The primary rays of `camera` (PinholeCamera's, through pixel centres), width x height; with
     // count_steps, each ray's traversal steps too (a slower kernel: for pictures, not for timing).
     [[nodiscard]] CudaTrace trace_frame(const Camera& camera, bool count_steps = false);
-    // Closest hits of a batch of rays.
+    // Closest hits of a batch of rays. Rays are conditioned first, as Accel::intersect does.
     [[nodiscard]] CudaTrace trace(std::span<const Ray> rays);
     [[nodiscard]] std::string device_name() const;
 
   private:
+    CudaTrace trace_rays(std::span<const Ray> rays, bool count_steps);
+
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

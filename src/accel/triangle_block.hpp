@@ -120,14 +120,12 @@ template <class Ops>
 struct MollerTrumboreBlock {
     Vec3v<Ops> origin, direction;
     typename Ops::Float band_scale;  // kIllConditioned * direction_scale, the first product of the band
-    typename Ops::Float t_scale;
 
     explicit MollerTrumboreBlock(const MollerTrumbore::RayData& ray)
         : origin{Ops::broadcast(ray.origin.x), Ops::broadcast(ray.origin.y), Ops::broadcast(ray.origin.z)},
           direction{Ops::broadcast(ray.direction.x), Ops::broadcast(ray.direction.y),
                     Ops::broadcast(ray.direction.z)},
-          band_scale(Ops::broadcast(MollerTrumbore::kIllConditioned * ray.direction_scale)),
-          t_scale(Ops::broadcast(ray.t_scale)) {}
+          band_scale(Ops::broadcast(MollerTrumbore::kIllConditioned * ray.direction_scale)) {}
 
     template <int K>
     void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
@@ -151,7 +149,7 @@ struct MollerTrumboreBlock {
         const Float v = Ops::mul(dot(direction, q), inv_det);
         accept = Ops::bit_and(
             accept, Ops::bit_and(Ops::greater_equal(v, zero), Ops::less_equal(Ops::add(u, v), one)));
-        const Float t = Ops::mul(Ops::mul(dot(e2, q), inv_det), t_scale);
+        const Float t = Ops::mul(dot(e2, q), inv_det);
         accept = Ops::bit_and(accept, Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
                                                                 Ops::less_equal(t, Ops::broadcast(tfar))),
                                                    Ops::less(t, Ops::broadcast(kInfinity))));

@@ -71,34 +71,13 @@ struct TriangleHit {
 // [t u v] = 1 / ((D x E2) . E1) [((T x E1) . E2), ((D x E2) . T), ((T x E1) . D)], T = O - V0.
 struct MollerTrumbore {
     static constexpr float kIllConditioned = 0x1p-20f;
-    // Directions whose largest component lies in this range are used as given (every ordinary ray).
-    static constexpr float kDirectionLowest = 0x1p-32f, kDirectionHighest = 0x1p32f;
-
-    // det = (d x e2) . e1 is a product of the direction with two edges: a direction near the float range
-    // (8.4e37 in fuzz finding 13, docs/robustness.md) overflows it, or a denormal one underflows it. Such a
-    // direction is scaled by a power of two into [1/2, 1) and t scaled back: u and v do not depend on the
-    // direction's length, and a power of two changes no bit of the products, so a ray and its scaled copy
-    // get the same answer wherever the unscaled arithmetic neither overflows nor underflows.
     struct RayData {
         Vec3f origin, direction;
-        float direction_scale;  // max |d_i| of `direction`
-        float t_scale = 1.0f;   // the ray's t = t along `direction` * t_scale, a power of two
-
+        float direction_scale;  // max |d_i|
         explicit RayData(const Ray& ray)
             : origin(ray.origin),
               direction(ray.direction),
-              direction_scale(max_component(abs(ray.direction))) {
-            if (direction_scale >= kDirectionLowest && direction_scale <= kDirectionHighest) return;
-            int exponent = 0;
-            static_cast<void>(std::frexp(direction_scale, &exponent));
-            // Within +-126 both 2^-exponent and t_scale are normal floats; a denormal direction (2^-149 at
-            // least) comes out at 2^-23 or more, a huge one below 4.
-            exponent = std::clamp(exponent, -126, 126);
-            direction = {std::ldexp(direction.x, -exponent), std::ldexp(direction.y, -exponent),
-                         std::ldexp(direction.z, -exponent)};
-            direction_scale = std::ldexp(direction_scale, -exponent);
-            t_scale = std::ldexp(1.0f, -exponent);
-        }
+              direction_scale(max_component(abs(ray.direction))) {}
     };
 
     [[nodiscard]] static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
@@ -123,7 +102,7 @@ struct MollerTrumbore {
         const Vec3f q = cross(to_origin, e1);
         const float v = dot(ray.direction, q) * inv_det;
         if (!(v >= 0.0f && u + v <= 1.0f)) return false;
-        const float t = dot(e2, q) * inv_det * ray.t_scale;
+        const float t = dot(e2, q) * inv_det;
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit
         out = {t, u, v};
         return true;

@@ -7,9 +7,11 @@
 
 #include "accel/bvh.hpp"
 #include "accel/plucker/plucker.hpp"
+#include "core/ray_conditioning.hpp"
 #include "cuda/cuda_check.hpp"
 #include "cuda/flatten.hpp"
 #include "cuda/kernels.hpp"
+#include "lancer/camera.hpp"
 #include "lancer/cuda.hpp"
 
 namespace lancer {
@@ -68,6 +70,7 @@ bool cuda_available(std::string* why) {
 
 struct CudaTracer::Impl {
     CudaKernel kernel;
+    Box3f bounds;  // the structure's (Accel::bounds): rays are conditioned as on the CPU
     gpu::LaunchScene scene;
     DeviceBuffer nodes, triangles, cells, primitives, boxes, texels, locate;  // the structure, uploaded once
     DeviceBuffer rays, hits, steps, next_ray;                                 // per call, grown as needed
@@ -99,6 +102,7 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTes
     std::string why;
     if (!cuda_available(&why)) throw CudaError(why);
     impl_->kernel = kernel;
+    impl_->bounds = accel.bounds();
     impl_->scene.watertight = test == TriangleTest::Watertight;
     if (kernel == CudaKernel::Plucker) {
         const auto* plucker = dynamic_cast<const PluckerAccel*>(&accel);
@@ -127,23 +131,44 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTes
 CudaTracer::~CudaTracer() = default;
 
 CudaTrace CudaTracer::trace_frame(const Camera& camera, bool count_steps) {
+    const std::size_t ray_count =
+        static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);
+    // A camera far from the scene: its rays are made here and conditioned like the CPU's (Accel::intersect;
+    // src/core/ray_conditioning.hpp), so that both answer them alike. Camera directions are ordinary.
+    if (FarOriginFrame(impl_->bounds).is_far(camera.eye)) {
+        const PinholeCamera pinhole(camera);
+        std::vector<Ray> rays;
+        rays.reserve(ray_count);
+        for (int y = 0; y < camera.height; ++y) {
+            for (int x = 0; x < camera.width; ++x)
+                rays.push_back(pinhole.generate(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f));
+        }
+        return trace_rays(rays, count_steps);
+    }
     gpu::LaunchRays launch;
     launch.camera = gpu::camera_frame(camera);
-    return impl_->run(launch,
-                      static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height),
-                      count_steps);
+    return impl_->run(launch, ray_count, count_steps);
 }
 
 CudaTrace CudaTracer::trace(std::span<const Ray> rays) {
+    return trace_rays(rays, false);
+}
+
+CudaTrace CudaTracer::trace_rays(std::span<const Ray> rays, bool count_steps) {
     if (rays.size() >= (1u << 31)) throw std::invalid_argument("cuda: at most 2^31 rays per batch");
+    const ConditionedRays conditioned = condition_rays(rays, impl_->bounds);
+    const std::span<const Ray> traced =
+        conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
     impl_->rays.reserve(rays.size() * sizeof(Ray));
     gpu::check_cuda(
-        cudaMemcpy(impl_->rays.as<Ray>(), rays.data(), rays.size() * sizeof(Ray), cudaMemcpyHostToDevice),
+        cudaMemcpy(impl_->rays.as<Ray>(), traced.data(), traced.size() * sizeof(Ray), cudaMemcpyHostToDevice),
         "cudaMemcpy (rays)");
     gpu::LaunchRays launch;
     launch.rays = impl_->rays.as<Ray>();
     launch.count = static_cast<std::uint32_t>(rays.size());
-    return impl_->run(launch, rays.size(), false);
+    CudaTrace result = impl_->run(launch, rays.size(), count_steps);
+    restore_hits(conditioned, rays, result.hits);
+    return result;
 }
 
 std::string CudaTracer::device_name() const {

@@ -34,8 +34,10 @@ struct MollerTrumboreTest {
         const Vec3f p = cross(ray.direction, e2);
         const float det = dot(p, e1);
         const Vec3f a1 = abs_of(e1), a2 = abs_of(e2);
+        // A det beyond the float range is a miss, as in core/intersect.hpp (fuzz finding 13).
         if (!(abs_of(det) > kIllConditioned * ray.direction_scale * max_of(a1.x, max_of(a1.y, a1.z)) *
-                                max_of(a2.x, max_of(a2.y, a2.z))))
+                                max_of(a2.x, max_of(a2.y, a2.z)) &&
+              abs_of(det) < kInfinity))
             return false;
         const float inv_det = 1.0f / det;
         const Vec3f to_origin = ray.origin - tri.v0;

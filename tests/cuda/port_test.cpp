@@ -14,6 +14,7 @@
 #include "accel/ray_sets.hpp"
 #include "accel/test_scenes.hpp"
 #include "core/intersect.hpp"
+#include "core/ray_conditioning.hpp"
 #include "cuda/bvh_traversal.hpp"
 #include "cuda/flatten.hpp"
 #include "cuda/plucker_walk.hpp"
@@ -108,11 +109,17 @@ std::size_t count_hits(std::span<const Hit> hits) {
     return count;
 }
 
+// The rays conditioned as CudaTracer::trace conditions them on the host (src/core/ray_conditioning.hpp),
+// each traced, the hits mapped back.
 template <class Trace>
-std::vector<Hit> trace_each(std::span<const Ray> rays, Trace&& trace) {
+std::vector<Hit> trace_each(std::span<const Ray> rays, const Box3f& scene_bounds, Trace&& trace) {
+    const ConditionedRays conditioned = condition_rays(rays, scene_bounds);
+    const std::span<const Ray> traced =
+        conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
     std::vector<Hit> hits(rays.size());
     for (std::size_t i = 0; i < rays.size(); ++i)
-        hits[i] = trace(rays[i]);
+        hits[i] = trace(traced[i]);
+    restore_hits(conditioned, rays, hits);
     return hits;
 }
 
@@ -137,24 +144,24 @@ void expect_ports_agree(const Geometry& geometry, TriangleTest test, std::span<c
         const std::string where = scene_name + ", " + set.name + ", " + test_name + ": ";
         std::string first;
 
-        const auto walk = trace_each(set.rays, [&](const Ray& ray) {
+        const auto walk = trace_each(set.rays, bvh.bounds(), [&](const Ray& ray) {
             return gpu::trace_plucker<TriangleTestT>(plucker_view, tables, ray);
         });
         EXPECT_EQ(count_differences(expected_plucker, walk, first), 0u) << where << "plucker walk, " << first;
 
-        const auto while_while = trace_each(set.rays, [&](const Ray& ray) {
+        const auto while_while = trace_each(set.rays, bvh.bounds(), [&](const Ray& ray) {
             return gpu::trace_bvh<false, TriangleTestT>(bvh_view, ray, gpu::LoneLane{});
         });
         EXPECT_EQ(count_differences(expected_bvh, while_while, first), 0u)
             << where << "while-while, " << first;
 
-        const auto speculative_alone = trace_each(set.rays, [&](const Ray& ray) {
+        const auto speculative_alone = trace_each(set.rays, bvh.bounds(), [&](const Ray& ray) {
             return gpu::trace_bvh<true, TriangleTestT>(bvh_view, ray, gpu::LoneLane{});
         });
         EXPECT_EQ(count_differences(expected_bvh, speculative_alone, first), 0u)
             << where << "speculative while-while (lone lane), " << first;
 
-        const auto speculative_postponing = trace_each(set.rays, [&](const Ray& ray) {
+        const auto speculative_postponing = trace_each(set.rays, bvh.bounds(), [&](const Ray& ray) {
             return gpu::trace_bvh<true, TriangleTestT>(bvh_view, ray, gpu::OtherLanesSearching{});
         });
         EXPECT_EQ(count_differences(expected_bvh, speculative_postponing, first), 0u)

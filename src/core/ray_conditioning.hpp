@@ -1,0 +1,197 @@
+// Rays conditioned once per batch, before any structure sees them, the same way for every structure (and the
+// CUDA tracer): a direction near the ends of the float range is scaled by a power of two, and a ray from far
+// away is moved near the scene along its line. t is mapped back after the trace. docs/numerical-contract.md,
+// "Ray conditioning"; fuzz findings 11, 13 and 14 of docs/robustness.md.
+//
+// Directions: a product of a direction with an edge or a cell size overflows for a component near FLT_MAX
+// and underflows (or its reciprocal overflows) for a denormal one; Moller-Trumbore's det went to +inf, the
+// watertight shear to a denormal 1/d, and grid, octree and BVH walks lost hits. A power of two changes no
+// bit of any product that neither overflows nor underflows, so the scaled ray is the same line.
+//
+// Far origins: every kernel works in the ray's frame (the watertight test translates the vertices by the
+// origin, the slab test subtracts it from the planes). A float origin at distance D rounds those differences
+// to ulp(D): from 4.5e11 away a 5-unit scene is seen through a 2^15-unit grid and brute force reported a
+// "hit" on a triangle that the exact line misses by more than a unit. The line itself is exact, though, so a
+// far ray is re-parametrised from a point of its line near the scene (move_near) and rounded to float once.
+#pragma once
+
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <span>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "lancer/box.hpp"
+#include "lancer/ray.hpp"
+
+namespace lancer {
+
+// A ray is far when its origin lies more than this many half-extents of the scene's box from the box's
+// centre (per axis). Rays from closer keep their origin, and their bits: a kernel's error then stays within
+// 2^-24 * 2^9 = 2^-15 of the scene's size. Cameras of the benchmark views stand 1 to 3 extents away.
+inline constexpr float kFarOriginHalfExtents = 256.0f;
+
+// What the re-parametrisation needs of the scene: its box's centre and the distance beyond which an origin
+// is far. An empty scene has no centre: nothing is far (there is nothing to hit).
+class FarOriginFrame {
+  public:
+    explicit FarOriginFrame(const Box3f& bounds)
+        : active_(!bounds.empty()),
+          centre_(bounds.center()),
+          far_distance_(kFarOriginHalfExtents * 0.5f * max_component(bounds.extent())) {}
+
+    // The origin of a valid ray (is_valid): an infinite origin is not far, it is invalid.
+    [[nodiscard]] bool is_far(Vec3f origin) const {
+        return active_ && max_component(abs(origin - centre_)) > far_distance_;
+    }
+
+    // The same line from a point near the one nearest to the centre: origin o + s d and interval
+    // [tnear - s, tfar - s], with the shift s returned beside it (t = t' + s). None when s is beyond the
+    // float range: t cannot reach the scene then, and the ray keeps its origin.
+    struct Moved {
+        Ray ray;
+        double shift;
+    };
+    [[nodiscard]] std::optional<Moved> move_near(const Ray& ray) const {
+        // The point is kept as an unevaluated sum point + error per axis and moved by float shifts: a float
+        // shift times a float component is exact in double, and two_sum adds it without error, so the point
+        // stays on the caller's line; each round brings it 2^24 times closer to the centre (the shift's own
+        // rounding), until it is no longer far. What is left is the rounding of the small error terms, about
+        // 2^-130 of the first distance, and the one rounding of the result to float near the scene.
+        const double direction[3] = {ray.direction.x, ray.direction.y, ray.direction.z};
+        const double length_squared =
+            direction[0] * direction[0] + direction[1] * direction[1] + direction[2] * direction[2];
+        double point[3] = {ray.origin.x, ray.origin.y, ray.origin.z}, error[3] = {0.0, 0.0, 0.0};
+        double shift = 0.0;
+        for (int round = 0; round < kMaxRounds; ++round) {
+            double to_centre = 0.0;
+            for (int axis = 0; axis < 3; ++axis)
+                to_centre += ((double(centre_[axis]) - point[axis]) - error[axis]) * direction[axis];
+            const float step = static_cast<float>(to_centre / length_squared);
+            if (!std::isfinite(step)) return std::nullopt;
+            if (step == 0.0f) break;
+            for (int axis = 0; axis < 3; ++axis) {
+                const auto [sum, rounding] = two_sum(point[axis], double(step) * direction[axis]);
+                point[axis] = sum;
+                error[axis] += rounding;
+            }
+            shift += step;
+            if (!is_far(rounded(point, error))) break;
+        }
+        Ray moved = ray;
+        moved.origin = rounded(point, error);
+        // The interval rounded outwards, so that no hit inside [tnear, tfar] is lost; restore_t clamps. A
+        // tnear that overflows would make the ray invalid: the ray then keeps its origin.
+        moved.tnear = round_down(double(ray.tnear) - shift);
+        moved.tfar = std::isinf(ray.tfar) ? ray.tfar : round_up(double(ray.tfar) - shift);
+        if (!std::isfinite(moved.tnear)) return std::nullopt;
+        return Moved{moved, shift};
+    }
+
+  private:
+    // Enough rounds to come from FLT_MAX to an ulp of the smallest normal float, 24 bits a round.
+    static constexpr int kMaxRounds = 12;
+
+    // Knuth's TwoSum: a + b = sum + rounding exactly (round-to-nearest, no contraction: -ffp-contract=off).
+    static std::pair<double, double> two_sum(double a, double b) {
+        const double sum = a + b;
+        const double b_part = sum - a;
+        return {sum, (a - (sum - b_part)) + (b - b_part)};
+    }
+    static Vec3f rounded(const double (&point)[3], const double (&error)[3]) {
+        return {static_cast<float>(point[0] + error[0]), static_cast<float>(point[1] + error[1]),
+                static_cast<float>(point[2] + error[2])};
+    }
+    static float round_down(double value) {
+        const float rounded = static_cast<float>(value);
+        return double(rounded) > value ? std::nextafter(rounded, -kInfinity) : rounded;
+    }
+    static float round_up(double value) {
+        const float rounded = static_cast<float>(value);
+        return double(rounded) < value ? std::nextafter(rounded, kInfinity) : rounded;
+    }
+
+    bool active_;
+    Vec3f centre_;
+    float far_distance_;
+};
+
+// Directions whose largest component lies in [2^-32, 2^32] are used as given (every ordinary ray); the
+// others are scaled by a power of two into [1/2, 1).
+inline constexpr float kDirectionLowest = 0x1p-32f, kDirectionHighest = 0x1p32f;
+
+// How a conditioned ray maps back: the caller's t = (t' + shift) * 2^-exponent.
+struct RayConditioning {
+    double shift = 0.0;
+    int exponent = 0;
+};
+
+// The caller's t of a conditioned ray's hit; none when it overflows (a hit is at a finite distance).
+[[nodiscard]] inline std::optional<float> restore_t(float conditioned_t, const RayConditioning& how,
+                                                    const Ray& original) {
+    const float t = static_cast<float>(std::ldexp(double(conditioned_t) + how.shift, -how.exponent));
+    if (!std::isfinite(t)) return std::nullopt;
+    return std::fmin(std::fmax(t, original.tnear), original.tfar);
+}
+
+// The batch as the structures see it, and how each ray maps back; empty when no ray needs conditioning (the
+// common case, which then costs one pass over the rays).
+struct ConditionedRays {
+    std::vector<Ray> rays;
+    std::vector<RayConditioning> how;  // per ray; {0, 0} for the rays left as they were
+};
+
+// A valid ray with its direction scaled into [1/2, 1) and its interval scaled back, or none when its
+// direction is ordinary. Exact, except for a component below 2^-126 of the largest, which underflows (the
+// line turns by less than 2^-126 rad).
+[[nodiscard]] inline std::optional<std::pair<Ray, int>> scale_direction(const Ray& ray) {
+    const float largest = max_component(abs(ray.direction));
+    if (largest >= kDirectionLowest && largest <= kDirectionHighest) return std::nullopt;
+    int exponent = 0;
+    static_cast<void>(std::frexp(largest, &exponent));
+    Ray scaled = ray;
+    scaled.direction = {std::ldexp(ray.direction.x, -exponent), std::ldexp(ray.direction.y, -exponent),
+                        std::ldexp(ray.direction.z, -exponent)};
+    // The interval in the new units. Beyond the float range: a tnear below -FLT_MAX admits every t a kernel
+    // can return; tfar is capped where the caller's t would overflow, so that no hit maps back to infinity.
+    constexpr double kFloatMax = std::numeric_limits<float>::max();
+    scaled.tnear = static_cast<float>(std::fmax(std::ldexp(double(ray.tnear), exponent), -kFloatMax));
+    const double tfar = std::ldexp(std::fmin(double(ray.tfar), kFloatMax), exponent);
+    scaled.tfar = tfar > kFloatMax ? kInfinity : static_cast<float>(tfar);
+    return std::pair{scaled, exponent};
+}
+
+[[nodiscard]] inline ConditionedRays condition_rays(std::span<const Ray> rays, const Box3f& scene_bounds) {
+    const FarOriginFrame frame(scene_bounds);
+    ConditionedRays conditioned;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        if (!is_valid(rays[i])) continue;
+        Ray ray = rays[i];
+        RayConditioning how;
+        if (const auto scaled = scale_direction(ray)) std::tie(ray, how.exponent) = *scaled;
+        if (frame.is_far(ray.origin)) {
+            if (const std::optional<FarOriginFrame::Moved> near = frame.move_near(ray))
+                ray = near->ray, how.shift = near->shift;
+        }
+        if (how.shift == 0.0 && how.exponent == 0) continue;
+        if (conditioned.rays.empty())
+            conditioned.rays.assign(rays.begin(), rays.end()), conditioned.how.assign(rays.size(), {});
+        conditioned.rays[i] = ray;
+        conditioned.how[i] = how;
+    }
+    return conditioned;
+}
+
+// The hits of the conditioned rays back in the callers' parametrisation.
+inline void restore_hits(const ConditionedRays& conditioned, std::span<const Ray> rays, std::span<Hit> hits) {
+    for (std::size_t i = 0; i < conditioned.how.size(); ++i) {
+        const RayConditioning& how = conditioned.how[i];
+        if ((how.shift == 0.0 && how.exponent == 0) || !hits[i].hit()) continue;
+        const std::optional<float> t = restore_t(hits[i].t, how, rays[i]);
+        hits[i] = t ? Hit{*t, hits[i].prim, hits[i].u, hits[i].v} : Hit{};
+    }
+}
+
+}  // namespace lancer

@@ -1,0 +1,150 @@
+// Rays conditioned before any structure sees them (src/core/ray_conditioning.hpp; docs/numerical-contract.md,
+// "Ray conditioning"): far rays moved near the scene keep their line, extreme directions are scaled exactly,
+// t maps back, ordinary rays are left alone.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "core/ray_conditioning.hpp"
+
+namespace lancer {
+namespace {
+
+const Box3f kScene{{-1.0f, -2.0f, 0.0f}, {3.0f, 2.0f, 1.0f}};  // centre (1, 0, 0.5), half-extents up to 2
+
+// Squared distance from p to the exact line o + t d, in quadruple precision (GCC's and clang's __float128:
+// 113 bits, so that the test's own rounding stays below 1e-9 for origins up to 1e24 away).
+double squared_distance_to_line(Vec3f p, const Ray& ray) {
+    using Quad = __float128;
+    const Quad dx = ray.direction.x, dy = ray.direction.y, dz = ray.direction.z;
+    const Quad wx = Quad(p.x) - ray.origin.x, wy = Quad(p.y) - ray.origin.y, wz = Quad(p.z) - ray.origin.z;
+    const Quad t = (wx * dx + wy * dy + wz * dz) / (dx * dx + dy * dy + dz * dz);
+    const Quad ex = wx - t * dx, ey = wy - t * dy, ez = wz - t * dz;
+    return static_cast<double>(ex * ex + ey * ey + ez * ez);
+}
+
+TEST(RayConditioning, OriginsWithin256HalfExtentsAreNotFar) {
+    const FarOriginFrame frame(kScene);
+    EXPECT_FALSE(frame.is_far({1.0f, 0.0f, 0.5f}));
+    EXPECT_FALSE(frame.is_far({1.0f + 512.0f, 0.0f, 0.5f}));  // 256 x the largest half-extent, 2
+    EXPECT_TRUE(frame.is_far({1.0f + 513.0f, 0.0f, 0.5f}));
+    EXPECT_TRUE(frame.is_far({1.0f, 0.0f, -1e30f}));
+    EXPECT_FALSE(FarOriginFrame(Box3f{}).is_far({1e30f, 0.0f, 0.0f})) << "an empty scene has nothing far";
+}
+
+// From 1e6 to 1e24 away, lines through the point 0 of the scene (d = -o times a power of two, exact: a float
+// origin that far cannot aim at another point of a unit scene): the moved origin lies on the exact line, near
+// its point nearest to the centre c (the projection of c, since the line passes through 0), and t maps back.
+TEST(RayConditioning, MovedRaysKeepTheirLine) {
+    const FarOriginFrame frame(kScene);
+    const Vec3f centre = kScene.center();
+    std::mt19937 random(20261122);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    for (int i = 0; i < 20000; ++i) {
+        const float distance = std::pow(10.0f, 6.0f + 18.0f * (unit(random) + 1.0f) / 2.0f);
+        const Vec3f away = normalize(Vec3f(unit(random), unit(random), unit(random)));
+        Ray ray;
+        ray.origin = away * distance;
+        ray.direction = -ray.origin * std::ldexp(1.0f, static_cast<int>(10.0f * unit(random)));
+        ray.tnear = -5.0f, ray.tfar = 5e3f;
+        ASSERT_TRUE(frame.is_far(ray.origin));
+        const std::optional<FarOriginFrame::Moved> moved = frame.move_near(ray);
+        ASSERT_TRUE(moved.has_value());
+        // On the line: what is left is the float rounding of a point near the scene (2^-22 here).
+        EXPECT_LT(squared_distance_to_line(moved->ray.origin, ray), 1e-12) << "ray " << i;
+        // Near the scene: the rounds stop once the point is no longer far, within 2^-24 of the last distance
+        // of the point of the line nearest to the centre.
+        EXPECT_FALSE(frame.is_far(moved->ray.origin)) << "ray " << i;
+        const Vec3f unit_line = normalize(ray.origin);
+        const Vec3f nearest = unit_line * dot(centre, unit_line);
+        EXPECT_LT(length(moved->ray.origin - nearest), 0x1p-23f * 512.0f + 0x1p-23f * distance)
+            << "ray " << i;
+        EXPECT_EQ(moved->ray.direction, ray.direction);
+        // The interval is the same one, rounded outwards.
+        EXPECT_LE(double(moved->ray.tnear), double(ray.tnear) - moved->shift);
+        EXPECT_GE(double(moved->ray.tfar), double(ray.tfar) - moved->shift);
+        // t back in the caller's parametrisation, clamped to [tnear, tfar]; the point 0 is at t = 1.
+        const RayConditioning how{moved->shift, 0};
+        EXPECT_NEAR(*restore_t(static_cast<float>(1.0 - moved->shift), how, ray), 1.0f, 1e-6f) << "ray " << i;
+        EXPECT_EQ(restore_t(-1e30f, how, ray), ray.tnear);
+        EXPECT_EQ(restore_t(1e30f, how, ray), ray.tfar);
+    }
+}
+
+TEST(RayConditioning, AShiftBeyondTheFloatRangeKeepsTheRay) {
+    const FarOriginFrame frame(kScene);
+    // A denormal direction from 1e30 away: the nearest point is at t ~ 1e75.
+    const Ray tiny{{1e30f, 0.0f, 0.0f}, {-0x1p-149f, 0.0f, 0.0f}, 0.0f, kInfinity};
+    EXPECT_FALSE(frame.move_near(tiny).has_value());
+}
+
+TEST(RayConditioning, BatchesOfOrdinaryRaysAreNotCopied) {
+    const std::vector<Ray> near = {{{0, 0, 5}, {0, 0, -1}, 0, kInfinity},
+                                   {{2, 1, -3}, {0, 0, 1}, 0, kInfinity}};
+    EXPECT_TRUE(condition_rays(near, kScene).rays.empty());
+    std::vector<Ray> mixed = near;
+    mixed.push_back({{1, 0, 1e20f}, {0, 0, -1e20f}, 0, kInfinity});
+    mixed.push_back({{std::numeric_limits<float>::quiet_NaN(), 0, 1e20f}, {0, 0, -1}, 0, kInfinity});
+    const ConditionedRays conditioned = condition_rays(mixed, kScene);
+    ASSERT_EQ(conditioned.rays.size(), mixed.size());
+    for (const std::size_t untouched : {0, 1, 3}) {
+        EXPECT_EQ(conditioned.how[untouched].shift, 0.0) << untouched;
+        EXPECT_EQ(conditioned.how[untouched].exponent, 0) << untouched;
+    }
+    // The direction 1e20 (2^66 < 1e20 < 2^67) is scaled by 2^-67, the interval by 2^67; the point nearest to
+    // the centre (1, 0, 0.5) is at t' = 2^67 (1 - 2^-67), which rounds to the float shift 2^67: o + d,
+    // exactly.
+    EXPECT_EQ(conditioned.how[2].exponent, 67);
+    EXPECT_EQ(conditioned.how[2].shift, 0x1p67);
+    EXPECT_EQ(conditioned.rays[2].origin, Vec3f(1, 0, 0));
+    EXPECT_EQ(conditioned.rays[2].direction, Vec3f(0, 0, -1e20f * 0x1p-67f));
+    EXPECT_EQ(conditioned.rays[2].tnear, -0x1p67f);
+    // The plane z = 0, which the conditioned ray meets at t' = 0, is at t = 1 of the caller's ray.
+    std::vector<Hit> hits(mixed.size());
+    hits[2] = {0.0f, 0, 0, 0};
+    restore_hits(conditioned, mixed, hits);
+    EXPECT_EQ(hits[2].t, 1.0f);
+}
+
+// Directions from denormal to 2^126: scaled by the power of two that brings the largest component into
+// [1/2, 1), every component and the interval exactly, and t maps back exactly.
+TEST(RayConditioning, ExtremeDirectionsAreScaledExactly) {
+    for (const float scale : {0x1p-149f, 0x1p-140f, 0x1p-127f, 0x1p-40f, 0x1p40f, 0x1p100f, 0x1p126f}) {
+        const Ray ray{{0.25f, 0.5f, 0.75f}, Vec3f(-0.75f, 0.5f, 1.0f) * scale, 0.0f, 0x1p-30f / scale};
+        const std::optional<std::pair<Ray, int>> scaled = scale_direction(ray);
+        ASSERT_TRUE(scaled.has_value()) << scale;
+        const auto& [conditioned, exponent] = *scaled;
+        // At 2^-149 only the largest component survives the float (0.75 and 0.5 of it round away).
+        if (scale >= 0x1p-127f) {
+            EXPECT_EQ(conditioned.direction, Vec3f(-0.375f, 0.25f, 0.5f)) << scale;
+        }
+        EXPECT_EQ(max_component(abs(conditioned.direction)), 0.5f) << scale;
+        EXPECT_EQ(conditioned.tfar, std::ldexp(ray.tfar, exponent)) << scale;
+        const float t_hit = ray.tfar / 2.0f;
+        EXPECT_EQ(restore_t(std::ldexp(t_hit, exponent), {0.0, exponent}, ray), t_hit) << scale;
+    }
+    EXPECT_FALSE(scale_direction({{0, 0, 0}, {0x1p-32f, 0, 0}, 0, kInfinity}).has_value());
+    EXPECT_FALSE(scale_direction({{0, 0, 0}, {0, -0x1p32f, 1e-30f}, 0, kInfinity}).has_value());
+}
+
+// Beyond the float range: tnear is clamped to -FLT_MAX (no kernel returns less), tfar capped where the
+// caller's t overflows, and a hit whose t would overflow is no hit.
+TEST(RayConditioning, IntervalsBeyondTheFloatRangeStayValid) {
+    const float float_max = std::numeric_limits<float>::max();
+    const Ray huge{{0, 0, 0}, {0x1p100f, 0, 0}, -float_max, kInfinity};
+    const Ray scaled_huge = scale_direction(huge)->first;
+    EXPECT_EQ(scaled_huge.tnear, -float_max);
+    EXPECT_EQ(scaled_huge.tfar, kInfinity);
+    EXPECT_TRUE(is_valid(scaled_huge));
+    const Ray tiny{{0, 0, 0}, {0x1p-140f, 0, 0}, 0, kInfinity};
+    const auto [scaled_tiny, tiny_exponent] = *scale_direction(tiny);
+    EXPECT_EQ(tiny_exponent, -139);
+    EXPECT_EQ(scaled_tiny.tfar, std::ldexp(float_max, -139));
+    EXPECT_FALSE(restore_t(1.0f, {0.0, tiny_exponent}, tiny).has_value()) << "t = 2^139 overflows";
+}
+
+}  // namespace
+}  // namespace lancer
