@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "accel_check.hpp"
+#include "fuzz_support.hpp"
 
 namespace lancer::fuzz {
 namespace {
