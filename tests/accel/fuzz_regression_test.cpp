@@ -428,5 +428,24 @@ TEST(FuzzRegression, TinyDirectionsFindWhatBruteForceFinds) {
     }
 }
 
+// Open finding (docs/robustness.md, finding 15): a ray straight down -y along the scene's x-min face, with a
+// denormal z and tnear = -2^60, through the vertex (-5, -5, -4.9375) of triangle 0 at t = 2.5e-18 (after
+// conditioning, d = (-2^-61 1.375, -0.87, 0)): brute force finds the vertex, the grid misses it.
+TEST(FuzzRegression, DISABLED_GridLosesAVertexOnTheBoxFace) {
+    const TestScene scene{
+        "vertex on the box face",
+        {{{0x1.cp-1f, -0x1.9p+1f, -0x1.4p+2f}, Vec3f(-5), {-5, -5, -0x1.3cp+2f}},
+         {{-0x1.cp-1f, 0x1.cp-1f, 0x1.ep-1f}, {-1, 0x1.ep-1f, -0x1.ep-1f}, {-0x1.ep-1f, -5, -4}}},
+        {{{-4, 1, 1}, 1, 0}}};
+    const std::vector<Ray> rays = {
+        {{-5, 0, -0x1.3cp+2f}, {-0x1.6p+0f, -0x1.bbbbbap+60f, 0x1.1p-145f}, -0x1.bbbbbap+60f, kInfinity}};
+    const std::unique_ptr<Accel> brute = make_accel("brute"), grid = make_accel("grid");
+    brute->build(scene.geometry(), {});
+    grid->build(scene.geometry(), {});
+    const std::vector<Hit> expected = trace(*brute, rays);
+    ASSERT_EQ(expected[0].prim, 0);
+    EXPECT_EQ(compare_hits(rays, expected, trace(*grid, rays)).mismatches, 0u);
+}
+
 }  // namespace
 }  // namespace lancer
