@@ -1,7 +1,8 @@
-// Kernel throughput: one triangle test (both variants), one slab test, one sphere test, per call; and one
-// node step of each walk (BVH inner node, octree node, kd-tree node, Pluecker leaf-to-leaf step) and the
-// Pluecker exit face alone. Inputs are random but fixed (seeded) and visited in a shuffled order, and half of
-// the rays hit, so branch prediction is not flattered. docs/accel/parallel-build.md has the figures.
+// Kernel throughput: one triangle test (both variants), one slab test, one sphere test, per call; the ray
+// conditioning scan of a batch, per ray; one node step of each walk (BVH inner node, octree node, kd-tree
+// node, Pluecker leaf-to-leaf step) and the Pluecker exit face alone. Inputs are random but fixed (seeded)
+// and visited in a shuffled order, and half of the rays hit, so branch prediction is not flattered.
+// docs/accel/parallel-build.md has the figures.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -14,6 +15,7 @@
 #include "accel/plucker/plucker.hpp"
 #include "accel/plucker/walk.hpp"
 #include "core/intersect.hpp"
+#include "core/ray_conditioning.hpp"
 #include "lancer/generate.hpp"
 
 namespace lancer {
@@ -79,6 +81,17 @@ void BM_Box(benchmark::State& state) {
     state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_Box)->Name("box/slab");
+
+// What Accel::intersect adds to every batch (src/core/ray_conditioning.hpp): the scan of a batch of ordinary
+// rays, none of which needs conditioning. Per ray; compare with a structure's ns per ray.
+void BM_ConditionOrdinaryBatch(benchmark::State& state) {
+    const Inputs& in = inputs();
+    const Box3f scene{Vec3f(-1.0f), Vec3f(1.0f)};
+    for (auto _ : state)
+        benchmark::DoNotOptimize(condition_rays(in.rays, scene));
+    state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(kCount));
+}
+BENCHMARK(BM_ConditionOrdinaryBatch)->Name("batch/condition_rays");
 
 void BM_Sphere(benchmark::State& state) {
     const Inputs& in = inputs();

@@ -17,6 +17,7 @@ struct Box3f {
     [[nodiscard]] bool empty() const { return !(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z); }
     [[nodiscard]] Vec3f center() const { return (lo + hi) * 0.5f; }
     [[nodiscard]] Vec3f extent() const { return hi - lo; }
+    [[nodiscard]] Box3f grown(float margin) const { return {lo - Vec3f(margin), hi + Vec3f(margin)}; }
     [[nodiscard]] float surface_area() const {
         if (empty()) return 0.0f;
         Vec3f e = extent();

@@ -1,6 +1,8 @@
 // Primary-ray generation for the pinhole camera (seed 004; shared/bench/VIEWS.md).
 #pragma once
 
+#include <vector>
+
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
 
@@ -15,6 +17,8 @@ class PinholeCamera {
     //   u = (2 film_x / W - 1) tan(fov / 2) (W / H),  v = (1 - 2 film_y / H) tan(fov / 2),
     //   direction = normalize(f + u x + v y).
     [[nodiscard]] Ray generate(float film_x, float film_y) const;
+    // The rays through the pixel centres of [x0, x1) x [y0, y1), row by row.
+    [[nodiscard]] std::vector<Ray> pixel_centre_rays(int x0, int y0, int x1, int y1) const;
     [[nodiscard]] int width() const { return width_; }
     [[nodiscard]] int height() const { return height_; }
 

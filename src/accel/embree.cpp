@@ -61,8 +61,7 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box) {
     query.tnear = ray.tnear, query.tfar = ray.tfar;
     if (ray.tnear < 0.0f) {
         float entry = 0.0f, exit = 0.0f;
-        if (!intersect_box(SlabRay(ray), scene_box, ray.tnear, ray.tfar, entry, exit) || !(entry <= exit))
-            return std::nullopt;
+        if (!intersect_box(SlabRay(ray), scene_box, ray.tnear, ray.tfar, entry, exit)) return std::nullopt;
         // Nothing lies in [tnear, entry): from an entry ahead of the origin, Embree's [0, tfar] is enough.
         const float start = std::min(entry, 0.0f);
         query.ray.origin = ray.origin + ray.direction * start;
@@ -174,9 +173,7 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
     release_scene();
     packet_ = options.embree_packet;
     triangle_count_ = static_cast<unsigned int>(geometry.triangles.size());
-    scene_box_ = geometry.bounds();
-    const float tolerance = geometric_tolerance(scene_box_);
-    scene_box_.lo -= Vec3f(tolerance), scene_box_.hi += Vec3f(tolerance);
+    scene_box_ = bounds().grown(geometric_tolerance(bounds()));
     primitive_count_ = geometry.size();
     buffer_bytes_ = 0;
     scene_ = rtcNewScene(device_);

@@ -103,7 +103,7 @@ void GridAccel::build_structure(const Geometry& geometry, const BuildOptions& op
     // entry box and every cell are grown by the scene's geometric tolerance, so that neither the slab test
     // nor a cell's reference list culls a hit that brute force finds.
     tolerance_ = geometric_tolerance(bounds_);
-    entry_box_ = {bounds_.lo - Vec3f(tolerance_), bounds_.hi + Vec3f(tolerance_)};
+    entry_box_ = bounds_.grown(tolerance_);
     cell_begin_.clear();
     references_.clear();
     const std::size_t primitive_count = geometry.size();
@@ -231,7 +231,7 @@ Box3f GridAccel::cell_box(int x, int y, int z) const {
 
 Box3f GridAccel::reference_box(int x, int y, int z) const {
     const Box3f box = cell_box(x, y, z);
-    return {box.lo - Vec3f(tolerance_), box.hi + Vec3f(tolerance_)};
+    return box.grown(tolerance_);
 }
 
 std::span<const std::uint32_t> GridAccel::cell_primitives(int x, int y, int z) const {

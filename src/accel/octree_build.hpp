@@ -86,9 +86,7 @@ struct Octree {
         return cube.cell_box(cell.level, cell.x, cell.y, cell.z);
     }
     // The box whose overlapping primitives a cell references.
-    [[nodiscard]] Box3f reference_box(const Box3f& cell_box) const {
-        return {cell_box.lo - Vec3f(tolerance), cell_box.hi + Vec3f(tolerance)};
-    }
+    [[nodiscard]] Box3f reference_box(const Box3f& cell_box) const { return cell_box.grown(tolerance); }
 };
 
 // Top-down, depth first: a cell is split while level < max_depth (clamped to [0, kOctreeMaxLevel]) and it

@@ -163,10 +163,23 @@ struct ConditionedRays {
     return std::pair{scaled, exponent};
 }
 
+// Whether a ray may need conditioning: a direction outside the ordinary range or a far origin. Invalid rays
+// may answer yes (their NaN comparisons fail); condition_rays then leaves them to miss. Written without
+// branches, so that the scan of a batch of ordinary rays stays a few compares per ray.
+[[nodiscard]] inline bool may_need_conditioning(const Ray& ray, const FarOriginFrame& frame) {
+    const float largest = max_component(abs(ray.direction));
+    return !(largest >= kDirectionLowest) | !(largest <= kDirectionHighest) | frame.is_far(ray.origin);
+}
+
 [[nodiscard]] inline ConditionedRays condition_rays(std::span<const Ray> rays, const Box3f& scene_bounds) {
     const FarOriginFrame frame(scene_bounds);
     ConditionedRays conditioned;
+    bool any = false;
+    for (const Ray& ray : rays)
+        any |= may_need_conditioning(ray, frame);
+    if (!any) return conditioned;
     for (std::size_t i = 0; i < rays.size(); ++i) {
+        if (!may_need_conditioning(rays[i], frame)) continue;
         if (!is_valid(rays[i])) continue;
         Ray ray = rays[i];
         RayConditioning how;

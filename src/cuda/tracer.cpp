@@ -136,14 +136,8 @@ CudaTrace CudaTracer::trace_frame(const Camera& camera, bool count_steps) {
     // A camera far from the scene: its rays are made here and conditioned like the CPU's (Accel::intersect;
     // src/core/ray_conditioning.hpp), so that both answer them alike. Camera directions are ordinary.
     if (FarOriginFrame(impl_->bounds).is_far(camera.eye)) {
-        const PinholeCamera pinhole(camera);
-        std::vector<Ray> rays;
-        rays.reserve(ray_count);
-        for (int y = 0; y < camera.height; ++y) {
-            for (int x = 0; x < camera.width; ++x)
-                rays.push_back(pinhole.generate(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f));
-        }
-        return trace_rays(rays, count_steps);
+        return trace_rays(PinholeCamera(camera).pixel_centre_rays(0, 0, camera.width, camera.height),
+                          count_steps);
     }
     gpu::LaunchRays launch;
     launch.camera = gpu::camera_frame(camera);

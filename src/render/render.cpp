@@ -133,13 +133,7 @@ class TileRenderer {
             return;
         }
 
-        std::vector<Ray> rays;
-        rays.reserve(static_cast<std::size_t>(x1 - x0) * static_cast<std::size_t>(y1 - y0));
-        for (int y = y0; y < y1; ++y) {
-            for (int x = x0; x < x1; ++x) {
-                rays.push_back(camera_.generate(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f));
-            }
-        }
+        const std::vector<Ray> rays = camera_.pixel_centre_rays(x0, y0, x1, y1);
         std::vector<Hit> hits(rays.size());
         if (mode_ == ShadingMode::Heatmap) {
             trace_counting(rays, hits, x0, y0, x1);

@@ -26,4 +26,14 @@ Ray PinholeCamera::generate(float film_x, float film_y) const {
     return ray;
 }
 
+std::vector<Ray> PinholeCamera::pixel_centre_rays(int x0, int y0, int x1, int y1) const {
+    std::vector<Ray> rays;
+    rays.reserve(static_cast<std::size_t>(x1 - x0) * static_cast<std::size_t>(y1 - y0));
+    for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x)
+            rays.push_back(generate(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f));
+    }
+    return rays;
+}
+
 }  // namespace lancer
