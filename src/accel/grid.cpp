@@ -132,9 +132,14 @@ void GridAccel::set_resolution(const std::array<int, 3>& resolution) {
         const float count = static_cast<float>(resolution[axis]);
         cell_size_[axis] = resolution[axis] > 0 ? extent / count : 0.0f;
         inverse_cell_size_[axis] = extent > 0.0f ? count / extent : 0.0f;
+        // The outer planes are the entry box's faces, not the scene box's: the boundary cells reach as far as
+        // the entry box, so that a ray that enters the grown box, or runs along a face of the scene box
+        // inside the tolerance band, walks the cells there rather than leaving the grid at the scene box's
+        // face (docs/robustness.md, finding 15).
         std::vector<float>& planes = planes_[axis];
-        planes.assign(static_cast<std::size_t>(resolution[axis]) + 1, bounds_.hi[axis]);
-        for (int index = 0; index < resolution[axis]; ++index)
+        planes.assign(static_cast<std::size_t>(resolution[axis]) + 1, entry_box_.hi[axis]);
+        planes[0] = entry_box_.lo[axis];
+        for (int index = 1; index < resolution[axis]; ++index)
             planes[static_cast<std::size_t>(index)] =
                 lower_[axis] + static_cast<float>(index) * cell_size_[axis];
     }

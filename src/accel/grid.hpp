@@ -61,7 +61,7 @@ class GridAccel final : public Accel {
     // references would exceed `reference_budget`.
     bool fill_cells(std::size_t reference_budget);
     void set_resolution(const std::array<int, 3>& resolution);
-    // Coordinate of the plane between cells index - 1 and index on `axis` (0: the box's lower face,
+    // Coordinate of the plane between cells index - 1 and index on `axis` (0: the entry box's lower face,
     // resolution: its upper face). Build (cell boxes) and traversal (exit distances) read this one table, so
     // that a cell's box and the distances at which the walk enters and leaves it refer to the same planes,
     // bit for bit.
@@ -76,9 +76,9 @@ class GridAccel final : public Accel {
     Geometry geometry_;
     BuildOptions options_;
     double build_ms_ = 0.0;
-    Box3f bounds_;            // the scene's box: the planes cut it into cells
+    Box3f bounds_;            // the scene's box: its cells' size and index mapping derive from it
     float tolerance_ = 0.0f;  // geometric_tolerance(bounds_): cells and the entry box are grown by it
-    Box3f entry_box_;         // bounds_ grown by tolerance_, for the ray's entry (slab test)
+    Box3f entry_box_;         // bounds_ grown by tolerance_: the ray's entry (slab test) and the outer planes
     // Per-axis frame of the grid (arrays rather than Vec3f: the walk indexes them by a run-time axis).
     std::array<int, 3> resolution_{0, 0, 0};
     std::array<float, 3> lower_{}, cell_size_{}, inverse_cell_size_{};
