@@ -115,17 +115,20 @@ template <class Ops>
     return Ops::max(Ops::abs(a.x), Ops::max(Ops::abs(a.y), Ops::abs(a.z)));
 }
 
-// MollerTrumbore::intersect on K lanes.
+// MollerTrumbore::intersect on K lanes. A lane in the grazing band that passes the widened float u and v
+// tests is left to the scalar kernel, which decides it in double.
 template <class Ops>
 struct MollerTrumboreBlock {
     Vec3v<Ops> origin, direction;
-    typename Ops::Float band_scale;  // kIllConditioned * direction_scale, the first product of the band
+    typename Ops::Float band_scale;   // kIllConditioned * direction_scale, the first product of the band
+    typename Ops::Float slack_scale;  // kGrazingSlack * direction_scale, the first product of the slack
 
     explicit MollerTrumboreBlock(const MollerTrumbore::RayData& ray)
         : origin{Ops::broadcast(ray.origin.x), Ops::broadcast(ray.origin.y), Ops::broadcast(ray.origin.z)},
           direction{Ops::broadcast(ray.direction.x), Ops::broadcast(ray.direction.y),
                     Ops::broadcast(ray.direction.z)},
-          band_scale(Ops::broadcast(MollerTrumbore::kIllConditioned * ray.direction_scale)) {}
+          band_scale(Ops::broadcast(MollerTrumbore::kIllConditioned * ray.direction_scale)),
+          slack_scale(Ops::broadcast(MollerTrumbore::kGrazingSlack * ray.direction_scale)) {}
 
     template <int K>
     void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
@@ -136,25 +139,34 @@ struct MollerTrumboreBlock {
         const Vec3v<Ops> p = cross(direction, e2);
         const Float det = dot(p, e1);
         const Float abs_det = Ops::abs(det);
-        Float accept = Ops::bit_and(
-            Ops::greater(abs_det,
-                         Ops::mul(Ops::mul(band_scale, max_abs_component(e1)), max_abs_component(e2))),
-            Ops::less(abs_det, Ops::broadcast(kInfinity)));
+        const Float e1_scale = max_abs_component(e1), e2_scale = max_abs_component(e2);
+        const Float band = Ops::mul(Ops::mul(band_scale, e1_scale), e2_scale);
+        Float accept =
+            Ops::bit_and(Ops::greater(abs_det, band), Ops::less(abs_det, Ops::broadcast(kInfinity)));
         const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
         const Vec3v<Ops> to_origin = sub(origin, v0);
+        const Float grazing =
+            Ops::less_equal(abs_det, Ops::mul(band, Ops::broadcast(MollerTrumbore::kGrazingScale)));
+        // bit_and with the grazing mask: the scalar kernel's slack, or +0 outside the band.
+        const Float slack = Ops::bit_and(
+            grazing, Ops::mul(Ops::mul(slack_scale, max_abs_component(to_origin)), Ops::abs(inv_det)));
+        const Float slack_u = Ops::mul(slack, e2_scale), slack_v = Ops::mul(slack, e1_scale);
         const Float u = Ops::mul(dot(to_origin, p), inv_det);
         const Float zero = Ops::broadcast(0.0f), one = Ops::broadcast(1.0f);
-        accept = Ops::bit_and(accept, Ops::bit_and(Ops::greater_equal(u, zero), Ops::less_equal(u, one)));
+        accept = Ops::bit_and(accept, Ops::bit_and(Ops::greater_equal(u, Ops::sub(zero, slack_u)),
+                                                   Ops::less_equal(u, Ops::add(one, slack_u))));
         const Vec3v<Ops> q = cross(to_origin, e1);
         const Float v = Ops::mul(dot(direction, q), inv_det);
         accept = Ops::bit_and(
-            accept, Ops::bit_and(Ops::greater_equal(v, zero), Ops::less_equal(Ops::add(u, v), one)));
+            accept, Ops::bit_and(Ops::greater_equal(v, Ops::sub(zero, slack_v)),
+                                 Ops::less_equal(Ops::add(u, v), Ops::add(one, Ops::add(slack_u, slack_v)))));
+        const unsigned scalar_lanes = Ops::mask(Ops::bit_and(accept, grazing));
         const Float t = Ops::mul(dot(e2, q), inv_det);
         accept = Ops::bit_and(accept, Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
                                                                 Ops::less_equal(t, Ops::broadcast(tfar))),
                                                    Ops::less(t, Ops::broadcast(kInfinity))));
-        out.hit_lanes = Ops::mask(accept);
-        out.scalar_lanes = 0;
+        out.hit_lanes = Ops::mask(accept) & ~scalar_lanes;
+        out.scalar_lanes = scalar_lanes;
         Ops::store(out.t, t), Ops::store(out.u, u), Ops::store(out.v, v);
     }
 };

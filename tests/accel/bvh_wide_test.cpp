@@ -479,14 +479,13 @@ void check_block_kernels(std::uint32_t seed) {
     KernelCheckCounts counts;
     check_block_kernel<TriangleTestT, 4>(seed, counts);
     check_block_kernel<TriangleTestT, 8>(seed + 1, counts);
-    // Not a degenerate sample: many lanes hit, many closest hits change, and the watertight test hands many
-    // lanes (grid triangles, repeated vertices) to its double fallback.
+    // Not a degenerate sample: many lanes hit, many closest hits change, and both tests hand lanes to their
+    // double fallback: the watertight test many (grid triangles, repeated vertices), Moller-Trumbore its
+    // grazing lanes (47 with these seeds).
     EXPECT_GT(counts.lane_hits, 6000u);
     EXPECT_GT(counts.closest_hits, 5000u);
     EXPECT_GT(counts.occluded, 5000u);
-    if constexpr (std::is_same_v<TriangleTestT, Watertight>) {
-        EXPECT_GT(counts.scalar_lanes, 1000u);
-    }
+    EXPECT_GT(counts.scalar_lanes, (std::is_same_v<TriangleTestT, Watertight> ? 1000u : 20u));
 }
 
 TEST(TriangleBlock, MollerTrumboreBlockEqualsScalarTest) {

@@ -428,5 +428,34 @@ TEST(FuzzRegression, GridFindsAVertexOnTheBoxFace) {
     EXPECT_EQ(expect_every_structure_agrees(scene, rays).front()[0].prim, 0);
 }
 
+// Finding 16 (docs/robustness.md): a ray that grazes a long sliver (triangle 4, from -4e5 to within a unit
+// of the origin) at 8e-6 rad, near its short edge. Its exact line meets the triangle at t = -1.819, outside
+// [1.875, inf]; Moller-Trumbore in float said t = 349.2 (an error of |T| / 1600 where T = o - v0), so brute
+// force answered a hit 330 units outside the scene box that no structure visits. Grazing hits are now
+// decided in double (MollerTrumbore::intersect_in_double): every structure and brute force miss.
+TEST(FuzzRegression, GrazingSliverHitIsDecidedInDouble) {
+    const TestScene scene{
+        "grazing sliver",
+        {{{-0x1.ep-1f, -0x1.ep-1f, 0x1p+0f},
+          {-0x1.4p+2f, -0x1.ep-1f, 0x1.ep-1f},
+          {-0x1p+0f, -0x1.cp-1f, 0x1.cp-1f}},
+         {{-0x1.ep-1f, -0x1.ep-1f, 0x1.cp-1f},
+          {-0x1.ep-1f, -0x1.cp-1f, 0x1.ep-1f},
+          {-0x1.ep-1f, -0x1.ep-1f, 0x1.cp-1f}},
+         {{-0x1p+0f, -0x1.cp-1f, 0x1.cp-1f}, Vec3f(0x1.6p-1f), Vec3f(0x1.6p-1f)},
+         {Vec3f(0x1.6p-1f), {0x1.6p-1f, 0x1.6p-1f, 0x1.ep-1f}, {-0x1.ap-1f, -0x1.4p+2f, -0x1.91919p+18f}},
+         {{-0x1.91919p+18f, -0x1.91919p+18f, -0x1.82be82p+17f},
+          {-0x1p-1f, 0x1.ep-1f, -0x1.ep-1f},
+          {-0x1.ep-1f, 0x1p+0f, 0x1.6p-1f}},
+         {{0x1.6p-1f, -0x1.ep-1f, -0x1.ep-1f},
+          {0x1.cp-1f, -0x1.ep-1f, -0x1.cp-1f},
+          {0x1.ep-1f, -0x1p+0f, -0x1.ep-1f}}},
+        {{{-0x1p+0f, -0x1.cp-1f, 0x1.cp-1f}, 0x1p+0f, 0},
+         {{-0x1.ep-1f, 0x1.ep-1f, -0x1.ep-1f}, 0x1.cp-1f, 0}}};
+    const Ray grazing{{0x1.ep-1f, -0x1p+0f, -0x1.ep-1f}, {0x1.ep-1f, -0x1.ep-1f, 0}, 0x1.ep+0f, kInfinity};
+    for (const std::vector<Hit>& expected : expect_every_structure_agrees(scene, std::span(&grazing, 1)))
+        EXPECT_FALSE(expected[0].hit());
+}
+
 }  // namespace
 }  // namespace lancer

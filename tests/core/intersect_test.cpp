@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstring>
 #include <random>
 
 namespace lancer {
@@ -85,6 +87,88 @@ TYPED_TEST(TriangleTestSuite, DegenerateTrianglesNeverHit) {
     const Triangle point{{1, 1, 1}, {1, 1, 1}, {1, 1, 1}};
     EXPECT_FALSE(hit_triangle<TypeParam>(make_ray({1.0f, 1.0f, 2.0f}, {0, 0, -1}), collapsed, hit));
     EXPECT_FALSE(hit_triangle<TypeParam>(make_ray({1.0f, 1.0f, 2.0f}, {0, 0, -1}), point, hit));
+}
+
+// Fuzz finding 16: a ray grazing a long sliver (8e-6 rad) near its short edge, 5.7e5 from v0. In float,
+// Moller-Trumbore's t was 349.2 for an exact -1.8187151379 (computed in rational arithmetic); the grazing
+// band decides it in double. Watertight's t, a convex combination of the vertices' depths, was right.
+TEST(TriangleTests, GrazingMollerTrumboreHitIsDecidedInDouble) {
+    const Triangle sliver{{-0x1.91919p+18f, -0x1.91919p+18f, -0x1.82be82p+17f},
+                          {-0x1p-1f, 0x1.ep-1f, -0x1.ep-1f},
+                          {-0x1.ep-1f, 0x1p+0f, 0x1.6p-1f}};
+    const Ray ray = make_ray({0x1.ep-1f, -0x1p+0f, -0x1.ep-1f}, {0x1.ep-1f, -0x1.ep-1f, 0}, -8.0f, 8.0f);
+    TriangleHit hit;
+    ASSERT_TRUE(hit_triangle<MollerTrumbore>(ray, sliver, hit));
+    EXPECT_NEAR(hit.t, -1.8187151378988782, 1e-6);
+    EXPECT_NEAR(hit.u, 0.9298160010141306, 1e-6);
+    EXPECT_NEAR(hit.v, 0.0701834230206884, 1e-6);
+    // From t = 1.875, as the fuzzer cast it: no hit.
+    EXPECT_FALSE(
+        hit_triangle<MollerTrumbore>(make_ray(ray.origin, ray.direction, 1.875f, kInfinity), sliver, hit));
+}
+
+// Grazing rays (1e-6 to 1e-1 rad) at triangles of every size from 1 to 1e5, aimed at points inside or near
+// them, from up to the triangle's size away. Against the same formula in double (intersect_in_double):
+// - in the grazing band, the answer is the double test's, bit for bit (the widened float screens never drop
+//   a hit it finds);
+// - outside it, the float test decides: hit and miss agree except within 1e-4 of an edge, and t errs by at
+//   most 2^-24 kappa |T| times a constant, kappa = |d| |e1| |e2| / |det| <= 2^8 (max norms). The constant
+//   32 covers the forward error of the cross and dot products (about 24 observed).
+TEST(TriangleTests, MollerTrumboreDecidesGrazingRaysInDouble) {
+    std::mt19937 rng(16);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    auto random_point = [&](float scale) {
+        return Vec3f(unit(rng) - 0.5f, unit(rng) - 0.5f, unit(rng) - 0.5f) * scale;
+    };
+    int float_hits = 0, double_hits = 0, grazing = 0;
+    for (int i = 0; i < 20000; ++i) {
+        const float size = std::pow(10.0f, 5.0f * unit(rng));
+        const Triangle tri{random_point(size), random_point(size), random_point(size)};
+        const Vec3f normal = tri.geometric_normal();
+        if (!(length(normal) > 0.0f)) continue;
+        const float a = 1.2f * unit(rng) - 0.1f, b = (1.2f * unit(rng) - 0.1f) * (1.0f - a);
+        const Vec3f target = tri.v0 + a * (tri.v1 - tri.v0) + b * (tri.v2 - tri.v0);
+        // A direction in the plane, tilted out of it by the angle.
+        const Vec3f in_plane = normalize(cross(normal, random_point(1.0f)));
+        const float angle = std::pow(10.0f, -6.0f + 5.0f * unit(rng));
+        const Vec3f direction = in_plane + angle * normalize(normal);
+        const Vec3f origin = target - (size * unit(rng)) * direction;
+        const Ray ray = make_ray(origin, direction, -4.0f * size, 4.0f * size);
+
+        const MollerTrumbore::RayData data(ray);
+        TriangleHit reference, hit;
+        const bool reference_hit =
+            MollerTrumbore::intersect_in_double(data, tri, ray.tnear, ray.tfar, reference);
+        const bool float_hit = hit_triangle<MollerTrumbore>(ray, tri, hit);
+        const Vec3f e1 = tri.v1 - tri.v0, e2 = tri.v2 - tri.v0;
+        const float det = dot(cross(ray.direction, e2), e1);
+        const float scales = data.direction_scale * max_component(abs(e1)) * max_component(abs(e2));
+        if (!(std::fabs(det) > MollerTrumbore::kIllConditioned * scales)) continue;  // the miss band
+        if (std::fabs(det) <= MollerTrumbore::kGrazingBand * scales) {
+            ++grazing;
+            ASSERT_EQ(float_hit, reference_hit) << "ray " << i;
+            if (!float_hit) continue;
+            ++double_hits;
+            ASSERT_TRUE(std::memcmp(&hit, &reference, sizeof(TriangleHit)) == 0) << "ray " << i;
+            continue;
+        }
+        if (float_hit != reference_hit) {
+            const TriangleHit& one = float_hit ? hit : reference;
+            const float margin = 1e-4f;
+            EXPECT_TRUE(one.u < margin || one.v < margin || 1.0f - one.u - one.v < margin) << "ray " << i;
+            continue;
+        }
+        if (!float_hit) continue;
+        ++float_hits;
+        const double kappa = scales / std::fabs(det);
+        const double bound = 32.0 * 0x1p-24 * kappa * max_component(abs(ray.origin - tri.v0));
+        ASSERT_LE(std::fabs(double(hit.t) - double(reference.t)) * data.direction_scale, bound)
+            << "ray " << i;
+    }
+    // Both paths were exercised, on hits as on misses.
+    EXPECT_GT(grazing, 5000);
+    EXPECT_GT(double_hits, 2000);
+    EXPECT_GT(float_hits, 2000);
 }
 
 TEST(TriangleTests, WatertightAgreesWithMollerTrumboreOnRandomRays) {
