@@ -225,19 +225,30 @@ struct Watertight {
 // Haines et al., "Precision Improvements for Ray/Sphere Intersection" (Ray Tracing Gems, ch. 7), which
 // stays accurate far from the sphere, and the stable root pair q / a, c / q. The nearer root in
 // [tnear, tfar] wins; the far one answers rays that start inside. (u, v) = (azimuth / 2pi, polar / pi).
+// In double: the squares of float lengths neither underflow nor overflow there. In float, a sphere of
+// radius 3e-41 squared to 0, and so did a ray's 1.4e-30 distance from it: the discriminant 0 - 0 said
+// tangent (fuzz finding 17). Spheres are tested one at a time (scalar lanes), so double costs little.
 [[nodiscard]] inline bool intersect_sphere(const Ray& ray, const Sphere& sphere, float tnear, float tfar,
                                            TriangleHit& out) {
     if (!(sphere.radius > 0.0f)) return false;
-    const Vec3f f = ray.origin - sphere.center;
-    const float a = dot(ray.direction, ray.direction);
-    const float half_b = dot(f, ray.direction);
-    const Vec3f closest_offset = f - (half_b / a) * ray.direction;
-    const float r2 = sphere.radius * sphere.radius;
-    const float discriminant = a * (r2 - dot(closest_offset, closest_offset));
-    if (!(discriminant >= 0.0f)) return false;
-    const float c = dot(f, f) - r2;
-    const float q = -(half_b + std::copysign(std::sqrt(discriminant), half_b));
-    float t_near_root = c / q, t_far_root = q / a;
+    struct Vec3d {
+        double x, y, z;
+    };
+    const auto dot3 = [](const Vec3d& a, const Vec3d& b) { return a.x * b.x + a.y * b.y + a.z * b.z; };
+    const Vec3d direction{ray.direction.x, ray.direction.y, ray.direction.z};
+    const Vec3d f{double(ray.origin.x) - sphere.center.x, double(ray.origin.y) - sphere.center.y,
+                  double(ray.origin.z) - sphere.center.z};
+    const double a = dot3(direction, direction);
+    const double half_b = dot3(f, direction);
+    const double along = half_b / a;
+    const Vec3d closest_offset{f.x - along * direction.x, f.y - along * direction.y,
+                               f.z - along * direction.z};
+    const double r2 = double(sphere.radius) * sphere.radius;
+    const double discriminant = a * (r2 - dot3(closest_offset, closest_offset));
+    if (!(discriminant >= 0.0)) return false;
+    const double c = dot3(f, f) - r2;
+    const double q = -(half_b + std::copysign(std::sqrt(discriminant), half_b));
+    auto t_near_root = static_cast<float>(c / q), t_far_root = static_cast<float>(q / a);
     if (t_near_root > t_far_root) std::swap(t_near_root, t_far_root);
     float t;
     if (t_near_root >= tnear && t_near_root <= tfar && t_near_root < kInfinity) {
@@ -247,13 +258,14 @@ struct Watertight {
     } else {
         return false;  // also rejects the NaN of c / q when q == 0 (ray from the centre, tangent)
     }
-    const Vec3f local = ray.origin + t * ray.direction - sphere.center;
-    const float azimuth = std::atan2(local.y, local.x);
-    const float polar = std::acos(std::clamp(local.z / sphere.radius, -1.0f, 1.0f));
+    const Vec3d local{f.x + double(t) * direction.x, f.y + double(t) * direction.y,
+                      f.z + double(t) * direction.z};
+    const double azimuth = std::atan2(local.y, local.x);
+    const double polar = std::acos(std::clamp(local.z / sphere.radius, -1.0, 1.0));
     out = {t,
-           (azimuth < 0.0f ? azimuth + 2.0f * std::numbers::pi_v<float> : azimuth) /
-               (2.0f * std::numbers::pi_v<float>),
-           polar / std::numbers::pi_v<float>};
+           static_cast<float>((azimuth < 0.0 ? azimuth + 2.0 * std::numbers::pi : azimuth) /
+                              (2.0 * std::numbers::pi)),
+           static_cast<float>(polar / std::numbers::pi)};
     return true;
 }
 

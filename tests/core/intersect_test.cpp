@@ -247,6 +247,18 @@ TEST(SphereTests, StaysAccurateFarFromASmallSphere) {
     EXPECT_NEAR(hit.t, expected, 1e-3f);
 }
 
+// Fuzz finding 17: radius 3e-41 and a ray 1.4e-30 from the centre, whose float squares both underflow to 0.
+// In double: a miss; a ray through the centre hits at the radius, whose square is no longer 0.
+TEST(SphereTests, TinySphereSquaresDoNotUnderflow) {
+    const Sphere tiny{{0, 0, 0}, 0x1.81p-135f, 0};
+    TriangleHit hit;
+    EXPECT_FALSE(
+        intersect_sphere(make_ray(Vec3f(0x1.4484cp-100f), {0x1.4484cp-100f, 0x1.4484cp-100f, 0.9375f}, -1, 1),
+                         tiny, -1.0f, 1.0f, hit));
+    ASSERT_TRUE(intersect_sphere(make_ray({0, 0, 1}, {0, 0, -1}), tiny, 0.0f, kInfinity, hit));
+    EXPECT_EQ(hit.t, 1.0f);  // 1 - 3e-41 rounds to 1
+}
+
 TEST(PlaneTests, TheFourCasesOfSeed004) {
     const Plane ground{{0, 1, 0}, 2.0f, 0};  // y = 2
     float t = 0.0f;
