@@ -73,10 +73,11 @@ class Determinism : public ::testing::TestWithParam<std::string_view> {};
 TEST_P(Determinism, HitsAreBitIdenticalWhateverTheThreadsAndTheRun) {
     const TestScene scene = GetParam() == "brute" ? mixed_scene(2, 30) : mixed_scene(3, 2800);
     const Box3f bounds = scene.geometry().bounds();
-    std::vector<Ray> rays = testing::random_rays(bounds, 12'000, 31).rays;
-    for (const Ray& ray : testing::vertex_and_edge_rays(scene.triangles, 6'000, 32).rays)
+    constexpr std::size_t share = testing::kSanitizedShare;
+    std::vector<Ray> rays = testing::random_rays(bounds, 12'000 / share, 31).rays;
+    for (const Ray& ray : testing::vertex_and_edge_rays(scene.triangles, 6'000 / share, 32).rays)
         rays.push_back(ray);
-    for (const Ray& ray : testing::axis_parallel_rays(bounds, 4'000, 33).rays)
+    for (const Ray& ray : testing::axis_parallel_rays(bounds, 4'000 / share, 33).rays)
         rays.push_back(ray);
 
     for (TriangleTest test : {TriangleTest::Watertight, TriangleTest::MollerTrumbore}) {

@@ -103,9 +103,11 @@ const std::vector<TestScene>& scenes() {
 std::vector<testing::RaySet> ray_sets(const TestScene& scene) {
     Box3f bounds = scene.geometry().bounds();
     if (bounds.empty()) bounds = {{-1, -1, -1}, {1, 1, 1}};
-    return {testing::random_rays(bounds, 4000, 1), testing::vertex_and_edge_rays(scene.triangles, 3000, 2),
-            testing::axis_parallel_rays(bounds, 3000, 3), testing::clipped_rays(bounds, 2000, 4),
-            testing::hostile_rays(bounds)};
+    constexpr std::size_t share = testing::kSanitizedShare;
+    return {testing::random_rays(bounds, 4000 / share, 1),
+            testing::vertex_and_edge_rays(scene.triangles, 3000 / share, 2),
+            testing::axis_parallel_rays(bounds, 3000 / share, 3),
+            testing::clipped_rays(bounds, 2000 / share, 4), testing::hostile_rays(bounds)};
 }
 
 // The oracle's answers, computed once per scene, ray set and triangle test and shared by all structures.

@@ -28,11 +28,15 @@ RaySet clipped_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed);
 // The primary rays of shared/bench/VIEWS.md's canonical view, size x size, row by row.
 RaySet canonical_view_rays(const Box3f& bounds, int size = 1024);
 // Under AddressSanitizer + UBSan (LANCER_SANITIZED, docs/robustness.md) the Stanford tests trace every
-// kSanitizedStride-th ray of their sets, so that the sanitized suite stays within CI's time; 1 otherwise.
+// kSanitizedStride-th ray of their sets, and the oracle and determinism tests generate kSanitizedShare times
+// fewer rays per generated set (the hostile set stays whole), so that the sanitized suite stays within CI's
+// time; 1 otherwise.
 #ifdef LANCER_SANITIZED
 inline constexpr std::size_t kSanitizedStride = 16;
+inline constexpr std::size_t kSanitizedShare = 4;
 #else
 inline constexpr std::size_t kSanitizedStride = 1;
+inline constexpr std::size_t kSanitizedShare = 1;
 #endif
 // Keeps every stride-th ray of the set and prints how many it kept when it drops any.
 void keep_every(RaySet& set, std::size_t stride);
