@@ -8,6 +8,7 @@
 #include <limits>
 #include <numbers>
 
+#include "core/vec3d.hpp"
 #include "lancer/box.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
@@ -135,30 +136,19 @@ struct MollerTrumbore {
     // v within about 2^-33 |T| even at the first band.
     [[nodiscard]] static bool intersect_in_double(const RayData& ray, const Triangle& tri, float tnear,
                                                   float tfar, TriangleHit& out) {
-        struct Vec3d {
-            double x, y, z;
-        };
-        const auto widen = [](const Vec3f& a) { return Vec3d{a.x, a.y, a.z}; };
-        const auto sub = [](const Vec3d& a, const Vec3d& b) {
-            return Vec3d{a.x - b.x, a.y - b.y, a.z - b.z};
-        };
-        const auto dot3 = [](const Vec3d& a, const Vec3d& b) { return a.x * b.x + a.y * b.y + a.z * b.z; };
-        const auto cross3 = [](const Vec3d& a, const Vec3d& b) {
-            return Vec3d{a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-        };
-        const Vec3d v0 = widen(tri.v0), direction = widen(ray.direction);
-        const Vec3d e1 = sub(widen(tri.v1), v0), e2 = sub(widen(tri.v2), v0);
-        const Vec3d p = cross3(direction, e2);
-        const double det = dot3(p, e1);
+        const Vec3d v0(tri.v0), direction(ray.direction);
+        const Vec3d e1 = Vec3d(tri.v1) - v0, e2 = Vec3d(tri.v2) - v0;
+        const Vec3d p = cross(direction, e2);
+        const double det = dot(p, e1);
         if (det == 0.0) return false;
         const double inv_det = 1.0 / det;
-        const Vec3d to_origin = sub(widen(ray.origin), v0);
-        const double u = dot3(to_origin, p) * inv_det;
+        const Vec3d to_origin = Vec3d(ray.origin) - v0;
+        const double u = dot(to_origin, p) * inv_det;
         if (!(u >= 0.0 && u <= 1.0)) return false;
-        const Vec3d q = cross3(to_origin, e1);
-        const double v = dot3(direction, q) * inv_det;
+        const Vec3d q = cross(to_origin, e1);
+        const double v = dot(direction, q) * inv_det;
         if (!(v >= 0.0 && u + v <= 1.0)) return false;
-        const auto t = static_cast<float>(dot3(e2, q) * inv_det);
+        const auto t = static_cast<float>(dot(e2, q) * inv_det);
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
         out = {t, static_cast<float>(u), static_cast<float>(v)};
         return true;
@@ -231,22 +221,15 @@ struct Watertight {
 [[nodiscard]] inline bool intersect_sphere(const Ray& ray, const Sphere& sphere, float tnear, float tfar,
                                            TriangleHit& out) {
     if (!(sphere.radius > 0.0f)) return false;
-    struct Vec3d {
-        double x, y, z;
-    };
-    const auto dot3 = [](const Vec3d& a, const Vec3d& b) { return a.x * b.x + a.y * b.y + a.z * b.z; };
-    const Vec3d direction{ray.direction.x, ray.direction.y, ray.direction.z};
-    const Vec3d f{double(ray.origin.x) - sphere.center.x, double(ray.origin.y) - sphere.center.y,
-                  double(ray.origin.z) - sphere.center.z};
-    const double a = dot3(direction, direction);
-    const double half_b = dot3(f, direction);
-    const double along = half_b / a;
-    const Vec3d closest_offset{f.x - along * direction.x, f.y - along * direction.y,
-                               f.z - along * direction.z};
+    const Vec3d direction(ray.direction);
+    const Vec3d f = Vec3d(ray.origin) - Vec3d(sphere.center);
+    const double a = dot(direction, direction);
+    const double half_b = dot(f, direction);
+    const Vec3d closest_offset = f - (half_b / a) * direction;
     const double r2 = double(sphere.radius) * sphere.radius;
-    const double discriminant = a * (r2 - dot3(closest_offset, closest_offset));
+    const double discriminant = a * (r2 - dot(closest_offset, closest_offset));
     if (!(discriminant >= 0.0)) return false;
-    const double c = dot3(f, f) - r2;
+    const double c = dot(f, f) - r2;
     const double q = -(half_b + std::copysign(std::sqrt(discriminant), half_b));
     auto t_near_root = static_cast<float>(c / q), t_far_root = static_cast<float>(q / a);
     if (t_near_root > t_far_root) std::swap(t_near_root, t_far_root);
@@ -258,8 +241,7 @@ struct Watertight {
     } else {
         return false;  // also rejects the NaN of c / q when q == 0 (ray from the centre, tangent)
     }
-    const Vec3d local{f.x + double(t) * direction.x, f.y + double(t) * direction.y,
-                      f.z + double(t) * direction.z};
+    const Vec3d local = f + double(t) * direction;
     const double azimuth = std::atan2(local.y, local.x);
     const double polar = std::acos(std::clamp(local.z / sphere.radius, -1.0, 1.0));
     out = {t,

@@ -7,35 +7,15 @@
 #include <stdexcept>
 
 #include "accel/brute.hpp"
+#include "core/vec3d.hpp"
 #include "lancer/render.hpp"
 #include "render/print_vec.hpp"
 
 namespace lancer {
 namespace {
 
-struct Vec3d {
-    double x, y, z;
-};
-Vec3d operator-(Vec3d a, Vec3d b) {
-    return {a.x - b.x, a.y - b.y, a.z - b.z};
-}
-Vec3d operator+(Vec3d a, Vec3d b) {
-    return {a.x + b.x, a.y + b.y, a.z + b.z};
-}
-Vec3d operator*(double s, Vec3d a) {
-    return {s * a.x, s * a.y, s * a.z};
-}
-double dot(Vec3d a, Vec3d b) {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-Vec3d cross(Vec3d a, Vec3d b) {
-    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
 Vec3d normalize(Vec3d a) {
     return (1.0 / std::sqrt(dot(a, a))) * a;
-}
-Vec3d to_double(Vec3f a) {
-    return {a.x, a.y, a.z};
 }
 
 // The eye at (0, 0, eye_z) looks down -z with up +y and a 90-degree field, so tan(fov / 2) = 1 and the frame
@@ -122,7 +102,7 @@ TEST(RenderFlat, TrianglePixelIsColourTimesAbsoluteCosine) {
     const double cosine = std::fabs(dot(normal, pixel_direction(tiny_camera(), 10, 13)));
     ASSERT_GT(cosine, 0.1);
     ASSERT_LT(cosine, 0.99);  // tilted: a renderer that ignores the angle would fail
-    expect_color_near(image.at(10, 13), cosine * to_double(kTriangleColor));
+    expect_color_near(image.at(10, 13), cosine * Vec3d(kTriangleColor));
 }
 
 TEST(RenderFlat, SpherePixelUsesTheRadialNormal) {
@@ -134,7 +114,7 @@ TEST(RenderFlat, SpherePixelUsesTheRadialNormal) {
     const double t =
         -half_b - std::sqrt(half_b * half_b - (dot(offset, offset) - kSphereRadius * kSphereRadius));
     const Vec3d normal = (1.0 / kSphereRadius) * (kEye + t * direction - kSphereCenter);
-    expect_color_near(image.at(27, 14), std::fabs(dot(normal, direction)) * to_double(kSphereColor));
+    expect_color_near(image.at(27, 14), std::fabs(dot(normal, direction)) * Vec3d(kSphereColor));
 }
 
 TEST(RenderFlat, MissIsBackground) {
@@ -153,7 +133,7 @@ TEST(RenderFlat, FloorAlternatesColourAndQuarterColour) {
         ASSERT_EQ((static_cast<long>(std::floor(point.x)) + static_cast<long>(std::floor(point.z))) % 2 == 0,
                   parity_even);
         const double checker = parity_even ? 1.0 : 0.25;
-        expect_color_near(image.at(i, 29), checker * std::fabs(direction.y) * to_double(kFloorColor));
+        expect_color_near(image.at(i, 29), checker * std::fabs(direction.y) * Vec3d(kFloorColor));
     }
 }
 
@@ -217,7 +197,7 @@ TEST(RenderFlat, SmoothMeshStaysFaceted) {
     const Image image = render_with_brute(scene, camera, with_mode(ShadingMode::Flat));
     // The facet's normal is +z whatever the vertex normals say.
     const double cosine = std::fabs(pixel_direction(camera, 5, 3).z);
-    expect_color_near(image.at(5, 3), cosine * to_double(scene.materials[0].color));
+    expect_color_near(image.at(5, 3), cosine * Vec3d(scene.materials[0].color));
 }
 
 TEST(RenderDepth, NearestHitWhiteFarthestBlackMissBlack) {
