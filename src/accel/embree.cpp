@@ -1,5 +1,7 @@
 #include "accel/embree.hpp"
 
+#include <pmmintrin.h>  // _MM_SET_DENORMALS_ZERO_MODE's bit
+#include <xmmintrin.h>  // _mm_getcsr, _mm_setcsr
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -76,6 +78,19 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box) {
     return query;
 }
 
+// Runs an Embree query with flush-to-zero and denormals-are-zero set, the mode Embree's documentation asks
+// its callers for ("Performance Recommendations", MXCSR), then restores the caller's. Without it a denormal
+// made its triangle test report a hit at t = NaN, on which the next geometry's traversal asserted
+// `ray.valid()` and aborted (fuzz finding 18, docs/robustness.md). The mode is per thread, and set around the
+// query only: lancer's own code, to_embree's scaling of denormal directions first, keeps IEEE denormals.
+template <class Query>
+void with_denormals_flushed(Query&& query) {
+    const unsigned int caller_mode = _mm_getcsr();
+    _mm_setcsr(caller_mode | _MM_FLUSH_ZERO_ON | _MM_DENORMALS_ZERO_ON);
+    query();
+    _mm_setcsr(caller_mode);
+}
+
 void fill_ray(const Ray& ray, RTCRay& out) {
     out.org_x = ray.origin.x, out.org_y = ray.origin.y, out.org_z = ray.origin.z;
     out.dir_x = ray.direction.x, out.dir_y = ray.direction.y, out.dir_z = ray.direction.z;
@@ -141,7 +156,8 @@ void intersect_packets(RTCScene scene, const Box3f& scene_box, std::span<const R
             fill_packet_ray(queries[lane] ? queries[lane]->ray : Ray{}, packet.ray, lane);
             packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
         }
-        intersect(valid, scene, &context, reinterpret_cast<RtcPacket*>(&packet));
+        with_denormals_flushed(
+            [&] { intersect(valid, scene, &context, reinterpret_cast<RtcPacket*>(&packet)); });
         for (std::size_t lane = 0; lane < lanes; ++lane) {
             hits[first + lane] = valid[lane] ? to_hit(queries[lane]->lancer_t(packet.ray.tfar[lane]),
                                                       packet.hit.geomID[lane], packet.hit.primID[lane],
@@ -240,7 +256,7 @@ void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits
         RTCRayHit query;
         fill_ray(embree_ray->ray, query.ray);
         query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(scene_, &context, &query);
+        with_denormals_flushed([&] { rtcIntersect1(scene_, &context, &query); });
         hits[i] = to_hit(embree_ray->lancer_t(query.ray.tfar), query.hit.geomID, query.hit.primID,
                          query.hit.u, query.hit.v, triangle_count_);
     }
@@ -257,7 +273,7 @@ void EmbreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8
         if (!embree_ray) continue;
         RTCRay query;
         fill_ray(embree_ray->ray, query);
-        rtcOccluded1(scene_, &context, &query);
+        with_denormals_flushed([&] { rtcOccluded1(scene_, &context, &query); });
         occluded[i] = query.tfar == -kInfinity ? 1 : 0;  // Embree marks an occluded ray with tfar = -inf
     }
 }

@@ -78,6 +78,16 @@ std::vector<FuzzCase> fuzz_cases() {
           {{0.5f, 0x1p-149f, 0x1p-149f}, Vec3f(0x1p-149f), 0x1p-149f, 0x1p-149f},
           {{-1, -1, -1}, {0x1p-140f, 0x1p-141f, 0x1p-142f}, 0, kInfinity}},
          false},  // ray 0 crosses the first triangle on its edge: Embree's kernel and ours round differently
+        // A direction with a FLT_MAX component and [tnear, tfar] = [-5, 0], which ray conditioning turns
+        // into a unit direction with denormal x and y: Embree's triangle test, which expects denormals
+        // flushed to zero, reported a hit at t = NaN, and its sphere traversal asserted `ray.valid()` and
+        // aborted the process (finding 18; embree.cpp now sets the mode around its queries). The line
+        // touches triangle 1 only on its edge at t = tfar = 0, which the conditioned ray misses by rounding:
+        // every structure, Embree included, answers that miss.
+        {{"largest float direction, negative tnear",
+          {{{0, 0, 0}, {1, 1, 0x1.48p+1f}, {0, 0, 1}}, {{0, 0, 0}, {0, 1, 1}, {0, 0, -0x1.8p+1f}}},
+          {{{-0x1.4p+2f, 0.5f, -0x1.24p+2f}, 1}, {{0, 0, 0x1.02c0cp+33f}, 1}}},
+         {{{0, 0, -1}, {0x1p-2f, -0x1.88p+1f, 0x1.fffffep+127f}, -0x1.4p+2f, 0}}},
     };
 }
 
