@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <new>
 #include <optional>
 #include <stdexcept>
@@ -21,22 +20,27 @@ namespace {
 constexpr unsigned int kTriangleGeometry = 0;
 constexpr unsigned int kSphereGeometry = 1;
 
-// Embree asserts that coordinates stay below FLT_LARGE (1.8e18). A larger direction is scaled by a power of
-// two (exact, t is scaled back); an origin that far away is outside Embree's domain and answered as a miss.
+// Embree asserts that coordinates stay below FLT_LARGE (1.8e18): an origin beyond 2^60 (a far ray that ray
+// conditioning could not move near the scene) is outside Embree's domain and answered as a miss.
 constexpr float kEmbreeLargest = 0x1p60f;
-// Embree also asserts `ray.valid()` on a direction whose components are all denormal (fuzz/rays_fuzz.cpp,
-// docs/robustness.md): so tiny a direction is scaled up the same way.
-constexpr float kEmbreeSmallest = 0x1p-60f;
 
-// The power of two that brings the direction inside Embree's domain (1 for ordinary rays).
-float direction_scale(const Ray& ray) {
-    const float largest = max_component(abs(ray.direction));
-    float scale = 1.0f;
-    while (largest * scale > kEmbreeLargest)
-        scale *= 0x1p-32f;
-    while (largest * scale < kEmbreeSmallest)
-        scale *= 0x1p32f;
-    return scale;
+// Embree's float triangle test multiplies three of the scene's lengths (T = Ng . (v0 - o), Ng = e1 x e2),
+// which overflowed for a scene 3e16 across: it returned t = NaN or inf (fuzz finding 19, docs/robustness.md).
+// Embree is therefore given the scene scaled by a power of two that brings its largest coordinate into
+// [2^-20, 2^20], where those products stay in float's range; ordinary scenes lie there already (scale 1).
+// Ray origins are scaled with the scene and directions are not, so Embree's t is lancer's times the scale:
+// both exact, as every product by a power of two that neither overflows nor underflows.
+constexpr int kEmbreeLargestExponent = 20;
+
+float scene_scale(const Box3f& bounds) {
+    const float largest = std::max(max_component(abs(bounds.lo)), max_component(abs(bounds.hi)));
+    if (!(largest > 0.0f)) return 1.0f;  // an empty scene, or one that is a point at the origin
+    const int exponent = std::ilogb(largest);
+    if (std::abs(exponent) <= kEmbreeLargestExponent) return 1.0f;
+    // The scale and its inverse stay normal floats (exponent within [-126, 126]).
+    const int scale_exponent = std::clamp(
+        exponent > 0 ? kEmbreeLargestExponent - 1 - exponent : -kEmbreeLargestExponent - exponent, -126, 126);
+    return std::ldexp(1.0f, scale_exponent);
 }
 
 // A ray as Embree is given it: lancer's t = Embree's t * scale + t_offset, kept in the caller's
@@ -52,12 +56,12 @@ struct EmbreeRay {
     }
 };
 
-// The ray in Embree's domain, or none: invalid rays (is_valid) and origins beyond kEmbreeLargest miss.
-// Embree also asserts tnear >= 0 (Debian's build keeps its assertions; found by fuzz/rays_fuzz.cpp,
+// The ray in Embree's domain and scale, or none: invalid rays (is_valid) and origins beyond kEmbreeLargest
+// miss. Embree also asserts tnear >= 0 (Debian's build keeps its assertions; found by fuzz/rays_fuzz.cpp,
 // docs/robustness.md): a ray whose interval starts behind its origin starts where it enters the scene's box
 // (grown by the geometric tolerance) instead, so that the origin Embree sees lies near the scene even when
 // tnear is far behind (a far ray moved near the scene by Accel::intersect comes with tnear < 0).
-std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box) {
+std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float scene_scale) {
     if (!is_valid(ray)) return std::nullopt;
     EmbreeRay query{ray};
     query.tnear = ray.tnear, query.tfar = ray.tfar;
@@ -71,10 +75,11 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box) {
         query.ray.tfar = ray.tfar - start;
         query.t_offset = start;
     }
+    query.ray.origin *= scene_scale;
     if (!is_finite(query.ray.origin) || max_component(abs(query.ray.origin)) > kEmbreeLargest)
         return std::nullopt;
-    query.scale = direction_scale(query.ray);
-    query.ray.direction *= query.scale, query.ray.tnear /= query.scale, query.ray.tfar /= query.scale;
+    query.scale = 1.0f / scene_scale;
+    query.ray.tnear *= scene_scale, query.ray.tfar *= scene_scale;
     return query;
 }
 
@@ -82,7 +87,7 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box) {
 // its callers for ("Performance Recommendations", MXCSR), then restores the caller's. Without it a denormal
 // made its triangle test report a hit at t = NaN, on which the next geometry's traversal asserted
 // `ray.valid()` and aborted (fuzz finding 18, docs/robustness.md). The mode is per thread, and set around the
-// query only: lancer's own code, to_embree's scaling of denormal directions first, keeps IEEE denormals.
+// query only: lancer's own code keeps IEEE denormals.
 template <class Query>
 void with_denormals_flushed(Query&& query) {
     const unsigned int caller_mode = _mm_getcsr();
@@ -109,8 +114,8 @@ void fill_packet_ray(const Ray& ray, RTCRayNt<N>& out, int lane) {
 // Embree numbers primitives per geometry; lancer's global numbering puts the spheres after the triangles.
 Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, float v,
            unsigned int triangle_count) {
-    // A t that overflows when scaled back (a tiny direction, direction_scale) is no hit, as in lancer's own
-    // kernels: a hit is at a finite distance (docs/numerical-contract.md).
+    // A t that overflows when scaled back (scene_scale) is no hit, as in lancer's own kernels: a hit is at a
+    // finite distance (docs/numerical-contract.md).
     if (geometry == RTC_INVALID_GEOMETRY_ID || !std::isfinite(t)) return Hit{};
     const unsigned int global = geometry == kSphereGeometry ? triangle_count + primitive : primitive;
     return {t, static_cast<std::int32_t>(global), u, v};
@@ -139,8 +144,8 @@ void check(RTCDevice device, const char* what) {
 
 // The packet variants: lanes of invalid rays are masked off and answered as misses.
 template <int N, class RtcPacket>
-void intersect_packets(RTCScene scene, const Box3f& scene_box, std::span<const Ray> rays, std::span<Hit> hits,
-                       unsigned int triangle_count,
+void intersect_packets(RTCScene scene, const Box3f& scene_box, float scene_scale, std::span<const Ray> rays,
+                       std::span<Hit> hits, unsigned int triangle_count,
                        void (*intersect)(const int*, RTCScene, RTCIntersectContext*, RtcPacket*)) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
@@ -151,7 +156,7 @@ void intersect_packets(RTCScene scene, const Box3f& scene_box, std::span<const R
         const std::size_t lanes = std::min<std::size_t>(N, rays.size() - first);
         for (int lane = 0; lane < N; ++lane) {
             if (static_cast<std::size_t>(lane) < lanes)
-                queries[lane] = to_embree(rays[first + lane], scene_box);
+                queries[lane] = to_embree(rays[first + lane], scene_box, scene_scale);
             valid[lane] = queries[lane] ? -1 : 0;
             fill_packet_ray(queries[lane] ? queries[lane]->ray : Ray{}, packet.ray, lane);
             packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
@@ -190,6 +195,7 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
     packet_ = options.embree_packet;
     triangle_count_ = static_cast<unsigned int>(geometry.triangles.size());
     scene_box_ = bounds().grown(geometric_tolerance(bounds()));
+    scene_scale_ = scene_scale(bounds());
     primitive_count_ = geometry.size();
     buffer_bytes_ = 0;
     scene_ = rtcNewScene(device_);
@@ -206,8 +212,13 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
             rtcSetNewGeometryBuffer(mesh, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
                                     3 * sizeof(unsigned int), geometry.triangles.size()));
         check(device_, "allocating the triangle buffers");
-        static_assert(sizeof(Triangle) == 9 * sizeof(float));
-        std::memcpy(vertices, geometry.triangles.data(), geometry.triangles.size() * sizeof(Triangle));
+        for (std::size_t i = 0; i < geometry.triangles.size(); ++i) {
+            const Triangle& triangle = geometry.triangles[i];
+            for (const Vec3f vertex : {triangle.v0, triangle.v1, triangle.v2}) {
+                const Vec3f scaled = vertex * scene_scale_;
+                *vertices++ = scaled.x, *vertices++ = scaled.y, *vertices++ = scaled.z;
+            }
+        }
         for (unsigned int i = 0; i < vertex_count; ++i)
             indices[i] = i;
         buffer_bytes_ += vertex_count * (3 * sizeof(float) + sizeof(unsigned int));
@@ -222,9 +233,9 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
                                                         4 * sizeof(float), geometry.spheres.size()));
         check(device_, "allocating the sphere buffer");
         for (std::size_t i = 0; i < geometry.spheres.size(); ++i) {
-            const Sphere& sphere = geometry.spheres[i];
-            points[4 * i] = sphere.center.x, points[4 * i + 1] = sphere.center.y;
-            points[4 * i + 2] = sphere.center.z, points[4 * i + 3] = sphere.radius;
+            const Vec3f center = geometry.spheres[i].center * scene_scale_;
+            points[4 * i] = center.x, points[4 * i + 1] = center.y, points[4 * i + 2] = center.z;
+            points[4 * i + 3] = geometry.spheres[i].radius * scene_scale_;
         }
         buffer_bytes_ += geometry.spheres.size() * 4 * sizeof(float);
         rtcCommitGeometry(spheres);
@@ -240,18 +251,20 @@ void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits
                                   TraversalCounters* counters) const {
     if (counters != nullptr) counters->rays += rays.size();  // Embree exposes no traversal counts
     if (packet_ == EmbreePacket::Packet8) {
-        intersect_packets<8, RTCRayHit8>(scene_, scene_box_, rays, hits, triangle_count_, rtcIntersect8);
+        intersect_packets<8, RTCRayHit8>(scene_, scene_box_, scene_scale_, rays, hits, triangle_count_,
+                                         rtcIntersect8);
         return;
     }
     if (packet_ == EmbreePacket::Packet16) {
-        intersect_packets<16, RTCRayHit16>(scene_, scene_box_, rays, hits, triangle_count_, rtcIntersect16);
+        intersect_packets<16, RTCRayHit16>(scene_, scene_box_, scene_scale_, rays, hits, triangle_count_,
+                                           rtcIntersect16);
         return;
     }
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     for (std::size_t i = 0; i < rays.size(); ++i) {
         hits[i] = Hit{};
-        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_);
+        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_, scene_scale_);
         if (!embree_ray) continue;
         RTCRayHit query;
         fill_ray(embree_ray->ray, query.ray);
@@ -269,7 +282,7 @@ void EmbreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8
     rtcInitIntersectContext(&context);
     for (std::size_t i = 0; i < rays.size(); ++i) {
         occluded[i] = 0;
-        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_);
+        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_, scene_scale_);
         if (!embree_ray) continue;
         RTCRay query;
         fill_ray(embree_ray->ray, query);

@@ -36,6 +36,7 @@ class EmbreeAccel final : public Accel {
     RTCDevice device_ = nullptr;
     RTCScene scene_ = nullptr;
     Box3f scene_box_;  // grown by the geometric tolerance: where a ray with tnear < 0 starts (embree.cpp)
+    float scene_scale_ = 1.0f;  // the power of two Embree's copy of the scene is scaled by (embree.cpp)
     unsigned int triangle_count_ = 0;
     std::size_t primitive_count_ = 0;
     std::size_t buffer_bytes_ = 0;

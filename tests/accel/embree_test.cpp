@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
@@ -81,6 +82,36 @@ TEST(Embree, SpheresAreNumberedAfterTrianglesAndInvalidRaysMiss) {
     EXPECT_NEAR(hits[0].t, 4.0f, 1e-5f);
     EXPECT_FALSE(hits[1].hit());
     EXPECT_FALSE(hits[2].hit());
+}
+
+// Embree's float triangle test multiplies three lengths of the scene, which overflow for a scene 2^55 across
+// and underflow for one 2^-100 across (fuzz finding 19): embree.cpp gives it the scene scaled by a power of
+// two into its range. The same triangle and sphere at every magnitude give the same hits, t scaled with them.
+TEST(Embree, HugeAndTinyScenesAreScaledIntoItsRange) {
+    if (!has_embree()) GTEST_SKIP() << "built without Embree";
+    for (const int exponent : {-100, -40, 0, 40, 55}) {
+        const float size = std::ldexp(1.0f, exponent);
+        const std::vector<Triangle> triangles = {
+            {Vec3f(-1, -1, 0) * size, Vec3f(1, -1, 0) * size, Vec3f(0, 1, 0) * size}};
+        const std::vector<Sphere> spheres = {{Vec3f(3, 0, 0) * size, size, 0}};
+        const std::vector<Ray> rays = {{Vec3f(0, 0, 2) * size, {0, 0, -1}, 0.0f, kInfinity},
+                                       {Vec3f(3, 0, 5) * size, {0, 0, -1}, 0.0f, kInfinity},
+                                       {Vec3f(0, 0, 2) * size, {0, 0, -1}, -kInfinity, size}};
+        for (const EmbreePacket packet :
+             {EmbreePacket::Single, EmbreePacket::Packet8, EmbreePacket::Packet16}) {
+            for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+                BuildOptions options;
+                options.embree_packet = packet, options.triangle_test = test;
+                const std::vector<Hit> hits = trace("embree", {triangles, spheres}, options, rays);
+                const std::string context = "scene size 2^" + std::to_string(exponent);
+                EXPECT_EQ(hits[0].prim, 0) << context;
+                EXPECT_NEAR(hits[0].t, 2 * size, 1e-5f * size) << context;
+                EXPECT_EQ(hits[1].prim, 1) << context;
+                EXPECT_NEAR(hits[1].t, 4 * size, 1e-5f * size) << context;
+                EXPECT_FALSE(hits[2].hit()) << context << ": tfar ends before the triangle";
+            }
+        }
+    }
 }
 
 TEST(Embree, PacketsAnswerLikeSingleRays) {

@@ -69,8 +69,9 @@ std::vector<FuzzCase> fuzz_cases() {
           {{{1, 0.5f, 0x1.ep-1f}, 1, 0}}},
          {{{-1, -0x1.ep-1f, 0x1.ep-1f}, {-1, -0x1.ep+0f, 1}, -0x1.ep-1f, 0}},
          false},
-        // Directions whose components are all denormal: Embree asserted `ray.valid()` and aborted (embree.cpp
-        // now scales such a direction up by a power of two, as it scales huge ones down).
+        // Directions whose components are all denormal: Embree asserted `ray.valid()` and aborted. Ray
+        // conditioning (src/core/ray_conditioning.hpp) now scales such a direction into [1/2, 1) before any
+        // structure sees it, Embree included.
         {{"denormal directions",
           {{{2, -5, 2}, {-5, 0x1p-149f, 0x1p-149f}, Vec3f(0x1p-149f)}},
           {{Vec3f(0x1p-149f), 0x1p-149f, 0}, {Vec3f(0x1p-149f), 0x1p-149f, 0}}},
@@ -88,6 +89,28 @@ std::vector<FuzzCase> fuzz_cases() {
           {{{0, 0, 0}, {1, 1, 0x1.48p+1f}, {0, 0, 1}}, {{0, 0, 0}, {0, 1, 1}, {0, 0, -0x1.8p+1f}}},
           {{{-0x1.4p+2f, 0.5f, -0x1.24p+2f}, 1}, {{0, 0, 0x1.02c0cp+33f}, 1}}},
          {{{0, 0, -1}, {0x1p-2f, -0x1.88p+1f, 0x1.fffffep+127f}, -0x1.4p+2f, 0}}},
+        // A sliver 3e16 long (triangle 4) in a scene of unit triangles: Embree's float triangle test
+        // overflowed (T = Ng . (v0 - o) ~ 2^165) and returned t = NaN, on which its sphere traversal aborted
+        // (finding 19; embree.cpp now gives Embree the scene scaled into its range, see
+        // Embree.HugeAndTinyScenesAreScaledIntoItsRange). The second ray's exact line crosses the sliver's
+        // plane at t = -0.999995, outside it by v = -1e-16 (rational arithmetic), and hits triangle 7 at
+        // t = -0.9999988, which brute force finds. Embree's float test reports the sliver at t = -1, within
+        // its rounding on a triangle that long, so Embree gives clean answers only.
+        {{"scene 3e16 across",
+          {{{-1, -1, 1}, {-1, -0x1.ep-1f, 0x1.ep-1f}, {-0x1.ep-1f, -1, 0x1.ep-1f}},
+           {{-0x1.ep-1f, -0x1.ep-1f, 1}, {-0x1.28p+2f, -5, -0x1.ep-1f}, {-1, -0x1.6p+0f, 0x1.18p+1f}},
+           {{0x1.5p+0f, 0x1.7p+0f, 0x1.1p+0f}, {0, -5, -5}, {-0x1.5p+1f, -5, -5}},
+           {{0x1.81d818p-127f, -5, -5},
+            {-0x1.24p+2f, -0x1.ep+0f, -5},
+            {0x1.01018p-127f, -0x1.ep-1f, -0x1.ep-1f}},
+           {{1, -1, -0x1.0000cp+53f}, {-2, -5, 0x1.4p-2f}, {0x1.dp+0f, -0x1.b5b5b4p+54f, 0x1.be8084p+3f}},
+           {{0x1.cp-1f, -0x1.ep-1f, -0x1.18p+2f}, {-5, -5, -5}, {-5, -5, -0x1.24p+2f}},
+           {{-5, -0x1.3cp+2f, -1}, {-0x1.cp-1f, -0x1.3p+1f, -0x1.ep-1f}, {-0x1.ep-1f, 0x1.cp-1f, -0x1.ep-1f}},
+           {{-0x1.cp-1f, 0x1.ep-1f, -1}, {-0x1.ep-1f, -4, 1}, {1, -5, 1}}},
+          {{{-0x1.28p+2f, -5, -5}, 0x1.24p+2f}}},
+         {{{-0x1.ep+0f, -5, 0x1.8c8c8p-129f}, Vec3f(-0x1.91919p+18f), -0x1.91919p+18f, -0x1.91919p+18f},
+          {Vec3f(-0x1.91919p+18f), Vec3f(-0x1.91919p+18f), -0x1.91919p+18f, 0x1.3p-142f}},
+         false},
     };
 }
 
