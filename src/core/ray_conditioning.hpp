@@ -48,18 +48,23 @@ class FarOriginFrame {
     }
 
     // The same line from a point near the one nearest to the centre: origin o + s d and interval
-    // [tnear - s, tfar - s], with the shift s returned beside it (t = t' + s). None when s is beyond the
-    // float range: t cannot reach the scene then, and the ray keeps its origin.
+    // [tnear - s, tfar - s], with the shift s returned beside it (t = t' + s). The interval is the caller's
+    // in double, so that one beyond the float range (a direction scaled by scale_direction) is moved
+    // exactly. The shift itself may pass the float range: from an origin near FLT_MAX along a direction
+    // shorter than 1 the scene lies beyond t = -FLT_MAX, and refusing such a move left the far origin to
+    // every kernel, where brute force's rounding found a hit that no structure saw (fuzz finding 20). None
+    // only if the shift is not a finite double.
     struct Moved {
         Ray ray;
         double shift;
     };
-    [[nodiscard]] std::optional<Moved> move_near(const Ray& ray) const {
-        // The point is kept as an unevaluated sum point + error per axis and moved by float shifts: a float
-        // shift times a float component is exact in double, and two_sum adds it without error, so the point
-        // stays on the caller's line; each round brings it 2^24 times closer to the centre (the shift's own
-        // rounding), until it is no longer far. What is left is the rounding of the small error terms, about
-        // 2^-130 of the first distance, and the one rounding of the result to float near the scene.
+    [[nodiscard]] std::optional<Moved> move_near(const Ray& ray, double tnear, double tfar) const {
+        // The point is kept as an unevaluated sum point + error per axis and moved by shifts of float
+        // precision (24 bits, of any double exponent): such a shift times a float component is exact in
+        // double, and two_sum adds it without error, so the point stays on the caller's line; each round
+        // brings it 2^24 times closer to the centre (the shift's own rounding), until it is no longer far.
+        // What is left is the rounding of the small error terms, about 2^-130 of the first distance, and the
+        // one rounding of the result to float near the scene.
         const double direction[3] = {ray.direction.x, ray.direction.y, ray.direction.z};
         const double length_squared =
             direction[0] * direction[0] + direction[1] * direction[1] + direction[2] * direction[2];
@@ -69,11 +74,11 @@ class FarOriginFrame {
             double to_centre = 0.0;
             for (int axis = 0; axis < 3; ++axis)
                 to_centre += ((double(centre_[axis]) - point[axis]) - error[axis]) * direction[axis];
-            const float step = static_cast<float>(to_centre / length_squared);
+            const double step = to_float_precision(to_centre / length_squared);
             if (!std::isfinite(step)) return std::nullopt;
-            if (step == 0.0f) break;
+            if (step == 0.0) break;
             for (int axis = 0; axis < 3; ++axis) {
-                const auto [sum, rounding] = two_sum(point[axis], double(step) * direction[axis]);
+                const auto [sum, rounding] = two_sum(point[axis], step * direction[axis]);
                 point[axis] = sum;
                 error[axis] += rounding;
             }
@@ -83,10 +88,9 @@ class FarOriginFrame {
         Ray moved = ray;
         moved.origin = rounded(point, error);
         // The interval rounded outwards, so that no hit inside [tnear, tfar] is lost; restore_t clamps. A
-        // tnear that overflows would make the ray invalid: the ray then keeps its origin.
-        moved.tnear = round_down(double(ray.tnear) - shift);
-        moved.tfar = std::isinf(ray.tfar) ? ray.tfar : round_up(double(ray.tfar) - shift);
-        if (!std::isfinite(moved.tnear)) return std::nullopt;
+        // tnear below -FLT_MAX admits every t a kernel can return (as in scale_direction).
+        moved.tnear = std::fmax(round_down(tnear - shift), -std::numeric_limits<float>::max());
+        moved.tfar = std::isinf(tfar) ? static_cast<float>(tfar) : round_up(tfar - shift);
         return Moved{moved, shift};
     }
 
@@ -94,6 +98,12 @@ class FarOriginFrame {
     // Enough rounds to come from FLT_MAX to an ulp of the smallest normal float, 24 bits a round.
     static constexpr int kMaxRounds = 12;
 
+    // value rounded to float's 24 significant bits, its exponent kept (frexp's mantissa lies in [1/2, 1)).
+    static double to_float_precision(double value) {
+        int exponent = 0;
+        const double mantissa = std::frexp(value, &exponent);
+        return std::ldexp(double(static_cast<float>(mantissa)), exponent);
+    }
     // Knuth's TwoSum: a + b = sum + rounding exactly (round-to-nearest, no contraction: -ffp-contract=off).
     static std::pair<double, double> two_sum(double a, double b) {
         const double sum = a + b;
@@ -185,7 +195,11 @@ struct ConditionedRays {
         RayConditioning how;
         if (const auto scaled = scale_direction(ray)) std::tie(ray, how.exponent) = *scaled;
         if (frame.is_far(ray.origin)) {
-            if (const std::optional<FarOriginFrame::Moved> near = frame.move_near(ray))
+            // The caller's interval in the scaled units, before scale_direction's clamping to the float
+            // range.
+            const double tnear = std::ldexp(double(rays[i].tnear), how.exponent);
+            const double tfar = std::ldexp(double(rays[i].tfar), how.exponent);
+            if (const std::optional<FarOriginFrame::Moved> near = frame.move_near(ray, tnear, tfar))
                 ray = near->ray, how.shift = near->shift;
         }
         if (how.shift == 0.0 && how.exponent == 0) continue;

@@ -111,6 +111,19 @@ std::vector<FuzzCase> fuzz_cases() {
          {{{-0x1.ep+0f, -5, 0x1.8c8c8p-129f}, Vec3f(-0x1.91919p+18f), -0x1.91919p+18f, -0x1.91919p+18f},
           {Vec3f(-0x1.91919p+18f), Vec3f(-0x1.91919p+18f), -0x1.91919p+18f, 0x1.3p-142f}},
          false},
+        // Origin and direction (FLT_MAX, FLT_MAX, FLT_MAX): the diagonal through the vertex (0, 0, 0) of a
+        // sliver 1.4e-38 wide (triangle 1), at t = -1. Scaled, the direction is 1 - 2^-24, the scene at
+        // t' = -2^128: ray conditioning refused a shift beyond the float range and left the origin at
+        // FLT_MAX, where brute force's Moller-Trumbore found the vertex by rounding and every other
+        // structure missed (finding 20). Moved with a double shift, every structure and both tests find the
+        // vertex at t = -1. Triangle 0 is crossed 1.5e-39 later, which rounds to the same t: Embree, whose
+        // denormals-are-zero mode flattens the sliver, reports that one, so it gives clean answers only.
+        {{"origin and direction at FLT_MAX",
+          {{{-0x1.cp+0f, 0x1.8p+0f, 0x1.3p+1f}, {0x1.2p+0f, 0, 0}, {1, 1, 0}},
+           {{0, 0, 1}, {0x1.81016p-127f, 0, 1}, {0, 0, 0}}},
+          {}},
+         {{Vec3f(0x1.fffffep+127f), Vec3f(0x1.fffffep+127f), -0x1.5p+1f, kInfinity}},
+         false},
     };
 }
 
@@ -194,6 +207,22 @@ TEST(FuzzRegression, NegativeTnearFindsTheHitBehindTheOrigin) {
         EXPECT_EQ(hits[0].prim, 0) << name;
         EXPECT_NEAR(hits[0].t, -1.0f, 1e-6f) << name;
         EXPECT_FALSE(hits[1].hit()) << name << ": tfar = -1.5 ends before the triangle";
+    }
+}
+
+// Finding 20's point: the vertex at t = -1 is found, not missed (the check above would pass on misses).
+TEST(FuzzRegression, OriginAtFloatMaxFindsTheVertexOnItsLine) {
+    const FuzzCase diagonal = fuzz_cases().back();
+    ASSERT_EQ(diagonal.scene.name, "origin and direction at FLT_MAX");
+    for (const std::string_view name : accel_names()) {
+        if (name == "embree") continue;
+        for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+            const std::unique_ptr<Accel> accel = make_accel(name);
+            accel->build(diagonal.scene.geometry(), build_options(test));
+            const Hit hit = trace(*accel, diagonal.rays)[0];
+            EXPECT_EQ(hit.prim, 1) << name;
+            EXPECT_EQ(hit.t, -1.0f) << name;
+        }
     }
 }
 

@@ -51,7 +51,7 @@ TEST(RayConditioning, MovedRaysKeepTheirLine) {
         ray.direction = -ray.origin * std::ldexp(1.0f, static_cast<int>(10.0f * unit(random)));
         ray.tnear = -5.0f, ray.tfar = 5e3f;
         ASSERT_TRUE(frame.is_far(ray.origin));
-        const std::optional<FarOriginFrame::Moved> moved = frame.move_near(ray);
+        const std::optional<FarOriginFrame::Moved> moved = frame.move_near(ray, ray.tnear, ray.tfar);
         ASSERT_TRUE(moved.has_value());
         // On the line: what is left is the float rounding of a point near the scene (2^-22 here).
         EXPECT_LT(squared_distance_to_line(moved->ray.origin, ray), 1e-12) << "ray " << i;
@@ -74,11 +74,40 @@ TEST(RayConditioning, MovedRaysKeepTheirLine) {
     }
 }
 
-TEST(RayConditioning, AShiftBeyondTheFloatRangeKeepsTheRay) {
+// Fuzz finding 20: an origin at FLT_MAX on the diagonal, along a direction whose scaled length is below 1,
+// reaches the scene's point 0 at t' = -2^128 (t = -1 for the caller): the shift passes the float range and
+// the interval, clamped to -FLT_MAX by scale_direction, must come from the caller's. The move keeps the
+// exact line (the diagonal: all three components of the moved origin are equal), lands near the scene, and
+// the point 0 maps back to t = -1.
+TEST(RayConditioning, AShiftBeyondTheFloatRangeMovesTheRay) {
+    const float float_max = std::numeric_limits<float>::max();
+    const std::vector<Ray> rays = {{Vec3f(float_max), Vec3f(float_max), -2.625f, kInfinity}};
+    const ConditionedRays conditioned = condition_rays(rays, kScene);
+    ASSERT_EQ(conditioned.rays.size(), 1u);
+    const Ray& moved = conditioned.rays[0];
+    EXPECT_EQ(conditioned.how[0].exponent, 128);
+    EXPECT_LT(conditioned.how[0].shift, -double(float_max));
+    EXPECT_EQ(moved.origin.x, moved.origin.y);
+    EXPECT_EQ(moved.origin.y, moved.origin.z);
+    EXPECT_FALSE(FarOriginFrame(kScene).is_far(moved.origin));
+    EXPECT_TRUE(is_valid(moved));
+    // The point 0 of the line, at t' = -o.x / d.x of the moved ray, lies inside its interval and maps back
+    // to the caller's t = -1.
+    const float t_at_zero = -moved.origin.x / moved.direction.x;
+    EXPECT_GE(t_at_zero, moved.tnear);
+    std::vector<Hit> hits = {{t_at_zero, 0, 0, 0}};
+    restore_hits(conditioned, rays, hits);
+    EXPECT_NEAR(hits[0].t, -1.0f, 1e-6f);
+
+    // A denormal direction from 1e30 away, left unscaled: the nearest point is at t ~ 1e75, a shift beyond
+    // the float range too. The ray is moved, and a hit there maps back to no hit (t overflows the float).
     const FarOriginFrame frame(kScene);
-    // A denormal direction from 1e30 away: the nearest point is at t ~ 1e75.
     const Ray tiny{{1e30f, 0.0f, 0.0f}, {-0x1p-149f, 0.0f, 0.0f}, 0.0f, kInfinity};
-    EXPECT_FALSE(frame.move_near(tiny).has_value());
+    const std::optional<FarOriginFrame::Moved> moved_tiny = frame.move_near(tiny, tiny.tnear, tiny.tfar);
+    ASSERT_TRUE(moved_tiny.has_value());
+    EXPECT_FALSE(frame.is_far(moved_tiny->ray.origin));
+    EXPECT_EQ(moved_tiny->ray.tnear, -float_max);
+    EXPECT_FALSE(restore_t(0.0f, {moved_tiny->shift, 0}, tiny).has_value());
 }
 
 TEST(RayConditioning, BatchesOfOrdinaryRaysAreNotCopied) {
