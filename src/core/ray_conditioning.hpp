@@ -196,9 +196,12 @@ struct ConditionedRays {
         if (const auto scaled = scale_direction(ray)) std::tie(ray, how.exponent) = *scaled;
         if (frame.is_far(ray.origin)) {
             // The caller's interval in the scaled units, before scale_direction's clamping to the float
-            // range.
+            // range, tfar capped where the caller's t would overflow: a hit there is no hit, for occluded
+            // too, which maps nothing back (fuzz finding 21: from -FLT_MAX along 0.8125, a shift of 4.2e38
+            // and an occluder at a t beyond the float range).
             const double tnear = std::ldexp(double(rays[i].tnear), how.exponent);
-            const double tfar = std::ldexp(double(rays[i].tfar), how.exponent);
+            const double tfar = std::ldexp(
+                std::fmin(double(rays[i].tfar), double(std::numeric_limits<float>::max())), how.exponent);
             if (const std::optional<FarOriginFrame::Moved> near = frame.move_near(ray, tnear, tfar))
                 ray = near->ray, how.shift = near->shift;
         }
