@@ -90,7 +90,7 @@ class FarOriginFrame {
         // The interval rounded outwards, so that no hit inside [tnear, tfar] is lost; restore_t clamps. A
         // tnear below -FLT_MAX admits every t a kernel can return (as in scale_direction).
         moved.tnear = std::fmax(round_down(tnear - shift), -std::numeric_limits<float>::max());
-        moved.tfar = std::isinf(tfar) ? static_cast<float>(tfar) : round_up(tfar - shift);
+        moved.tfar = round_up(tfar - shift);  // an infinite tfar stays infinite
         return Moved{moved, shift};
     }
 
