@@ -52,13 +52,14 @@ class FarOriginFrame {
     // in double, so that one beyond the float range (a direction scaled by scale_direction) is moved
     // exactly. The shift itself may pass the float range: from an origin near FLT_MAX along a direction
     // shorter than 1 the scene lies beyond t = -FLT_MAX, and refusing such a move left the far origin to
-    // every kernel, where brute force's rounding found a hit that no structure saw (fuzz finding 20). None
-    // only if the shift is not a finite double.
+    // every kernel, where brute force's rounding found a hit that no structure saw (fuzz finding 20). The
+    // ray must be valid (is_valid): a finite origin and a non-zero finite direction keep every shift a
+    // finite double.
     struct Moved {
         Ray ray;
         double shift;
     };
-    [[nodiscard]] std::optional<Moved> move_near(const Ray& ray, double tnear, double tfar) const {
+    [[nodiscard]] Moved move_near(const Ray& ray, double tnear, double tfar) const {
         // The point is kept as an unevaluated sum point + error per axis and moved by shifts of float
         // precision (24 bits, of any double exponent): such a shift times a float component is exact in
         // double, and two_sum adds it without error, so the point stays on the caller's line; each round
@@ -75,7 +76,6 @@ class FarOriginFrame {
             for (int axis = 0; axis < 3; ++axis)
                 to_centre += ((double(centre_[axis]) - point[axis]) - error[axis]) * direction[axis];
             const double step = to_float_precision(to_centre / length_squared);
-            if (!std::isfinite(step)) return std::nullopt;
             if (step == 0.0) break;
             for (int axis = 0; axis < 3; ++axis) {
                 const auto [sum, rounding] = two_sum(point[axis], step * direction[axis]);
@@ -153,6 +153,15 @@ struct ConditionedRays {
     std::vector<RayConditioning> how;  // per ray; {0, 0} for the rays left as they were
 };
 
+// The caller's interval in the units of a direction scaled by 2^-exponent, in double: tnear exactly, tfar
+// capped where the caller's t would overflow, so that no hit maps back to infinity and occluded, which maps
+// nothing back, answers as closest hit does (fuzz finding 21: from -FLT_MAX along 0.8125, an occluder at a
+// t beyond the float range).
+[[nodiscard]] inline std::pair<double, double> scaled_interval(const Ray& ray, int exponent) {
+    return {std::ldexp(double(ray.tnear), exponent),
+            std::ldexp(std::fmin(double(ray.tfar), double(std::numeric_limits<float>::max())), exponent)};
+}
+
 // A valid ray with its direction scaled into [1/2, 1) and its interval scaled back, or none when its
 // direction is ordinary. Exact, except for a component below 2^-126 of the largest, which underflows (the
 // line turns by less than 2^-126 rad).
@@ -164,11 +173,11 @@ struct ConditionedRays {
     Ray scaled = ray;
     scaled.direction = {std::ldexp(ray.direction.x, -exponent), std::ldexp(ray.direction.y, -exponent),
                         std::ldexp(ray.direction.z, -exponent)};
-    // The interval in the new units. Beyond the float range: a tnear below -FLT_MAX admits every t a kernel
-    // can return; tfar is capped where the caller's t would overflow, so that no hit maps back to infinity.
+    // The interval in the new units, in float: a tnear below -FLT_MAX admits every t a kernel can return,
+    // and a capped tfar beyond FLT_MAX every t too.
     constexpr double kFloatMax = std::numeric_limits<float>::max();
-    scaled.tnear = static_cast<float>(std::fmax(std::ldexp(double(ray.tnear), exponent), -kFloatMax));
-    const double tfar = std::ldexp(std::fmin(double(ray.tfar), kFloatMax), exponent);
+    const auto [tnear, tfar] = scaled_interval(ray, exponent);
+    scaled.tnear = static_cast<float>(std::fmax(tnear, -kFloatMax));
     scaled.tfar = tfar > kFloatMax ? kInfinity : static_cast<float>(tfar);
     return std::pair{scaled, exponent};
 }
@@ -195,15 +204,10 @@ struct ConditionedRays {
         RayConditioning how;
         if (const auto scaled = scale_direction(ray)) std::tie(ray, how.exponent) = *scaled;
         if (frame.is_far(ray.origin)) {
-            // The caller's interval in the scaled units, before scale_direction's clamping to the float
-            // range, tfar capped where the caller's t would overflow: a hit there is no hit, for occluded
-            // too, which maps nothing back (fuzz finding 21: from -FLT_MAX along 0.8125, a shift of 4.2e38
-            // and an occluder at a t beyond the float range).
-            const double tnear = std::ldexp(double(rays[i].tnear), how.exponent);
-            const double tfar = std::ldexp(
-                std::fmin(double(rays[i].tfar), double(std::numeric_limits<float>::max())), how.exponent);
-            if (const std::optional<FarOriginFrame::Moved> near = frame.move_near(ray, tnear, tfar))
-                ray = near->ray, how.shift = near->shift;
+            // Moved from the caller's interval in double, not from scale_direction's float one.
+            const auto [tnear, tfar] = scaled_interval(rays[i], how.exponent);
+            const FarOriginFrame::Moved near = frame.move_near(ray, tnear, tfar);
+            ray = near.ray, how.shift = near.shift;
         }
         if (how.shift == 0.0 && how.exponent == 0) continue;
         if (conditioned.rays.empty())
