@@ -26,7 +26,8 @@ namespace {
 
 using Limits = std::numeric_limits<float>;
 
-// The values that break arithmetic: signed zeros, denormals, the float range's ends, overflow, NaN.
+// The values that break arithmetic: signed zeros, denormals, the float range's ends, overflow, NaN, and the
+// ends of the coordinate domain (kCoordinateLimit = 2^60: a scene at its edge, the float just inside it).
 constexpr float kSpecialValues[] = {
     0.0f,
     -0.0f,
@@ -46,6 +47,10 @@ constexpr float kSpecialValues[] = {
     -1e30f,
     0x1p24f,
     0x1p60f,
+    -0x1p60f,
+    0x1.fffffep+59f,
+    0x1p-60f,
+    0x1p127f,
     1e-7f,
     0.5f,
 };
