@@ -5,8 +5,9 @@
 //
 // Bit-identical to the scalar kernels of core/intersect.hpp: every lane performs the same fp32 operations in
 // the same order (no fused multiply-add: -ffp-contract=off), with the same ill-conditioned band and the same
-// acceptance tests; lanes whose watertight edge functions come out exactly zero are handed to the scalar
-// test, which redoes them in double. The closest lane is chosen with closer(), ties to the smaller index.
+// acceptance tests; lanes whose watertight edge functions come out zero or denormal, or whose numerator
+// falls below Watertight::kSmallNumerator, are handed to the scalar test, which redoes them in double. The
+// closest lane is chosen with closer(), ties to the smaller index.
 #pragma once
 
 #include <bit>
@@ -206,8 +207,12 @@ struct WatertightBlock {
         const Float w1 = Ops::sub(Ops::mul(c.x, a.y), Ops::mul(c.y, a.x));
         const Float w2 = Ops::sub(Ops::mul(a.x, b.y), Ops::mul(a.y, b.x));
         const Float zero = Ops::broadcast(0.0f);
-        const Float any_zero =
-            Ops::bit_or(Ops::bit_or(Ops::equal(w0, zero), Ops::equal(w1, zero)), Ops::equal(w2, zero));
+        // Zero or denormal edge functions and small numerators are the scalar kernel's, in double
+        // (Watertight in core/intersect.hpp).
+        const Float float_min = Ops::broadcast(std::numeric_limits<float>::min());
+        const Float any_small =
+            Ops::bit_or(Ops::bit_or(Ops::less(Ops::abs(w0), float_min), Ops::less(Ops::abs(w1), float_min)),
+                        Ops::less(Ops::abs(w2), float_min));
         const Float any_negative =
             Ops::bit_or(Ops::bit_or(Ops::less(w0, zero), Ops::less(w1, zero)), Ops::less(w2, zero));
         const Float any_positive =
@@ -215,14 +220,15 @@ struct WatertightBlock {
         const Float det = Ops::add(Ops::add(w0, w1), w2);
         const Float az = Ops::mul(shear_z, a.z), bz = Ops::mul(shear_z, b.z), cz = Ops::mul(shear_z, c.z);
         const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
-        const Float t =
-            Ops::mul(Ops::add(Ops::add(Ops::mul(w0, az), Ops::mul(w1, bz)), Ops::mul(w2, cz)), inv_det);
+        const Float numerator = Ops::add(Ops::add(Ops::mul(w0, az), Ops::mul(w1, bz)), Ops::mul(w2, cz));
+        const Float t = Ops::mul(numerator, inv_det);
         const Float t_accepted = Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
                                                            Ops::less_equal(t, Ops::broadcast(tfar))),
                                               Ops::less(t, Ops::broadcast(kInfinity)));
-        const unsigned scalar_lanes = Ops::mask(any_zero);
-        const unsigned rejected =
-            Ops::mask(Ops::bit_and(any_negative, any_positive)) | Ops::mask(Ops::equal(det, zero));
+        const unsigned scalar_lanes = Ops::mask(Ops::bit_or(
+            any_small, Ops::less(Ops::abs(numerator), Ops::broadcast(Watertight::kSmallNumerator))));
+        // Three normal edge functions of one sign, the only lanes left: det is not zero.
+        const unsigned rejected = Ops::mask(Ops::bit_and(any_negative, any_positive));
         out.hit_lanes = Ops::mask(t_accepted) & ~rejected & ~scalar_lanes;
         out.scalar_lanes = scalar_lanes;
         Ops::store(out.t, t), Ops::store(out.u, Ops::mul(w1, inv_det)),

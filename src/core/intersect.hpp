@@ -158,9 +158,18 @@ struct MollerTrumbore {
 // Woop, Benthin & Wald, "Watertight Ray/Triangle Intersection", JCGT 2013. The vertices are moved into a
 // ray space where the ray is the +z axis through the origin; the 2D edge functions of a shared edge are then
 // evaluated from the same two transformed vertices by both triangles, so their signs agree exactly and no
-// ray passes between them. Edge functions that come out exactly zero are recomputed in double (section 3.1).
-// This relies on -ffp-contract=off (set for the whole project): a fused multiply-add would round the two
-// products of an edge function differently in the two triangles.
+// ray passes between them. This relies on -ffp-contract=off (set for the whole project): a fused
+// multiply-add would round the two products of an edge function differently in the two triangles.
+//
+// Rounding is monotonic, so a float edge function never has the wrong sign: it is exact or zero. Below
+// FLT_MIN its magnitude is another matter: a product that falls in the denormal range keeps an absolute error
+// of 2^-150, which is all of it for the tiniest. Zero edge functions (section 3.1 of the paper) and denormal
+// ones are therefore decided in double, where a product of floats is exact and a difference of two is
+// rounded once: the exact sign, the same a neighbour's normal float edge function has. So is a hit whose
+// numerator T = sum w z falls below 2^-100: its products may have underflowed, and t = T / det, with det
+// as small as FLT_MIN, was then wrong by up to 2^-24 (fuzz finding 22: t = 0 for a hit at 2^-24 on a
+// sliver 2^-126 wide, 1 unit off along a direction of 2^24). Above 2^-100 some product exceeds 2^-102, whose
+// own float rounding dwarfs the 2^-150 that underflow may cost the others.
 struct Watertight {
     struct RayData {
         Vec3f origin;
@@ -179,33 +188,62 @@ struct Watertight {
         }
     };
 
+    // Below this |T| the float products of T may have underflowed (see above); the vector kernels hand such
+    // lanes to this scalar kernel.
+    static constexpr float kSmallNumerator = 0x1p-100f;
+
     [[nodiscard]] static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
                                         TriangleHit& out) {
+        const Sheared v = sheared(ray, tri);
+        const float w0 = v.bx * v.cy - v.by * v.cx;
+        const float w1 = v.cx * v.ay - v.cy * v.ax;
+        const float w2 = v.ax * v.by - v.ay * v.bx;
+        constexpr float kFloatMin = std::numeric_limits<float>::min();
+        if (std::fabs(w0) < kFloatMin || std::fabs(w1) < kFloatMin || std::fabs(w2) < kFloatMin)
+            return intersect_in_double(ray, v, tnear, tfar, out);
+        if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
+        // Three normal edge functions of one sign: det is not zero.
+        const float det = w0 + w1 + w2;
+        const float az = ray.shear_z * v.az, bz = ray.shear_z * v.bz, cz = ray.shear_z * v.cz;
+        const float numerator = w0 * az + w1 * bz + w2 * cz;
+        if (std::fabs(numerator) < kSmallNumerator) return intersect_in_double(ray, v, tnear, tfar, out);
+        const float inv_det = 1.0f / det;
+        const float t = numerator * inv_det;
+        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit
+        out = {t, w1 * inv_det, w2 * inv_det};
+        return true;
+    }
+
+  private:
+    // The vertices relative to the origin, (x, y) sheared into ray space, z along the dominant axis (not yet
+    // scaled by shear_z = 1 / d[kz]).
+    struct Sheared {
+        float ax, ay, az, bx, by, bz, cx, cy, cz;
+    };
+    static Sheared sheared(const RayData& ray, const Triangle& tri) {
         const Vec3f a = tri.v0 - ray.origin;
         const Vec3f b = tri.v1 - ray.origin;
         const Vec3f c = tri.v2 - ray.origin;
-        const float ax = a[ray.kx] - ray.shear_x * a[ray.kz], ay = a[ray.ky] - ray.shear_y * a[ray.kz];
-        const float bx = b[ray.kx] - ray.shear_x * b[ray.kz], by = b[ray.ky] - ray.shear_y * b[ray.kz];
-        const float cx = c[ray.kx] - ray.shear_x * c[ray.kz], cy = c[ray.ky] - ray.shear_y * c[ray.kz];
+        return {a[ray.kx] - ray.shear_x * a[ray.kz], a[ray.ky] - ray.shear_y * a[ray.kz], a[ray.kz],
+                b[ray.kx] - ray.shear_x * b[ray.kz], b[ray.ky] - ray.shear_y * b[ray.kz], b[ray.kz],
+                c[ray.kx] - ray.shear_x * c[ray.kz], c[ray.ky] - ray.shear_y * c[ray.kz], c[ray.kz]};
+    }
 
-        // Edge function of the edge opposite each vertex: its weight in the hit point.
-        float w0 = bx * cy - by * cx;
-        float w1 = cx * ay - cy * ax;
-        float w2 = ax * by - ay * bx;
-        if (w0 == 0.0f || w1 == 0.0f || w2 == 0.0f) {
-            w0 = static_cast<float>(double(bx) * double(cy) - double(by) * double(cx));
-            w1 = static_cast<float>(double(cx) * double(ay) - double(cy) * double(ax));
-            w2 = static_cast<float>(double(ax) * double(by) - double(ay) * double(bx));
-        }
-        if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
-        const float det = w0 + w1 + w2;
-        if (det == 0.0f) return false;
-
-        const float az = ray.shear_z * a[ray.kz], bz = ray.shear_z * b[ray.kz], cz = ray.shear_z * c[ray.kz];
-        const float inv_det = 1.0f / det;
-        const float t = (w0 * az + w1 * bz + w2 * cz) * inv_det;
-        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit
-        out = {t, w1 * inv_det, w2 * inv_det};
+    // The same test from the same sheared floats, in double: exact edge-function signs, and det, T, t, u and
+    // v free of underflow, rounded to float once.
+    static bool intersect_in_double(const RayData& ray, const Sheared& v, float tnear, float tfar,
+                                    TriangleHit& out) {
+        const double w0 = double(v.bx) * v.cy - double(v.by) * v.cx;
+        const double w1 = double(v.cx) * v.ay - double(v.cy) * v.ax;
+        const double w2 = double(v.ax) * v.by - double(v.ay) * v.bx;
+        if ((w0 < 0.0 || w1 < 0.0 || w2 < 0.0) && (w0 > 0.0 || w1 > 0.0 || w2 > 0.0)) return false;
+        const double det = w0 + w1 + w2;
+        if (det == 0.0) return false;
+        const double shear_z = ray.shear_z;  // z * shear_z exact in double: no underflow there either
+        const auto t =
+            static_cast<float>((w0 * (shear_z * v.az) + w1 * (shear_z * v.bz) + w2 * (shear_z * v.cz)) / det);
+        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
+        out = {t, static_cast<float>(w1 / det), static_cast<float>(w2 / det)};
         return true;
     }
 };

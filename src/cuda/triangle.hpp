@@ -110,30 +110,54 @@ struct WatertightTest {
         }
     };
 
+    // Watertight's constant: below this |T| the numerator is computed in double.
+    static constexpr float kSmallNumerator = 0x1p-100f;
+
     LANCER_HOST_DEVICE static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
                                              TriangleHitRecord& out) {
         const Vec3f a = tri.v0 - ray.origin;
         const Vec3f b = tri.v1 - ray.origin;
         const Vec3f c = tri.v2 - ray.origin;
-        const float ax = a[ray.kx] - ray.shear_x * a[ray.kz], ay = a[ray.ky] - ray.shear_y * a[ray.kz];
-        const float bx = b[ray.kx] - ray.shear_x * b[ray.kz], by = b[ray.ky] - ray.shear_y * b[ray.kz];
-        const float cx = c[ray.kx] - ray.shear_x * c[ray.kz], cy = c[ray.ky] - ray.shear_y * c[ray.kz];
-        float w0 = bx * cy - by * cx;
-        float w1 = cx * ay - cy * ax;
-        float w2 = ax * by - ay * bx;
-        if (w0 == 0.0f || w1 == 0.0f || w2 == 0.0f) {
-            w0 = static_cast<float>(double(bx) * double(cy) - double(by) * double(cx));
-            w1 = static_cast<float>(double(cx) * double(ay) - double(cy) * double(ax));
-            w2 = static_cast<float>(double(ax) * double(by) - double(ay) * double(bx));
-        }
+        const Sheared v = {
+            a[ray.kx] - ray.shear_x * a[ray.kz], a[ray.ky] - ray.shear_y * a[ray.kz], a[ray.kz],
+            b[ray.kx] - ray.shear_x * b[ray.kz], b[ray.ky] - ray.shear_y * b[ray.kz], b[ray.kz],
+            c[ray.kx] - ray.shear_x * c[ray.kz], c[ray.ky] - ray.shear_y * c[ray.kz], c[ray.kz]};
+        const float w0 = v.bx * v.cy - v.by * v.cx;
+        const float w1 = v.cx * v.ay - v.cy * v.ax;
+        const float w2 = v.ax * v.by - v.ay * v.bx;
+        constexpr float kFloatMin = 0x1p-126f;
+        if (abs_of(w0) < kFloatMin || abs_of(w1) < kFloatMin || abs_of(w2) < kFloatMin)
+            return intersect_in_double(ray, v, tnear, tfar, out);
         if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
         const float det = w0 + w1 + w2;
-        if (det == 0.0f) return false;
-        const float az = ray.shear_z * a[ray.kz], bz = ray.shear_z * b[ray.kz], cz = ray.shear_z * c[ray.kz];
+        const float az = ray.shear_z * v.az, bz = ray.shear_z * v.bz, cz = ray.shear_z * v.cz;
+        const float numerator = w0 * az + w1 * bz + w2 * cz;
+        if (abs_of(numerator) < kSmallNumerator) return intersect_in_double(ray, v, tnear, tfar, out);
         const float inv_det = 1.0f / det;
-        const float t = (w0 * az + w1 * bz + w2 * cz) * inv_det;
+        const float t = numerator * inv_det;
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
         out = {t, w1 * inv_det, w2 * inv_det};
+        return true;
+    }
+
+  private:
+    struct Sheared {
+        float ax, ay, az, bx, by, bz, cx, cy, cz;
+    };
+
+    LANCER_HOST_DEVICE static bool intersect_in_double(const RayData& ray, const Sheared& v, float tnear,
+                                                       float tfar, TriangleHitRecord& out) {
+        const double w0 = double(v.bx) * v.cy - double(v.by) * v.cx;
+        const double w1 = double(v.cx) * v.ay - double(v.cy) * v.ax;
+        const double w2 = double(v.ax) * v.by - double(v.ay) * v.bx;
+        if ((w0 < 0.0 || w1 < 0.0 || w2 < 0.0) && (w0 > 0.0 || w1 > 0.0 || w2 > 0.0)) return false;
+        const double det = w0 + w1 + w2;
+        if (det == 0.0) return false;
+        const double shear_z = ray.shear_z;
+        const auto t =
+            static_cast<float>((w0 * (shear_z * v.az) + w1 * (shear_z * v.bz) + w2 * (shear_z * v.cz)) / det);
+        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
+        out = {t, static_cast<float>(w1 / det), static_cast<float>(w2 / det)};
         return true;
     }
 };

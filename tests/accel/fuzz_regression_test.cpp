@@ -84,12 +84,14 @@ std::vector<FuzzCase> fuzz_cases() {
         // into a unit direction with denormal x and y: Embree's triangle test, which expects denormals
         // flushed to zero, reported a hit at t = NaN, and its sphere traversal asserted `ray.valid()` and
         // aborted the process (finding 18; embree.cpp now sets the mode around its queries). The line
-        // touches triangle 1 only on its edge at t = tfar = 0, which the conditioned ray misses by rounding:
-        // every structure, Embree included, answers that miss.
+        // touches triangle 1 only on its edge at t = tfar = 0, through denormal edge functions: Moller-
+        // Trumbore misses it by rounding; the watertight test, which decides such edge functions in double
+        // since finding 22, finds it. Embree's float kernel misses it, so it gives clean answers only.
         {{"largest float direction, negative tnear",
           {{{0, 0, 0}, {1, 1, 0x1.48p+1f}, {0, 0, 1}}, {{0, 0, 0}, {0, 1, 1}, {0, 0, -0x1.8p+1f}}},
           {{{-0x1.4p+2f, 0.5f, -0x1.24p+2f}, 1}, {{0, 0, 0x1.02c0cp+33f}, 1}}},
-         {{{0, 0, -1}, {0x1p-2f, -0x1.88p+1f, 0x1.fffffep+127f}, -0x1.4p+2f, 0}}},
+         {{{0, 0, -1}, {0x1p-2f, -0x1.88p+1f, 0x1.fffffep+127f}, -0x1.4p+2f, 0}},
+         false},
         // A sliver 3e16 long (triangle 4) in a scene of unit triangles: Embree's float triangle test
         // overflowed (T = Ng . (v0 - o) ~ 2^165) and returned t = NaN, on which its sphere traversal aborted
         // (finding 19; embree.cpp now gives Embree the scene scaled into its range, see
@@ -135,6 +137,17 @@ std::vector<FuzzCase> fuzz_cases() {
           {{{-1, -1, -5}, 5}}},
          {{Vec3f(-0x1.fffffep+127f), Vec3f(0x1.ap-1f), 0x1.ap-1f, kInfinity},
           {Vec3f(-5), {-5, -0x1.ep-1f, -0x1.ep-1f}, -0x1.ep-1f, kInfinity}}},
+        // A sliver 2^-126 wide (triangle 1), crossed at t = 2^-24 from (-1, 0, 0) along (2^24, 0.625, 3e-39),
+        // the interval [-1.2e-15, 2^-126] ending before it: the watertight kernel's numerator underflowed and
+        // said t = 0, a hit that brute force and the structures whose cells hold the origin reported and the
+        // kd-tree and the BVHs did not (finding 22). Edge functions and numerators in the denormal range are
+        // now computed in double: every structure answers the miss.
+        {{"denormal edge functions",
+          {{{0, 0.5f, 0.5f}, {0, 0, 0}, {-0x1.3cp+2f, 0.5f, 0.5f}},
+           {Vec3f(0x1p-126f), {0x1p-126f, 1, 0}, {0, 0, 0}}},
+          {}},
+         {{{-1, 0, 0}, {0x1p+24f, 0x1.4p-1f, 0x1.02fff8p-128f}, -0x1.4d4d4cp-50f, 0x1p-126f},
+          {{-1, 0, 0}, {0x1p+24f, 0x1.4p-1f, 0x1.02fff8p-128f}, -0x1.4d4d4cp-50f, kInfinity}}},
     };
 }
 

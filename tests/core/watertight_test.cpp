@@ -5,6 +5,7 @@
 #include <random>
 
 #include "accel/brute.hpp"
+#include "core/intersect.hpp"
 #include "lancer/generate.hpp"
 
 namespace lancer {
@@ -83,6 +84,35 @@ TEST(Watertight, NoLeakThroughTheEdgesAndCornersOfACube) {
     std::printf("cube: %zu rays at vertices and edges; leaks: watertight %zu, moller-trumbore %zu\n",
                 watertight.rays, watertight.leaks, moller.leaks);
     EXPECT_EQ(watertight.leaks, 0u);
+}
+
+// Fuzz finding 22 (docs/robustness.md): a sliver 2^-126 wide, crossed 1 unit from the origin along a
+// direction of 2^24, at t = 2^-24. One edge function is exactly zero, another underflowed to -0 in float, and
+// the numerator's products fell below 2^-150: the float kernel said t = 0, a hit 1 unit from the sliver that
+// brute force reported and the structures whose leaves exclude the origin did not. In double, t = 2^-24.
+TEST(Watertight, DenormalEdgeFunctionsKeepTheirHitsT) {
+    const Triangle sliver{Vec3f(0x1p-126f), {0x1p-126f, 1, 0}, {0, 0, 0}};
+    const Ray ray{{-1, 0, 0}, {0x1p+24f, 0x1.4p-1f, 0x1.02fff8p-128f}, 0, kInfinity};
+    TriangleHit hit{};
+    ASSERT_TRUE(Watertight::intersect(Watertight::RayData(ray), sliver, ray.tnear, ray.tfar, hit));
+    EXPECT_NEAR(hit.t, 0x1p-24f, 0x1p-40f);
+    // The fuzzer's interval ends at 2^-126, before the sliver: no hit.
+    EXPECT_FALSE(Watertight::intersect(Watertight::RayData(ray), sliver, -0x1.4d4d4cp-50f, 0x1p-126f, hit));
+}
+
+// Normal edge functions (a triangle 2^-30 across) whose numerator's products w z (z = 2^-80, the triangle
+// just ahead of the origin) fall in the denormal range: the float t erred by up to 2^-10 of itself; the
+// numerator below Watertight::kSmallNumerator is computed in double, and t is exact.
+TEST(Watertight, ANumeratorInTheDenormalRangeIsComputedInDouble) {
+    const float z = 0x1.234568p-80f, size = 0x1.6p-30f;
+    const Triangle tiny{{-size, -size, z}, {size, -0x1.3p-31f, z}, {0x1.1p-32f, size, z}};
+    const Ray ray{{0, 0, 0}, {0, 0, 1}, 0, kInfinity};
+    TriangleHit hit{};
+    ASSERT_TRUE(Watertight::intersect(Watertight::RayData(ray), tiny, ray.tnear, ray.tfar, hit));
+    EXPECT_EQ(hit.t, z);
+    EXPECT_GT(hit.u, 0.0f);
+    EXPECT_GT(hit.v, 0.0f);
+    EXPECT_LT(hit.u + hit.v, 1.0f);
 }
 
 }  // namespace
