@@ -225,10 +225,14 @@ struct WatertightBlock {
         const Float t_accepted = Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
                                                            Ops::less_equal(t, Ops::broadcast(tfar))),
                                               Ops::less(t, Ops::broadcast(kInfinity)));
-        const unsigned scalar_lanes = Ops::mask(Ops::bit_or(
-            any_small, Ops::less(Ops::abs(numerator), Ops::broadcast(Watertight::kSmallNumerator))));
         // Three normal edge functions of one sign, the only lanes left: det is not zero.
         const unsigned rejected = Ops::mask(Ops::bit_and(any_negative, any_positive));
+        // As in the scalar kernel, a small numerator matters only once the signs have accepted the lane: rays
+        // from a triangle's plane (T near 0) would otherwise send every lane they miss to the scalar path.
+        const unsigned scalar_lanes =
+            Ops::mask(any_small) |
+            (Ops::mask(Ops::less(Ops::abs(numerator), Ops::broadcast(Watertight::kSmallNumerator))) &
+             ~rejected);
         out.hit_lanes = Ops::mask(t_accepted) & ~rejected & ~scalar_lanes;
         out.scalar_lanes = scalar_lanes;
         Ops::store(out.t, t), Ops::store(out.u, Ops::mul(w1, inv_det)),
