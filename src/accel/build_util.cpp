@@ -1,5 +1,7 @@
 #include "accel/build_util.hpp"
 
+#include "core/ray_conditioning.hpp"
+
 #include <array>
 #include <cmath>
 
@@ -18,7 +20,9 @@ Box3f grown_for_overlap(const Box3f& box) {
 
 float geometric_tolerance(const Box3f& scene_bounds) {
     if (scene_bounds.empty()) return 0.0f;
-    return 0x1p-20f * std::max(max_component(abs(scene_bounds.lo)), max_component(abs(scene_bounds.hi)));
+    const float largest_coordinate =
+        std::max(max_component(abs(scene_bounds.lo)), max_component(abs(scene_bounds.hi)));
+    return 0x1p-20f * largest_coordinate + kKernelTolerance * max_component(scene_bounds.extent());
 }
 
 namespace {

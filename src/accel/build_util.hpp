@@ -26,10 +26,11 @@ namespace lancer {
 // box). Empty when the primitive misses the box.
 [[nodiscard]] Box3f clipped_primitive_bounds(const Geometry& geometry, std::uint32_t prim, const Box3f& box);
 
-// Triangle kernels compute hit points with a rounding error of a few ulps of the largest coordinate involved
-// (Moller-Trumbore more when ill-conditioned). Structures treat their node boxes and cells as grown by this
-// distance, 2^-20 (8 ulps) of the scene's largest coordinate, so that no structure culls a hit the kernel
-// reports and brute force finds (docs/numerical-contract.md, "Boxes").
+// Structures treat their node boxes and cells as grown by this distance, so that no structure culls a hit
+// the kernel reports and brute force finds (docs/numerical-contract.md, "Boxes"): 2^-20 (8 ulps) of the
+// scene's largest coordinate, for the rounding of coordinates, plus 2^-19 of its largest side
+// (kKernelTolerance, core/ray_conditioning.hpp), for the triangle tests' rounding, a few 2^-24 |T| from an
+// origin that ray conditioning keeps within 4.5 sides of every vertex.
 [[nodiscard]] float geometric_tolerance(const Box3f& scene_bounds);
 
 [[nodiscard]] inline Box3f intersection(const Box3f& a, const Box3f& b) {

@@ -116,20 +116,20 @@ template <class Ops>
     return Ops::max(Ops::abs(a.x), Ops::max(Ops::abs(a.y), Ops::abs(a.z)));
 }
 
-// MollerTrumbore::intersect on K lanes. A lane in the grazing band that passes the widened float u and v
-// tests is left to the scalar kernel, which decides it in double.
+// MollerTrumbore::intersect on K lanes. A lane that passes the widened float u and v tests but is grazing or
+// within their error bound of an edge is left to the scalar kernel, which decides it in double.
 template <class Ops>
 struct MollerTrumboreBlock {
     Vec3v<Ops> origin, direction;
     typename Ops::Float band_scale;   // kIllConditioned * direction_scale, the first product of the band
-    typename Ops::Float slack_scale;  // kGrazingSlack * direction_scale, the first product of the slack
+    typename Ops::Float slack_scale;  // kRoundingSlack * direction_scale, the first product of the slack
 
     explicit MollerTrumboreBlock(const MollerTrumbore::RayData& ray)
         : origin{Ops::broadcast(ray.origin.x), Ops::broadcast(ray.origin.y), Ops::broadcast(ray.origin.z)},
           direction{Ops::broadcast(ray.direction.x), Ops::broadcast(ray.direction.y),
                     Ops::broadcast(ray.direction.z)},
           band_scale(Ops::broadcast(MollerTrumbore::kIllConditioned * ray.direction_scale)),
-          slack_scale(Ops::broadcast(MollerTrumbore::kGrazingSlack * ray.direction_scale)) {}
+          slack_scale(Ops::broadcast(MollerTrumbore::kRoundingSlack * ray.direction_scale)) {}
 
     template <int K>
     void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
@@ -148,9 +148,9 @@ struct MollerTrumboreBlock {
         const Vec3v<Ops> to_origin = sub(origin, v0);
         const Float grazing =
             Ops::less_equal(abs_det, Ops::mul(band, Ops::broadcast(MollerTrumbore::kGrazingScale)));
-        // bit_and with the grazing mask: the scalar kernel's slack, or +0 outside the band.
-        const Float slack = Ops::bit_and(
-            grazing, Ops::mul(Ops::mul(slack_scale, max_abs_component(to_origin)), Ops::abs(inv_det)));
+        const Float slack = Ops::mul(
+            Ops::mul(slack_scale, Ops::add(Ops::add(max_abs_component(to_origin), e1_scale), e2_scale)),
+            Ops::abs(inv_det));
         const Float slack_u = Ops::mul(slack, e2_scale), slack_v = Ops::mul(slack, e1_scale);
         const Float u = Ops::mul(dot(to_origin, p), inv_det);
         const Float zero = Ops::broadcast(0.0f), one = Ops::broadcast(1.0f);
@@ -161,7 +161,10 @@ struct MollerTrumboreBlock {
         accept = Ops::bit_and(
             accept, Ops::bit_and(Ops::greater_equal(v, Ops::sub(zero, slack_v)),
                                  Ops::less_equal(Ops::add(u, v), Ops::add(one, Ops::add(slack_u, slack_v)))));
-        const unsigned scalar_lanes = Ops::mask(Ops::bit_and(accept, grazing));
+        const Float certain =
+            Ops::bit_and(Ops::bit_and(Ops::greater_equal(u, slack_u), Ops::greater_equal(v, slack_v)),
+                         Ops::less_equal(Ops::add(u, v), Ops::sub(one, Ops::add(slack_u, slack_v))));
+        const unsigned scalar_lanes = Ops::mask(accept) & (Ops::mask(grazing) | ~Ops::mask(certain));
         const Float t = Ops::mul(dot(e2, q), inv_det);
         accept = Ops::bit_and(accept, Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
                                                                 Ops::less_equal(t, Ops::broadcast(tfar))),

@@ -77,10 +77,13 @@ struct MollerTrumbore {
     // the two bands is a power of two, so the second is the first scaled exactly.
     static constexpr float kGrazingBand = 0x1p-8f;
     static constexpr float kGrazingScale = kGrazingBand / kIllConditioned;
-    // The float u and v err by at most about 2^7 2^-24 |T| |d| |e2| / |det| and 2^7 2^-24 |T| |d| |e1| /
-    // |det| (max norms; forward error of the cross and dot products, T, e1 and e2 rounded once each, and of
-    // det).
-    static constexpr float kGrazingSlack = 0x1p-17f;
+    // The float u and v err by at most 2^7 2^-24 S |d| |e2| / |det| and 2^7 2^-24 S |d| |e1| / |det|, with
+    // S = |T| + |e1| + |e2| (max norms). Forward error: T, e1 and e2 are rounded once each, the cross
+    // products' components carry 6 2^-24 |d| |e2| and 6 2^-24 |T| |e1|, the dot products 3 2^-24 of the sum
+    // of their terms, about 42 2^-24 |T| |d| |e2| for u det and 42 2^-24 |e1| |d| |e2| for det, whose error
+    // moves u by u times its relative error; 2^7 covers the sum and the last roundings (the e1 and e2 terms
+    // keep the slack above 2^-19.6, beyond the 2^-24 of rounding u, v and u + v).
+    static constexpr float kRoundingSlack = 0x1p-17f;
 
     struct RayData {
         Vec3f origin, direction;
@@ -108,24 +111,28 @@ struct MollerTrumbore {
         if (!(std::fabs(det) > band && std::fabs(det) < kInfinity)) return false;
         const float inv_det = 1.0f / det;
         const Vec3f to_origin = ray.origin - tri.v0;
-        // A grazing ray: the float t, u and v err by up to about 2^-24 |T| |d| |e1| |e2| / |det|, which at
-        // the grazing band reaches a 65536th of |T| and grows without bound towards the first band (fuzz
-        // finding 16: t = 349 for an exact -1.8, a hit 330 units off the triangle). The float u and v tests
-        // only screen it, widened by their error bound so that they never drop a hit the double test would
-        // find; the double test then decides, before any test that depends on [tnear, tfar], so that a
-        // structure that passes a shorter tfar than brute force still gets the same answer. Outside the band
-        // the slacks are zero and the float test decides alone.
+        // The float u and v decide only where they are farther from the triangle's edges than their error
+        // bound (kRoundingSlack); within it the double test decides (a filtered predicate). A hit the float
+        // test reported inside that band lay up to 75 2^-24 |T| from the exact line (fuzz finding 23): from
+        // an origin one scene away, beyond the geometric tolerance by which the structures grow their boxes,
+        // so brute force reported triangles that every structure culled. The screens are widened by the
+        // same bound, so that they never drop a hit the double test would find; the double test decides
+        // before any test that depends on [tnear, tfar], so that a structure that passes a shorter tfar than
+        // brute force still gets the same answer. A grazing ray (|det| within 2^12 of the ill-conditioned
+        // band) always goes to double: its float t errs by up to 2^-24 |T| |d| |e1| |e2| / |det| too, a
+        // 65536th of |T| at the band and without bound towards the first band (fuzz finding 16: t = 349 for
+        // an exact -1.8, a hit 330 units off the triangle).
         const bool grazing = std::fabs(det) <= band * kGrazingScale;
-        const float slack =
-            grazing ? kGrazingSlack * ray.direction_scale * max_component(abs(to_origin)) * std::fabs(inv_det)
-                    : 0.0f;
+        const float slack = kRoundingSlack * ray.direction_scale *
+                            (max_component(abs(to_origin)) + e1_scale + e2_scale) * std::fabs(inv_det);
         const float slack_u = slack * e2_scale, slack_v = slack * e1_scale;
         const float u = dot(to_origin, p) * inv_det;
         if (!(u >= -slack_u && u <= 1.0f + slack_u)) return false;
         const Vec3f q = cross(to_origin, e1);
         const float v = dot(ray.direction, q) * inv_det;
         if (!(v >= -slack_v && u + v <= 1.0f + (slack_u + slack_v))) return false;
-        if (grazing) return intersect_in_double(ray, tri, tnear, tfar, out);
+        const bool certain = u >= slack_u && v >= slack_v && u + v <= 1.0f - (slack_u + slack_v);
+        if (grazing || !certain) return intersect_in_double(ray, tri, tnear, tfar, out);
         const float t = dot(e2, q) * inv_det;
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit
         out = {t, u, v};

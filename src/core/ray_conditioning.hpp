@@ -13,6 +13,12 @@
 // to ulp(D): from 4.5e11 away a 5-unit scene is seen through a 2^15-unit grid and brute force reported a
 // "hit" on a triangle that the exact line misses by more than a unit. The line itself is exact, though, so a
 // far ray is re-parametrised from a point of its line near the scene (move_near) and rounded to float once.
+//
+// Near and far are measured in the largest side of the scene's box, the scale of the distance |T| from an
+// origin to a vertex, to which the triangle tests' rounding is proportional: from an origin within
+// kFarOriginSides sides of the centre, a test reports no hit farther from the exact line than the
+// structures' geometric tolerance, so no structure culls what brute force finds (fuzz finding 23: the
+// threshold was 128 sides, and on a needle 2^24 long the rounding from 25 sides away passed the tolerance).
 #pragma once
 
 #include <cmath>
@@ -28,10 +34,20 @@
 
 namespace lancer {
 
-// A ray is far when its origin lies more than this many half-extents of the scene's box from the box's
-// centre (per axis). Rays from closer keep their origin, and their bits: a kernel's error then stays within
-// 2^-24 * 2^9 = 2^-15 of the scene's size. Cameras of the benchmark views stand 1 to 3 extents away.
-inline constexpr float kFarOriginHalfExtents = 256.0f;
+// A ray is far when its origin lies more than kFarOriginSides times the largest side of the scene's box from
+// the box's centre on some axis. Rays from closer keep their origin, and their bits: every vertex lies within
+// |T| <= (kFarOriginSides + 1/2) sides of the origin (max norm). The benchmark cameras stand within 2.4
+// sides of the centre (2.74 half-diagonals of the box).
+inline constexpr float kFarOriginSides = 4.0f;
+
+// The structures treat their boxes and cells as grown by the geometric tolerance (accel/build_util.hpp):
+// 2^-20 of the scene's largest coordinate, for the rounding of coordinates, plus kKernelTolerance times its
+// largest side, which covers the distance from the exact line at which a triangle test may report a hit.
+// The watertight test translates and shears the vertices, rounding each by a few 2^-24 |T| before its edge
+// functions (measured: up to 1.9 2^-24 |T|, tests/accel/build_util_test.cpp); Moller-Trumbore decides in
+// double within its error bound of an edge (core/intersect.hpp). A budget of 6 2^-24 |T| at the threshold:
+inline constexpr float kKernelTolerance = 0x1p-19f;
+static_assert(kKernelTolerance >= 6.0f * (kFarOriginSides + 0.5f) * 0x1p-24f);
 
 // What the re-parametrisation needs of the scene: its box's centre and the distance beyond which an origin
 // is far. An empty scene has no centre: nothing is far (there is nothing to hit).
@@ -40,7 +56,7 @@ class FarOriginFrame {
     explicit FarOriginFrame(const Box3f& bounds)
         : active_(!bounds.empty()),
           centre_(bounds.center()),
-          far_distance_(kFarOriginHalfExtents * 0.5f * max_component(bounds.extent())) {}
+          far_distance_(kFarOriginSides * max_component(bounds.extent())) {}
 
     // The origin of a valid ray (is_valid): an infinite origin is not far, it is invalid.
     [[nodiscard]] bool is_far(Vec3f origin) const {

@@ -148,6 +148,39 @@ std::vector<FuzzCase> fuzz_cases() {
           {}},
          {{{-1, 0, 0}, {0x1p+24f, 0x1.4p-1f, 0x1.02fff8p-128f}, -0x1.4d4d4cp-50f, 0x1p-126f},
           {{-1, 0, 0}, {0x1p+24f, 0x1.4p-1f, 0x1.02fff8p-128f}, -0x1.4d4d4cp-50f, kInfinity}}},
+        // A needle (one vertex at z = 2^24, the rest within 5 units) seen from 4.3e8 away along the diagonal:
+        // the exact line passes 207 units from the vertex (-3.0625, -5, -5) of triangle 2. The float Moller-
+        // Trumbore test reported it (u = v = 0, t = -1), and so did brute force, the octrees and the kd-tree,
+        // not the grid, the BVHs or Embree, which culled it with the geometric tolerance (16 units then).
+        // Finding 23: Moller-Trumbore decides within its error bound of an edge in double, and ray
+        // conditioning moves origins beyond 8 times the largest coordinate (this one is 25 times it).
+        {{"needle seen from 25 times its length",
+          {{{0x1.5p+0f, 1, 0}, {0, 0, 0}, {0, 0, 0}},
+           {corner, {-5, -5, 0x1p+24f}, {0, -1, 0}},
+           {{-0x1.88p+1f, -5, -5}, corner, {-5, -5, -0x1.3cp+2f}},
+           {{0.5f, 0.5f, 1}, {0, 0, -1}, {2, -5, 1}},
+           {{0, 0, 1}, {0, -5, 0.5f}, {0.5f, 1, 0}},
+           {{0, -1, -5}, corner, corner},
+           {corner, {-5, -5, 0x1.1p+0f}, {2, 0x1.5p+0f, 0x1.7p+0f}},
+           {{0x1.28p+1f, -5, -5}, {-5, -5, -0x1.fp+0f}, corner}},
+          {}},
+         {{{-0x1.9b9b8ap+28f, -0x1.9b9b9ap+28f, -0x1.9b9b9ap+28f},
+           Vec3f(-0x1.9b9b9ap+28f),
+           -0x1.9b9b9ap+28f,
+           kInfinity}}},
+        // The same error from inside a unit scene (scratch search after finding 23, rays aimed just outside
+        // the vertices): the float Moller-Trumbore test reported this triangle at t = 1 for a line that
+        // misses its box grown by the tolerance then (2^-20); brute force and the kd-tree answered the hit,
+        // every other structure the miss.
+        {{"Moller-Trumbore's rounding beside a vertex",
+          {{{-0x1.e12ec8p-1f, 0x1.2ce9a8p-2f, 0x1.81be3cp-1f},
+            {0x1.bba48p-4f, 0x1.b8238p-5f, 0x1.27516p-3f},
+            {-0x1.b1aa14p-2f, 0x1.570c4cp-3f, 0x1.c68f9ap-2f}}},
+          {}},
+         {{{0x1.c3756ep-2f, 0x1.3044ecp-1f, -0x1.2dbfb6p-1f},
+           {-0x1.548beap-2f, -0x1.14c2bcp-1f, 0x1.7793e8p-1f},
+           0,
+           kInfinity}}},
     };
 }
 

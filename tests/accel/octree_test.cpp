@@ -288,13 +288,19 @@ TEST(OctreeRevelles, TiesStayInsideTheParent) {
 
 // Leaf (cell index) intervals along the ray by slab tests on every leaf, with the walk's own plane
 // coordinates and parameter formula: the leaves whose interval has positive length and meets
-// [tnear, tfar], by entry.
+// [tnear, tfar], by entry. The walk grows the root by the geometric tolerance, so a leaf's faces on the
+// root's faces are moved out by it.
 std::vector<std::uint32_t> leaves_by_slabs(const Octree& octree, const Ray& ray) {
+    const Box3f root = octree.cell_box(octree.cells[0]);
     std::vector<std::tuple<float, float, std::uint32_t>> crossed;
     for (std::uint32_t i = 0; i < octree.cells.size(); ++i) {
         const OctreeCell& cell = octree.cells[i];
         if (!cell.is_leaf()) continue;
-        const Box3f box = octree.cell_box(cell);
+        Box3f box = octree.cell_box(cell);
+        for (int axis = 0; axis < 3; ++axis) {
+            if (box.lo[axis] == root.lo[axis]) box.lo[axis] -= octree.tolerance;
+            if (box.hi[axis] == root.hi[axis]) box.hi[axis] += octree.tolerance;
+        }
         float entry = -kInfinity, exit = kInfinity;
         for (int axis = 0; axis < 3; ++axis) {
             if (ray.direction[axis] == 0.0f) {

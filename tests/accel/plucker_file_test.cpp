@@ -133,8 +133,8 @@ TEST_F(PluckerFileTest, RefusesWrongMagicVersionAndLayout) {
     std::memcpy(wrong.data(), "PLYFORMA", 8);
     EXPECT_NE(refusal(write_bytes(wrong, "magic.plo")).find("wrong magic"), std::string::npos);
     wrong = good;
-    wrong[offsetof(PluckerFileHeader, version)] = 2;
-    EXPECT_NE(refusal(write_bytes(wrong, "version.plo")).find("version 2"), std::string::npos);
+    wrong[offsetof(PluckerFileHeader, version)] = 1;
+    EXPECT_NE(refusal(write_bytes(wrong, "version.plo")).find("version 1"), std::string::npos);
     wrong = good;
     wrong[offsetof(PluckerFileHeader, flags)] = 8;
     EXPECT_NE(refusal(write_bytes(wrong, "flags.plo")).find("flags"), std::string::npos);

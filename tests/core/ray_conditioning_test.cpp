@@ -13,7 +13,7 @@
 namespace lancer {
 namespace {
 
-const Box3f kScene{{-1.0f, -2.0f, 0.0f}, {3.0f, 2.0f, 1.0f}};  // centre (1, 0, 0.5), half-extents up to 2
+const Box3f kScene{{-1.0f, -2.0f, 0.0f}, {3.0f, 2.0f, 1.0f}};  // centre (1, 0, 0.5), sides 4, 4 and 1
 
 // Squared distance from p to the exact line o + t d, in quadruple precision (GCC's and clang's __float128:
 // 113 bits, so that the test's own rounding stays below 1e-9 for origins up to 1e24 away).
@@ -26,11 +26,14 @@ double squared_distance_to_line(Vec3f p, const Ray& ray) {
     return static_cast<double>(ex * ex + ey * ey + ez * ez);
 }
 
-TEST(RayConditioning, OriginsWithin256HalfExtentsAreNotFar) {
+// Far is measured in the box's largest side (4 here), from its centre, on each axis.
+TEST(RayConditioning, OriginsWithin4SidesAreNotFar) {
     const FarOriginFrame frame(kScene);
     EXPECT_FALSE(frame.is_far({1.0f, 0.0f, 0.5f}));
-    EXPECT_FALSE(frame.is_far({1.0f + 512.0f, 0.0f, 0.5f}));  // 256 x the largest half-extent, 2
-    EXPECT_TRUE(frame.is_far({1.0f + 513.0f, 0.0f, 0.5f}));
+    EXPECT_FALSE(frame.is_far({1.0f + 16.0f, 0.0f, 0.5f}));  // 4 sides from the centre
+    EXPECT_TRUE(frame.is_far({std::nextafter(1.0f + 16.0f, kInfinity), 0.0f, 0.5f}));
+    EXPECT_FALSE(frame.is_far({1.0f, -16.0f, 0.5f - 16.0f}));
+    EXPECT_TRUE(frame.is_far({1.0f, -16.0f, 0.5f - 16.5f}));
     EXPECT_TRUE(frame.is_far({1.0f, 0.0f, -1e30f}));
     EXPECT_FALSE(FarOriginFrame(Box3f{}).is_far({1e30f, 0.0f, 0.0f})) << "an empty scene has nothing far";
 }
@@ -59,7 +62,7 @@ TEST(RayConditioning, MovedRaysKeepTheirLine) {
         EXPECT_FALSE(frame.is_far(moved.ray.origin)) << "ray " << i;
         const Vec3f unit_line = normalize(ray.origin);
         const Vec3f nearest = unit_line * dot(centre, unit_line);
-        EXPECT_LT(length(moved.ray.origin - nearest), 0x1p-23f * 512.0f + 0x1p-23f * distance) << "ray " << i;
+        EXPECT_LT(length(moved.ray.origin - nearest), 0x1p-23f * 32.0f + 0x1p-23f * distance) << "ray " << i;
         EXPECT_EQ(moved.ray.direction, ray.direction);
         // The interval is the same one, rounded outwards.
         EXPECT_LE(double(moved.ray.tnear), double(ray.tnear) - moved.shift);
