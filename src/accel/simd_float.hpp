@@ -38,6 +38,7 @@ struct Sse4 {
     static Float equal(Float a, Float b) { return _mm_cmpeq_ps(a, b); }
     static Float bit_and(Float a, Float b) { return _mm_and_ps(a, b); }
     static Float bit_or(Float a, Float b) { return _mm_or_ps(a, b); }
+    static Float bit_xor(Float a, Float b) { return _mm_xor_ps(a, b); }
     // a > b ? if_greater : otherwise, per lane (ordered: a NaN lane takes `otherwise`, as the scalar
     // ternary).
     static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
@@ -69,6 +70,7 @@ struct Avx2 {
     static Float equal(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_EQ_OQ); }
     static Float bit_and(Float a, Float b) { return _mm256_and_ps(a, b); }
     static Float bit_or(Float a, Float b) { return _mm256_or_ps(a, b); }
+    static Float bit_xor(Float a, Float b) { return _mm256_xor_ps(a, b); }
     static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
         return _mm256_blendv_ps(otherwise, if_greater, _mm256_cmp_ps(a, b, _CMP_GT_OQ));
     }

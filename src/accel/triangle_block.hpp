@@ -209,17 +209,12 @@ struct WatertightBlock {
         const Float w0 = Ops::sub(Ops::mul(b.x, c.y), Ops::mul(b.y, c.x));
         const Float w1 = Ops::sub(Ops::mul(c.x, a.y), Ops::mul(c.y, a.x));
         const Float w2 = Ops::sub(Ops::mul(a.x, b.y), Ops::mul(a.y, b.x));
-        const Float zero = Ops::broadcast(0.0f);
         // Zero or denormal edge functions and small numerators are the scalar kernel's, in double
         // (Watertight in core/intersect.hpp).
         const Float float_min = Ops::broadcast(std::numeric_limits<float>::min());
         const Float any_small =
             Ops::bit_or(Ops::bit_or(Ops::less(Ops::abs(w0), float_min), Ops::less(Ops::abs(w1), float_min)),
                         Ops::less(Ops::abs(w2), float_min));
-        const Float any_negative =
-            Ops::bit_or(Ops::bit_or(Ops::less(w0, zero), Ops::less(w1, zero)), Ops::less(w2, zero));
-        const Float any_positive =
-            Ops::bit_or(Ops::bit_or(Ops::greater(w0, zero), Ops::greater(w1, zero)), Ops::greater(w2, zero));
         const Float det = Ops::add(Ops::add(w0, w1), w2);
         const Float az = Ops::mul(shear_z, a.z), bz = Ops::mul(shear_z, b.z), cz = Ops::mul(shear_z, c.z);
         const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
@@ -228,8 +223,11 @@ struct WatertightBlock {
         const Float t_accepted = Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
                                                            Ops::less_equal(t, Ops::broadcast(tfar))),
                                               Ops::less(t, Ops::broadcast(kInfinity)));
-        // Three normal edge functions of one sign, the only lanes left: det is not zero.
-        const unsigned rejected = Ops::mask(Ops::bit_and(any_negative, any_positive));
+        // Edge functions of both signs: a miss. Where all three are normal (the lanes not handed to the
+        // scalar kernel), that is a sign bit that differs between them, read by movemask from w0 ^ w1 | w0 ^
+        // w2 (three operations where the compares took eleven). Three normal edge functions of one sign, the
+        // only lanes left: det is not zero.
+        const unsigned rejected = Ops::mask(Ops::bit_or(Ops::bit_xor(w0, w1), Ops::bit_xor(w0, w2)));
         // As in the scalar kernel, a small numerator matters only once the signs have accepted the lane: rays
         // from a triangle's plane (T near 0) would otherwise send every lane they miss to the scalar path.
         const unsigned scalar_lanes =

@@ -10,7 +10,6 @@
 #include <bit>
 #include <limits>
 #include <random>
-#include <type_traits>
 
 #include "accel/agreement.hpp"
 #include "accel/brute.hpp"
@@ -479,13 +478,14 @@ void check_block_kernels(std::uint32_t seed) {
     KernelCheckCounts counts;
     check_block_kernel<TriangleTestT, 4>(seed, counts);
     check_block_kernel<TriangleTestT, 8>(seed + 1, counts);
-    // Not a degenerate sample: many lanes hit, many closest hits change, and both tests hand lanes to their
-    // double fallback: the watertight test many (grid triangles, repeated vertices), Moller-Trumbore its
-    // grazing lanes (47 with these seeds).
+    // Not a degenerate sample: many lanes hit, many closest hits change, and both tests hand many lanes to
+    // their double fallback: the watertight test its zero and denormal edge functions (grid triangles,
+    // repeated vertices; 34,520 with these seeds), Moller-Trumbore its grazing lanes and those within its
+    // error bound of an edge (9,054; 47 grazing ones before fuzz finding 23).
     EXPECT_GT(counts.lane_hits, 6000u);
     EXPECT_GT(counts.closest_hits, 5000u);
     EXPECT_GT(counts.occluded, 5000u);
-    EXPECT_GT(counts.scalar_lanes, (std::is_same_v<TriangleTestT, Watertight> ? 1000u : 20u));
+    EXPECT_GT(counts.scalar_lanes, 1000u);
 }
 
 TEST(TriangleBlock, MollerTrumboreBlockEqualsScalarTest) {
