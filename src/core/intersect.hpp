@@ -205,10 +205,12 @@ struct Watertight {
         const float w0 = v.bx * v.cy - v.by * v.cx;
         const float w1 = v.cx * v.ay - v.cy * v.ax;
         const float w2 = v.ax * v.by - v.ay * v.bx;
+        // Edge functions of both signs, strictly: a miss whatever their magnitudes (float signs are exact),
+        // decided before the double fallback, which would only find the same signs again.
+        if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
         constexpr float kFloatMin = std::numeric_limits<float>::min();
         if (std::fabs(w0) < kFloatMin || std::fabs(w1) < kFloatMin || std::fabs(w2) < kFloatMin)
             return intersect_in_double(ray, v, tnear, tfar, out);
-        if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
         // Three normal edge functions of one sign: det is not zero.
         const float det = w0 + w1 + w2;
         const float az = ray.shear_z * v.az, bz = ray.shear_z * v.bz, cz = ray.shear_z * v.cz;

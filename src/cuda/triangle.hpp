@@ -125,10 +125,11 @@ struct WatertightTest {
         const float w0 = v.bx * v.cy - v.by * v.cx;
         const float w1 = v.cx * v.ay - v.cy * v.ax;
         const float w2 = v.ax * v.by - v.ay * v.bx;
+        // Both signs, strictly: a miss before the double fallback (core/intersect.hpp).
+        if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
         constexpr float kFloatMin = 0x1p-126f;
         if (abs_of(w0) < kFloatMin || abs_of(w1) < kFloatMin || abs_of(w2) < kFloatMin)
             return intersect_in_double(ray, v, tnear, tfar, out);
-        if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
         const float det = w0 + w1 + w2;
         const float az = ray.shear_z * v.az, bz = ray.shear_z * v.bz, cz = ray.shear_z * v.cz;
         const float numerator = w0 * az + w1 * bz + w2 * cz;
