@@ -44,9 +44,13 @@ std::vector<std::uint8_t> occlusion_of(const Accel& accel, std::span<const Ray> 
 std::vector<Hit> oracle_hits(const Geometry& geometry, TriangleTest test, std::span<const Ray> rays) {
     const std::unique_ptr<Accel> brute = make_accel("brute");
     brute->build(geometry, build_options(test));
+    return oracle_hits(*brute, rays, geometry);
+}
+
+std::vector<Hit> oracle_hits(const Accel& brute, std::span<const Ray> rays, const Geometry& geometry) {
     std::vector<Hit> hits(rays.size());
-    brute->intersect(rays, hits);
-    check_clean(*brute, rays, hits, occlusion_of(*brute, rays), geometry);
+    brute.intersect(rays, hits);
+    check_clean(brute, rays, hits, occlusion_of(brute, rays), geometry);
     return hits;
 }
 

@@ -12,6 +12,9 @@ namespace lancer::fuzz {
 // Brute force's closest hits: the oracle. Checks that they are clean themselves (see check_clean).
 [[nodiscard]] std::vector<Hit> oracle_hits(const Geometry& geometry, TriangleTest test,
                                            std::span<const Ray> rays);
+// The same from a brute-force structure already built on `geometry`.
+[[nodiscard]] std::vector<Hit> oracle_hits(const Accel& brute, std::span<const Ray> rays,
+                                           const Geometry& geometry);
 
 // Closest hits and occlusion of `accel` (built on `geometry`) agree with the oracle (compare_hits,
 // compare_occlusion: 0 mismatches) and are clean.

@@ -104,6 +104,28 @@ def rays_seed(triangles, rays) -> bytes:
     return bytes(reversed(consumed))
 
 
+MESH_RAYS_SCENES = 5  # the fixed scenes of mesh_rays_fuzz.cpp, in its order
+
+
+def mesh_rays_seed(scene: int, triangle: int) -> bytes:
+    """mesh_rays_fuzz's input: the scene index, then five rays about one triangle: from the exact centre to
+    a vertex (as it is, scaled by a power of two, nudged by a few floats), from a vertex to an edge midpoint
+    (tfar = 1, at the edge), and from a lattice point near the scene into the triangle. Bytes in consumption
+    order (FuzzedDataProvider takes integers from the end; a uint16 high byte first), reversed."""
+    consumed = [scene]
+
+    def triangle_point(kind: int, triangle: int, corner: int, parameters=()) -> list:
+        return [kind, triangle >> 8, triangle & 255, corner] + list(parameters)
+
+    vertex = triangle_point(0, triangle, triangle % 3)
+    consumed += [3, 1] + vertex + [1, 0]                        # centre -> vertex, [0, inf]
+    consumed += [3, 2] + vertex + [0, triangle % 256] + [1, 0]  # the same scaled by 2^(triangle % 256 - 160)
+    consumed += [3, 3] + vertex + [triangle % 3, triangle % 9, 1, 0]  # one component a few floats off
+    consumed += [0, triangle >> 8, triangle & 255, 1, 1] + triangle_point(1, triangle + 1, 2, [8]) + [1, 1]
+    consumed += [4, 88, 72, 96, 1] + triangle_point(2, triangle, 0, [5, 5]) + [1, 0]
+    return bytes(reversed(consumed))
+
+
 def main() -> None:
     source, shared, out = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
     test_data = source / "tests/scene/data"
@@ -147,6 +169,9 @@ def main() -> None:
              ([-1, 0.5, 0], [1, 0, 0], 0, None),      # in the plane of the quad
              ([0.5, 0.5, 1], [0, 0, -1], 2, 1)]       # tnear > tfar
     write(out / "rays_fuzz", "quad", rays_seed(quad, aimed))
+    for scene in range(MESH_RAYS_SCENES):
+        for triangle in range(0, 1280, 97):
+            write(out / "mesh_rays_fuzz", "scene%d_%d" % (scene, triangle), mesh_rays_seed(scene, triangle))
 
 
 if __name__ == "__main__":

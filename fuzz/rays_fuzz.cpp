@@ -4,15 +4,10 @@
 // tnear > tfar. A scene beyond the coordinate domain must be refused by every structure; otherwise every
 // structure must agree with brute force (0 mismatches, src/accel/agreement.hpp) on every ray and answer it
 // cleanly (invalid rays miss); Embree, with its own kernels, must answer cleanly (accel_check.hpp).
-#include <fuzzer/FuzzedDataProvider.h>
-
-#include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string_view>
@@ -20,55 +15,10 @@
 
 #include "accel_check.hpp"
 #include "fuzz_support.hpp"
+#include "fuzzed_floats.hpp"
 
 namespace lancer::fuzz {
 namespace {
-
-using Limits = std::numeric_limits<float>;
-
-// The values that break arithmetic: signed zeros, denormals, the float range's ends, overflow, NaN, and the
-// ends of the coordinate domain (kCoordinateLimit = 2^60: a scene at its edge, the float just inside it).
-constexpr float kSpecialValues[] = {
-    0.0f,
-    -0.0f,
-    1.0f,
-    -1.0f,
-    Limits::denorm_min(),
-    -Limits::denorm_min(),
-    Limits::min(),
-    Limits::max(),
-    -Limits::max(),
-    Limits::infinity(),
-    -Limits::infinity(),
-    Limits::quiet_NaN(),
-    -Limits::quiet_NaN(),
-    1e-30f,
-    1e30f,
-    -1e30f,
-    0x1p24f,
-    0x1p60f,
-    -0x1p60f,
-    0x1.fffffep+59f,
-    0x1p-60f,
-    0x1p127f,
-    1e-7f,
-    0.5f,
-};
-constexpr int kSpecialCount = static_cast<int>(std::size(kSpecialValues));
-
-// One tag byte, then: a multiple of 1/16 in [-5, 5) (tag < 160: coordinates that line triangles up, share
-// edges and aim rays at them), a special value, or any 32-bit pattern.
-float next_float(FuzzedDataProvider& input) {
-    const int tag = input.ConsumeIntegral<std::uint8_t>();
-    if (tag < 160) return static_cast<float>(tag - 80) / 16.0f;
-    if (tag < 160 + kSpecialCount) return kSpecialValues[tag - 160];
-    return std::bit_cast<float>(input.ConsumeIntegral<std::uint32_t>());
-}
-
-Vec3f next_vec(FuzzedDataProvider& input) {
-    const float x = next_float(input), y = next_float(input);
-    return {x, y, next_float(input)};
-}
 
 // A scene vertex: finite (the loaders reject the rest), of any magnitude: beyond the contract's coordinate
 // domain (kCoordinateLimit) every structure must refuse the scene (findings 8 and 12, docs/robustness.md).

@@ -12,7 +12,7 @@ usage() {
     exit 2
 }
 
-ALL_HARNESSES=(off_fuzz dsc_fuzz nff_fuzz ply_fuzz obj_fuzz plo_fuzz rays_fuzz)
+ALL_HARNESSES=(off_fuzz dsc_fuzz nff_fuzz ply_fuzz obj_fuzz plo_fuzz rays_fuzz mesh_rays_fuzz)
 [[ $# -ge 1 && $1 =~ ^[0-9]+$ && $1 -gt 0 ]] || usage
 seconds=$1
 shift
@@ -48,7 +48,7 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$source_dir/fuzz/lsan.supp}
 report=$scratch/report.txt
-printf '%-10s %12s %8s %8s %8s %8s\n' harness executions exec/s corpus coverage findings >"$report"
+printf '%-14s %12s %8s %8s %8s %8s\n' harness executions exec/s corpus coverage findings >"$report"
 status=0
 for harness in "${harnesses[@]}"; do
     corpus=$build/corpus/$harness
@@ -65,10 +65,10 @@ for harness in "${harnesses[@]}"; do
     fi
     executions=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
     per_second=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
-    coverage=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
+    coverage=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2 || true)
     found=$(find "$findings" -type f -newer "$log.start" | wc -l)
     [[ $found -eq 0 ]] || status=1
-    printf '%-10s %12s %8s %8s %8s %8s\n' "$harness" "${executions:-?}" "${per_second:-?}" \
+    printf '%-14s %12s %8s %8s %8s %8s\n' "$harness" "${executions:-?}" "${per_second:-?}" \
         "$(find "$corpus" -type f | wc -l)" "${coverage:-?}" "$found" >>"$report"
 done
 cat "$report"

@@ -9,6 +9,7 @@
 // docs/cuda.md).
 #pragma once
 
+#include "core/vec3d.hpp"
 #include "cuda/bvh_traversal.hpp"
 #include "cuda/gpu_layout.hpp"
 #include "cuda/triangle.hpp"
@@ -17,7 +18,7 @@ namespace lancer::gpu {
 
 struct PluckerWalkRay {
     Vec3f origin;
-    Vec3f direction;  // scaled: its largest component is +-1
+    Vec3d direction;  // in double: exact Pluecker products (walk.hpp's WalkRay)
     Vec3f abs_direction;
     std::uint32_t up[3];
     std::uint8_t tie[3];
@@ -32,16 +33,11 @@ LANCER_HOST_DEVICE inline float cube_plane(const PluckerView& octree, const Pluc
 
 LANCER_HOST_DEVICE inline PluckerWalkRay make_walk_ray(const PluckerView& octree, const PluckerTables& tables,
                                                        const Ray& ray) {
-    PluckerWalkRay walk_ray;
-    walk_ray.origin = ray.origin;
-    const Vec3f a = abs_of(ray.direction);
-    const float scale = max_of(a.x, max_of(a.y, a.z));
-    walk_ray.octant = 0;
+    PluckerWalkRay walk_ray{ray.origin, Vec3d(ray.direction), {}, {}, {}, 0};
     for (int axis = 0; axis < 3; ++axis) {
         const float d = ray.direction[axis];
-        walk_ray.direction[axis] = d / scale;
         walk_ray.abs_direction[axis] = abs_of(d);
-        const bool moves = walk_ray.direction[axis] != 0.0f;
+        const bool moves = d != 0.0f;
         const float centre = octree.cube_lo[axis] + 0.5f * octree.cube_size;
         walk_ray.up[axis] = (moves ? d > 0.0f : ray.origin[axis] < centre) ? 1u : 0u;
         walk_ray.octant |= static_cast<int>(walk_ray.up[axis]) << axis;
@@ -170,12 +166,13 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
         const Vec3f w(read_only(planes + 6 * walk_ray.up[0]) - o.x,
                       read_only(planes + 1 + 6 * walk_ray.up[1]) - o.y,
                       read_only(planes + 2 + 6 * walk_ray.up[2]) - o.z);
-        const Vec3f products = cross(walk_ray.direction, w);
-        const int pattern = (products.x > 0.0f) | (products.y > 0.0f) << 1 | (products.z > 0.0f) << 2;
+        const Vec3d products = cross(walk_ray.direction, Vec3d(w));
+        const int pattern = (products.x > 0.0) | (products.y > 0.0) << 1 | (products.z > 0.0) << 2;
         const int face = tables.exit_face[walk_ray.octant][pattern];
         const int axis = face >> 1;
         const float ahead = walk_ray.up[axis] ? w[axis] : -w[axis];
-        if (limit * walk_ray.abs_direction[axis] <= plucker_exit_lower_bound(ahead)) return best;
+        if (static_cast<double>(limit) * walk_ray.abs_direction[axis] <= plucker_exit_lower_bound(ahead))
+            return best;
         // NEIGHBOR (4.2.2): the sub-face test only when four neighbours share the face.
         const std::uint32_t ends = read_only(leaf + kHeader - 1);
         const std::uint32_t start = plucker::neighbour_start(ends, face);
@@ -186,9 +183,9 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
             const Vec3f to_centre(axis == 0 ? w.x : read_only(planes + 3) - o.x,
                                   axis == 1 ? w.y : read_only(planes + 4) - o.y,
                                   axis == 2 ? w.z : read_only(planes + 5) - o.z);
-            const Vec3f sub = cross(walk_ray.direction, to_centre);
-            const int signs = (sub.x > 0.0f) | (sub.y > 0.0f) << 1 | (sub.z > 0.0f) << 2;
-            const int zeros = (sub.x == 0.0f) | (sub.y == 0.0f) << 1 | (sub.z == 0.0f) << 2;
+            const Vec3d sub = cross(walk_ray.direction, Vec3d(to_centre));
+            const int signs = (sub.x > 0.0) | (sub.y > 0.0) << 1 | (sub.z > 0.0) << 2;
+            const int zeros = (sub.x == 0.0) | (sub.y == 0.0) << 1 | (sub.z == 0.0) << 2;
             link_index += tables.neighbour_quadrant[face][signs | (zeros & walk_ray.tie[axis])];
         }
         address = read_only(leaf + kHeader + link_index);

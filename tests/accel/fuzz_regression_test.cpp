@@ -598,5 +598,38 @@ TEST(FuzzRegression, TinySphereIsNotTouchedFromAfar) {
     }
 }
 
+// Finding 24 (docs/robustness.md, from fuzz/mesh_rays_fuzz.cpp): a ray from a vertex of an icosphere at
+// y = 0, a plane of every level of the Pluecker octree, towards the centre with d_y = -2^-147. The exact line
+// crosses y = 0 at the vertex, at t = 0. The walk, one cell before the vertex's, chose the exit face from
+// three Pluecker products in float; with w_y = 0 one of them is d_y w_z alone, which underflowed to 0, and
+// the pattern named the y face (exit at t = 0) instead of the z face (t = -0.07): the walk stopped with the
+// hit at t = 0 on triangle 527, where brute force found triangle 514 at t = -7.5e-19 (Moller-Trumbore) and
+// triangle 513 at t = -0 (watertight, lower index). The products are now computed in double. Rays from
+// every vertex with a zero coordinate, towards the centre with that component made ±2^-147 or ±2^-130.
+TEST(FuzzRegression, PluckerWalkLeavesByTheFirstExitWithADenormalComponent) {
+    TestScene scene{"icosphere, denormal components", {}, {}};
+    testing::append(scene.triangles, make_icosphere(3));
+    std::vector<Ray> rays = {
+        {{-0x1.6c2d1ep-1f, 0, -0x1.67e36ep-1f}, {0x1.6c2d1ep-1f, -0x1p-147f, 0x1.67e36ep-1f}, -5, kInfinity}};
+    for (const Triangle& triangle : scene.triangles) {
+        for (const Vec3f& vertex : {triangle.v0, triangle.v1, triangle.v2}) {
+            for (int axis = 0; axis < 3; ++axis) {
+                if (vertex[axis] != 0.0f) continue;
+                for (const float tiny : {0x1p-147f, -0x1p-147f, 0x1p-130f, -0x1p-130f}) {
+                    Vec3f direction = -vertex;
+                    direction[axis] = tiny;
+                    rays.push_back({vertex, direction, -5, kInfinity});
+                    rays.push_back({vertex, direction, 0, kInfinity});
+                }
+            }
+        }
+    }
+    ASSERT_GT(rays.size(), 1000u);
+    for (const std::vector<Hit>& expected : expect_every_structure_agrees(scene, rays)) {
+        for (const Hit& hit : expected)
+            EXPECT_TRUE(hit.hit());
+    }
+}
+
 }  // namespace
 }  // namespace lancer

@@ -12,6 +12,9 @@
 //   far side, and the cube map, the descent and the sub-face test break ties towards that sign, so that the
 //   walk only visits cells whose exit plane on that axis differs from the ray's coordinate: the axis then
 //   never wins an exit (its slab exit is +inf) and every Pluecker product it enters has an exact sign.
+// - The Pluecker products are computed in double, where a product of two floats is exact, so that their
+//   signs are exact for any magnitudes (in float, a denormal component's products underflowed to 0 and
+//   chose an exit face far from the first one: fuzz finding 24).
 #pragma once
 
 #include <algorithm>
@@ -23,27 +26,29 @@
 #include "accel/plucker/conventions.hpp"
 #include "accel/plucker/layout.hpp"
 #include "core/intersect.hpp"
+#include "core/vec3d.hpp"
 
 namespace lancer::plucker {
 
 // The ray as the walk sees it.
 struct WalkRay {
     Vec3f origin;
-    Vec3f direction;      // scaled so that its largest component is +-1: the signs of the Pluecker products
-                          // are those of the ray's, without overflow or underflow for extreme directions
-    Vec3f abs_direction;  // |d| of the ray itself, for the exit distance
+    // The direction in double, for the Pluecker products d x w with w = P - o (exit_face, sub_face): each
+    // product of two floats is exact in double, and one subtraction keeps the exact sign, so every sign is
+    // that of the exact product for the computed w, whatever the magnitudes (no overflow at 2^128, no
+    // underflow at 2^-149).
+    Vec3d direction{0.0, 0.0, 0.0};
+    Vec3f abs_direction;                // |d|, for the exit distance
     std::array<std::uint32_t, 3> up{};  // 1 when the ray leaves cells through their upper face on that axis
     std::array<std::uint8_t, 3> tie{};  // kQuadrantTieBits of the exit face on each axis
     int octant = 0;                     // the exit vertex, up[0] | up[1] << 1 | up[2] << 2
 
     WalkRay() = default;
-    WalkRay(const Ray& ray, const OctreeCube& cube) : origin(ray.origin) {
-        const float scale = max_component(abs(ray.direction));
+    WalkRay(const Ray& ray, const OctreeCube& cube) : origin(ray.origin), direction(ray.direction) {
         for (int axis = 0; axis < 3; ++axis) {
             const float d = ray.direction[axis];
-            direction[axis] = d / scale;
             abs_direction[axis] = std::fabs(d);
-            const bool moves = direction[axis] != 0.0f;
+            const bool moves = d != 0.0f;
             const float centre = cube.lo[axis] + 0.5f * cube.size;
             up[static_cast<std::size_t>(axis)] = (moves ? d > 0.0f : ray.origin[axis] < centre) ? 1u : 0u;
             octant |= static_cast<int>(up[static_cast<std::size_t>(axis)]) << axis;
@@ -183,8 +188,8 @@ struct ComputedBoxes {
 // (equations 4-5 as one cross product: 6 products, 6 differences), packed by equation (6) and looked up by
 // equation (8). `to_exit_vertex` = V - o.
 [[nodiscard]] inline int exit_face(const WalkRay& ray, const Vec3f& to_exit_vertex) {
-    const Vec3f products = cross(ray.direction, to_exit_vertex);
-    const int pattern = (products.x > 0.0f) | (products.y > 0.0f) << 1 | (products.z > 0.0f) << 2;
+    const Vec3d products = cross(ray.direction, Vec3d(to_exit_vertex));
+    const int pattern = (products.x > 0.0) | (products.y > 0.0) << 1 | (products.z > 0.0) << 2;
     return kExitFace[static_cast<std::size_t>(ray.octant)][static_cast<std::size_t>(pattern)];
 }
 
@@ -192,9 +197,9 @@ struct ComputedBoxes {
 // through the face's centre P along the in-face axes (equations 9-10); `to_centre` = P - o. A product that
 // is exactly 0 (the ray meets a median line) takes the octant's side (kQuadrantTieBits).
 [[nodiscard]] inline std::uint32_t sub_face(const WalkRay& ray, int face, const Vec3f& to_centre) {
-    const Vec3f products = cross(ray.direction, to_centre);
-    const int signs = (products.x > 0.0f) | (products.y > 0.0f) << 1 | (products.z > 0.0f) << 2;
-    const int zeros = (products.x == 0.0f) | (products.y == 0.0f) << 1 | (products.z == 0.0f) << 2;
+    const Vec3d products = cross(ray.direction, Vec3d(to_centre));
+    const int signs = (products.x > 0.0) | (products.y > 0.0) << 1 | (products.z > 0.0) << 2;
+    const int zeros = (products.x == 0.0) | (products.y == 0.0) << 1 | (products.z == 0.0) << 2;
     const int pattern = signs | (zeros & ray.tie[static_cast<std::size_t>(face_axis(face))]);
     return kNeighbourQuadrant[static_cast<std::size_t>(face)][static_cast<std::size_t>(pattern)];
 }
@@ -252,9 +257,10 @@ class Walker {
         const int face = exit_face(ray, w);
         const int axis = face_axis(face);
         // Done once the search interval ends before this leaf's exit: limit <= (V_a - o_a) / d_a, written
-        // without a division (w_a has the sign of the direction when the exit lies ahead).
+        // without a division (w_a has the sign of the direction when the exit lies ahead), the product exact
+        // in double (in float, a denormal |d_a| made it 0 for a limit beyond an exit at t = 0).
         const float ahead = ray.up[static_cast<std::size_t>(axis)] ? w[axis] : -w[axis];
-        if (limit * ray.abs_direction[axis] <= exit_lower_bound(ahead)) return false;
+        if (static_cast<double>(limit) * ray.abs_direction[axis] <= exit_lower_bound(ahead)) return false;
 
         // NEIGHBOR: the sub-face test only for four neighbours. The seed computes it for one neighbour too
         // and multiplies the index by count / 4 to save a branch (equation 10 and 5.3.2), which suits a GPU;
