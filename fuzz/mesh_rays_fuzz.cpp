@@ -1,6 +1,6 @@
 // libFuzzer harness: `rays` queries on deep structures. rays_fuzz builds every structure on a tiny fuzzed
 // scene, so its trees are a leaf or two deep. Here every structure is built once, at start, in both triangle
-// tests, on five fixed scenes of about 1,000 primitives with small leaves and raised depth limits, and only
+// tests, on five fixed scenes of 578 to 1,280 primitives with small leaves and raised depth limits, and only
 // the rays are fuzzed. That reaches what a tiny scene cannot: deep trees, the Pluecker octree's deeper levels
 // and its links between leaves of different sizes, long leaf-to-leaf walks, full traversal stacks, leaves of
 // coincident triangles at the depth limit.
