@@ -631,5 +631,25 @@ TEST(FuzzRegression, PluckerWalkLeavesByTheFirstExitWithADenormalComponent) {
     }
 }
 
+// Finding 25 (docs/robustness.md, from fuzz/mesh_rays_fuzz.cpp): a ray from (8, -8, 16), on two faces of
+// the root, straight down with outward components 2^-73 and 2^-125 of its length (after conditioning), to
+// the vertex (8, -8, 0.0625) of a large triangle. The exact line passes 2^-68 outside the triangle, within
+// the geometric tolerance, and brute force reports the hit. The Pluecker walk entered the root (grown by the
+// tolerance) but then left the first cell by its x face on the root's boundary, at t = 0, and missed it. The
+// faces of the root's boundary are now the grown root's (exit_plane_of). The fuzzer's ray and its mirror
+// images at the other corners of the root's top face.
+TEST(FuzzRegression, PluckerWalkFollowsTheRootFacesWithinTheTolerance) {
+    TestScene scene{"large triangle over an icosphere", {}, {}};
+    scene.triangles.push_back({{-8.0f, -8.0f, 0.0625f}, {8.0f, -8.0f, 0.0625f}, {0.0f, 8.0f, 0.0625f}});
+    testing::append(scene.triangles, make_icosphere(2));
+    std::vector<Ray> rays;
+    for (const float x : {8.0f, -8.0f}) {
+        for (const float y : {-8.0f, 8.0f})
+            rays.push_back({{x, y, 16}, {x * 0x1.fff5f4p+51f, -y, -0x1.b1fff4p+127f}, 0, kInfinity});
+    }
+    const std::vector<std::vector<Hit>> expected = expect_every_structure_agrees(scene, rays);
+    EXPECT_EQ(expected[0][0].prim, 0);  // Moller-Trumbore reports the vertex (8, -8)
+}
+
 }  // namespace
 }  // namespace lancer

@@ -44,13 +44,14 @@ std::vector<std::uint32_t> record_order(const Octree& octree, const PluckerLayou
     return leaves;
 }
 
-PluckerBox box_of(const OctreeCube& cube, const OctreeCell& cell) {
+PluckerBox box_of(const OctreeCube& cube, float tolerance, const OctreeCell& cell) {
     PluckerBox box{};
     for (int axis = 0; axis < 3; ++axis) {
         const std::uint32_t c = cell.coordinate(axis);
-        box.planes[static_cast<std::size_t>(axis)] = cube.plane(axis, cell.level, c);
+        box.planes[static_cast<std::size_t>(axis)] = exit_plane_of(cube, tolerance, axis, cell.level, c);
         box.planes[static_cast<std::size_t>(3 + axis)] = cube.plane(axis, cell.level + 1, 2u * c + 1u);
-        box.planes[static_cast<std::size_t>(6 + axis)] = cube.plane(axis, cell.level, c + 1u);
+        box.planes[static_cast<std::size_t>(6 + axis)] =
+            exit_plane_of(cube, tolerance, axis, cell.level, c + 1u);
     }
     return box;
 }
@@ -162,7 +163,7 @@ PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
                 ? static_cast<std::uint32_t>(layout.boxes.size())
                 : static_cast<std::uint32_t>(cell.x) | static_cast<std::uint32_t>(cell.y) << 16,
             static_cast<std::uint32_t>(cell.z) | static_cast<std::uint32_t>(cell.level) << 16};
-        if (options.stored_boxes) layout.boxes.push_back(box_of(octree.cube, cell));
+        if (options.stored_boxes) layout.boxes.push_back(box_of(octree.cube, octree.tolerance, cell));
         if (!cell.is_leaf()) {
             layout.cells.insert(layout.cells.end(), box_or_position, box_or_position + geometry_words);
             for (std::uint32_t child = 0; child < 8; ++child)

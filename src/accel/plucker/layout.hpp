@@ -49,10 +49,24 @@ inline constexpr std::uint32_t kBoxWord = 2;  // stored boxes: the box index; el
     return (ends >> (5 * face)) & 31u;
 }
 
-// 36 bytes: a cell's lower corner, mid planes and upper corner, each the exact float of OctreeCube::plane,
-// so that a cell's exit plane is bit for bit its neighbour's entry plane and its mid planes are its finer
-// neighbours' shared faces. The seed stores 16 bytes per box; the mid planes are what the sub-face test
-// (section 4.2.2) needs, and lo + size / 2 would round differently from the neighbours' own faces.
+// The plane by which the walk leaves a cell through face i of `level` on `axis`: the exact float of
+// OctreeCube::plane, but on the root's boundary (i = 0 or 2^level) the root's face grown by the tolerance,
+// the box in which the entry accepts rays (walk.hpp). A ray within the tolerance outside a root face, moving
+// away from it by less than a float per unit, left the root through that face at once and missed a hit the
+// triangle test reports in that margin (fuzz finding 25); through the grown face it goes on along the
+// boundary cells until it leaves the grown root.
+[[nodiscard]] inline float exit_plane_of(const OctreeCube& cube, float tolerance, int axis, int level,
+                                         std::uint32_t i) {
+    if (i == 0) return cube.plane(axis, 0, 0) - tolerance;
+    if (i == 1u << level) return cube.plane(axis, 0, 1) + tolerance;
+    return cube.plane(axis, level, i);
+}
+
+// 36 bytes: a cell's lower corner, mid planes and upper corner, each the exact float of OctreeCube::plane
+// (exit_plane_of for the corners), so that a cell's exit plane is bit for bit its neighbour's entry plane
+// and its mid planes are its finer neighbours' shared faces. The seed stores 16 bytes per box; the mid planes
+// are what the sub-face test (section 4.2.2) needs, and lo + size / 2 would round differently from the
+// neighbours' own faces.
 struct PluckerBox {
     std::array<float, 9> planes;  // lo.xyz, mid.xyz, hi.xyz
 

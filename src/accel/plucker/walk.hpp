@@ -79,6 +79,7 @@ struct StoredBoxes {
 
 struct ComputedBoxes {
     OctreeCube cube;
+    float tolerance;
     static constexpr bool kStored = false;
 
     struct Cell {
@@ -89,7 +90,8 @@ struct ComputedBoxes {
         return {{words[0] & 0xFFFFu, words[0] >> 16, words[1] & 0xFFFFu}, static_cast<int>(words[1] >> 16)};
     }
     [[nodiscard]] float exit_plane(const Cell& cell, int axis, std::uint32_t up) const {
-        return cube.plane(axis, cell.level, cell.coordinates[static_cast<std::size_t>(axis)] + up);
+        return exit_plane_of(cube, tolerance, axis, cell.level,
+                             cell.coordinates[static_cast<std::size_t>(axis)] + up);
     }
     [[nodiscard]] float mid(const Cell& cell, int axis) const {
         return cube.plane(axis, cell.level + 1, 2u * cell.coordinates[static_cast<std::size_t>(axis)] + 1u);
@@ -328,7 +330,7 @@ void walk(const PluckerLayout& layout, const Boxes& boxes, const Ray& ray, LeafV
 template <class Body>
 void dispatch_layout(const PluckerLayout& layout, Body&& body) {
     const StoredBoxes stored{layout.boxes.data()};
-    const ComputedBoxes computed{layout.cube};
+    const ComputedBoxes computed{layout.cube, layout.tolerance};
     if (layout.options.balanced) {
         layout.options.stored_boxes ? body.template operator()<true>(stored)
                                     : body.template operator()<true>(computed);
