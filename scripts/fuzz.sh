@@ -33,15 +33,16 @@ cmake -S "$source_dir" -B "$build" -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TY
     -DLANCER_WARNINGS_AS_ERRORS=ON "${launcher[@]}" >/dev/null
 cmake --build "$build" -j"${FUZZ_BUILD_JOBS:-2}" --target "${harnesses[@]}" make_plo_seeds
 
-# Seeds are rebuilt every run; the corpus each harness grows is kept between runs.
-rm -rf "$build/seeds"
-# A scratch folder per run (the harnesses write their inputs there), so that two runs side by side do not
-# remove each other's files.
+# A scratch folder per run (the harnesses write their inputs there, and the seeds are written there anew
+# every run), so that two runs side by side do not remove each other's files: a shared seed folder, removed
+# and rewritten by a second run while the first harness was still starting, stopped it before its first input.
+# The corpus each harness grows is kept between runs.
 mkdir -p "$build/tmp"
 scratch=$(mktemp -d "$build/tmp/run.XXXXXX")
 trap 'rm -rf "$scratch"' EXIT
-python3 "$source_dir/fuzz/make_seeds.py" "$source_dir" "$shared_data" "$build/seeds"
-"$build/fuzz/make_plo_seeds" "$build/seeds/plo_fuzz" >/dev/null
+seeds=$scratch/seeds
+python3 "$source_dir/fuzz/make_seeds.py" "$source_dir" "$shared_data" "$seeds"
+"$build/fuzz/make_plo_seeds" "$seeds/plo_fuzz" >/dev/null
 
 export TMPDIR=$scratch
 export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
@@ -54,13 +55,13 @@ for harness in "${harnesses[@]}"; do
     corpus=$build/corpus/$harness
     findings=$build/findings/$harness
     log=$build/logs/$harness.log
-    mkdir -p "$corpus" "$findings" "$build/logs" "$build/seeds/$harness"
+    mkdir -p "$corpus" "$findings" "$build/logs" "$seeds/$harness"
     echo "fuzzing $harness for ${seconds}s (log: $log)"
     touch "$log.start"  # findings of earlier runs stay in $findings but are not counted again
     # -timeout: a hang; -rss_limit_mb/-malloc_limit_mb: a blind allocation (docs/formats.md, "Header counts").
     if ! "$build/fuzz/$harness" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
         -malloc_limit_mb=1024 -max_len=16384 -print_final_stats=1 -artifact_prefix="$findings/" \
-        "$corpus" "$build/seeds/$harness" >"$log" 2>&1; then
+        "$corpus" "$seeds/$harness" >"$log" 2>&1; then
         status=1
     fi
     executions=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
