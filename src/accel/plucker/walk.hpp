@@ -146,8 +146,8 @@ struct ComputedBoxes {
     int entry_axis = 0;
     for (int axis = 0; axis < 3; ++axis) {
         const float inverse = 1.0f / ray.direction[axis];
-        const float lo = cube.plane(axis, 0, 0) - layout.tolerance,
-                    hi = cube.plane(axis, 0, 1) + layout.tolerance;
+        const float lo = exit_plane_of(cube, layout.tolerance, axis, 0, 0),
+                    hi = exit_plane_of(cube, layout.tolerance, axis, 0, 1);
         const float t_lo = (lo - ray.origin[axis]) * inverse, t_hi = (hi - ray.origin[axis]) * inverse;
         float slab_near = std::min(t_lo, t_hi), slab_far = widened_slab_exit(std::max(t_lo, t_hi));
         // NaN: the origin on the plane and no motion along the axis: the ray runs inside the closed slab.
@@ -206,8 +206,9 @@ struct ComputedBoxes {
     return kNeighbourQuadrant[static_cast<std::size_t>(face)][static_cast<std::size_t>(pattern)];
 }
 
-// Rounding bound of the exit test: a product and a difference, each rounded once, with the margin of
-// intersect_box (2 gamma(3)). Shrinks towards -inf, so that rounding never stops the walk early.
+// Rounding bound of the exit test: the difference w_a rounded once (the product limit |d_a| is exact in
+// double), within the margin of intersect_box (2 gamma(3)). Shrinks towards -inf, so that rounding never
+// stops the walk early.
 [[nodiscard]] inline float exit_lower_bound(float distance) {
     constexpr float shrink = 2.0f * gamma_bound(3);
     return distance * (distance > 0.0f ? 1.0f - shrink : 1.0f + shrink);
