@@ -120,9 +120,7 @@ struct Walks {
 const Walks& walks() {
     static const Walks* data = [] {
         auto* made = new Walks;
-        const TriangleMesh sphere = make_icosphere(6, {0, 0, 0}, 1.0f);
-        for (std::size_t i = 0; i < sphere.triangle_count(); ++i)
-            made->triangles.push_back(sphere.triangle(i));
+        made->triangles = make_icosphere(6, {0, 0, 0}, 1.0f).triangles();
         std::mt19937 rng(7);
         std::uniform_real_distribution<float> coordinate(-1.5f, 1.5f);
         auto point = [&] { return Vec3f(coordinate(rng), coordinate(rng), coordinate(rng)); };

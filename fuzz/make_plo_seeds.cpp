@@ -16,10 +16,7 @@ int main(int argc, char** argv) {
     }
     const std::filesystem::path folder = argv[1];
     std::filesystem::create_directories(folder);
-    const TriangleMesh mesh = make_icosphere(1);
-    std::vector<Triangle> triangles;
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
+    const std::vector<Triangle> triangles = make_icosphere(1).triangles();
     const std::vector<Sphere> spheres = {{Vec3f(0.5f, 0.0f, 0.0f), 0.25f, 0}};
     const Geometry geometries[] = {{triangles, {}}, {triangles, spheres}, {{triangles.data(), 2}, {}}};
     int written = 0;

@@ -60,15 +60,10 @@ struct DeepScene {
     [[nodiscard]] Geometry geometry() const { return {triangles, spheres}; }
 };
 
-void append(std::vector<Triangle>& triangles, const TriangleMesh& mesh) {
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
-}
-
 DeepScene mesh_scene(std::string name, const TriangleMesh& mesh, std::optional<Vec3f> inside) {
     DeepScene scene;
     scene.name = std::move(name);
-    append(scene.triangles, mesh);
+    mesh.append_triangles(scene.triangles);
     scene.enclosed_point = inside;
     return scene;
 }

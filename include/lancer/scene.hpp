@@ -87,6 +87,18 @@ struct TriangleMesh {
     [[nodiscard]] std::uint32_t material_of(std::size_t i) const {
         return material_ids.empty() ? material : material_ids[i];
     }
+    // The indexed mesh flattened into the triangle array the structures are built over (Geometry), in
+    // triangle order: appended to `out`, or returned.
+    void append_triangles(std::vector<Triangle>& out) const {
+        out.reserve(out.size() + triangle_count());
+        for (std::size_t i = 0; i < triangle_count(); ++i)
+            out.push_back(triangle(i));
+    }
+    [[nodiscard]] std::vector<Triangle> triangles() const {
+        std::vector<Triangle> out;
+        append_triangles(out);
+        return out;
+    }
 };
 
 // What an acceleration structure is built over. Global primitive numbering: triangles first, in mesh order

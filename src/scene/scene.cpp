@@ -38,8 +38,7 @@ SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
     mesh_first_triangle_.reserve(scene.meshes.size() + 1);
     for (const TriangleMesh& mesh : scene.meshes) {
         mesh_first_triangle_.push_back(triangles_.size());
-        for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-            triangles_.push_back(mesh.triangle(i));
+        mesh.append_triangles(triangles_);
     }
     mesh_first_triangle_.push_back(triangles_.size());
 }

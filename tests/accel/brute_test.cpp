@@ -71,9 +71,7 @@ TEST(Brute, SpheresAreNumberedAfterTriangles) {
 
 TEST(Brute, HitsLieOnTheirTriangleInsideTheRayInterval) {
     const TriangleMesh mesh = make_icosphere(2);
-    std::vector<Triangle> triangles;
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
+    const std::vector<Triangle> triangles = mesh.triangles();
     for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
         BruteAccel brute;
         brute.build({triangles, {}}, build_options(test));
@@ -101,9 +99,7 @@ TEST(Brute, HitsLieOnTheirTriangleInsideTheRayInterval) {
 
 TEST(Brute, OcclusionAgreesWithClosestHit) {
     const TriangleMesh mesh = make_icosphere(2);
-    std::vector<Triangle> triangles;
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
+    const std::vector<Triangle> triangles = mesh.triangles();
     const std::vector<Sphere> spheres = {{{0.5f, 0.5f, 0.5f}, 0.7f, 0}, {{-2, 0, 0}, 0.3f, 0}};
     BruteAccel brute;
     brute.build({triangles, spheres}, {});

@@ -31,8 +31,8 @@ constexpr std::size_t kBatch = 512;
 // primitive per ray: it gets an icosphere of 320 and a knot of 2 x 30 x 12 = 720 triangles.
 TestScene mixed_scene(int icosphere_subdivisions, int knot_segments) {
     TestScene scene{"icosphere, knot, spheres and coincident triangles", {}, {}};
-    testing::append(scene.triangles, make_icosphere(icosphere_subdivisions, {0, 0, 0}, 1.0f));
-    testing::append(scene.triangles, make_torus_knot(knot_segments, 12));
+    make_icosphere(icosphere_subdivisions, {0, 0, 0}, 1.0f).append_triangles(scene.triangles);
+    make_torus_knot(knot_segments, 12).append_triangles(scene.triangles);
     // Exact ties: the same triangle twice, so that the closest hit must be broken by index every time.
     scene.triangles.push_back({{-2, -2, 1.5f}, {2, -2, 1.5f}, {0, 2, 1.5f}});
     scene.triangles.push_back({{-2, -2, 1.5f}, {2, -2, 1.5f}, {0, 2, 1.5f}});

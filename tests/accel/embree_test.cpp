@@ -24,10 +24,8 @@ bool has_embree() {
 
 TestScene mixed_scene() {
     TestScene scene;
-    for (const TriangleMesh& mesh : {make_icosphere(3), make_torus_knot(300, 10)}) {
-        for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-            scene.triangles.push_back(mesh.triangle(i));
-    }
+    for (const TriangleMesh& mesh : {make_icosphere(3), make_torus_knot(300, 10)})
+        mesh.append_triangles(scene.triangles);
     scene.spheres = {{{2, 0, 0}, 0.5f, 0}, {{-2, 0.5f, 0}, 0.3f, 0}, {{0, 2, 1}, 0.7f, 0}};
     return scene;
 }

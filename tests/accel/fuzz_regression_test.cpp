@@ -608,7 +608,7 @@ TEST(FuzzRegression, TinySphereIsNotTouchedFromAfar) {
 // every vertex with a zero coordinate, towards the centre with that component made ±2^-147 or ±2^-130.
 TEST(FuzzRegression, PluckerWalkLeavesByTheFirstExitWithADenormalComponent) {
     TestScene scene{"icosphere, denormal components", {}, {}};
-    testing::append(scene.triangles, make_icosphere(3));
+    make_icosphere(3).append_triangles(scene.triangles);
     std::vector<Ray> rays = {
         {{-0x1.6c2d1ep-1f, 0, -0x1.67e36ep-1f}, {0x1.6c2d1ep-1f, -0x1p-147f, 0x1.67e36ep-1f}, -5, kInfinity}};
     for (const Triangle& triangle : scene.triangles) {
@@ -641,7 +641,7 @@ TEST(FuzzRegression, PluckerWalkLeavesByTheFirstExitWithADenormalComponent) {
 TEST(FuzzRegression, PluckerWalkFollowsTheRootFacesWithinTheTolerance) {
     TestScene scene{"large triangle over an icosphere", {}, {}};
     scene.triangles.push_back({{-8.0f, -8.0f, 0.0625f}, {8.0f, -8.0f, 0.0625f}, {0.0f, 8.0f, 0.0625f}});
-    testing::append(scene.triangles, make_icosphere(2));
+    make_icosphere(2).append_triangles(scene.triangles);
     std::vector<Ray> rays;
     for (const float x : {8.0f, -8.0f}) {
         for (const float y : {-8.0f, 8.0f})

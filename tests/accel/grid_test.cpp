@@ -18,13 +18,6 @@
 namespace lancer {
 namespace {
 
-std::vector<Triangle> mesh_triangles(const TriangleMesh& mesh) {
-    std::vector<Triangle> triangles;
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
-    return triangles;
-}
-
 // Small triangles scattered in [0, size]^3, plus two at opposite corners so that the box is that cube.
 std::vector<Triangle> scattered_triangles(std::size_t count, float size, std::uint32_t seed) {
     std::mt19937 rng(seed);
@@ -187,7 +180,7 @@ void expect_valid_grid(const GridAccel& grid, const Geometry& geometry) {
 }
 
 TEST(Grid, EveryPrimitiveIsListedByEveryCellItOverlapsAndNoOther) {
-    const std::vector<Triangle> knot = mesh_triangles(make_torus_knot(60, 6));
+    const std::vector<Triangle> knot = make_torus_knot(60, 6).triangles();
     const std::vector<Triangle> soup = scattered_triangles(300, 3.0f, 2);
     const std::vector<Sphere> spheres = {{{0.5f, 0.5f, 0.5f}, 0.4f, 0}, {{2.0f, 1.0f, 2.5f}, 0.05f, 0}};
     // A long sliver along the diagonal: its bounds cover every cell, it overlaps few.
@@ -220,7 +213,7 @@ TEST(Grid, EveryPrimitiveIsListedByEveryCellItOverlapsAndNoOther) {
 }
 
 TEST(Grid, StatsMatchTheArrays) {
-    const std::vector<Triangle> triangles = mesh_triangles(make_torus_knot(200, 8));
+    const std::vector<Triangle> triangles = make_torus_knot(200, 8).triangles();
     GridAccel grid;
     grid.build({triangles, {}}, {});
     const AccelStats stats = grid.stats();
@@ -257,7 +250,7 @@ TEST(Grid, StatsMatchTheArrays) {
 }
 
 TEST(Grid, BuildIsDeterministic) {
-    const std::vector<Triangle> triangles = mesh_triangles(make_torus_knot(150, 8));
+    const std::vector<Triangle> triangles = make_torus_knot(150, 8).triangles();
     GridAccel first, second;
     first.build({triangles, {}}, {});
     second.build({triangles, {}}, {});
@@ -518,7 +511,7 @@ TEST(Grid, RaysStartingOnCellPlanesLinesAndCorners) {
 }
 
 TEST(Grid, RaysStartingInsideTheGrid) {
-    const std::vector<Triangle> triangles = mesh_triangles(make_torus_knot(150, 8));
+    const std::vector<Triangle> triangles = make_torus_knot(150, 8).triangles();
     const std::vector<Sphere> spheres = {{{0, 0, 0}, 0.3f, 0}, {{1, 1, 0}, 0.1f, 0}};
     const Geometry geometry{triangles, spheres};
     const Box3f bounds = geometry.bounds();

@@ -22,13 +22,12 @@
 namespace lancer {
 namespace {
 
-using testing::append;
 using testing::TestScene;
 
 TestScene mixed_scene() {
     TestScene scene{"icosphere, knot and spheres", {}, {}};
-    append(scene.triangles, make_icosphere(2, {0, 0, 0}, 1.0f));
-    append(scene.triangles, make_torus_knot(200, 8));
+    make_icosphere(2, {0, 0, 0}, 1.0f).append_triangles(scene.triangles);
+    make_torus_knot(200, 8).append_triangles(scene.triangles);
     std::mt19937 rng(7);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     for (int i = 0; i < 20; ++i)

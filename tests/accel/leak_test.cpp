@@ -147,8 +147,7 @@ TEST(Leaks, NoRayEscapesAClosedMeshInWatertightMode) {
     std::vector<std::vector<Triangle>> triangles(meshes.size());
     std::vector<std::vector<Ray>> rays(meshes.size());
     for (std::size_t m = 0; m < meshes.size(); ++m) {
-        for (std::size_t i = 0; i < meshes[m].mesh.triangle_count(); ++i)
-            triangles[m].push_back(meshes[m].mesh.triangle(i));
+        triangles[m] = meshes[m].mesh.triangles();
         rays[m] =
             rays_toward_vertices_and_edges(meshes[m], rays_per_mesh, 100 + static_cast<std::uint32_t>(m));
     }

@@ -21,12 +21,11 @@
 namespace lancer {
 namespace {
 
-using testing::append;
 using testing::TestScene;
 
 TestScene sphere_and_spheres() {
     TestScene scene;
-    append(scene.triangles, make_icosphere(3, {0.2f, -0.1f, 0.3f}, 1.0f));
+    make_icosphere(3, {0.2f, -0.1f, 0.3f}, 1.0f).append_triangles(scene.triangles);
     std::mt19937 rng(7);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     for (int i = 0; i < 20; ++i)

@@ -14,7 +14,6 @@
 namespace lancer {
 namespace {
 
-using testing::append;
 using testing::knot_triangles;
 using testing::TestScene;
 
@@ -25,8 +24,8 @@ std::vector<TestScene> make_scenes() {
     auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
 
     TestScene mixed{"icosphere, knot and spheres", {}, {}};
-    append(mixed.triangles, make_icosphere(3, {0, 0, 0}, 1.0f));
-    append(mixed.triangles, make_torus_knot(300, 10));
+    make_icosphere(3, {0, 0, 0}, 1.0f).append_triangles(mixed.triangles);
+    make_torus_knot(300, 10).append_triangles(mixed.triangles);
     for (int i = 0; i < 40; ++i)
         mixed.spheres.push_back({point(4.0f) - Vec3f(2.0f), 0.05f + 0.2f * unit(rng), 0});
     scenes.push_back(std::move(mixed));
@@ -68,7 +67,7 @@ std::vector<TestScene> make_scenes() {
     scenes.push_back(std::move(huge));
 
     TestScene degenerate{"degenerate and duplicate triangles", {}, {}};
-    append(degenerate.triangles, make_icosphere(2, {0, 0, 0}, 1.0f));
+    make_icosphere(2, {0, 0, 0}, 1.0f).append_triangles(degenerate.triangles);
     for (int i = 0; i < 200; ++i) {
         const Vec3f a = point(2.0f) - Vec3f(1.0f), b = point(2.0f) - Vec3f(1.0f);
         degenerate.triangles.push_back({a, b, 0.5f * (a + b)});  // zero area, collinear
@@ -82,7 +81,7 @@ std::vector<TestScene> make_scenes() {
     // boundaries, slab tests and barycentrics all work with few bits left below the offset.
     TestScene far{"far from the origin (1e6 offset)", {}, {}};
     const Vec3f offset(1e6f, -1e6f, 1e6f);
-    append(far.triangles, make_icosphere(3, offset, 50.0f));
+    make_icosphere(3, offset, 50.0f).append_triangles(far.triangles);
     for (Triangle triangle : knot_triangles(200)) {
         for (Vec3f* vertex : {&triangle.v0, &triangle.v1, &triangle.v2})
             *vertex = *vertex * 40.0f + offset + Vec3f(120.0f, 0.0f, 0.0f);

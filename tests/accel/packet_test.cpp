@@ -35,7 +35,7 @@ void PrintTo(const Pair& pair, std::ostream* os) {
 std::vector<TestScene> scenes() {
     std::vector<TestScene> all;
     TestScene mixed{"knot, icosphere and spheres", testing::knot_triangles(200), {}};
-    testing::append(mixed.triangles, make_icosphere(3, {0.5f, 0.2f, 0.1f}, 0.8f));
+    make_icosphere(3, {0.5f, 0.2f, 0.1f}, 0.8f).append_triangles(mixed.triangles);
     std::mt19937 rng(6);
     std::uniform_real_distribution<float> unit(-1.5f, 1.5f);
     for (int i = 0; i < 20; ++i)

@@ -20,14 +20,13 @@
 namespace lancer {
 namespace {
 
-using testing::append;
 using testing::TestScene;
 
 constexpr int kManyThreads = 4;
 
 TestScene mixed_scene() {
     TestScene scene{"icosphere, soup and spheres", {}, {}};
-    append(scene.triangles, make_icosphere(5, {0, 0, 0}, 1.0f));
+    make_icosphere(5, {0, 0, 0}, 1.0f).append_triangles(scene.triangles);
     std::mt19937 rng(6);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };

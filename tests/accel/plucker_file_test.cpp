@@ -24,12 +24,8 @@ struct Fixture {
     std::vector<Sphere> spheres;
 
     Fixture() {
-        const TriangleMesh sphere = make_icosphere(3, {0.1f, 0.2f, -0.3f}, 1.0f);
-        for (std::size_t i = 0; i < sphere.triangle_count(); ++i)
-            triangles.push_back(sphere.triangle(i));
-        const TriangleMesh knot = make_torus_knot(120, 6);
-        for (std::size_t i = 0; i < knot.triangle_count(); ++i)
-            triangles.push_back(knot.triangle(i));
+        make_icosphere(3, {0.1f, 0.2f, -0.3f}, 1.0f).append_triangles(triangles);
+        make_torus_knot(120, 6).append_triangles(triangles);
         spheres = {{{1.5f, 1.5f, 0.0f}, 0.3f, 0}, {{-1.2f, 0.5f, 1.0f}, 0.2f, 0}};
     }
     [[nodiscard]] Geometry geometry() const { return {triangles, spheres}; }

@@ -27,7 +27,6 @@ namespace {
 
 using plucker::PluckerLayout;
 
-using testing::append;
 using testing::TestScene;
 
 std::vector<TestScene> make_scenes() {
@@ -37,8 +36,8 @@ std::vector<TestScene> make_scenes() {
     auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
 
     TestScene mixed{"icosphere, knot and spheres", {}, {}};
-    append(mixed.triangles, make_icosphere(3, {0.2f, -0.1f, 0.3f}, 1.0f));
-    append(mixed.triangles, make_torus_knot(200, 8));
+    make_icosphere(3, {0.2f, -0.1f, 0.3f}, 1.0f).append_triangles(mixed.triangles);
+    make_torus_knot(200, 8).append_triangles(mixed.triangles);
     for (int i = 0; i < 20; ++i)
         mixed.spheres.push_back({point(4.0f) - Vec3f(2.0f), 0.05f + 0.2f * unit(rng), 0});
     scenes.push_back(std::move(mixed));

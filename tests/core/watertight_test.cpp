@@ -45,9 +45,7 @@ struct LeakCount {
 LeakCount count_leaks(const TriangleMesh& mesh, const std::vector<Vec3f>& origins, TriangleTest test) {
     std::mt19937 rng(11);
     const std::vector<Vec3f> targets = surface_targets(mesh, rng);
-    std::vector<Triangle> triangles;
-    for (std::size_t i = 0; i < mesh.triangle_count(); ++i)
-        triangles.push_back(mesh.triangle(i));
+    const std::vector<Triangle> triangles = mesh.triangles();
     BruteAccel brute;
     brute.build({triangles, {}}, build_options(test));
     std::vector<Ray> rays;

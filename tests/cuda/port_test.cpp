@@ -36,8 +36,8 @@ std::vector<TestScene> make_triangle_scenes() {
     const auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
 
     TestScene smooth{"icosphere inside a knot", {}, {}};
-    testing::append(smooth.triangles, make_icosphere(3, {0, 0, 0}, 0.8f));
-    testing::append(smooth.triangles, make_torus_knot(200, 8));
+    make_icosphere(3, {0, 0, 0}, 0.8f).append_triangles(smooth.triangles);
+    make_torus_knot(200, 8).append_triangles(smooth.triangles);
     scenes.push_back(std::move(smooth));
 
     TestScene soup{"triangle soup of mixed sizes", {}, {}};
@@ -60,7 +60,7 @@ std::vector<TestScene> make_triangle_scenes() {
     scenes.push_back(std::move(grid));
 
     TestScene degenerate{"duplicates, slivers and points", {}, {}};
-    testing::append(degenerate.triangles, make_icosphere(2, {0, 0, 0}, 1.0f));
+    make_icosphere(2, {0, 0, 0}, 1.0f).append_triangles(degenerate.triangles);
     for (int i = 0; i < 150; ++i) {
         const Vec3f a = point(2.0f) - Vec3f(1.0f), b = point(2.0f) - Vec3f(1.0f);
         degenerate.triangles.push_back({a, b, 0.5f * (a + b)});
