@@ -88,14 +88,16 @@ struct TriangleMesh {
         return material_ids.empty() ? material : material_ids[i];
     }
     // The indexed mesh flattened into the triangle array the structures are built over (Geometry), in
-    // triangle order: appended to `out`, or returned.
+    // triangle order: appended to `out`, or returned. append_triangles does not reserve: an exact reserve
+    // per call would reallocate on every mesh appended to one array (reserve the total first, as
+    // SceneGeometry does).
     void append_triangles(std::vector<Triangle>& out) const {
-        out.reserve(out.size() + triangle_count());
         for (std::size_t i = 0; i < triangle_count(); ++i)
             out.push_back(triangle(i));
     }
     [[nodiscard]] std::vector<Triangle> triangles() const {
         std::vector<Triangle> out;
+        out.reserve(triangle_count());
         append_triangles(out);
         return out;
     }
