@@ -19,9 +19,7 @@ struct TestScene {
 
 // A torus knot of 2 * segments * 12 triangles.
 inline std::vector<Triangle> knot_triangles(int segments) {
-    std::vector<Triangle> triangles;
-    make_torus_knot(segments, 12).append_triangles(triangles);
-    return triangles;
+    return make_torus_knot(segments, 12).triangles();
 }
 
 // The case that separates an exact leaf-to-leaf walk from one that returns at the first leaf with a hit:
