@@ -121,20 +121,14 @@ void build_every_structure(DeepScene& scene, bool variants) {
     for (std::size_t t = 0; t < kTriangleTests.size(); ++t) {
         DeepScene::Built& built = scene.built[t];
         for (const std::string_view name : accel_names()) {
-            const std::size_t packet_modes = name == "embree" ? 3 : 1;
-            for (std::size_t mode = 0; mode < packet_modes; ++mode) {
-                BuildOptions options = deep_options(kTriangleTests[t], scene.octree_depth, variants);
-                options.embree_packet =
-                    std::array{EmbreePacket::Single, EmbreePacket::Packet8, EmbreePacket::Packet16}[mode];
-                std::unique_ptr<Accel> accel = make_accel(name);
-                accel->build(geometry, options);
-                if (name == "brute")
-                    built.brute = std::move(accel);
-                else if (name == "embree")
-                    built.embree.push_back(std::move(accel));
-                else
-                    built.held_to_oracle.push_back(std::move(accel));
-            }
+            std::unique_ptr<Accel> accel = make_accel(name);
+            accel->build(geometry, deep_options(kTriangleTests[t], scene.octree_depth, variants));
+            if (name == "brute")
+                built.brute = std::move(accel);
+            else if (name.starts_with("embree"))
+                built.embree.push_back(std::move(accel));
+            else
+                built.held_to_oracle.push_back(std::move(accel));
         }
     }
 }

@@ -78,8 +78,9 @@ struct BvhOptions {
     int bins = 32;
 };
 
-// How the `embree` structure is queried: rtcIntersect1/rtcOccluded1 per ray, or 8- and 16-wide packets.
-enum class EmbreePacket { Single, Packet8, Packet16 };
+// Embree's build quality for the `embree` structures: HIGH (with spatial splits, its best trace speed) or
+// MEDIUM (the faster build).
+enum class EmbreeQuality { High, Medium };
 
 struct BuildOptions {
     TriangleTest triangle_test = TriangleTest::MollerTrumbore;
@@ -88,14 +89,14 @@ struct BuildOptions {
     PluckerOptions plucker;
     KdTreeOptions kdtree;
     BvhOptions bvh;
-    EmbreePacket embree_packet = EmbreePacket::Single;
+    EmbreeQuality embree_quality = EmbreeQuality::High;
 };
 
 // Sets one option from "KEY=VALUE", as `--set` gives it: grid.density, octree.max_depth, octree.leaf_size,
 // plucker.max_depth, plucker.leaf_size, plucker.balanced, plucker.stored_boxes, plucker.morton (true |
 // false), kdtree.cost (wald-havran | seed003), kdtree.traversal_cost, kdtree.intersection_cost,
 // kdtree.empty_bonus, kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins,
-// embree.packet (1 | 8 | 16). Throws std::invalid_argument naming the key and the values it accepts.
+// embree.quality (high | medium). Throws std::invalid_argument naming the key and the values it accepts.
 void set_build_option(BuildOptions& options, std::string_view assignment);
 
 // Defaults with the given triangle test (brace-initialising the aggregate would leave the rest to -Wextra).
@@ -147,6 +148,12 @@ class Accel {
     // conditioning"): extreme directions scaled by a power of two, far rays moved near the scene.
     void intersect(std::span<const Ray> rays, std::span<Hit> hits,
                    TraversalCounters* counters = nullptr) const;
+    // The same answers, for a batch the caller knows to be coherent: camera rays from neighbouring pixels,
+    // every 16 consecutive rays a 4x4 pixel block and every 8 a 4x2 one (lancer bench's tile order). A
+    // structure with a kernel of its own for such rays uses it (Embree's COHERENT flag); the others trace
+    // them as any batch.
+    void intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits,
+                            TraversalCounters* counters = nullptr) const;
     // Any hit in [tnear, tfar]: occluded[i] = 1 when ray i hits something, 0 otherwise.
     void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                   TraversalCounters* counters = nullptr) const;
@@ -162,6 +169,10 @@ class Accel {
                                  TraversalCounters* counters) const = 0;
     virtual void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                 TraversalCounters* counters) const = 0;
+    virtual void intersect_coherent_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                          TraversalCounters* counters) const {
+        intersect_batch(rays, hits, counters);
+    }
     // What build does before build_structure, for a structure that gets its arrays another way (a file):
     // checks the domain and records the scene's box for far rays.
     void accept_geometry(const Geometry& geometry);

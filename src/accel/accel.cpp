@@ -13,6 +13,16 @@ void check_batch(std::size_t ray_count, std::size_t answer_count) {
     if (ray_count != answer_count) throw std::invalid_argument("Accel: one answer slot per ray expected");
 }
 
+// Conditions the batch, hands it to `trace` (one of the closest-hit batch methods), maps the hits back.
+template <class Trace>
+void intersect_conditioned(std::span<const Ray> rays, std::span<Hit> hits, const Box3f& bounds,
+                           Trace&& trace) {
+    check_batch(rays.size(), hits.size());
+    const ConditionedRays conditioned = condition_rays(rays, bounds);
+    trace(conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays));
+    restore_hits(conditioned, rays, hits);
+}
+
 }  // namespace
 
 void Accel::accept_geometry(const Geometry& geometry) {
@@ -45,10 +55,15 @@ void Accel::build(const Geometry& geometry, const BuildOptions& options) {
 }
 
 void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters) const {
-    check_batch(rays.size(), hits.size());
-    const ConditionedRays conditioned = condition_rays(rays, bounds_);
-    intersect_batch(conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays), hits, counters);
-    restore_hits(conditioned, rays, hits);
+    intersect_conditioned(rays, hits, bounds_,
+                          [&](std::span<const Ray> batch) { intersect_batch(batch, hits, counters); });
+}
+
+void Accel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits,
+                               TraversalCounters* counters) const {
+    intersect_conditioned(rays, hits, bounds_, [&](std::span<const Ray> batch) {
+        intersect_coherent_batch(batch, hits, counters);
+    });
 }
 
 void Accel::occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,

@@ -1,5 +1,8 @@
 #include "accel/embree.hpp"
 
+#if defined(__AVX2__)
+#include <immintrin.h>
+#endif
 #include <pmmintrin.h>  // _MM_SET_DENORMALS_ZERO_MODE's bit
 #include <xmmintrin.h>  // _mm_getcsr, _mm_setcsr
 #include <algorithm>
@@ -83,33 +86,23 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float
     return query;
 }
 
-// Runs an Embree query with flush-to-zero and denormals-are-zero set, the mode Embree's documentation asks
-// its callers for ("Performance Recommendations", MXCSR), then restores the caller's. Without it a denormal
-// made its triangle test report a hit at t = NaN, on which the next geometry's traversal asserted
-// `ray.valid()` and aborted (fuzz finding 18, docs/robustness.md). The mode is per thread, and set around the
-// query only: lancer's own code keeps IEEE denormals.
-template <class Query>
-void with_denormals_flushed(Query&& query) {
-    const unsigned int caller_mode = _mm_getcsr();
-    _mm_setcsr(caller_mode | _MM_FLUSH_ZERO_ON | _MM_DENORMALS_ZERO_ON);
-    query();
-    _mm_setcsr(caller_mode);
-}
+// Flush-to-zero and denormals-are-zero for the lifetime of the object, the mode Embree's manual asks its
+// callers to set ("Performance Recommendations", MXCSR): without it a denormal made its triangle test report
+// a hit at t = NaN, on which the next geometry's traversal asserted `ray.valid()` and aborted (fuzz finding
+// 18, docs/robustness.md). The mode is per thread; it is set once per batch and the caller's restored after,
+// so that lancer's own code keeps IEEE denormals.
+class DenormalsFlushed {
+  public:
+    DenormalsFlushed() : caller_mode_(_mm_getcsr()) {
+        _mm_setcsr(caller_mode_ | _MM_FLUSH_ZERO_ON | _MM_DENORMALS_ZERO_ON);
+    }
+    ~DenormalsFlushed() { _mm_setcsr(caller_mode_); }
+    DenormalsFlushed(const DenormalsFlushed&) = delete;
+    DenormalsFlushed& operator=(const DenormalsFlushed&) = delete;
 
-void fill_ray(const Ray& ray, RTCRay& out) {
-    out.org_x = ray.origin.x, out.org_y = ray.origin.y, out.org_z = ray.origin.z;
-    out.dir_x = ray.direction.x, out.dir_y = ray.direction.y, out.dir_z = ray.direction.z;
-    out.tnear = ray.tnear, out.tfar = ray.tfar;
-    out.time = 0.0f, out.mask = ~0u, out.id = 0, out.flags = 0;
-}
-
-template <int N>
-void fill_packet_ray(const Ray& ray, RTCRayNt<N>& out, int lane) {
-    out.org_x[lane] = ray.origin.x, out.org_y[lane] = ray.origin.y, out.org_z[lane] = ray.origin.z;
-    out.dir_x[lane] = ray.direction.x, out.dir_y[lane] = ray.direction.y, out.dir_z[lane] = ray.direction.z;
-    out.tnear[lane] = ray.tnear, out.tfar[lane] = ray.tfar;
-    out.time[lane] = 0.0f, out.mask[lane] = ~0u, out.id[lane] = 0, out.flags[lane] = 0;
-}
+  private:
+    unsigned int caller_mode_;
+};
 
 // Embree numbers primitives per geometry; lancer's global numbering puts the spheres after the triangles.
 Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, float v,
@@ -142,41 +135,147 @@ void check(RTCDevice device, const char* what) {
                                  std::to_string(static_cast<int>(error)) + ")");
 }
 
-// The packet variants: lanes of invalid rays are masked off and answered as misses.
-template <int N, class RtcPacket>
-void intersect_packets(RTCScene scene, const Box3f& scene_box, float scene_scale, std::span<const Ray> rays,
-                       std::span<Hit> hits, unsigned int triangle_count,
-                       void (*intersect)(const int*, RTCScene, RTCIntersectContext*, RtcPacket*)) {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
+void fill_ray(const Ray& ray, RTCRay& out) {
+    out.org_x = ray.origin.x, out.org_y = ray.origin.y, out.org_z = ray.origin.z;
+    out.dir_x = ray.direction.x, out.dir_y = ray.direction.y, out.dir_z = ray.direction.z;
+    out.tnear = ray.tnear, out.tfar = ray.tfar;
+    out.time = 0.0f, out.mask = ~0u, out.id = 0, out.flags = 0;
+}
+
+// One lane of a packet, written straight into Embree's SoA layout.
+template <int N>
+void fill_lane(const Ray& ray, RTCRayNt<N>& out, int lane) {
+    out.org_x[lane] = ray.origin.x, out.org_y[lane] = ray.origin.y, out.org_z[lane] = ray.origin.z;
+    out.dir_x[lane] = ray.direction.x, out.dir_y[lane] = ray.direction.y, out.dir_z[lane] = ray.direction.z;
+    out.tnear[lane] = ray.tnear, out.tfar[lane] = ray.tfar;
+    out.time[lane] = 0.0f, out.mask[lane] = ~0u, out.id[lane] = 0, out.flags[lane] = 0;
+}
+
+template <int N>
+void fill_lane(const Ray& ray, RTCRayHitNt<N>& out, int lane) {
+    fill_lane(ray, out.ray, lane);
+    out.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+}
+
+// Whether Embree takes the ray as it is, its t unchanged: a valid ray with tnear >= 0 and an origin within
+// Embree's domain, in a scene that is not scaled. Every camera and secondary ray of an ordinary scene is such
+// a ray, and skips to_embree's work.
+bool taken_as_is(const Ray& ray) {
+    return ray.tnear >= 0.0f && is_valid(ray) && max_component(abs(ray.origin)) <= kEmbreeLargest;
+}
+
+#if defined(__AVX2__)
+// Eight rays into lanes [first_lane, first_lane + 8) of a packet, as they are, transposed from lancer's
+// layout (8 floats a ray: origin, direction, tnear, tfar) to Embree's SoA by the classic 8x8 transpose of
+// unpacks, shuffles and lane permutes. Returns whether Embree takes all eight as they are (taken_as_is, the
+// same tests in SIMD); when it does not, the caller writes the lanes one by one over these.
+template <int N>
+bool fill_eight_as_is(const Ray* rays, RTCRayNt<N>& out, int first_lane) {
+    __m256 row[8], pair[8], quad[8], column[8];
+    for (int i = 0; i < 8; ++i)
+        row[i] = _mm256_loadu_ps(&rays[i].origin.x);
+    for (int i = 0; i < 8; i += 2) {
+        pair[i] = _mm256_unpacklo_ps(row[i], row[i + 1]);
+        pair[i + 1] = _mm256_unpackhi_ps(row[i], row[i + 1]);
+    }
+    for (int i = 0; i < 8; i += 4) {
+        quad[i] = _mm256_shuffle_ps(pair[i], pair[i + 2], 0x44);
+        quad[i + 1] = _mm256_shuffle_ps(pair[i], pair[i + 2], 0xee);
+        quad[i + 2] = _mm256_shuffle_ps(pair[i + 1], pair[i + 3], 0x44);
+        quad[i + 3] = _mm256_shuffle_ps(pair[i + 1], pair[i + 3], 0xee);
+    }
+    for (int i = 0; i < 4; ++i) {
+        column[i] = _mm256_permute2f128_ps(quad[i], quad[i + 4], 0x20);
+        column[i + 4] = _mm256_permute2f128_ps(quad[i], quad[i + 4], 0x31);
+    }
+    // column: origin x, y, z, direction x, y, z, tnear, tfar across the eight rays.
+    const __m256 sign = _mm256_set1_ps(-0.0f), zero = _mm256_setzero_ps();
+    const __m256 largest = _mm256_set1_ps(kEmbreeLargest), infinity = _mm256_set1_ps(kInfinity);
+    __m256 taken = _mm256_cmp_ps(column[6], zero, _CMP_GE_OQ);                      // 0 <= tnear
+    taken = _mm256_and_ps(taken, _mm256_cmp_ps(column[6], infinity, _CMP_LT_OQ));   // tnear finite
+    taken = _mm256_and_ps(taken, _mm256_cmp_ps(column[6], column[7], _CMP_LE_OQ));  // tnear <= tfar
+    __m256 nonzero = zero;
+    for (int axis = 0; axis < 3; ++axis) {
+        taken =
+            _mm256_and_ps(taken, _mm256_cmp_ps(_mm256_andnot_ps(sign, column[axis]), largest, _CMP_LE_OQ));
+        taken = _mm256_and_ps(taken,
+                              _mm256_cmp_ps(_mm256_andnot_ps(sign, column[axis + 3]), infinity, _CMP_LT_OQ));
+        nonzero = _mm256_or_ps(nonzero, _mm256_cmp_ps(column[axis + 3], zero, _CMP_NEQ_OQ));
+    }
+    taken = _mm256_and_ps(taken, nonzero);
+    float* const fields[8] = {out.org_x, out.org_y, out.org_z, out.dir_x,
+                              out.dir_y, out.dir_z, out.tnear, out.tfar};
+    for (int i = 0; i < 8; ++i)
+        _mm256_storeu_ps(fields[i] + first_lane, column[i]);
+    _mm256_storeu_ps(out.time + first_lane, zero);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.mask + first_lane), _mm256_set1_epi32(-1));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.id + first_lane), _mm256_setzero_si256());
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.flags + first_lane), _mm256_setzero_si256());
+    return _mm256_movemask_ps(taken) == 0xff;
+}
+
+template <int N>
+bool fill_eight_as_is(const Ray* rays, RTCRayHitNt<N>& out, int first_lane) {
+    const bool taken = fill_eight_as_is(rays, out.ray, first_lane);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.hit.geomID + first_lane),
+                        _mm256_set1_epi32(static_cast<int>(RTC_INVALID_GEOMETRY_ID)));
+    return taken;
+}
+#endif
+
+// Packets of N consecutive rays (4x2 or 4x4 pixels of a coherent batch). `query(valid, packet)` makes the
+// call; `answer(index, packet, lane, mapped)` stores ray `index`'s answer from its lane, where `mapped` is
+// how its t maps back, or null for a ray taken as it is. Lanes of rays outside Embree's domain are masked
+// off; they keep the miss fill_lane wrote (no geometry, tfar = +inf), so answer reads them as misses.
+template <int N, class Packet, class Query, class Answer>
+void trace_packets(const Box3f& scene_box, float scene_scale, std::span<const Ray> rays, Query&& query,
+                   Answer&& answer) {
+    const DenormalsFlushed flushed;
+    const bool unscaled = scene_scale == 1.0f;
     for (std::size_t first = 0; first < rays.size(); first += N) {
-        alignas(64) RTCRayHitNt<N> packet;
+        alignas(64) Packet packet;
         alignas(64) int valid[N];
-        std::optional<EmbreeRay> queries[N];
+        std::optional<EmbreeRay> mapped[N];
         const std::size_t lanes = std::min<std::size_t>(N, rays.size() - first);
-        for (int lane = 0; lane < N; ++lane) {
-            if (static_cast<std::size_t>(lane) < lanes)
-                queries[lane] = to_embree(rays[first + lane], scene_box, scene_scale);
-            valid[lane] = queries[lane] ? -1 : 0;
-            fill_packet_ray(queries[lane] ? queries[lane]->ray : Ray{}, packet.ray, lane);
-            packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+        bool all_as_is = false;
+#if defined(__AVX2__)
+        // The common case, a full packet of rays taken as they are, eight lanes at a time.
+        if (lanes == N && unscaled) {
+            all_as_is = true;
+            for (int lane = 0; lane < N; lane += 8)
+                all_as_is &= fill_eight_as_is(&rays[first + static_cast<std::size_t>(lane)], packet, lane);
+            if (all_as_is) std::fill_n(valid, N, -1);
         }
-        with_denormals_flushed(
-            [&] { intersect(valid, scene, &context, reinterpret_cast<RtcPacket*>(&packet)); });
-        for (std::size_t lane = 0; lane < lanes; ++lane) {
-            hits[first + lane] = valid[lane] ? to_hit(queries[lane]->lancer_t(packet.ray.tfar[lane]),
-                                                      packet.hit.geomID[lane], packet.hit.primID[lane],
-                                                      packet.hit.u[lane], packet.hit.v[lane], triangle_count)
-                                             : Hit{};
+#endif
+        for (std::size_t lane = 0; lane < N && !all_as_is; ++lane) {
+            const int lane_index = static_cast<int>(lane);
+            if (lane < lanes && unscaled && taken_as_is(rays[first + lane])) {
+                fill_lane(rays[first + lane], packet, lane_index);
+                valid[lane] = -1;
+                continue;
+            }
+            if (lane < lanes) mapped[lane] = to_embree(rays[first + lane], scene_box, scene_scale);
+            valid[lane] = mapped[lane] ? -1 : 0;
+            fill_lane(mapped[lane] ? mapped[lane]->ray : Ray{}, packet, lane_index);
         }
+        query(valid, packet);
+        for (std::size_t lane = 0; lane < lanes; ++lane)
+            answer(first + lane, packet, static_cast<int>(lane), mapped[lane] ? &*mapped[lane] : nullptr);
     }
 }
 
 }  // namespace
 
-EmbreeAccel::EmbreeAccel() : device_(rtcNewDevice(nullptr)) {
+EmbreeAccel::EmbreeAccel(int packet_width) : device_(rtcNewDevice(nullptr)), packet_width_(packet_width) {
+    if (packet_width != 1 && packet_width != 8 && packet_width != 16)
+        throw std::invalid_argument("embree: packet width " + std::to_string(packet_width) +
+                                    ", expected 1, 8 or 16");
     if (device_ == nullptr) throw std::runtime_error("embree: cannot create a device");
     rtcSetDeviceMemoryMonitorFunction(device_, monitor_memory, nullptr);
+}
+
+std::string_view EmbreeAccel::name() const {
+    return packet_width_ == 16 ? "embree16" : packet_width_ == 8 ? "embree8" : "embree";
 }
 
 EmbreeAccel::~EmbreeAccel() {
@@ -192,14 +291,14 @@ void EmbreeAccel::release_scene() {
 void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     release_scene();
-    packet_ = options.embree_packet;
     triangle_count_ = static_cast<unsigned int>(geometry.triangles.size());
     scene_box_ = bounds().grown(geometric_tolerance(bounds()));
     scene_scale_ = scene_scale(bounds());
     primitive_count_ = geometry.size();
     buffer_bytes_ = 0;
     scene_ = rtcNewScene(device_);
-    rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
+    rtcSetSceneBuildQuality(scene_, options.embree_quality == EmbreeQuality::High ? RTC_BUILD_QUALITY_HIGH
+                                                                                  : RTC_BUILD_QUALITY_MEDIUM);
     if (options.triangle_test == TriangleTest::Watertight) rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);
 
     if (!geometry.triangles.empty()) {
@@ -250,18 +349,45 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
 void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                   TraversalCounters* counters) const {
     if (counters != nullptr) counters->rays += rays.size();  // Embree exposes no traversal counts
-    if (packet_ == EmbreePacket::Packet8) {
-        intersect_packets<8, RTCRayHit8>(scene_, scene_box_, scene_scale_, rays, hits, triangle_count_,
-                                         rtcIntersect8);
-        return;
-    }
-    if (packet_ == EmbreePacket::Packet16) {
-        intersect_packets<16, RTCRayHit16>(scene_, scene_box_, scene_scale_, rays, hits, triangle_count_,
-                                           rtcIntersect16);
-        return;
-    }
+    intersect_with_flags(rays, hits, RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT);
+}
+
+void EmbreeAccel::intersect_coherent_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                           TraversalCounters* counters) const {
+    if (counters != nullptr) counters->rays += rays.size();
+    intersect_with_flags(rays, hits, RTC_INTERSECT_CONTEXT_FLAG_COHERENT);
+}
+
+void EmbreeAccel::intersect_with_flags(std::span<const Ray> rays, std::span<Hit> hits,
+                                       RTCIntersectContextFlags flags) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
+    context.flags = flags;
+    const auto packet_answer = [&](std::size_t index, const auto& packet, int lane, const EmbreeRay* mapped) {
+        const float t = packet.ray.tfar[lane];
+        hits[index] =
+            to_hit(mapped ? mapped->lancer_t(t) : t, packet.hit.geomID[lane], packet.hit.primID[lane],
+                   packet.hit.u[lane], packet.hit.v[lane], triangle_count_);
+    };
+    if (packet_width_ == 8) {
+        trace_packets<8, RTCRayHitNt<8>>(
+            scene_box_, scene_scale_, rays,
+            [&](int* valid, RTCRayHitNt<8>& packet) {
+                rtcIntersect8(valid, scene_, &context, reinterpret_cast<RTCRayHit8*>(&packet));
+            },
+            packet_answer);
+        return;
+    }
+    if (packet_width_ == 16) {
+        trace_packets<16, RTCRayHitNt<16>>(
+            scene_box_, scene_scale_, rays,
+            [&](int* valid, RTCRayHitNt<16>& packet) {
+                rtcIntersect16(valid, scene_, &context, reinterpret_cast<RTCRayHit16*>(&packet));
+            },
+            packet_answer);
+        return;
+    }
+    const DenormalsFlushed flushed;
     for (std::size_t i = 0; i < rays.size(); ++i) {
         hits[i] = Hit{};
         const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_, scene_scale_);
@@ -269,25 +395,48 @@ void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits
         RTCRayHit query;
         fill_ray(embree_ray->ray, query.ray);
         query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        with_denormals_flushed([&] { rtcIntersect1(scene_, &context, &query); });
+        rtcIntersect1(scene_, &context, &query);
         hits[i] = to_hit(embree_ray->lancer_t(query.ray.tfar), query.hit.geomID, query.hit.primID,
                          query.hit.u, query.hit.v, triangle_count_);
     }
 }
 
+// Embree marks an occluded ray with tfar = -inf.
 void EmbreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                  TraversalCounters* counters) const {
     if (counters != nullptr) counters->rays += rays.size();
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
+    const auto packet_answer = [&](std::size_t index, const auto& packet, int lane, const EmbreeRay*) {
+        occluded[index] = packet.tfar[lane] == -kInfinity ? 1 : 0;
+    };
+    if (packet_width_ == 8) {
+        trace_packets<8, RTCRayNt<8>>(
+            scene_box_, scene_scale_, rays,
+            [&](int* valid, RTCRayNt<8>& packet) {
+                rtcOccluded8(valid, scene_, &context, reinterpret_cast<RTCRay8*>(&packet));
+            },
+            packet_answer);
+        return;
+    }
+    if (packet_width_ == 16) {
+        trace_packets<16, RTCRayNt<16>>(
+            scene_box_, scene_scale_, rays,
+            [&](int* valid, RTCRayNt<16>& packet) {
+                rtcOccluded16(valid, scene_, &context, reinterpret_cast<RTCRay16*>(&packet));
+            },
+            packet_answer);
+        return;
+    }
+    const DenormalsFlushed flushed;
     for (std::size_t i = 0; i < rays.size(); ++i) {
         occluded[i] = 0;
         const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_, scene_scale_);
         if (!embree_ray) continue;
         RTCRay query;
         fill_ray(embree_ray->ray, query);
-        with_denormals_flushed([&] { rtcOccluded1(scene_, &context, &query); });
-        occluded[i] = query.tfar == -kInfinity ? 1 : 0;  // Embree marks an occluded ray with tfar = -inf
+        rtcOccluded1(scene_, &context, &query);
+        occluded[i] = query.tfar == -kInfinity ? 1 : 0;
     }
 }
 

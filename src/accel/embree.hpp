@@ -1,8 +1,10 @@
 // Intel Embree behind lancer's interface, so that it is measured in the same process, on the same rays and
-// threads as lancer's own structures (issue 6). Compiled in when Debian's Embree 3 is found
-// (LANCER_EMBREE). Embree uses its own triangle test (watertight when --watertight sets its robust mode)
-// and its own traversal: it is a peer to compare with, not one of our kernels, so it is checked against
-// brute force by tests/accel/embree_test.cpp rather than held to the bit-exact oracle test.
+// threads as lancer's own structures (issue 6), called the way its manual asks for speed (issue 20): one
+// structure per call, `embree` (rtcIntersect1, rtcOccluded1), `embree8` and `embree16` (packets of 8 and 16
+// consecutive rays: 4x2 and 4x4 pixels in a coherent batch, which gets the COHERENT flag). Compiled in when
+// Debian's Embree 3 is found (LANCER_EMBREE). Embree uses its own triangle test (watertight when --watertight
+// sets its robust mode) and its own traversal: it is a peer to compare with, not one of our kernels, so it is
+// checked against brute force by tests/accel/embree_test.cpp rather than held to the bit-exact oracle test.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -15,12 +17,13 @@ namespace lancer {
 
 class EmbreeAccel final : public Accel {
   public:
-    EmbreeAccel();
+    // packet_width: 1 (single-ray calls), 8 or 16.
+    explicit EmbreeAccel(int packet_width);
     ~EmbreeAccel() override;
     EmbreeAccel(const EmbreeAccel&) = delete;
     EmbreeAccel& operator=(const EmbreeAccel&) = delete;
 
-    [[nodiscard]] std::string_view name() const override { return "embree"; }
+    [[nodiscard]] std::string_view name() const override;
     [[nodiscard]] AccelStats stats() const override;
     // Embree does not expose its node memory; this counts the vertex and index buffers it was given.
     [[nodiscard]] std::size_t memory_bytes() const override { return buffer_bytes_; }
@@ -31,6 +34,10 @@ class EmbreeAccel final : public Accel {
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                         TraversalCounters* counters) const override;
+    void intersect_coherent_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                  TraversalCounters* counters) const override;
+    void intersect_with_flags(std::span<const Ray> rays, std::span<Hit> hits,
+                              RTCIntersectContextFlags flags) const;
     void release_scene();
 
     RTCDevice device_ = nullptr;
@@ -41,7 +48,7 @@ class EmbreeAccel final : public Accel {
     std::size_t primitive_count_ = 0;
     std::size_t buffer_bytes_ = 0;
     double build_ms_ = 0.0;
-    EmbreePacket packet_ = EmbreePacket::Single;
+    int packet_width_ = 1;
 };
 
 }  // namespace lancer

@@ -83,16 +83,14 @@ const std::map<std::string, Setter, std::less<>>& setters() {
          }},
         {"bvh.max_leaf_size",
          [](BuildOptions& o, auto k, auto v) { o.bvh.max_leaf_size = parse_number(k, v, 1, 64); }},
-        {"embree.packet",
+        {"embree.quality",
          [](BuildOptions& o, auto k, auto v) {
-             if (v == "1") {
-                 o.embree_packet = EmbreePacket::Single;
-             } else if (v == "8") {
-                 o.embree_packet = EmbreePacket::Packet8;
-             } else if (v == "16") {
-                 o.embree_packet = EmbreePacket::Packet16;
+             if (v == "high") {
+                 o.embree_quality = EmbreeQuality::High;
+             } else if (v == "medium") {
+                 o.embree_quality = EmbreeQuality::Medium;
              } else {
-                 fail(k, v, "1, 8 or 16");
+                 fail(k, v, "high or medium");
              }
          }},
         {"bvh.bins", [](BuildOptions& o, auto k, auto v) { o.bvh.bins = parse_number(k, v, 2, 256); }},

@@ -38,7 +38,9 @@ const std::vector<Entry>& registry() {
         {"bvh4", [] { return std::make_unique<Bvh4Accel>(); }},
         {"bvh8", [] { return std::make_unique<Bvh8Accel>(); }},
 #if LANCER_HAS_EMBREE
-        {"embree", [] { return std::make_unique<EmbreeAccel>(); }},
+        {"embree", [] { return std::make_unique<EmbreeAccel>(1); }},
+        {"embree8", [] { return std::make_unique<EmbreeAccel>(8); }},
+        {"embree16", [] { return std::make_unique<EmbreeAccel>(16); }},
 #endif
     };
     return entries;

@@ -21,7 +21,12 @@
 // threshold was 128 sides, and on a needle 2^24 long the rounding from 25 sides away passed the tolerance).
 #pragma once
 
+#if defined(__AVX2__)
+#include <immintrin.h>
+#endif
+
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <optional>
 #include <span>
@@ -63,6 +68,9 @@ class FarOriginFrame {
     [[nodiscard]] bool is_far(Vec3f origin) const {
         return active_ && max_component(abs(origin - centre_)) > far_distance_;
     }
+    [[nodiscard]] Vec3f centre() const { return centre_; }
+    // The distance from the centre on some axis beyond which an origin is far: +inf for an empty scene.
+    [[nodiscard]] float far_limit() const { return active_ ? far_distance_ : kInfinity; }
 
     // The same line from a point near the one nearest to the centre: origin o + s d and interval
     // [tnear - s, tfar - s], with the shift s returned beside it (t = t' + s). The interval is the caller's
@@ -207,13 +215,45 @@ struct ConditionedRays {
     return !(largest >= kDirectionLowest) | !(largest <= kDirectionHighest) | frame.is_far(ray.origin);
 }
 
-[[nodiscard]] inline ConditionedRays condition_rays(std::span<const Ray> rays, const Box3f& scene_bounds) {
-    const FarOriginFrame frame(scene_bounds);
-    ConditionedRays conditioned;
+// Whether some ray of the batch may need conditioning: the same answer as may_need_conditioning's for every
+// valid ray (an invalid one, which condition_rays leaves alone, may answer either way). With AVX2 a ray is
+// one vector of its 8 floats (origin, direction, tnear, tfar), and two compares decide it: an origin
+// coordinate beyond the far limit or a direction component above kDirectionHighest, or no direction component
+// at or above kDirectionLowest. The scan runs on every batch of every structure, and GCC does not vectorize
+// the scalar loop (docs/numerical-contract.md, "Ray conditioning").
+[[nodiscard]] inline bool any_may_need_conditioning(std::span<const Ray> rays, const FarOriginFrame& frame) {
+#if defined(__AVX2__)
+    static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, direction) == 3 * sizeof(float) &&
+                  offsetof(Ray, tnear) == 6 * sizeof(float) && offsetof(Ray, tfar) == 7 * sizeof(float));
+    const Vec3f c = frame.centre();
+    const float far = frame.far_limit();
+    const __m256 centre = _mm256_setr_ps(c.x, c.y, c.z, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f);
+    const __m256 upper = _mm256_setr_ps(far, far, far, kDirectionHighest, kDirectionHighest,
+                                        kDirectionHighest, kInfinity, kInfinity);
+    const __m256 lower = _mm256_setr_ps(kInfinity, kInfinity, kInfinity, kDirectionLowest, kDirectionLowest,
+                                        kDirectionLowest, kInfinity, kInfinity);
+    const __m256 sign = _mm256_set1_ps(-0.0f);
+    constexpr int kPosition = 0x3f, kDirection = 0x38;  // lanes 0-5, lanes 3-5
+    bool any = false;
+    for (const Ray& ray : rays) {
+        const __m256 distance = _mm256_andnot_ps(sign, _mm256_sub_ps(_mm256_loadu_ps(&ray.origin.x), centre));
+        const int beyond = _mm256_movemask_ps(_mm256_cmp_ps(distance, upper, _CMP_GT_OQ));
+        const int ordinary = _mm256_movemask_ps(_mm256_cmp_ps(distance, lower, _CMP_GE_OQ));
+        any |= ((beyond & kPosition) != 0) | ((ordinary & kDirection) == 0);
+    }
+    return any;
+#else
     bool any = false;
     for (const Ray& ray : rays)
         any |= may_need_conditioning(ray, frame);
-    if (!any) return conditioned;
+    return any;
+#endif
+}
+
+[[nodiscard]] inline ConditionedRays condition_rays(std::span<const Ray> rays, const Box3f& scene_bounds) {
+    const FarOriginFrame frame(scene_bounds);
+    ConditionedRays conditioned;
+    if (!any_may_need_conditioning(rays, frame)) return conditioned;
     for (std::size_t i = 0; i < rays.size(); ++i) {
         if (!may_need_conditioning(rays[i], frame)) continue;
         if (!is_valid(rays[i])) continue;

@@ -95,12 +95,9 @@ TEST(Embree, HugeAndTinyScenesAreScaledIntoItsRange) {
         const std::vector<Ray> rays = {{Vec3f(0, 0, 2) * size, {0, 0, -1}, 0.0f, kInfinity},
                                        {Vec3f(3, 0, 5) * size, {0, 0, -1}, 0.0f, kInfinity},
                                        {Vec3f(0, 0, 2) * size, {0, 0, -1}, -kInfinity, size}};
-        for (const EmbreePacket packet :
-             {EmbreePacket::Single, EmbreePacket::Packet8, EmbreePacket::Packet16}) {
+        for (const char* name : {"embree", "embree8", "embree16"}) {
             for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
-                BuildOptions options;
-                options.embree_packet = packet, options.triangle_test = test;
-                const std::vector<Hit> hits = trace("embree", {triangles, spheres}, options, rays);
+                const std::vector<Hit> hits = trace(name, {triangles, spheres}, build_options(test), rays);
                 const std::string context = "scene size 2^" + std::to_string(exponent);
                 EXPECT_EQ(hits[0].prim, 0) << context;
                 EXPECT_NEAR(hits[0].t, 2 * size, 1e-5f * size) << context;
@@ -120,16 +117,22 @@ TEST(Embree, PacketsAnswerLikeSingleRays) {
         set.rays.push_back(hostile);
     const std::vector<Hit> single = trace("embree", scene.geometry(), {}, set.rays);
     const float scale = length(scene.geometry().bounds().extent());
-    for (EmbreePacket packet : {EmbreePacket::Packet8, EmbreePacket::Packet16}) {
-        BuildOptions options;
-        options.embree_packet = packet;
-        const std::vector<Hit> packed = trace("embree", scene.geometry(), options, set.rays);
-        for (std::size_t i = 0; i < set.rays.size(); ++i) {
-            ASSERT_EQ(single[i].prim, packed[i].prim) << "ray " << i;
-            if (single[i].hit()) {
-                // Embree's packet kernels round differently from its single-ray ones: the same scene-scaled
-                // tolerance as against brute force.
-                ASSERT_NEAR(single[i].t, packed[i].t, 1e-5f * (single[i].t + scale)) << "ray " << i;
+    for (const char* name : {"embree", "embree8", "embree16"}) {
+        const std::unique_ptr<Accel> accel = make_accel(name);
+        accel->build(scene.geometry(), {});
+        // The plain call and the coherent one (Embree's COHERENT flag, which keeps packets together longer).
+        std::vector<Hit> packed(set.rays.size()), coherent(set.rays.size());
+        accel->intersect(set.rays, packed);
+        accel->intersect_coherent(set.rays, coherent);
+        for (const std::vector<Hit>* answers : {&packed, &coherent}) {
+            for (std::size_t i = 0; i < set.rays.size(); ++i) {
+                ASSERT_EQ(single[i].prim, (*answers)[i].prim) << name << " ray " << i;
+                if (single[i].hit()) {
+                    // Embree's packet kernels round differently from its single-ray ones: the same
+                    // scene-scaled tolerance as against brute force.
+                    ASSERT_NEAR(single[i].t, (*answers)[i].t, 1e-5f * (single[i].t + scale))
+                        << name << " ray " << i;
+                }
             }
         }
     }

@@ -207,7 +207,7 @@ std::vector<std::vector<Hit>> expect_every_structure_agrees(const TestScene& sce
         brute->build(scene.geometry(), build_options(test));
         const std::vector<Hit>& expected = expected_per_test.emplace_back(trace(*brute, rays));
         for (const std::string_view name : accel_names()) {
-            if (name == "embree") continue;
+            if (name.starts_with("embree")) continue;
             const std::unique_ptr<Accel> accel = make_accel(name);
             accel->build(scene.geometry(), build_options(test));
             const std::string context = scene.name + ", " + std::string(name);
@@ -237,9 +237,9 @@ TEST(FuzzRegression, EveryStructureAgreesWithBruteForce) {
                     EXPECT_GE(hits[i].t, fuzz_case.rays[i].tnear) << context << ", ray " << i;
                     EXPECT_LE(hits[i].t, fuzz_case.rays[i].tfar) << context << ", ray " << i;
                 }
-                if (name == "embree" && !fuzz_case.embree_agrees) continue;
+                if (name.starts_with("embree") && !fuzz_case.embree_agrees) continue;
                 EXPECT_EQ(compare_occlusion(fuzz_case.rays, expected, occluded).mismatches, 0u) << context;
-                if (name != "embree") {
+                if (!name.starts_with("embree")) {
                     EXPECT_EQ(compare_hits(fuzz_case.rays, expected, hits).mismatches, 0u) << context;
                     continue;
                 }
@@ -276,7 +276,7 @@ TEST(FuzzRegression, OriginAtFloatMaxFindsTheVertexOnItsLine) {
     ASSERT_NE(found, cases.end());
     const FuzzCase& diagonal = *found;
     for (const std::string_view name : accel_names()) {
-        if (name == "embree") continue;
+        if (name.starts_with("embree")) continue;
         for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
             const std::unique_ptr<Accel> accel = make_accel(name);
             accel->build(diagonal.scene.geometry(), build_options(test));
@@ -386,7 +386,7 @@ TEST(FuzzRegression, AHugeDirectionFindsWhatItsUnscaledCopyFinds) {
     }
     for (const TriangleTest test : {TriangleTest::MollerTrumbore}) {
         for (const std::string_view name : accel_names()) {
-            if (name == "embree") continue;
+            if (name.starts_with("embree")) continue;
             const std::unique_ptr<Accel> accel = make_accel(name);
             accel->build(scene.geometry(), build_options(test));
             const std::vector<Hit> expected = trace(*accel, unscaled);

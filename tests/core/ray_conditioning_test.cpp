@@ -140,6 +140,54 @@ TEST(RayConditioning, BatchesOfOrdinaryRaysAreNotCopied) {
 
 // Directions from denormal to 2^126: scaled by the power of two that brings the largest component into
 // [1/2, 1), every component and the interval exactly, and t maps back exactly.
+// The batch scan (vectorized with AVX2) answers as the per-ray predicate for every valid ray: ordinary rays,
+// origins on and just past the far limit on each axis, direction components at and beside both thresholds,
+// zero and denormal components, and the empty scene, which has nothing far.
+TEST(RayConditioning, TheBatchScanAnswersAsThePerRayTest) {
+    std::vector<float> coordinates = {0.0f, -0.0f, 1.0f, -3.5f, 1e-30f, 1e30f, -1e30f, 0x1p-140f};
+    for (const float limit : {1.0f + 16.0f, -16.0f, 0.5f + 16.0f, 0.5f - 16.0f})
+        coordinates.insert(coordinates.end(),
+                           {limit, std::nextafter(limit, kInfinity), std::nextafter(limit, -kInfinity)});
+    std::vector<float> components = {0.0f, -0.0f, 0.3f, -1.0f, 0x1p-149f, -0x1p-140f};
+    for (const float threshold : {kDirectionLowest, kDirectionHighest}) {
+        for (const float value :
+             {threshold, std::nextafter(threshold, 0.0f), std::nextafter(threshold, kInfinity)})
+            components.insert(components.end(), {value, -value});
+    }
+    std::mt19937 random(11);
+    const auto pick = [&](const std::vector<float>& values) {
+        return values[std::uniform_int_distribution<std::size_t>(0, values.size() - 1)(random)];
+    };
+    for (const Box3f& scene : {kScene, Box3f{}}) {
+        const FarOriginFrame frame(scene);
+        std::size_t flagged = 0, tested = 0;
+        for (int i = 0; i < 200000; ++i) {
+            const Ray ray{{pick(coordinates), pick(coordinates), pick(coordinates)},
+                          {pick(components), pick(components), pick(components)},
+                          0.0f,
+                          kInfinity};
+            if (!is_valid(ray)) continue;
+            const bool expected = may_need_conditioning(ray, frame);
+            ASSERT_EQ(any_may_need_conditioning(std::span(&ray, 1), frame), expected)
+                << "o=(" << ray.origin.x << ", " << ray.origin.y << ", " << ray.origin.z << ") d=("
+                << ray.direction.x << ", " << ray.direction.y << ", " << ray.direction.z << ")";
+            flagged += expected ? 1 : 0;
+            ++tested;
+        }
+        EXPECT_GT(flagged, tested / 10) << "both answers are exercised";
+        EXPECT_LT(flagged, tested - tested / 10);
+    }
+    // A batch answers yes when any one ray does, wherever it stands.
+    const FarOriginFrame frame(kScene);
+    std::vector<Ray> batch(37, Ray{{1.0f, 0.0f, 0.5f}, {0.0f, 0.0f, -1.0f}, 0.0f, kInfinity});
+    EXPECT_FALSE(any_may_need_conditioning(batch, frame));
+    for (std::size_t far = 0; far < batch.size(); ++far) {
+        std::vector<Ray> with_far = batch;
+        with_far[far].origin.z = -1e30f;
+        EXPECT_TRUE(any_may_need_conditioning(with_far, frame)) << far;
+    }
+}
+
 TEST(RayConditioning, ExtremeDirectionsAreScaledExactly) {
     for (const float scale : {0x1p-149f, 0x1p-140f, 0x1p-127f, 0x1p-40f, 0x1p40f, 0x1p100f, 0x1p126f}) {
         const Ray ray{{0.25f, 0.5f, 0.75f}, Vec3f(-0.75f, 0.5f, 1.0f) * scale, 0.0f, 0x1p-30f / scale};

@@ -1,0 +1,293 @@
+// Embree on the canonical view of shared/bench/VIEWS.md, called the way Embree's own tutorials call it and
+// with no lancer code: the yardstick that `lancer bench`'s Embree rows must match (scripts/embree_check.py,
+// issue 20). What the tutorials and the "Performance Recommendations" of Embree's manual ask for:
+//   - packets of 4x2 (rtcIntersect8) and 4x4 (rtcIntersect16) pixels, rays written straight into the SoA
+//     packet, and the COHERENT context flag, since camera rays are coherent;
+//   - flush-to-zero and denormals-are-zero set once per tracing thread;
+//   - the HIGH build quality (spatial splits), or MEDIUM; the robust flag only for --watertight.
+// A frame is timed as VIEWS.md says: generate every ray, trace it, store its closest hit (16 bytes).
+//
+//   embree_reference MESH [--size 1024] [--frames 5] [--threads 1,2] [--calls 1,8,16] [--quality high]
+//                         [--watertight] [--json FILE]
+#include <assimp/cimport.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <embree3/rtcore.h>
+#include <pmmintrin.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+#include <xmmintrin.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <string>
+#include <vector>
+
+namespace {
+
+struct Float3 {
+    float x, y, z;
+};
+Float3 operator+(Float3 a, Float3 b) {
+    return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+Float3 operator-(Float3 a, Float3 b) {
+    return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+Float3 operator*(float s, Float3 a) {
+    return {s * a.x, s * a.y, s * a.z};
+}
+Float3 cross(Float3 a, Float3 b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+Float3 normalize(Float3 a) {
+    return (1.0f / std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z)) * a;
+}
+
+struct Mesh {
+    std::vector<Float3> vertices;
+    std::vector<unsigned> indices;  // three per triangle
+    Float3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+};
+
+// Every mesh of the file, triangulated, in one vertex and one index array.
+Mesh load_mesh(const std::string& file) {
+    const aiScene* scene = aiImportFile(file.c_str(), aiProcess_Triangulate);
+    if (scene == nullptr) throw std::runtime_error(file + ": " + aiGetErrorString());
+    Mesh mesh;
+    for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+        const aiMesh* part = scene->mMeshes[m];
+        const auto base = static_cast<unsigned>(mesh.vertices.size());
+        for (unsigned v = 0; v < part->mNumVertices; ++v) {
+            const Float3 p{part->mVertices[v].x, part->mVertices[v].y, part->mVertices[v].z};
+            mesh.vertices.push_back(p);
+            mesh.lo = {std::min(mesh.lo.x, p.x), std::min(mesh.lo.y, p.y), std::min(mesh.lo.z, p.z)};
+            mesh.hi = {std::max(mesh.hi.x, p.x), std::max(mesh.hi.y, p.y), std::max(mesh.hi.z, p.z)};
+        }
+        for (unsigned f = 0; f < part->mNumFaces; ++f) {
+            if (part->mFaces[f].mNumIndices != 3) continue;  // points and lines
+            for (unsigned k = 0; k < 3; ++k)
+                mesh.indices.push_back(base + part->mFaces[f].mIndices[k]);
+        }
+    }
+    aiReleaseImport(scene);
+    return mesh;
+}
+
+// VIEWS.md's camera: eye on +z at 1.05 half-diagonals over sin(fov / 2), looking at the box's centre.
+struct Camera {
+    Float3 eye, forward, right, up;
+    float tan_half_fov = 0.0f;
+    int size = 0;
+
+    Camera(const Mesh& mesh, int side) : size(side) {
+        const float fov = 45.0f * std::numbers::pi_v<float> / 180.0f;
+        const Float3 centre = 0.5f * (mesh.lo + mesh.hi);
+        const Float3 diagonal = mesh.hi - mesh.lo;
+        const float radius =
+            0.5f * std::sqrt(diagonal.x * diagonal.x + diagonal.y * diagonal.y + diagonal.z * diagonal.z);
+        eye = centre + Float3{0.0f, 0.0f, 1.05f * radius / std::sin(fov / 2.0f)};
+        forward = normalize(centre - eye);
+        right = normalize(cross(forward, {0.0f, 1.0f, 0.0f}));
+        up = cross(right, forward);
+        tan_half_fov = std::tan(fov / 2.0f);
+    }
+
+    [[nodiscard]] Float3 direction(int i, int j) const {
+        const float u =
+            (2.0f * (static_cast<float>(i) + 0.5f) / static_cast<float>(size) - 1.0f) * tan_half_fov;
+        const float v =
+            (1.0f - 2.0f * (static_cast<float>(j) + 0.5f) / static_cast<float>(size)) * tan_half_fov;
+        return normalize(forward + u * right + v * up);
+    }
+};
+
+struct PixelHit {
+    float t;
+    unsigned prim;
+    float u, v;
+};
+
+constexpr int kTile = 8;  // tiles of 8x8 pixels, one task per row of tiles
+
+// One call: rtcIntersect1 per pixel, or packets of kWidth x kHeight pixels (4x2 for 8 lanes, 4x4 for 16).
+template <int kLanes>
+void trace_tile(RTCScene scene, const Camera& camera, int x0, int y0, std::vector<PixelHit>& hits) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    const int size = camera.size;
+    if constexpr (kLanes == 1) {
+        for (int j = y0; j < std::min(size, y0 + kTile); ++j) {
+            for (int i = x0; i < std::min(size, x0 + kTile); ++i) {
+                const Float3 d = camera.direction(i, j);
+                RTCRayHit query;
+                query.ray = {camera.eye.x, camera.eye.y, camera.eye.z, 0.0f, d.x, d.y,
+                             d.z,          0.0f,         INFINITY,     ~0u,  0,   0};
+                query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+                rtcIntersect1(scene, &context, &query);
+                hits[static_cast<std::size_t>(j) * size + i] = {query.ray.tfar, query.hit.primID, query.hit.u,
+                                                                query.hit.v};
+            }
+        }
+    } else {
+        constexpr int kWidth = 4, kHeight = kLanes / 4;
+        for (int py = y0; py < std::min(size, y0 + kTile); py += kHeight) {
+            for (int px = x0; px < std::min(size, x0 + kTile); px += kWidth) {
+                alignas(64) RTCRayHitNt<kLanes> packet;
+                alignas(64) int valid[kLanes];
+                for (int lane = 0; lane < kLanes; ++lane) {
+                    const int i = px + lane % kWidth, j = py + lane / kWidth;
+                    valid[lane] = i < size && j < size ? -1 : 0;
+                    const Float3 d = camera.direction(i, j);
+                    packet.ray.org_x[lane] = camera.eye.x, packet.ray.org_y[lane] = camera.eye.y;
+                    packet.ray.org_z[lane] = camera.eye.z;
+                    packet.ray.dir_x[lane] = d.x, packet.ray.dir_y[lane] = d.y, packet.ray.dir_z[lane] = d.z;
+                    packet.ray.tnear[lane] = 0.0f, packet.ray.tfar[lane] = INFINITY;
+                    packet.ray.time[lane] = 0.0f, packet.ray.mask[lane] = ~0u;
+                    packet.ray.id[lane] = 0, packet.ray.flags[lane] = 0;
+                    packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+                }
+                if constexpr (kLanes == 8)
+                    rtcIntersect8(valid, scene, &context, reinterpret_cast<RTCRayHit8*>(&packet));
+                else
+                    rtcIntersect16(valid, scene, &context, reinterpret_cast<RTCRayHit16*>(&packet));
+                for (int lane = 0; lane < kLanes; ++lane) {
+                    if (!valid[lane]) continue;
+                    const int i = px + lane % kWidth, j = py + lane / kWidth;
+                    hits[static_cast<std::size_t>(j) * size + i] = {packet.ray.tfar[lane],
+                                                                    packet.hit.primID[lane],
+                                                                    packet.hit.u[lane], packet.hit.v[lane]};
+                }
+            }
+        }
+    }
+}
+
+template <int kLanes>
+void trace_frame(RTCScene scene, const Camera& camera, std::vector<PixelHit>& hits, tbb::task_arena& arena) {
+    const int tiles = (camera.size + kTile - 1) / kTile;
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1), [&](const tbb::blocked_range<int>& rows) {
+            // Embree's manual: set FTZ and DAZ in every thread that calls it (cheap, so once per task here).
+            _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+            _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+            for (int row = rows.begin(); row < rows.end(); ++row) {
+                for (int x0 = 0; x0 < camera.size; x0 += kTile)
+                    trace_tile<kLanes>(scene, camera, x0, row * kTile, hits);
+            }
+        });
+    });
+}
+
+std::vector<int> parse_list(const std::string& text) {
+    std::vector<int> values;
+    std::size_t start = 0;
+    while (start <= text.size()) {
+        const std::size_t comma = std::min(text.find(',', start), text.size());
+        values.push_back(std::stoi(text.substr(start, comma - start)));
+        start = comma + 1;
+    }
+    return values;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app("Embree on VIEWS.md's canonical view, called as its tutorials do (no lancer code)");
+    std::string file, thread_list = "1,2", call_list = "1,8,16", quality = "high", json_file;
+    int size = 1024, frames = 5;
+    bool watertight = false;
+    app.add_option("mesh", file, "Mesh file (OBJ, OFF, PLY: read by assimp)")->required();
+    app.add_option("--size", size, "Image side")->check(CLI::Range(1, 16384));
+    app.add_option("--frames", frames, "Timed frames after one warm-up")->check(CLI::Range(1, 1000));
+    app.add_option("--threads", thread_list, "Comma-separated thread counts");
+    app.add_option("--calls", call_list, "Comma-separated calls: 1 (rtcIntersect1), 8, 16");
+    app.add_option("--quality", quality, "Build quality")->check(CLI::IsMember({"high", "medium"}));
+    app.add_flag("--watertight", watertight, "Embree's robust mode (RTC_SCENE_FLAG_ROBUST)");
+    app.add_option("--json", json_file, "Write one record per call and thread count");
+    CLI11_PARSE(app, argc, argv);
+
+    const Mesh mesh = load_mesh(file);
+    const std::size_t triangles = mesh.indices.size() / 3;
+    const RTCDevice device = rtcNewDevice(nullptr);
+    const auto build_start = std::chrono::steady_clock::now();
+    const RTCScene scene = rtcNewScene(device);
+    rtcSetSceneBuildQuality(scene, quality == "high" ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM);
+    if (watertight) rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+    const RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+        geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.vertices.size()));
+    std::copy_n(&mesh.vertices[0].x, 3 * mesh.vertices.size(), vertices);
+    auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), triangles));
+    std::copy(mesh.indices.begin(), mesh.indices.end(), indices);
+    rtcCommitGeometry(geometry);
+    rtcAttachGeometry(scene, geometry);
+    rtcReleaseGeometry(geometry);
+    rtcCommitScene(scene);
+    const double build_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - build_start).count();
+
+    const Camera camera(mesh, size);
+    const std::string mesh_name = std::filesystem::path(file).filename().string();
+    std::vector<PixelHit> hits(static_cast<std::size_t>(size) * static_cast<std::size_t>(size));
+    std::string json = "[\n";
+    std::printf("embree_reference: %s, %zu triangles, %s build %.1f ms%s\n", mesh_name.c_str(), triangles,
+                quality.c_str(), build_ms, watertight ? ", robust" : "");
+    for (const int calls : parse_list(call_list)) {
+        if (calls != 1 && calls != 8 && calls != 16) {
+            std::fprintf(stderr, "embree_reference: --calls: expected 1, 8 or 16, got %d\n", calls);
+            return 2;
+        }
+        for (const int threads : parse_list(thread_list)) {
+            tbb::task_arena arena(threads);
+            std::vector<double> mrays;
+            for (int frame = -1; frame < frames; ++frame) {  // frame -1: the warm-up
+                const auto start = std::chrono::steady_clock::now();
+                if (calls == 1) trace_frame<1>(scene, camera, hits, arena);
+                if (calls == 8) trace_frame<8>(scene, camera, hits, arena);
+                if (calls == 16) trace_frame<16>(scene, camera, hits, arena);
+                const double seconds =
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+                if (frame >= 0) mrays.push_back(static_cast<double>(hits.size()) / seconds * 1e-6);
+            }
+            std::sort(mrays.begin(), mrays.end());
+            std::size_t hit_count = 0;
+            for (const PixelHit& hit : hits)
+                hit_count += hit.t < INFINITY ? 1 : 0;
+            const double median = mrays[mrays.size() / 2];
+            const double hit_fraction = static_cast<double>(hit_count) / static_cast<double>(hits.size());
+            const std::string call = calls == 1 ? "rtcIntersect1" : "rtcIntersect" + std::to_string(calls);
+            std::printf("%-16s %-14s threads %d: %8.2f Mrays/s (min %.2f, max %.2f), hits %.2f%%\n",
+                        mesh_name.c_str(), call.c_str(), threads, median, mrays.front(), mrays.back(),
+                        100.0 * hit_fraction);
+            std::fflush(stdout);
+            json += std::string(json.size() > 2 ? ",\n" : "") + "  {\"mesh\": \"" + mesh_name +
+                    "\", \"triangles\": " + std::to_string(triangles) + ", \"call\": \"" + call +
+                    "\", \"packet\": " + std::to_string(calls) + ", \"threads\": " + std::to_string(threads) +
+                    ", \"build_ms\": " + std::to_string(build_ms) +
+                    ", \"mrays_per_s\": " + std::to_string(median) +
+                    ", \"hit_fraction\": " + std::to_string(hit_fraction) + "}";
+        }
+    }
+    rtcReleaseScene(scene);
+    rtcReleaseDevice(device);
+    if (!json_file.empty()) {
+        std::ofstream out(json_file);
+        out << json << "\n]\n";
+        if (!out) {
+            std::fprintf(stderr, "embree_reference: cannot write %s\n", json_file.c_str());
+            return 2;
+        }
+    }
+    return 0;
+}
