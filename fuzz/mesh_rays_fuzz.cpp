@@ -53,7 +53,7 @@ struct DeepScene {
     struct Built {
         std::unique_ptr<Accel> brute;
         std::vector<std::unique_ptr<Accel>> held_to_oracle;  // every structure but brute and Embree
-        std::vector<std::unique_ptr<Accel>> embree;          // one per packet mode, held to clean answers
+        std::vector<std::unique_ptr<Accel>> embree;          // one per Embree call, held to clean answers
     };
     std::array<Built, kTriangleTests.size()> built;
 

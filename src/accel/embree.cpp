@@ -8,10 +8,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
 #include <new>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "accel/build_util.hpp"
 #include "core/intersect.hpp"
@@ -135,13 +137,6 @@ void check(RTCDevice device, const char* what) {
                                  std::to_string(static_cast<int>(error)) + ")");
 }
 
-void fill_ray(const Ray& ray, RTCRay& out) {
-    out.org_x = ray.origin.x, out.org_y = ray.origin.y, out.org_z = ray.origin.z;
-    out.dir_x = ray.direction.x, out.dir_y = ray.direction.y, out.dir_z = ray.direction.z;
-    out.tnear = ray.tnear, out.tfar = ray.tfar;
-    out.time = 0.0f, out.mask = ~0u, out.id = 0, out.flags = 0;
-}
-
 // One lane of a packet, written straight into Embree's SoA layout.
 template <int N>
 void fill_lane(const Ray& ray, RTCRayNt<N>& out, int lane) {
@@ -223,13 +218,50 @@ bool fill_eight_as_is(const Ray* rays, RTCRayHitNt<N>& out, int first_lane) {
 }
 #endif
 
-// Packets of N consecutive rays (4x2 or 4x4 pixels of a coherent batch). `query(valid, packet)` makes the
-// call; `answer(index, packet, lane, mapped)` stores ray `index`'s answer from its lane, where `mapped` is
-// how its t maps back, or null for a ray taken as it is. Lanes of rays outside Embree's domain are masked
-// off; they keep the miss fill_lane wrote (no geometry, tfar = +inf), so answer reads them as misses.
-template <int N, class Packet, class Query, class Answer>
-void trace_packets(const Box3f& scene_box, float scene_scale, std::span<const Ray> rays, Query&& query,
-                   Answer&& answer) {
+// Embree's call for each packet type, so that one loop (trace_packets) serves every width. A packet of one
+// ray is laid out as Embree's single ray, and a masked one is not traced.
+static_assert(sizeof(RTCRayHitNt<1>) == sizeof(RTCRayHit) &&
+              offsetof(RTCRayHitNt<1>, hit) == offsetof(RTCRayHit, hit) &&
+              sizeof(RTCRayNt<1>) == sizeof(RTCRay));
+void query(const int* valid, RTCScene scene, RTCIntersectContext* context, RTCRayHitNt<1>& packet) {
+    if (valid[0] != 0) rtcIntersect1(scene, context, reinterpret_cast<RTCRayHit*>(&packet));
+}
+void query(const int* valid, RTCScene scene, RTCIntersectContext* context, RTCRayHitNt<8>& packet) {
+    rtcIntersect8(valid, scene, context, reinterpret_cast<RTCRayHit8*>(&packet));
+}
+void query(const int* valid, RTCScene scene, RTCIntersectContext* context, RTCRayHitNt<16>& packet) {
+    rtcIntersect16(valid, scene, context, reinterpret_cast<RTCRayHit16*>(&packet));
+}
+void query(const int* valid, RTCScene scene, RTCIntersectContext* context, RTCRayNt<1>& packet) {
+    if (valid[0] != 0) rtcOccluded1(scene, context, reinterpret_cast<RTCRay*>(&packet));
+}
+void query(const int* valid, RTCScene scene, RTCIntersectContext* context, RTCRayNt<8>& packet) {
+    rtcOccluded8(valid, scene, context, reinterpret_cast<RTCRay8*>(&packet));
+}
+void query(const int* valid, RTCScene scene, RTCIntersectContext* context, RTCRayNt<16>& packet) {
+    rtcOccluded16(valid, scene, context, reinterpret_cast<RTCRay16*>(&packet));
+}
+
+// Calls body(std::integral_constant<int, N>) with N the packet width (1, 8 or 16).
+template <class Body>
+void with_packet_width(int width, Body&& body) {
+    if (width == 16) {
+        body(std::integral_constant<int, 16>{});
+    } else if (width == 8) {
+        body(std::integral_constant<int, 8>{});
+    } else {
+        body(std::integral_constant<int, 1>{});
+    }
+}
+
+// The rays in packets of N consecutive rays (4x2 or 4x4 pixels of a coherent batch), or one by one for
+// N = 1, with flush-to-zero set once for the batch. `answer(index, packet, lane, mapped)` stores ray
+// `index`'s answer from its lane, where `mapped` is how its t maps back, or null for a ray taken as it is.
+// Lanes of rays outside Embree's domain are masked off; they keep the miss fill_lane wrote (no geometry,
+// tfar = +inf), so answer reads them as misses.
+template <int N, class Packet, class Answer>
+void trace_packets(RTCScene scene, RTCIntersectContext& context, const Box3f& scene_box, float scene_scale,
+                   std::span<const Ray> rays, Answer&& answer) {
     const DenormalsFlushed flushed;
     const bool unscaled = scene_scale == 1.0f;
     for (std::size_t first = 0; first < rays.size(); first += N) {
@@ -240,7 +272,7 @@ void trace_packets(const Box3f& scene_box, float scene_scale, std::span<const Ra
         bool all_as_is = false;
 #if defined(__AVX2__)
         // The common case, a full packet of rays taken as they are, eight lanes at a time.
-        if (lanes == N && unscaled) {
+        if (N % 8 == 0 && lanes == N && unscaled) {
             all_as_is = true;
             for (int lane = 0; lane < N; lane += 8)
                 all_as_is &= fill_eight_as_is(&rays[first + static_cast<std::size_t>(lane)], packet, lane);
@@ -258,7 +290,7 @@ void trace_packets(const Box3f& scene_box, float scene_scale, std::span<const Ra
             valid[lane] = mapped[lane] ? -1 : 0;
             fill_lane(mapped[lane] ? mapped[lane]->ray : Ray{}, packet, lane_index);
         }
-        query(valid, packet);
+        query(valid, scene, &context, packet);
         for (std::size_t lane = 0; lane < lanes; ++lane)
             answer(first + lane, packet, static_cast<int>(lane), mapped[lane] ? &*mapped[lane] : nullptr);
     }
@@ -266,10 +298,11 @@ void trace_packets(const Box3f& scene_box, float scene_scale, std::span<const Ra
 
 }  // namespace
 
-EmbreeAccel::EmbreeAccel(int packet_width) : device_(rtcNewDevice(nullptr)), packet_width_(packet_width) {
+EmbreeAccel::EmbreeAccel(int packet_width) : packet_width_(packet_width) {
     if (packet_width != 1 && packet_width != 8 && packet_width != 16)
         throw std::invalid_argument("embree: packet width " + std::to_string(packet_width) +
                                     ", expected 1, 8 or 16");
+    device_ = rtcNewDevice(nullptr);
     if (device_ == nullptr) throw std::runtime_error("embree: cannot create a device");
     rtcSetDeviceMemoryMonitorFunction(device_, monitor_memory, nullptr);
 }
@@ -363,42 +396,17 @@ void EmbreeAccel::intersect_with_flags(std::span<const Ray> rays, std::span<Hit>
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = flags;
-    const auto packet_answer = [&](std::size_t index, const auto& packet, int lane, const EmbreeRay* mapped) {
-        const float t = packet.ray.tfar[lane];
-        hits[index] =
-            to_hit(mapped ? mapped->lancer_t(t) : t, packet.hit.geomID[lane], packet.hit.primID[lane],
-                   packet.hit.u[lane], packet.hit.v[lane], triangle_count_);
-    };
-    if (packet_width_ == 8) {
-        trace_packets<8, RTCRayHitNt<8>>(
-            scene_box_, scene_scale_, rays,
-            [&](int* valid, RTCRayHitNt<8>& packet) {
-                rtcIntersect8(valid, scene_, &context, reinterpret_cast<RTCRayHit8*>(&packet));
-            },
-            packet_answer);
-        return;
-    }
-    if (packet_width_ == 16) {
-        trace_packets<16, RTCRayHitNt<16>>(
-            scene_box_, scene_scale_, rays,
-            [&](int* valid, RTCRayHitNt<16>& packet) {
-                rtcIntersect16(valid, scene_, &context, reinterpret_cast<RTCRayHit16*>(&packet));
-            },
-            packet_answer);
-        return;
-    }
-    const DenormalsFlushed flushed;
-    for (std::size_t i = 0; i < rays.size(); ++i) {
-        hits[i] = Hit{};
-        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_, scene_scale_);
-        if (!embree_ray) continue;
-        RTCRayHit query;
-        fill_ray(embree_ray->ray, query.ray);
-        query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(scene_, &context, &query);
-        hits[i] = to_hit(embree_ray->lancer_t(query.ray.tfar), query.hit.geomID, query.hit.primID,
-                         query.hit.u, query.hit.v, triangle_count_);
-    }
+    with_packet_width(packet_width_, [&](auto width) {
+        constexpr int N = decltype(width)::value;
+        trace_packets<N, RTCRayHitNt<N>>(
+            scene_, context, scene_box_, scene_scale_, rays,
+            [&](std::size_t index, const RTCRayHitNt<N>& packet, int lane, const EmbreeRay* mapped) {
+                const float t = packet.ray.tfar[lane];
+                hits[index] =
+                    to_hit(mapped ? mapped->lancer_t(t) : t, packet.hit.geomID[lane], packet.hit.primID[lane],
+                           packet.hit.u[lane], packet.hit.v[lane], triangle_count_);
+            });
+    });
 }
 
 // Embree marks an occluded ray with tfar = -inf.
@@ -407,37 +415,14 @@ void EmbreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8
     if (counters != nullptr) counters->rays += rays.size();
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
-    const auto packet_answer = [&](std::size_t index, const auto& packet, int lane, const EmbreeRay*) {
-        occluded[index] = packet.tfar[lane] == -kInfinity ? 1 : 0;
-    };
-    if (packet_width_ == 8) {
-        trace_packets<8, RTCRayNt<8>>(
-            scene_box_, scene_scale_, rays,
-            [&](int* valid, RTCRayNt<8>& packet) {
-                rtcOccluded8(valid, scene_, &context, reinterpret_cast<RTCRay8*>(&packet));
-            },
-            packet_answer);
-        return;
-    }
-    if (packet_width_ == 16) {
-        trace_packets<16, RTCRayNt<16>>(
-            scene_box_, scene_scale_, rays,
-            [&](int* valid, RTCRayNt<16>& packet) {
-                rtcOccluded16(valid, scene_, &context, reinterpret_cast<RTCRay16*>(&packet));
-            },
-            packet_answer);
-        return;
-    }
-    const DenormalsFlushed flushed;
-    for (std::size_t i = 0; i < rays.size(); ++i) {
-        occluded[i] = 0;
-        const std::optional<EmbreeRay> embree_ray = to_embree(rays[i], scene_box_, scene_scale_);
-        if (!embree_ray) continue;
-        RTCRay query;
-        fill_ray(embree_ray->ray, query);
-        rtcOccluded1(scene_, &context, &query);
-        occluded[i] = query.tfar == -kInfinity ? 1 : 0;
-    }
+    with_packet_width(packet_width_, [&](auto width) {
+        constexpr int N = decltype(width)::value;
+        trace_packets<N, RTCRayNt<N>>(
+            scene_, context, scene_box_, scene_scale_, rays,
+            [&](std::size_t index, const RTCRayNt<N>& packet, int lane, const EmbreeRay*) {
+                occluded[index] = packet.tfar[lane] == -kInfinity ? 1 : 0;
+            });
+    });
 }
 
 AccelStats EmbreeAccel::stats() const {

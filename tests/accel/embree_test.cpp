@@ -138,5 +138,33 @@ TEST(Embree, PacketsAnswerLikeSingleRays) {
     }
 }
 
+// embree.quality selects Embree's build: MEDIUM answers as HIGH (the same rays, within Embree's rounding),
+// and any other value is refused with the key named.
+TEST(Embree, QualityOptionSelectsTheBuild) {
+    if (!has_embree()) GTEST_SKIP() << "built without Embree";
+    const TestScene scene = mixed_scene();
+    const testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 4000, 13);
+    BuildOptions medium;
+    set_build_option(medium, "embree.quality=medium");
+    EXPECT_EQ(medium.embree_quality, EmbreeQuality::Medium);
+    const std::vector<Hit> high_hits = trace("embree16", scene.geometry(), {}, set.rays);
+    const std::vector<Hit> medium_hits = trace("embree16", scene.geometry(), medium, set.rays);
+    const float scale = length(scene.geometry().bounds().extent());
+    std::size_t hits = 0;
+    for (std::size_t i = 0; i < set.rays.size(); ++i) {
+        ASSERT_EQ(high_hits[i].hit(), medium_hits[i].hit()) << "ray " << i;
+        if (!high_hits[i].hit()) continue;
+        ++hits;
+        ASSERT_NEAR(high_hits[i].t, medium_hits[i].t, 1e-5f * (high_hits[i].t + scale)) << "ray " << i;
+    }
+    EXPECT_GT(hits, 400u);
+    try {
+        set_build_option(medium, "embree.quality=best");
+        ADD_FAILURE() << "embree.quality=best was accepted";
+    } catch (const std::invalid_argument& error) {
+        EXPECT_NE(std::string(error.what()).find("embree.quality"), std::string::npos) << error.what();
+    }
+}
+
 }  // namespace
 }  // namespace lancer

@@ -1,8 +1,11 @@
 // The pinhole camera reproduces shared/bench/VIEWS.md formula by formula.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <numbers>
+#include <utility>
 
 #include "lancer/camera.hpp"
 
@@ -52,6 +55,25 @@ TEST(PinholeCamera, FilmEdgesSpanTheVerticalFieldOfView) {
     const PinholeCamera pinhole(camera);
     const Ray top = pinhole.generate(50.0f, 0.0f);
     EXPECT_NEAR(std::atan2(top.direction.y, -top.direction.z), std::numbers::pi_v<float> / 6.0f, 1e-6f);
+}
+
+// block_rays makes 16 rays at once in SIMD lanes: they must be generate's, bit for bit, in row order, for
+// square and stretched images and blocks anywhere in them.
+TEST(PinholeCamera, BlockRaysAreGeneratesRaysBitForBit) {
+    for (const auto& [width, height] : {std::pair{1024, 1024}, std::pair{640, 360}, std::pair{12, 100}}) {
+        const PinholeCamera pinhole(canonical_view({{-1, -2, 0.5f}, {3, 1, 2}}, width, height));
+        for (const auto& [x0, y0] : {std::pair{0, 0}, std::pair{4, 8}, std::pair{width - 4, height - 4}}) {
+            std::array<Ray, 16> block;
+            pinhole.block_rays(x0, y0, block);
+            for (int k = 0; k < 16; ++k) {
+                const Ray expected = pinhole.generate(static_cast<float>(x0 + k % 4) + 0.5f,
+                                                      static_cast<float>(y0 + k / 4) + 0.5f);
+                const Ray& ray = block[static_cast<std::size_t>(k)];
+                EXPECT_EQ(std::memcmp(&ray, &expected, sizeof(Ray)), 0)
+                    << width << "x" << height << " block (" << x0 << ", " << y0 << ") ray " << k;
+            }
+        }
+    }
 }
 
 }  // namespace
