@@ -52,7 +52,7 @@ template <class Ops>
         t0 = Ops::max(near_plane, t0);
         t1 = Ops::min(far_plane, t1);
     }
-    return Ops::mask(Ops::less_equal(t0, t1));
+    return Ops::bits(Ops::less_equal(t0, t1));
 }
 
 #if defined(__AVX2__)
@@ -72,7 +72,7 @@ struct ScalarLane {
         return a > b ? if_greater : otherwise;
     }
     static bool less_equal(float a, float b) { return a <= b; }
-    static unsigned mask(bool lane) { return lane ? 1u : 0u; }
+    static unsigned bits(bool lane) { return lane ? 1u : 0u; }
 };
 using PacketLanes = ScalarLane;
 constexpr int kLaneWidth = 1;

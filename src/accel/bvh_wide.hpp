@@ -117,7 +117,7 @@ template <class Ops>
         t1 = Ops::min(far_plane, t1);
     }
     Ops::store(entry, t0);
-    return Ops::mask(Ops::less_equal(t0, t1));
+    return Ops::bits(Ops::less_equal(t0, t1));
 }
 
 }  // namespace wide_detail

@@ -7,6 +7,7 @@
 #include "accel/bvh.hpp"
 #include "accel/bvh_packet.hpp"
 #include "accel/bvh_wide.hpp"
+#include "accel/bvh_wide_packet.hpp"
 #if LANCER_HAS_EMBREE
 #include "accel/embree.hpp"
 #endif
@@ -37,6 +38,7 @@ const std::vector<Entry>& registry() {
         {"bvh_packet", [] { return std::make_unique<BvhPacketAccel>(); }},
         {"bvh4", [] { return std::make_unique<Bvh4Accel>(); }},
         {"bvh8", [] { return std::make_unique<Bvh8Accel>(); }},
+        {"bvh8_packet", [] { return std::make_unique<WidePacketAccel>(); }},
 #if LANCER_HAS_EMBREE
         {"embree", [] { return std::make_unique<EmbreeAccel>(1); }},
         {"embree8", [] { return std::make_unique<EmbreeAccel>(8); }},

@@ -1,14 +1,17 @@
-// Thin wrappers over SSE and AVX2 float vectors, so that the wide BVH's box test and the triangle block
-// tests read like their scalar kernels (Embree's vfloat<N>, without its machinery). Chosen at compile time
-// by __SSE4_1__ / __AVX2__ (the project builds with -march=native, LANCER_NATIVE); the callers keep a scalar
-// path for builds without them.
+// Thin wrappers over SSE, AVX2 and AVX-512 float vectors, so that the wide BVH's box test and the triangle
+// tests read like their scalar kernels (Embree's vfloat<N> and vbool<N>, without its machinery). Chosen at
+// compile time by __SSE4_1__ / __AVX2__ / __AVX512F__ (the project builds with -march=native,
+// LANCER_NATIVE); the callers keep a scalar path for builds without them.
+//
+// A comparison returns a Mask: a vector of all-ones lanes for SSE and AVX2, a k-register for AVX-512.
+// Masks combine with mask_and / mask_or, and bits() turns one into an integer, bit i for lane i.
 //
 // Numerics: every operation is the IEEE fp32 operation of the scalar code (division is divps, never the
 // rcpps estimate), and -ffp-contract=off keeps GCC from fusing the vector multiplies and adds, as in the
 // scalar kernels. Comparisons are ordered and quiet: a NaN compares false, as in C++.
 #pragma once
 
-#if defined(__AVX2__) || defined(__SSE4_1__)
+#if defined(__AVX512F__) || defined(__AVX2__) || defined(__SSE4_1__)
 #include <immintrin.h>
 #endif
 
@@ -17,6 +20,7 @@ namespace lancer::simd {
 #if defined(__SSE4_1__)
 struct Sse4 {
     using Float = __m128;
+    using Mask = __m128;
     static constexpr int kWidth = 4;
 
     static Float broadcast(float x) { return _mm_set1_ps(x); }
@@ -44,13 +48,22 @@ struct Sse4 {
     static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
         return _mm_blendv_ps(otherwise, if_greater, _mm_cmpgt_ps(a, b));
     }
-    static unsigned mask(Float a) { return static_cast<unsigned>(_mm_movemask_ps(a)); }
+    // if_true where the mask is set, else if_false.
+    static Float select(Mask mask, Float if_true, Float if_false) {
+        return _mm_blendv_ps(if_false, if_true, mask);
+    }
+    static Mask mask_and(Mask a, Mask b) { return _mm_and_ps(a, b); }
+    static Mask mask_or(Mask a, Mask b) { return _mm_or_ps(a, b); }
+    static unsigned bits(Mask a) { return static_cast<unsigned>(_mm_movemask_ps(a)); }
+    // The sign bit of every lane.
+    static unsigned sign_bits(Float a) { return static_cast<unsigned>(_mm_movemask_ps(a)); }
 };
 #endif
 
 #if defined(__AVX2__)
 struct Avx2 {
     using Float = __m256;
+    using Mask = __m256;
     static constexpr int kWidth = 8;
 
     static Float broadcast(float x) { return _mm256_set1_ps(x); }
@@ -74,7 +87,85 @@ struct Avx2 {
     static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
         return _mm256_blendv_ps(otherwise, if_greater, _mm256_cmp_ps(a, b, _CMP_GT_OQ));
     }
-    static unsigned mask(Float a) { return static_cast<unsigned>(_mm256_movemask_ps(a)); }
+    static Float select(Mask mask, Float if_true, Float if_false) {
+        return _mm256_blendv_ps(if_false, if_true, mask);
+    }
+    // Lane i reads p[i * kStride]: one field of consecutive records (the zero-masked gather: GCC 12's plain
+    // one reads an uninitialised source, as _mm512_max_ps below).
+    template <int kStride>
+    static Float load_strided(const float* p) {
+        const __m256i index =
+            _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(kStride));
+        return _mm256_mask_i32gather_ps(_mm256_setzero_ps(), p, index,
+                                        _mm256_castsi256_ps(_mm256_set1_epi32(-1)), 4);
+    }
+    // Integers carried in float lanes, bit for bit (a primitive index beside its hit's t).
+    static Float broadcast_int(int x) { return _mm256_castsi256_ps(_mm256_set1_epi32(x)); }
+    static Mask less_int(Float a, Float b) {
+        return _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_castps_si256(b), _mm256_castps_si256(a)));
+    }
+    // The mask whose lane i is set where bit i is.
+    static Mask mask_from_bits(unsigned bits) {
+        const __m256i lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        return _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+            _mm256_and_si256(_mm256_set1_epi32(static_cast<int>(bits)), lane_bit), lane_bit));
+    }
+    static Mask mask_and(Mask a, Mask b) { return _mm256_and_ps(a, b); }
+    static Mask mask_or(Mask a, Mask b) { return _mm256_or_ps(a, b); }
+    static unsigned bits(Mask a) { return static_cast<unsigned>(_mm256_movemask_ps(a)); }
+    static unsigned sign_bits(Float a) { return static_cast<unsigned>(_mm256_movemask_ps(a)); }
+};
+#endif
+
+#if defined(__AVX512F__) && defined(__AVX512DQ__)
+struct Avx512 {
+    using Float = __m512;
+    using Mask = __mmask16;
+    static constexpr int kWidth = 16;
+
+    static Float broadcast(float x) { return _mm512_set1_ps(x); }
+    static Float load(const float* p) { return _mm512_load_ps(p); }
+    static void store(float* p, Float x) { _mm512_storeu_ps(p, x); }
+    static Float add(Float a, Float b) { return _mm512_add_ps(a, b); }
+    static Float sub(Float a, Float b) { return _mm512_sub_ps(a, b); }
+    static Float mul(Float a, Float b) { return _mm512_mul_ps(a, b); }
+    static Float div(Float a, Float b) { return _mm512_div_ps(a, b); }
+    // vmaxps / vminps keep the SSE rule: the second operand when either is NaN. The zero-masked forms with
+    // every lane set are the same instruction; GCC 12's _mm512_max_ps reads an uninitialised
+    // _mm512_undefined_ps(), which -Werror=uninitialized rejects.
+    static Float max(Float a, Float b) { return _mm512_maskz_max_ps(0xffff, a, b); }
+    static Float min(Float a, Float b) { return _mm512_maskz_min_ps(0xffff, a, b); }
+    static Float abs(Float a) { return _mm512_abs_ps(a); }
+    static Mask less(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_LT_OQ); }
+    static Mask less_equal(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_LE_OQ); }
+    static Mask greater(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_GT_OQ); }
+    static Mask greater_equal(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_GE_OQ); }
+    static Mask equal(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_EQ_OQ); }
+    static Float bit_and(Float a, Float b) { return _mm512_and_ps(a, b); }
+    static Float bit_or(Float a, Float b) { return _mm512_or_ps(a, b); }
+    static Float bit_xor(Float a, Float b) { return _mm512_xor_ps(a, b); }
+    static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
+        return _mm512_mask_blend_ps(_mm512_cmp_ps_mask(a, b, _CMP_GT_OQ), otherwise, if_greater);
+    }
+    static Float select(Mask mask, Float if_true, Float if_false) {
+        return _mm512_mask_blend_ps(mask, if_false, if_true);
+    }
+    template <int kStride>
+    static Float load_strided(const float* p) {
+        const __m512i index =
+            _mm512_mullo_epi32(_mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
+                               _mm512_set1_epi32(kStride));
+        return _mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xffff, index, p, 4);
+    }
+    static Float broadcast_int(int x) { return _mm512_castsi512_ps(_mm512_set1_epi32(x)); }
+    static Mask less_int(Float a, Float b) {
+        return _mm512_cmplt_epi32_mask(_mm512_castps_si512(a), _mm512_castps_si512(b));
+    }
+    static Mask mask_from_bits(unsigned bits) { return static_cast<Mask>(bits); }
+    static Mask mask_and(Mask a, Mask b) { return static_cast<Mask>(a & b); }
+    static Mask mask_or(Mask a, Mask b) { return static_cast<Mask>(a | b); }
+    static unsigned bits(Mask a) { return a; }
+    static unsigned sign_bits(Float a) { return _mm512_movepi32_mask(_mm512_castps_si512(a)); }
 };
 #endif
 

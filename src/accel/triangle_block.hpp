@@ -116,37 +116,48 @@ template <class Ops>
     return Ops::max(Ops::abs(a.x), Ops::max(Ops::abs(a.y), Ops::abs(a.z)));
 }
 
-// MollerTrumbore::intersect on K lanes. A lane that passes the widened float u and v tests but is grazing or
-// within their error bound of an edge is left to the scalar kernel, which decides it in double.
+// What a lane kernel returns: every lane's t, u and v, the lanes hit in [tnear, tfar] and the lanes the
+// scalar test must decide, in double.
 template <class Ops>
-struct MollerTrumboreBlock {
+struct LaneHits {
+    typename Ops::Float t, u, v;
+    unsigned hit_lanes = 0;
+    unsigned scalar_lanes = 0;
+};
+
+// MollerTrumbore::intersect on every lane: lane i tests ray i against triangle i. The triangle-SIMD block
+// test broadcasts one ray against a block's triangles; the packet test (bvh_wide_packet.cpp) broadcasts one
+// triangle against a packet's rays: both call this, so that one source holds the kernel. A lane that
+// passes the widened float u and v tests but is grazing or within their error bound of an edge is left to
+// the scalar kernel, which decides it in double.
+template <class Ops>
+struct MollerTrumboreLanes {
+    using Float = typename Ops::Float;
     Vec3v<Ops> origin, direction;
-    typename Ops::Float band_scale;   // kIllConditioned * direction_scale, the first product of the band
-    typename Ops::Float slack_scale;  // kRoundingSlack * direction_scale, the first product of the slack
+    Float band_scale;   // kIllConditioned * direction_scale, the first product of the band
+    Float slack_scale;  // kRoundingSlack * direction_scale, the first product of the slack
 
-    explicit MollerTrumboreBlock(const MollerTrumbore::RayData& ray)
-        : origin{Ops::broadcast(ray.origin.x), Ops::broadcast(ray.origin.y), Ops::broadcast(ray.origin.z)},
-          direction{Ops::broadcast(ray.direction.x), Ops::broadcast(ray.direction.y),
-                    Ops::broadcast(ray.direction.z)},
-          band_scale(Ops::broadcast(MollerTrumbore::kIllConditioned * ray.direction_scale)),
-          slack_scale(Ops::broadcast(MollerTrumbore::kRoundingSlack * ray.direction_scale)) {}
+    // The ray data of each lane from its direction_scale (MollerTrumbore::RayData).
+    MollerTrumboreLanes(const Vec3v<Ops>& ray_origin, const Vec3v<Ops>& ray_direction, Float direction_scale)
+        : origin(ray_origin),
+          direction(ray_direction),
+          band_scale(Ops::mul(Ops::broadcast(MollerTrumbore::kIllConditioned), direction_scale)),
+          slack_scale(Ops::mul(Ops::broadcast(MollerTrumbore::kRoundingSlack), direction_scale)) {}
 
-    template <int K>
-    void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
-        using Float = typename Ops::Float;
-        const Vec3v<Ops> v0 = load_vertex<Ops>(block, 0);
-        const Vec3v<Ops> e1 = sub(load_vertex<Ops>(block, 1), v0);
-        const Vec3v<Ops> e2 = sub(load_vertex<Ops>(block, 2), v0);
+    [[nodiscard]] LaneHits<Ops> test(const Vec3v<Ops>& v0, const Vec3v<Ops>& v1, const Vec3v<Ops>& v2,
+                                     Float tnear, Float tfar) const {
+        const Vec3v<Ops> e1 = sub(v1, v0);
+        const Vec3v<Ops> e2 = sub(v2, v0);
         const Vec3v<Ops> p = cross(direction, e2);
         const Float det = dot(p, e1);
         const Float abs_det = Ops::abs(det);
         const Float e1_scale = max_abs_component(e1), e2_scale = max_abs_component(e2);
         const Float band = Ops::mul(Ops::mul(band_scale, e1_scale), e2_scale);
-        Float accept =
-            Ops::bit_and(Ops::greater(abs_det, band), Ops::less(abs_det, Ops::broadcast(kInfinity)));
+        auto accept =
+            Ops::mask_and(Ops::greater(abs_det, band), Ops::less(abs_det, Ops::broadcast(kInfinity)));
         const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
         const Vec3v<Ops> to_origin = sub(origin, v0);
-        const Float grazing =
+        const auto grazing =
             Ops::less_equal(abs_det, Ops::mul(band, Ops::broadcast(MollerTrumbore::kGrazingScale)));
         const Float slack = Ops::mul(
             Ops::mul(slack_scale, Ops::add(Ops::add(max_abs_component(to_origin), e1_scale), e2_scale)),
@@ -154,90 +165,128 @@ struct MollerTrumboreBlock {
         const Float slack_u = Ops::mul(slack, e2_scale), slack_v = Ops::mul(slack, e1_scale);
         const Float u = Ops::mul(dot(to_origin, p), inv_det);
         const Float zero = Ops::broadcast(0.0f), one = Ops::broadcast(1.0f);
-        accept = Ops::bit_and(accept, Ops::bit_and(Ops::greater_equal(u, Ops::sub(zero, slack_u)),
-                                                   Ops::less_equal(u, Ops::add(one, slack_u))));
+        accept = Ops::mask_and(accept, Ops::mask_and(Ops::greater_equal(u, Ops::sub(zero, slack_u)),
+                                                     Ops::less_equal(u, Ops::add(one, slack_u))));
         const Vec3v<Ops> q = cross(to_origin, e1);
         const Float v = Ops::mul(dot(direction, q), inv_det);
-        accept = Ops::bit_and(
-            accept, Ops::bit_and(Ops::greater_equal(v, Ops::sub(zero, slack_v)),
-                                 Ops::less_equal(Ops::add(u, v), Ops::add(one, Ops::add(slack_u, slack_v)))));
-        const Float certain =
-            Ops::bit_and(Ops::bit_and(Ops::greater_equal(u, slack_u), Ops::greater_equal(v, slack_v)),
-                         Ops::less_equal(Ops::add(u, v), Ops::sub(one, Ops::add(slack_u, slack_v))));
-        const unsigned scalar_lanes = Ops::mask(accept) & (Ops::mask(grazing) | ~Ops::mask(certain));
+        accept = Ops::mask_and(
+            accept,
+            Ops::mask_and(Ops::greater_equal(v, Ops::sub(zero, slack_v)),
+                          Ops::less_equal(Ops::add(u, v), Ops::add(one, Ops::add(slack_u, slack_v)))));
+        const auto certain =
+            Ops::mask_and(Ops::mask_and(Ops::greater_equal(u, slack_u), Ops::greater_equal(v, slack_v)),
+                          Ops::less_equal(Ops::add(u, v), Ops::sub(one, Ops::add(slack_u, slack_v))));
+        const unsigned scalar_lanes = Ops::bits(accept) & (Ops::bits(grazing) | ~Ops::bits(certain));
         const Float t = Ops::mul(dot(e2, q), inv_det);
-        accept = Ops::bit_and(accept, Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
-                                                                Ops::less_equal(t, Ops::broadcast(tfar))),
-                                                   Ops::less(t, Ops::broadcast(kInfinity))));
-        out.hit_lanes = Ops::mask(accept) & ~scalar_lanes;
-        out.scalar_lanes = scalar_lanes;
-        Ops::store(out.t, t), Ops::store(out.u, u), Ops::store(out.v, v);
+        accept = Ops::mask_and(
+            accept, Ops::mask_and(Ops::mask_and(Ops::greater_equal(t, tnear), Ops::less_equal(t, tfar)),
+                                  Ops::less(t, Ops::broadcast(kInfinity))));
+        return {t, u, v, Ops::bits(accept) & ~scalar_lanes, scalar_lanes};
     }
 };
 
-// Watertight::intersect on K lanes. The ray's axis permutation is the same for every lane, so a[kx] is the
-// load of the kx row of the block.
+// Watertight::intersect on every lane, lane i testing ray i against triangle i, for rays that share one
+// axis permutation (kx, ky, kz): the caller hands each vertex over as (v[kx], v[ky], v[kz]).
 template <class Ops>
-struct WatertightBlock {
-    typename Ops::Float origin_x, origin_y, origin_z;  // the origin's kx, ky, kz components
-    typename Ops::Float shear_x, shear_y, shear_z;
-    int kx, ky, kz;
-
-    explicit WatertightBlock(const Watertight::RayData& ray)
-        : origin_x(Ops::broadcast(ray.origin[ray.kx])),
-          origin_y(Ops::broadcast(ray.origin[ray.ky])),
-          origin_z(Ops::broadcast(ray.origin[ray.kz])),
-          shear_x(Ops::broadcast(ray.shear_x)),
-          shear_y(Ops::broadcast(ray.shear_y)),
-          shear_z(Ops::broadcast(ray.shear_z)),
-          kx(ray.kx),
-          ky(ray.ky),
-          kz(ray.kz) {}
+struct WatertightLanes {
+    using Float = typename Ops::Float;
+    Float origin_x, origin_y, origin_z;  // the origin's kx, ky, kz components
+    Float shear_x, shear_y, shear_z;
 
     // A vertex relative to the origin: (x, y) sheared into ray space, z the unsheared a[kz].
-    template <int K>
-    [[nodiscard]] Vec3v<Ops> sheared(const TriangleBlock<K>& block, int v) const {
-        const typename Ops::Float z = Ops::sub(Ops::load(block.vertex[v][kz]), origin_z);
-        return {Ops::sub(Ops::sub(Ops::load(block.vertex[v][kx]), origin_x), Ops::mul(shear_x, z)),
-                Ops::sub(Ops::sub(Ops::load(block.vertex[v][ky]), origin_y), Ops::mul(shear_y, z)), z};
+    [[nodiscard]] Vec3v<Ops> sheared(const Vec3v<Ops>& vertex) const {
+        const Float z = Ops::sub(vertex.z, origin_z);
+        return {Ops::sub(Ops::sub(vertex.x, origin_x), Ops::mul(shear_x, z)),
+                Ops::sub(Ops::sub(vertex.y, origin_y), Ops::mul(shear_y, z)), z};
     }
 
-    template <int K>
-    void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
-        using Float = typename Ops::Float;
-        const Vec3v<Ops> a = sheared(block, 0), b = sheared(block, 1), c = sheared(block, 2);
+    [[nodiscard]] LaneHits<Ops> test(const Vec3v<Ops>& v0, const Vec3v<Ops>& v1, const Vec3v<Ops>& v2,
+                                     Float tnear, Float tfar) const {
+        const Vec3v<Ops> a = sheared(v0), b = sheared(v1), c = sheared(v2);
         const Float w0 = Ops::sub(Ops::mul(b.x, c.y), Ops::mul(b.y, c.x));
         const Float w1 = Ops::sub(Ops::mul(c.x, a.y), Ops::mul(c.y, a.x));
         const Float w2 = Ops::sub(Ops::mul(a.x, b.y), Ops::mul(a.y, b.x));
         // Zero or denormal edge functions and small numerators are the scalar kernel's, in double
         // (Watertight in core/intersect.hpp).
         const Float float_min = Ops::broadcast(std::numeric_limits<float>::min());
-        const Float any_small =
-            Ops::bit_or(Ops::bit_or(Ops::less(Ops::abs(w0), float_min), Ops::less(Ops::abs(w1), float_min)),
-                        Ops::less(Ops::abs(w2), float_min));
+        const auto any_small =
+            Ops::mask_or(Ops::mask_or(Ops::less(Ops::abs(w0), float_min), Ops::less(Ops::abs(w1), float_min)),
+                         Ops::less(Ops::abs(w2), float_min));
         const Float det = Ops::add(Ops::add(w0, w1), w2);
         const Float az = Ops::mul(shear_z, a.z), bz = Ops::mul(shear_z, b.z), cz = Ops::mul(shear_z, c.z);
         const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
         const Float numerator = Ops::add(Ops::add(Ops::mul(w0, az), Ops::mul(w1, bz)), Ops::mul(w2, cz));
         const Float t = Ops::mul(numerator, inv_det);
-        const Float t_accepted = Ops::bit_and(Ops::bit_and(Ops::greater_equal(t, Ops::broadcast(tnear)),
-                                                           Ops::less_equal(t, Ops::broadcast(tfar))),
-                                              Ops::less(t, Ops::broadcast(kInfinity)));
+        const auto t_accepted =
+            Ops::mask_and(Ops::mask_and(Ops::greater_equal(t, tnear), Ops::less_equal(t, tfar)),
+                          Ops::less(t, Ops::broadcast(kInfinity)));
         // Edge functions of both signs: a miss. Where all three are normal (the lanes not handed to the
-        // scalar kernel), that is a sign bit that differs between them, read by movemask from w0 ^ w1 | w0 ^
-        // w2 (three operations where the compares took eleven). Three normal edge functions of one sign, the
-        // only lanes left: det is not zero.
-        const unsigned rejected = Ops::mask(Ops::bit_or(Ops::bit_xor(w0, w1), Ops::bit_xor(w0, w2)));
+        // scalar kernel), that is a sign bit that differs between them, read from w0 ^ w1 | w0 ^ w2 (three
+        // operations where the compares took eleven). Three normal edge functions of one sign, the only
+        // lanes left: det is not zero.
+        const unsigned rejected = Ops::sign_bits(Ops::bit_or(Ops::bit_xor(w0, w1), Ops::bit_xor(w0, w2)));
         // As in the scalar kernel, a small numerator matters only once the signs have accepted the lane: rays
         // from a triangle's plane (T near 0) would otherwise send every lane they miss to the scalar path.
         const unsigned scalar_lanes =
-            Ops::mask(any_small) |
-            (Ops::mask(Ops::less(Ops::abs(numerator), Ops::broadcast(Watertight::kSmallNumerator))) &
+            Ops::bits(any_small) |
+            (Ops::bits(Ops::less(Ops::abs(numerator), Ops::broadcast(Watertight::kSmallNumerator))) &
              ~rejected);
-        out.hit_lanes = Ops::mask(t_accepted) & ~rejected & ~scalar_lanes;
-        out.scalar_lanes = scalar_lanes;
-        Ops::store(out.t, t), Ops::store(out.u, Ops::mul(w1, inv_det)),
-            Ops::store(out.v, Ops::mul(w2, inv_det));
+        return {t, Ops::mul(w1, inv_det), Ops::mul(w2, inv_det),
+                Ops::bits(t_accepted) & ~rejected & ~scalar_lanes, scalar_lanes};
+    }
+};
+
+template <class Ops, int K>
+inline void store_hits(const LaneHits<Ops>& lanes, BlockHits<K>& out) {
+    out.hit_lanes = lanes.hit_lanes, out.scalar_lanes = lanes.scalar_lanes;
+    Ops::store(out.t, lanes.t), Ops::store(out.u, lanes.u), Ops::store(out.v, lanes.v);
+}
+
+// MollerTrumbore::intersect of one ray against the K triangles of a block.
+template <class Ops>
+struct MollerTrumboreBlock {
+    MollerTrumboreLanes<Ops> lanes;
+
+    explicit MollerTrumboreBlock(const MollerTrumbore::RayData& ray)
+        : lanes({Ops::broadcast(ray.origin.x), Ops::broadcast(ray.origin.y), Ops::broadcast(ray.origin.z)},
+                {Ops::broadcast(ray.direction.x), Ops::broadcast(ray.direction.y),
+                 Ops::broadcast(ray.direction.z)},
+                Ops::broadcast(ray.direction_scale)) {}
+
+    template <int K>
+    void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
+        store_hits(lanes.test(load_vertex<Ops>(block, 0), load_vertex<Ops>(block, 1),
+                              load_vertex<Ops>(block, 2), Ops::broadcast(tnear), Ops::broadcast(tfar)),
+                   out);
+    }
+};
+
+// Watertight::intersect of one ray against the K triangles of a block. The ray's axis permutation is the
+// same for every lane, so v[kx] is the load of the kx row of the block.
+template <class Ops>
+struct WatertightBlock {
+    WatertightLanes<Ops> lanes;
+    int kx, ky, kz;
+
+    explicit WatertightBlock(const Watertight::RayData& ray)
+        : lanes{Ops::broadcast(ray.origin[ray.kx]), Ops::broadcast(ray.origin[ray.ky]),
+                Ops::broadcast(ray.origin[ray.kz]), Ops::broadcast(ray.shear_x),
+                Ops::broadcast(ray.shear_y),        Ops::broadcast(ray.shear_z)},
+          kx(ray.kx),
+          ky(ray.ky),
+          kz(ray.kz) {}
+
+    template <int K>
+    [[nodiscard]] Vec3v<Ops> permuted(const TriangleBlock<K>& block, int v) const {
+        return {Ops::load(block.vertex[v][kx]), Ops::load(block.vertex[v][ky]),
+                Ops::load(block.vertex[v][kz])};
+    }
+
+    template <int K>
+    void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
+        store_hits(lanes.test(permuted(block, 0), permuted(block, 1), permuted(block, 2),
+                              Ops::broadcast(tnear), Ops::broadcast(tfar)),
+                   out);
     }
 };
 #endif

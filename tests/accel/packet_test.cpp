@@ -1,9 +1,10 @@
-// The packet structures against their single-ray siblings, bit for bit (bvh_packet / bvh, plucker_packet /
-// plucker), and against brute force, on the batches that reach the packet code: tiles of a pinhole camera
-// (coherent), rays of mixed direction signs (bvh_packet's fallback), batches that end in a partial packet,
-// rays clipped by tnear and tfar, zero direction components and invalid rays inside coherent packets. The
-// oracle test's ray sets have random directions, so most of their packets are incoherent: here the same
-// adversarial sets are sorted by direction octant, which makes their packets coherent.
+// The packet structures against their single-ray siblings, bit for bit (bvh_packet / bvh, bvh8_packet / bvh8
+// with each of its vector widths, plucker_packet / plucker), and against brute force, on the batches that
+// reach the packet code: tiles of a pinhole camera (coherent), rays of mixed direction signs (bvh_packet's
+// fallback), batches that end in a partial packet, rays clipped by tnear and tfar, zero direction components
+// and invalid rays inside coherent packets. The oracle test's ray sets have random directions, so most of
+// their packets are incoherent: here the same adversarial sets are sorted by direction octant, which makes
+// their packets coherent.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 
 #include "accel/agreement.hpp"
 #include "accel/brute.hpp"
+#include "accel/bvh_wide_packet.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
@@ -22,13 +24,30 @@ namespace {
 
 using testing::TestScene;
 
+// `lanes`: for bvh8_packet, the vector width its kernels run at (0: the registry's, the widest).
 struct Pair {
     std::string_view packet, single;
+    int lanes = 0;
+
+    [[nodiscard]] std::string label() const {
+        std::string label(packet);
+        if (lanes != 0) label.append("_").append(std::to_string(lanes)).append("_lanes");
+        return label;
+    }
+    [[nodiscard]] std::unique_ptr<Accel> make_packet() const {
+        return lanes == 0 ? make_accel(packet) : std::make_unique<WidePacketAccel>(lanes);
+    }
 };
-const Pair kPairs[] = {{"bvh_packet", "bvh"}, {"plucker_packet", "plucker"}};
+
+std::vector<Pair> pairs() {
+    std::vector<Pair> all = {{"bvh_packet", "bvh"}, {"bvh8_packet", "bvh8"}, {"plucker_packet", "plucker"}};
+    // The AVX2 kernels where the registry's row runs the AVX-512 ones: both paths are tested.
+    if (WidePacketAccel::widest_lane_count() > 8) all.push_back({"bvh8_packet", "bvh8", 8});
+    return all;
+}
 
 void PrintTo(const Pair& pair, std::ostream* os) {
-    *os << pair.packet << " against " << pair.single;
+    *os << pair.label() << " against " << pair.single;
 }
 
 // Torus knot, icosphere and spheres; and a plane of triangles whose shared edges make exact ties.
@@ -117,7 +136,7 @@ class PacketTest : public ::testing::TestWithParam<Pair> {
     void for_each_build(Check&& check) {
         for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
             for (const TestScene& scene : scenes()) {
-                const std::unique_ptr<Accel> packet = make_accel(GetParam().packet);
+                const std::unique_ptr<Accel> packet = GetParam().make_packet();
                 const std::unique_ptr<Accel> single = make_accel(GetParam().single);
                 packet->build(scene.geometry(), build_options(test));
                 single->build(scene.geometry(), build_options(test));
@@ -226,7 +245,7 @@ TEST_P(PacketTest, AdversarialSetsSortedIntoCoherentPackets) {
 
 TEST_P(PacketTest, CountersSeeEveryRayOfEveryPacket) {
     const TestScene scene = scenes()[0];
-    const std::unique_ptr<Accel> packet = make_accel(GetParam().packet);
+    const std::unique_ptr<Accel> packet = GetParam().make_packet();
     packet->build(scene.geometry(), {});
     const std::vector<Ray> rays = tile_rays(scene.geometry().bounds(), 40, 30);
     std::vector<Hit> hits(rays.size()), counted(rays.size());
@@ -240,8 +259,8 @@ TEST_P(PacketTest, CountersSeeEveryRayOfEveryPacket) {
         ASSERT_EQ(hits[i].prim, counted[i].prim);
 }
 
-INSTANTIATE_TEST_SUITE_P(Packets, PacketTest, ::testing::ValuesIn(kPairs),
-                         [](const auto& param_info) { return std::string(param_info.param.packet); });
+INSTANTIATE_TEST_SUITE_P(Packets, PacketTest, ::testing::ValuesIn(pairs()),
+                         [](const auto& param_info) { return param_info.param.label(); });
 
 }  // namespace
 }  // namespace lancer

@@ -1,0 +1,648 @@
+#include "accel/bvh_wide_packet.hpp"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+
+#include "accel/primitive_test.hpp"
+#include "accel/simd_float.hpp"
+#include "accel/triangle_block.hpp"
+
+namespace lancer {
+
+#if defined(__AVX2__)
+namespace {
+
+constexpr int kPacketSize = WidePacketAccel::kPacketSize;
+constexpr int kWidth = 8;  // bvh8
+using Node = WideBvhNode<kWidth>;
+using Block = Bvh8Accel::Block;
+using LaneMask = std::uint64_t;  // bit i: ray i of the packet
+// A lane's best primitive before any hit: above every index, so that closer()'s tie rule (the smaller index
+// wins at equal t) accepts a first hit at exactly tfar, as it does against a missing Hit.
+constexpr std::int32_t kNoHit = std::numeric_limits<std::int32_t>::max();
+
+// The watertight test's axis permutation of a ray, as Watertight::RayData chooses it: kz the dominant axis,
+// kx and ky the next two, swapped when the direction along kz is negative. Six codes, 2 kz + swapped.
+constexpr int kPermutations = 6;
+[[nodiscard]] constexpr std::array<int, 3> permutation_axes(int code) {
+    const int kz = code / 2;
+    int kx = kz == 2 ? 0 : kz + 1;
+    int ky = kx == 2 ? 0 : kx + 1;
+    if (code % 2 != 0) std::swap(kx, ky);
+    return {kx, ky, kz};
+}
+
+// The packet, one array per coordinate so that a group of rays loads in one instruction. Lanes without a
+// valid ray have tlimit = -inf, which no box test passes.
+struct alignas(64) PacketRays {
+    float origin[3][kPacketSize];
+    float direction[3][kPacketSize];
+    float inv_direction[3][kPacketSize];
+    float tnear[kPacketSize];
+    float tlimit[kPacketSize];  // the closest hit so far, or tfar
+    // Moller-Trumbore's ray data: max |d_i|.
+    float direction_scale[kPacketSize];
+    // The watertight test's ray data: the origin's kx, ky, kz components and the shear.
+    float permuted_origin[3][kPacketSize];
+    float shear[3][kPacketSize];
+    // The closest hit so far (t is tlimit): kNoHit before the first.
+    float u[kPacketSize], v[kPacketSize];
+    std::int32_t prim[kPacketSize];
+};
+
+// The packet's rays as intervals, for the conservative child test: every ray's origin lies in
+// [origin_lo, origin_hi] and its reciprocal direction in [inv_lo, inv_hi], one sign per axis.
+struct PacketInterval {
+    std::array<float, 3> entry_origin, exit_origin;  // the corner of the origin box each plane distance takes
+    std::array<float, 3> inv_lo, inv_hi;
+    std::array<int, 3> near_side;  // WideBvhNode::kLo or kHi: the face a ray enters by on each axis
+    float tnear_min;
+};
+
+// The children of `node` that some ray of the packet may hit within [tnear_min, tlimit_max]: bit i set, with
+// entry[i] a lower bound of where any ray enters child i. Interval arithmetic on the slab test (Overbeck et
+// al. 2008, section 4.2): every plane distance fl(fl(b - o) * r) is monotone in o and in r, so the corner of
+// the intervals chosen by the signs of b - o and r bounds it over the packet, in the same fp32 operations.
+// The exit's widening (widened_slab_exit) is monotone too. A ray whose own test (box_groups) passes thus
+// always finds its child's bit set. Empty slots (lo = +inf, hi = -inf) enter at +inf and leave at -inf.
+[[nodiscard]] unsigned cull_children(const Node& node, const PacketInterval& packet, float tlimit_max,
+                                     float (&entry)[kWidth]) {
+    using Ops = simd::Avx2;
+    auto t0 = Ops::broadcast(packet.tnear_min), t1 = Ops::broadcast(tlimit_max);
+    const auto zero = Ops::broadcast(0.0f);
+    const auto grow = Ops::broadcast(kSlabExitGrow), shrink = Ops::broadcast(kSlabExitShrink);
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+        const int side = packet.near_side[axis];
+        const auto inv_lo = Ops::broadcast(packet.inv_lo[axis]), inv_hi = Ops::broadcast(packet.inv_hi[axis]);
+        // Smallest entry: the near plane's distance from the farthest origin, times the reciprocal that
+        // makes the product smallest (the largest magnitude for a negative distance).
+        const auto near_distance =
+            Ops::sub(Ops::load(node.bounds[side][axis]), Ops::broadcast(packet.entry_origin[axis]));
+        const auto near_plane =
+            Ops::mul(near_distance, Ops::select_if_greater(zero, near_distance, inv_hi, inv_lo));
+        // Largest exit, widened.
+        const auto far_distance =
+            Ops::sub(Ops::load(node.bounds[1 - side][axis]), Ops::broadcast(packet.exit_origin[axis]));
+        const auto far_unwidened =
+            Ops::mul(far_distance, Ops::select_if_greater(zero, far_distance, inv_lo, inv_hi));
+        const auto far_plane =
+            Ops::mul(far_unwidened, Ops::select_if_greater(far_unwidened, zero, grow, shrink));
+        t0 = Ops::max(near_plane, t0);
+        t1 = Ops::min(far_plane, t1);
+    }
+    Ops::store(entry, t0);
+    return Ops::bits(Ops::less_equal(t0, t1));
+}
+
+// intersect_box on the packet's rays `rays` against child `slot` of `node`, a group of Ops::kWidth rays per
+// instruction: the rays whose [tnear, tlimit] meets the child's box. Every ray's reciprocal direction is
+// finite and of the packet's sign on each axis, so no plane distance is NaN and the near face is the same
+// for all: the operations are those of bvh8's intersect_children, lane for lane.
+template <class Ops>
+[[nodiscard]] LaneMask box_groups(const PacketRays& packet, const PacketInterval& interval, const Node& node,
+                                  int slot, LaneMask rays) {
+    constexpr int lanes = Ops::kWidth;
+    constexpr LaneMask kGroup = (LaneMask{1} << lanes) - 1;
+    const auto zero = Ops::broadcast(0.0f);
+    const auto grow = Ops::broadcast(kSlabExitGrow), shrink = Ops::broadcast(kSlabExitShrink);
+    typename Ops::Float near_bound[3], far_bound[3];
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+        const int side = interval.near_side[axis];
+        near_bound[axis] = Ops::broadcast(node.bounds[side][axis][slot]);
+        far_bound[axis] = Ops::broadcast(node.bounds[1 - side][axis][slot]);
+    }
+    LaneMask result = 0;
+    for (int first = 0; first < kPacketSize; first += lanes) {
+        const LaneMask group = (rays >> first) & kGroup;
+        if (group == 0) continue;
+        auto t0 = Ops::load(&packet.tnear[first]);
+        auto t1 = Ops::load(&packet.tlimit[first]);
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            const auto origin = Ops::load(&packet.origin[axis][first]);
+            const auto inv_direction = Ops::load(&packet.inv_direction[axis][first]);
+            const auto near_plane = Ops::mul(Ops::sub(near_bound[axis], origin), inv_direction);
+            const auto far_distance = Ops::mul(Ops::sub(far_bound[axis], origin), inv_direction);
+            const auto far_plane =
+                Ops::mul(far_distance, Ops::select_if_greater(far_distance, zero, grow, shrink));
+            t0 = Ops::max(near_plane, t0);
+            t1 = Ops::min(far_plane, t1);
+        }
+        result |= (static_cast<LaneMask>(Ops::bits(Ops::less_equal(t0, t1))) & group) << first;
+    }
+    return result;
+}
+
+template <class Ops>
+[[nodiscard]] block_detail::Vec3v<Ops> load_vec(const float (&soa)[3][kPacketSize], int first) {
+    return {Ops::load(&soa[0][first]), Ops::load(&soa[1][first]), Ops::load(&soa[2][first])};
+}
+
+// A child the traversal will visit: `slot` of `parent`, with the rays that met the parent and a lower bound
+// of where any of them enters the child.
+struct StackEntry {
+    const Node* parent;
+    int slot;
+    float entry;
+    LaneMask rays;
+};
+constexpr int kStackSize = kWidth * BvhAccel::kMaxDepth + 1;
+
+// One packet: loaded, then traced. Ops: the lane width of the box and triangle tests.
+template <class Ops, class TriangleTestT>
+class PacketTracer {
+    static constexpr int kLanes = Ops::kWidth;
+    static constexpr LaneMask kGroup = (LaneMask{1} << kLanes) - 1;
+    static_assert(kPacketSize % kLanes == 0);
+    static constexpr int kGroups = kPacketSize / kLanes;
+    static constexpr bool kWatertight = std::is_same_v<TriangleTestT, Watertight>;
+    using Float = typename Ops::Float;
+    using Vec3v = block_detail::Vec3v<Ops>;
+
+  public:
+    PacketTracer(const Bvh8Accel& bvh, const Geometry& geometry)
+        : nodes_(bvh.nodes()), blocks_(bvh.blocks()), geometry_(geometry) {}
+
+    // Loads rays.size() <= kPacketSize rays; false when the packet cannot be traced together: two valid rays
+    // disagree on a direction sign, or a reciprocal direction is not finite (a zero or denormal component,
+    // whose NaN plane distances the interval cull does not bound). A group of rays at a time: is_valid,
+    // SlabRay and the triangle test's RayData lane by lane, in the same fp32 operations.
+    [[nodiscard]] bool load(std::span<const Ray> rays) {
+        rays_ = rays;
+        const Ray* source = rays.data();
+        if (rays.size() < static_cast<std::size_t>(kPacketSize)) {
+            // A partial packet, padded with rays of zero direction (invalid: no lane of theirs is traced).
+            std::copy(rays.begin(), rays.end(), padded_.begin());
+            std::fill(padded_.begin() + static_cast<std::ptrdiff_t>(rays.size()), padded_.end(),
+                      Ray{{}, {}, 0.0f, 0.0f});
+            source = padded_.data();
+        }
+        const Float infinity = Ops::broadcast(kInfinity), minus_infinity = Ops::broadcast(-kInfinity);
+        const Float zero = Ops::broadcast(0.0f), one = Ops::broadcast(1.0f);
+        Float origin_lo[3], origin_hi[3], inv_lo[3], inv_hi[3];
+        for (int axis = 0; axis < 3; ++axis) {
+            origin_lo[axis] = inv_lo[axis] = infinity;
+            origin_hi[axis] = inv_hi[axis] = minus_infinity;
+        }
+        Float tnear_min = infinity;
+        std::array<LaneMask, 3> negative{};
+        valid_ = 0;
+        code_lanes_ = {};
+        for (int group = 0; group < kGroups; ++group) {
+            const int first = group * kLanes;
+            // One field of kLanes consecutive rays per load: ox oy oz dx dy dz tnear tfar.
+            const float* record = &source[first].origin.x;
+            Float origin[3], direction[3];
+            for (int axis = 0; axis < 3; ++axis) {
+                origin[axis] = Ops::template load_strided<8>(record + axis);
+                direction[axis] = Ops::template load_strided<8>(record + 3 + axis);
+            }
+            const Float tnear = Ops::template load_strided<8>(record + 6);
+            const Float tfar = Ops::template load_strided<8>(record + 7);
+            // is_valid: NaN compares false, so `|x| < inf` is isfinite and `tfar == tfar` is !isnan.
+            auto valid = Ops::mask_and(Ops::less(Ops::abs(tnear), infinity),
+                                       Ops::mask_and(Ops::equal(tfar, tfar), Ops::less_equal(tnear, tfar)));
+            auto nonzero = Ops::greater(Ops::abs(direction[0]), zero);
+            for (int axis = 0; axis < 3; ++axis) {
+                valid = Ops::mask_and(valid, Ops::mask_and(Ops::less(Ops::abs(origin[axis]), infinity),
+                                                           Ops::less(Ops::abs(direction[axis]), infinity)));
+                if (axis > 0) nonzero = Ops::mask_or(nonzero, Ops::greater(Ops::abs(direction[axis]), zero));
+            }
+            valid = Ops::mask_and(valid, nonzero);
+            const unsigned valid_lanes = Ops::bits(valid);
+            valid_ |= static_cast<LaneMask>(valid_lanes) << first;
+            for (int axis = 0; axis < 3; ++axis) {
+                const Float inv_direction = Ops::div(one, direction[axis]);  // SlabRay
+                if ((Ops::bits(Ops::less(Ops::abs(inv_direction), infinity)) & valid_lanes) != valid_lanes)
+                    return false;
+                negative[axis] |= static_cast<LaneMask>(Ops::sign_bits(direction[axis]) & valid_lanes)
+                                  << first;
+                origin_lo[axis] = Ops::min(Ops::select(valid, origin[axis], infinity), origin_lo[axis]);
+                origin_hi[axis] = Ops::max(Ops::select(valid, origin[axis], minus_infinity), origin_hi[axis]);
+                inv_lo[axis] = Ops::min(Ops::select(valid, inv_direction, infinity), inv_lo[axis]);
+                inv_hi[axis] = Ops::max(Ops::select(valid, inv_direction, minus_infinity), inv_hi[axis]);
+                Ops::store(&packet_.origin[axis][first], origin[axis]);
+                Ops::store(&packet_.direction[axis][first], direction[axis]);
+                Ops::store(&packet_.inv_direction[axis][first], inv_direction);
+            }
+            const Float lane_tnear = Ops::select(valid, tnear, infinity);
+            tnear_min = Ops::min(lane_tnear, tnear_min);
+            Ops::store(&packet_.tnear[first], lane_tnear);
+            Ops::store(&packet_.tlimit[first], Ops::select(valid, tfar, minus_infinity));
+            if constexpr (kWatertight) {
+                load_watertight(group, origin, direction, valid_lanes);
+            } else {
+                const Float scale = Ops::max(Ops::abs(direction[0]),
+                                             Ops::max(Ops::abs(direction[1]), Ops::abs(direction[2])));
+                Ops::store(&packet_.direction_scale[first], scale);  // MollerTrumbore::RayData
+            }
+        }
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            if (negative[axis] != 0 && negative[axis] != valid_) return false;
+            const bool is_negative = negative[axis] != 0;
+            interval_.near_side[axis] = is_negative ? Node::kHi : Node::kLo;
+            interval_.inv_lo[axis] = horizontal<false>(inv_lo[axis]);
+            interval_.inv_hi[axis] = horizontal<true>(inv_hi[axis]);
+            // The entry is smallest from the origin nearest the far side, the exit largest from the other.
+            const float lo = horizontal<false>(origin_lo[axis]), hi = horizontal<true>(origin_hi[axis]);
+            interval_.entry_origin[axis] = is_negative ? lo : hi;
+            interval_.exit_origin[axis] = is_negative ? hi : lo;
+        }
+        interval_.tnear_min = horizontal<false>(tnear_min);
+        std::fill(std::begin(packet_.prim), std::end(packet_.prim), kNoHit);
+        return true;
+    }
+
+    // Front to back: the children that survive the cull are ordered by their entry bound and pushed, the
+    // nearest on top; a popped child is tested against its rays, and skipped when it is entered beyond
+    // every ray's closest hit. kAnyHit: a ray leaves the packet at its first hit. `answers` starts as
+    // misses; on return answers[i] is ray i's closest hit (Hit) or occlusion (uint8).
+    template <bool kAnyHit, bool kCount, class Answer>
+    void trace(std::span<Answer> answers, TraversalCounters& counts) {
+        alive_ = valid_;
+        if (nodes_.empty() || alive_ == 0) return;
+        float tlimit_max = max_tlimit();
+        std::array<StackEntry, kStackSize> stack;
+        int stack_size = 0;
+        const Node* node = &nodes_[0];
+        LaneMask rays = alive_;
+        while (true) {
+            // INNER: cull the children, push the survivors farthest first.
+            if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
+            alignas(32) float entry[kWidth];
+            unsigned maybe = cull_children(*node, interval_, tlimit_max, entry);
+            std::array<int, kWidth> order;
+            int count = 0;
+            for (; maybe != 0; maybe &= maybe - 1) {
+                const int slot = std::countr_zero(maybe);
+                int position = count++;
+                for (; position > 0 && entry[order[position - 1]] > entry[slot]; --position)
+                    order[position] = order[position - 1];
+                order[position] = slot;
+            }
+            for (int k = count - 1; k >= 0; --k)
+                stack[stack_size++] = {node, order[k], entry[order[k]], rays};
+            // POP until an inner child with rays in it, testing the leaves on the way.
+            while (true) {
+                if (stack_size == 0) return;
+                const StackEntry popped = stack[--stack_size];
+                if (popped.entry > tlimit_max) continue;
+                rays = box_groups<Ops>(packet_, interval_, *popped.parent, popped.slot, popped.rays & alive_);
+                if (rays == 0) continue;
+                const std::uint32_t prim_count = popped.parent->prim_count[popped.slot];
+                const std::uint32_t child = popped.parent->child[popped.slot];
+                if (prim_count == 0) {
+                    node = &nodes_[child];
+                    break;
+                }
+                if constexpr (kCount) {
+                    counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
+                    counts.prims_tested += static_cast<std::uint64_t>(prim_count) *
+                                           static_cast<std::uint64_t>(std::popcount(rays));
+                }
+                if (test_leaf<kAnyHit>(child, prim_count, rays, answers)) {
+                    if constexpr (kAnyHit) {
+                        if (alive_ == 0) return;
+                    } else {
+                        tlimit_max = max_tlimit();
+                    }
+                }
+            }
+        }
+    }
+
+    // The closest hits of the loaded rays, into the first rays.size() of `hits`. Invalid rays never hit, so
+    // their prim is still kNoHit.
+    void store_hits(std::span<Hit> hits) const {
+        for (std::size_t i = 0; i < hits.size(); ++i) {
+            const bool hit = packet_.prim[i] != kNoHit;
+            hits[i] = {hit ? packet_.tlimit[i] : kInfinity, hit ? packet_.prim[i] : -1,
+                       hit ? packet_.u[i] : 0.0f, hit ? packet_.v[i] : 0.0f};
+        }
+    }
+
+  private:
+    // The largest (kMax) or smallest lane.
+    template <bool kMax>
+    [[nodiscard]] static float horizontal(Float x) {
+        alignas(64) float lanes[kLanes];
+        Ops::store(lanes, x);
+        return kMax ? *std::max_element(lanes, lanes + kLanes) : *std::min_element(lanes, lanes + kLanes);
+    }
+
+    // Watertight::RayData lane by lane: kz the dominant axis (max_axis: the first of equal magnitudes), kx
+    // and ky the next two, swapped where the direction along kz is negative; the lanes of each of the six
+    // permutations are recorded for the leaf test.
+    void load_watertight(int group, const Float (&origin)[3], const Float (&direction)[3],
+                         unsigned valid_lanes) {
+        const int first = group * kLanes;
+        const Float ax = Ops::abs(direction[0]), ay = Ops::abs(direction[1]), az = Ops::abs(direction[2]);
+        // a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2); a valid lane has no NaN, so !(a.x >= a.y)
+        // is a.y > a.x.
+        const auto is_x = Ops::mask_and(Ops::greater_equal(ax, ay), Ops::greater_equal(ax, az));
+        const auto is_y = Ops::mask_and(Ops::greater(ay, ax), Ops::greater_equal(ay, az));
+        const unsigned kz_x = Ops::bits(is_x), kz_y = Ops::bits(is_y);
+        // The components along kz and, unswapped, along kx = kz + 1 and ky = kz + 2 (mod 3).
+        auto along = [&](const Float(&v)[3], int offset) {
+            return Ops::select(is_x, v[offset % 3],
+                               Ops::select(is_y, v[(1 + offset) % 3], v[(2 + offset) % 3]));
+        };
+        const Float d_kz = along(direction, 0);
+        const auto swapped = Ops::less(d_kz, Ops::broadcast(0.0f));
+        const Float d_next = along(direction, 1), d_last = along(direction, 2);
+        const Float o_next = along(origin, 1), o_last = along(origin, 2);
+        const Float d_kx = Ops::select(swapped, d_last, d_next), d_ky = Ops::select(swapped, d_next, d_last);
+        Ops::store(&packet_.permuted_origin[0][first], Ops::select(swapped, o_last, o_next));
+        Ops::store(&packet_.permuted_origin[1][first], Ops::select(swapped, o_next, o_last));
+        Ops::store(&packet_.permuted_origin[2][first], along(origin, 0));
+        Ops::store(&packet_.shear[0][first], Ops::div(d_kx, d_kz));
+        Ops::store(&packet_.shear[1][first], Ops::div(d_ky, d_kz));
+        Ops::store(&packet_.shear[2][first], Ops::div(Ops::broadcast(1.0f), d_kz));
+        const unsigned swapped_lanes = Ops::bits(swapped);
+        const unsigned kz_lanes[3] = {kz_x, kz_y, ~(kz_x | kz_y)};
+        for (int kz = 0; kz < 3; ++kz) {
+            auto& lanes = code_lanes_[static_cast<std::size_t>(group)];
+            lanes[static_cast<std::size_t>(2 * kz)] = kz_lanes[kz] & ~swapped_lanes & valid_lanes;
+            lanes[static_cast<std::size_t>(2 * kz + 1)] = kz_lanes[kz] & swapped_lanes & valid_lanes;
+        }
+    }
+
+    [[nodiscard]] float max_tlimit() const {
+        auto most = Ops::load(&packet_.tlimit[0]);
+        for (int first = kLanes; first < kPacketSize; first += kLanes)
+            most = Ops::max(Ops::load(&packet_.tlimit[first]), most);
+        alignas(64) float lanes[kLanes];
+        Ops::store(lanes, most);
+        return *std::max_element(lanes, lanes + kLanes);
+    }
+
+    // The closest hit of a group's rays so far, held in registers while a leaf is tested; prim carries the
+    // int32 index bit for bit.
+    struct GroupBest {
+        Float t, prim, u, v;
+    };
+    [[nodiscard]] GroupBest load_best(int first) const {
+        return {Ops::load(&packet_.tlimit[first]),
+                Ops::load(reinterpret_cast<const float*>(&packet_.prim[first])), Ops::load(&packet_.u[first]),
+                Ops::load(&packet_.v[first])};
+    }
+    void store_best(int first, const GroupBest& best) {
+        Ops::store(&packet_.tlimit[first], best.t);
+        Ops::store(reinterpret_cast<float*>(&packet_.prim[first]), best.prim);
+        Ops::store(&packet_.u[first], best.u), Ops::store(&packet_.v[first], best.v);
+    }
+
+    // The triangles of a leaf against its rays, a group of rays at a time; true when some ray found a
+    // (closer) hit.
+    template <bool kAnyHit, class Answer>
+    bool test_leaf(std::uint32_t first_block, std::uint32_t prim_count, LaneMask rays,
+                   std::span<Answer> answers) {
+        bool found = false;
+        const std::uint32_t end = first_block + block_count(prim_count, kWidth);
+        for (int group = 0; group < kGroups; ++group) {
+            const auto active = static_cast<unsigned>((rays & alive_) >> (group * kLanes) & kGroup);
+            if (active != 0) found |= test_group<kAnyHit>(first_block, end, group, active, answers);
+        }
+        return found;
+    }
+
+    [[nodiscard]] Vec3v vertex(const Block& block, int v, int lane, const std::array<int, 3>& axes) const {
+        return {Ops::broadcast(block.vertex[v][axes[0]][lane]),
+                Ops::broadcast(block.vertex[v][axes[1]][lane]),
+                Ops::broadcast(block.vertex[v][axes[2]][lane])};
+    }
+
+    // The blocks [first_block, end) against the `active` rays of one group, each triangle broadcast to the
+    // group's lanes.
+    template <bool kAnyHit, class Answer>
+    bool test_group(std::uint32_t first_block, std::uint32_t end, int group, unsigned active,
+                    std::span<Answer> answers) {
+        const int first = group * kLanes;
+        const Float tnear = Ops::load(&packet_.tnear[first]);
+        GroupBest best = load_best(first);
+        bool found = false;
+        const auto kernel = make_kernel(first);
+        for (std::uint32_t b = first_block; b < end; ++b) {
+            const Block& block = blocks_[b];
+            for (int lane = 0; lane < kWidth; ++lane) {
+                const std::uint32_t prim = block.prim[lane];
+                if (prim == Block::kNoPrimitive) break;  // padding fills a block's last lanes
+                if (prim >= geometry_.triangles.size()) {
+                    found |= take_scalar<kAnyHit>(prim, first, active, best, answers);  // a sphere
+                } else if constexpr (kWatertight) {
+                    for (int code = 0; code < kPermutations; ++code) {
+                        const unsigned lanes =
+                            active &
+                            code_lanes_[static_cast<std::size_t>(group)][static_cast<std::size_t>(code)];
+                        if (lanes == 0) continue;
+                        const std::array<int, 3> axes = permutation_axes(code);
+                        found |= take<kAnyHit>(
+                            kernel.test(vertex(block, 0, lane, axes), vertex(block, 1, lane, axes),
+                                        vertex(block, 2, lane, axes), tnear, best.t),
+                            prim, first, lanes, active, best, answers);
+                    }
+                } else {
+                    constexpr std::array<int, 3> kXyz = {0, 1, 2};
+                    found |=
+                        take<kAnyHit>(kernel.test(vertex(block, 0, lane, kXyz), vertex(block, 1, lane, kXyz),
+                                                  vertex(block, 2, lane, kXyz), tnear, best.t),
+                                      prim, first, active, active, best, answers);
+                }
+                if constexpr (kAnyHit) {
+                    if (active == 0) return found;
+                }
+            }
+        }
+        if constexpr (!kAnyHit) store_best(first, best);
+        return found;
+    }
+
+    // The lane kernel of the packet's triangle test on the group starting at ray `first`.
+    [[nodiscard]] auto make_kernel(int first) const {
+        if constexpr (kWatertight) {
+            return block_detail::WatertightLanes<Ops>{
+                Ops::load(&packet_.permuted_origin[0][first]), Ops::load(&packet_.permuted_origin[1][first]),
+                Ops::load(&packet_.permuted_origin[2][first]), Ops::load(&packet_.shear[0][first]),
+                Ops::load(&packet_.shear[1][first]),           Ops::load(&packet_.shear[2][first])};
+        } else {
+            return block_detail::MollerTrumboreLanes<Ops>(load_vec<Ops>(packet_.origin, first),
+                                                          load_vec<Ops>(packet_.direction, first),
+                                                          Ops::load(&packet_.direction_scale[first]));
+        }
+    }
+
+    // The kernel's answer for `prim` on `lanes` of the group starting at ray `first`: a closest hit through
+    // closer() (the smaller t, then the smaller index, as intersect_block), an occlusion ends the ray; the
+    // uncertain lanes go through the scalar test. `active` loses the rays an occlusion ends.
+    template <bool kAnyHit, class Answer>
+    bool take(const block_detail::LaneHits<Ops>& result, std::uint32_t prim, int first, unsigned lanes,
+              unsigned& active, GroupBest& best, std::span<Answer> answers) {
+        bool found = false;
+        const unsigned hit_lanes = result.hit_lanes & lanes;
+        if (hit_lanes != 0) {
+            found = true;
+            if constexpr (kAnyHit) {
+                for (unsigned each = hit_lanes; each != 0; each &= each - 1)
+                    answers[static_cast<std::size_t>(first + std::countr_zero(each))] = 1;
+                alive_ &= ~(static_cast<LaneMask>(hit_lanes) << first);
+                active &= ~hit_lanes;
+            } else {
+                const Float index = Ops::broadcast_int(static_cast<int>(prim));
+                const auto closer = Ops::mask_and(
+                    Ops::mask_from_bits(hit_lanes),
+                    Ops::mask_or(
+                        Ops::less(result.t, best.t),
+                        Ops::mask_and(Ops::equal(result.t, best.t), Ops::less_int(index, best.prim))));
+                best = {Ops::select(closer, result.t, best.t), Ops::select(closer, index, best.prim),
+                        Ops::select(closer, result.u, best.u), Ops::select(closer, result.v, best.v)};
+            }
+        }
+        const unsigned scalar_lanes = result.scalar_lanes & lanes & active;
+        if (scalar_lanes != 0) found |= take_scalar<kAnyHit>(prim, first, scalar_lanes, best, answers);
+        if constexpr (kAnyHit)
+            active &= static_cast<unsigned>(alive_ >> first) & static_cast<unsigned>(kGroup);
+        return found;
+    }
+
+    // The scalar test of `prim` on `lanes` of the group starting at ray `first`, through the packet's arrays.
+    template <bool kAnyHit, class Answer>
+    bool take_scalar(std::uint32_t prim, int first, unsigned lanes, GroupBest& best,
+                     std::span<Answer> answers) {
+        if constexpr (!kAnyHit) store_best(first, best);
+        bool found = false;
+        for (unsigned each = lanes; each != 0; each &= each - 1)
+            found |= test_scalar<kAnyHit>(prim, first + std::countr_zero(each), answers);
+        if constexpr (!kAnyHit) best = load_best(first);
+        return found;
+    }
+
+    // intersect_primitive or occludes for ray i, from its own Ray.
+    template <bool kAnyHit, class Answer>
+    bool test_scalar(std::uint32_t prim, int i, std::span<Answer> answers) {
+        if (!((alive_ >> i) & 1u)) return false;
+        const PreparedRay<TriangleTestT> prepared(rays_[static_cast<std::size_t>(i)]);
+        if constexpr (kAnyHit) {
+            if (!occludes(geometry_, prim, prepared)) return false;
+            answers[static_cast<std::size_t>(i)] = 1;
+            alive_ &= ~(LaneMask{1} << i);
+            return true;
+        } else {
+            Hit best = packet_.prim[i] == kNoHit
+                           ? Hit{}
+                           : Hit{packet_.tlimit[i], packet_.prim[i], packet_.u[i], packet_.v[i]};
+            if (!intersect_primitive(geometry_, prim, prepared, best)) return false;
+            packet_.tlimit[i] = best.t, packet_.prim[i] = best.prim;
+            packet_.u[i] = best.u, packet_.v[i] = best.v;
+            return true;
+        }
+    }
+
+    const std::vector<Node>& nodes_;
+    const std::vector<Block>& blocks_;
+    const Geometry& geometry_;
+    std::span<const Ray> rays_;
+    std::array<Ray, kPacketSize> padded_;
+    PacketRays packet_;
+    PacketInterval interval_;
+    // Per group of lanes, the lanes of each watertight axis permutation.
+    std::array<std::array<unsigned, kPermutations>, kGroups> code_lanes_{};
+    LaneMask valid_ = 0, alive_ = 0;
+};
+
+// Cuts the batch into packets of consecutive rays, traces those that can go together and hands the others
+// to bvh8. Answer: Hit (closest hit) or std::uint8_t (occlusion, kAnyHit).
+template <class Ops, bool kAnyHit, class Answer>
+void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test, std::span<const Ray> rays,
+                 std::span<Answer> answers, TraversalCounters* counters) {
+    dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        TraversalCounters counts;
+        PacketTracer<Ops, TriangleTestT> tracer(bvh, geometry);
+        for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
+            const std::size_t count = std::min<std::size_t>(kPacketSize, rays.size() - first);
+            const std::span<const Ray> packet_rays = rays.subspan(first, count);
+            const std::span<Answer> packet_answers = answers.subspan(first, count);
+            if (tracer.load(packet_rays)) {
+                if constexpr (kAnyHit) {
+                    std::fill(packet_answers.begin(), packet_answers.end(), Answer{});
+                    tracer.template trace<true, kCount>(packet_answers, counts);
+                } else {
+                    tracer.template trace<false, kCount>(packet_answers, counts);
+                    tracer.store_hits(packet_answers);
+                }
+                if constexpr (kCount) counts.rays += count;
+            } else if constexpr (kAnyHit) {
+                bvh.occluded(packet_rays, packet_answers, kCount ? &counts : nullptr);
+            } else {
+                bvh.intersect(packet_rays, packet_answers, kCount ? &counts : nullptr);
+            }
+        }
+        if constexpr (kCount) *counters += counts;
+    });
+}
+
+// Calls body.template operator()<Ops>() with the vector type of `lane_count` rays.
+template <class Body>
+void dispatch_lanes(int lane_count, Body&& body) {
+#if defined(__AVX512F__) && defined(__AVX512DQ__)
+    if (lane_count == 16) return body.template operator()<simd::Avx512>();
+#endif
+    body.template operator()<simd::Avx2>();
+}
+
+}  // namespace
+#endif
+
+int WidePacketAccel::widest_lane_count() {
+#if defined(__AVX512F__) && defined(__AVX512DQ__)
+    return 16;
+#elif defined(__AVX2__)
+    return 8;
+#else
+    return 1;
+#endif
+}
+
+WidePacketAccel::WidePacketAccel(int lane_count) : lane_count_(lane_count) {
+    if (lane_count != 8 && lane_count != 16 && lane_count != 1)
+        throw std::invalid_argument("bvh8_packet: lane count " + std::to_string(lane_count) +
+                                    ": expected 8 or 16");
+    if (lane_count > widest_lane_count())
+        throw std::invalid_argument("bvh8_packet: lane count " + std::to_string(lane_count) +
+                                    " is wider than this build's widest, " +
+                                    std::to_string(widest_lane_count()));
+}
+
+void WidePacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
+    bvh8_.build(geometry, options);
+    geometry_ = geometry;
+    triangle_test_ = options.triangle_test;
+}
+
+void WidePacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                      TraversalCounters* counters) const {
+#if defined(__AVX2__)
+    dispatch_lanes(lane_count_, [&]<class Ops>() {
+        trace_batch<Ops, false>(bvh8_, geometry_, triangle_test_, rays, hits, counters);
+    });
+#else
+    bvh8_.intersect(rays, hits, counters);
+#endif
+}
+
+void WidePacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                                     TraversalCounters* counters) const {
+#if defined(__AVX2__)
+    dispatch_lanes(lane_count_, [&]<class Ops>() {
+        trace_batch<Ops, true>(bvh8_, geometry_, triangle_test_, rays, occluded, counters);
+    });
+#else
+    bvh8_.occluded(rays, occluded, counters);
+#endif
+}
+
+}  // namespace lancer
