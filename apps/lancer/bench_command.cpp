@@ -148,17 +148,6 @@ void for_each_block(int width, int height, int first_row, int last_row, Visit&& 
     }
 }
 
-// Calls visit(i, j) for every pixel of the tile rows [first_row, last_row), in the batch's order.
-template <class Visit>
-void for_each_tile_pixel(int width, int height, int first_row, int last_row, Visit&& visit) {
-    for_each_block(width, height, first_row, last_row, [&](int x0, int y0, int x1, int y1) {
-        for (int j = y0; j < y1; ++j) {
-            for (int i = x0; i < x1; ++i)
-                visit(i, j);
-        }
-    });
-}
-
 int tile_rows(const PinholeCamera& camera) {
     return (camera.height() + kTileSide - 1) / kTileSide;
 }
@@ -198,12 +187,18 @@ void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hi
                 tile_row_rays(camera, rows.begin(), rows.end(), rays);
                 tile_hits.resize(rays.size());
                 accel.intersect_coherent(rays, tile_hits);
-                std::size_t next = 0;
-                for_each_tile_pixel(
-                    camera.width(), camera.height(), rows.begin(), rows.end(), [&](int i, int j) {
-                        hits[static_cast<std::size_t>(j) * width + static_cast<std::size_t>(i)] =
-                            tile_hits[next++];
-                    });
+                // Each block row of hits to its pixels in one copy.
+                auto next = tile_hits.begin();
+                for_each_block(camera.width(), camera.height(), rows.begin(), rows.end(),
+                               [&](int x0, int y0, int x1, int y1) {
+                                   for (int j = y0; j < y1; ++j) {
+                                       const auto pixel =
+                                           static_cast<std::ptrdiff_t>(static_cast<std::size_t>(j) * width +
+                                                                       static_cast<std::size_t>(x0));
+                                       std::copy_n(next, x1 - x0, hits.begin() + pixel);
+                                       next += x1 - x0;
+                                   }
+                               });
             });
     });
 }

@@ -29,7 +29,10 @@ class PinholeCamera {
     [[nodiscard]] int height() const { return height_; }
 
   private:
-    [[nodiscard]] Vec3f direction(float film_x, float film_y) const;
+    // The two film coordinates u(film_x) and v(film_y) of the formula above, and the direction from them.
+    [[nodiscard]] float film_u(float film_x) const;
+    [[nodiscard]] float film_v(float film_y) const;
+    [[nodiscard]] Vec3f direction(float u, float v) const;
 
     Vec3f eye_, forward_, right_, up_;
     float tan_half_fov_, aspect_;

@@ -65,14 +65,16 @@ struct PacketInterval {
     float tnear_min;
 };
 
-// The children of `node` that some ray of the packet may hit within [tnear_min, tlimit_max]: bit i set, with
-// entry[i] a lower bound of where any ray enters child i. Interval arithmetic on the slab test (Overbeck et
-// al. 2008, section 4.2): every plane distance fl(fl(b - o) * r) is monotone in o and in r, so the corner of
-// the intervals chosen by the signs of b - o and r bounds it over the packet, in the same fp32 operations.
+// The boxes (8, one per lane) that some ray of the packet may hit within [tnear_min, tlimit_max]: bit i set,
+// with entry[i] a lower bound of where any ray enters box i. Interval arithmetic on the slab test (Overbeck
+// et al. 2008, section 4.2): every plane distance fl(fl(b - o) * r) is monotone in o and in r, so the corner
+// of the intervals chosen by the signs of b - o and r bounds it over the packet, in the same fp32 operations.
 // The exit's widening (widened_slab_exit) is monotone too. A ray whose own test (box_groups) passes thus
 // always finds its child's bit set. Empty slots (lo = +inf, hi = -inf) enter at +inf and leave at -inf.
-[[nodiscard]] unsigned cull_children(const Node& node, const PacketInterval& packet, float tlimit_max,
-                                     float (&entry)[kWidth]) {
+using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per lane
+
+[[nodiscard]] unsigned cull_boxes(const Boxes& bounds, const PacketInterval& packet, float tlimit_max,
+                                  float (&entry)[kWidth]) {
     using Ops = simd::Avx2;
     auto t0 = Ops::broadcast(packet.tnear_min), t1 = Ops::broadcast(tlimit_max);
     const auto zero = Ops::broadcast(0.0f);
@@ -82,13 +84,11 @@ struct PacketInterval {
         const auto inv_lo = Ops::broadcast(packet.inv_lo[axis]), inv_hi = Ops::broadcast(packet.inv_hi[axis]);
         // Smallest entry: the near plane's distance from the farthest origin, times the reciprocal that
         // makes the product smallest (the largest magnitude for a negative distance).
-        const auto near_distance =
-            Ops::sub(Ops::load(node.bounds[side][axis]), Ops::broadcast(packet.entry_origin[axis]));
+        const auto near_distance = Ops::sub(bounds[side][axis], Ops::broadcast(packet.entry_origin[axis]));
         const auto near_plane =
             Ops::mul(near_distance, Ops::select_if_greater(zero, near_distance, inv_hi, inv_lo));
         // Largest exit, widened.
-        const auto far_distance =
-            Ops::sub(Ops::load(node.bounds[1 - side][axis]), Ops::broadcast(packet.exit_origin[axis]));
+        const auto far_distance = Ops::sub(bounds[1 - side][axis], Ops::broadcast(packet.exit_origin[axis]));
         const auto far_unwidened =
             Ops::mul(far_distance, Ops::select_if_greater(zero, far_distance, inv_lo, inv_hi));
         const auto far_plane =
@@ -98,6 +98,34 @@ struct PacketInterval {
     }
     Ops::store(entry, t0);
     return Ops::bits(Ops::less_equal(t0, t1));
+}
+
+// cull_boxes on the 8 children of a node.
+[[nodiscard]] unsigned cull_children(const Node& node, const PacketInterval& packet, float tlimit_max,
+                                     float (&entry)[kWidth]) {
+    using Ops = simd::Avx2;
+    Boxes bounds;
+    for (int side = 0; side < 2; ++side) {
+        for (int axis = 0; axis < 3; ++axis)
+            bounds[side][axis] = Ops::load(node.bounds[side][axis]);
+    }
+    return cull_boxes(bounds, packet, tlimit_max, entry);
+}
+
+// cull_boxes on the bounding boxes of a block's 8 triangles: a triangle some ray hits lies in its box, so
+// that ray's box test passes (the same argument as for a leaf's box, which holds the triangle), and so does
+// the interval test. The bits of padding and sphere lanes (NaN vertices) are meaningless.
+[[nodiscard]] unsigned cull_triangles(const Block& block, const PacketInterval& packet, float tlimit_max) {
+    using Ops = simd::Avx2;
+    Boxes bounds;
+    for (int axis = 0; axis < 3; ++axis) {
+        const auto v0 = Ops::load(block.vertex[0][axis]), v1 = Ops::load(block.vertex[1][axis]),
+                   v2 = Ops::load(block.vertex[2][axis]);
+        bounds[Node::kLo][axis] = Ops::min(v0, Ops::min(v1, v2));
+        bounds[Node::kHi][axis] = Ops::max(v0, Ops::max(v1, v2));
+    }
+    alignas(32) float entry[kWidth];
+    return cull_boxes(bounds, packet, tlimit_max, entry);
 }
 
 // intersect_box on the packet's rays `rays` against child `slot` of `node`, a group of Ops::kWidth rays per
@@ -152,6 +180,7 @@ struct StackEntry {
     LaneMask rays;
 };
 constexpr int kStackSize = kWidth * BvhAccel::kMaxDepth + 1;
+constexpr std::uint32_t kMaxLeafBlocks = block_count(BvhAccel::kMaxLeafSize, kWidth);
 
 // One packet: loaded, then traced. Ops: the lane width of the box and triangle tests.
 template <class Ops, class TriangleTestT>
@@ -266,7 +295,7 @@ class PacketTracer {
     void trace(std::span<Answer> answers, TraversalCounters& counts) {
         alive_ = valid_;
         if (nodes_.empty() || alive_ == 0) return;
-        float tlimit_max = max_tlimit();
+        tlimit_max_ = max_tlimit();
         std::array<StackEntry, kStackSize> stack;
         int stack_size = 0;
         const Node* node = &nodes_[0];
@@ -275,7 +304,7 @@ class PacketTracer {
             // INNER: cull the children, push the survivors farthest first.
             if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
             alignas(32) float entry[kWidth];
-            unsigned maybe = cull_children(*node, interval_, tlimit_max, entry);
+            unsigned maybe = cull_children(*node, interval_, tlimit_max_, entry);
             std::array<int, kWidth> order;
             int count = 0;
             for (; maybe != 0; maybe &= maybe - 1) {
@@ -291,7 +320,7 @@ class PacketTracer {
             while (true) {
                 if (stack_size == 0) return;
                 const StackEntry popped = stack[--stack_size];
-                if (popped.entry > tlimit_max) continue;
+                if (popped.entry > tlimit_max_) continue;
                 rays = box_groups<Ops>(packet_, interval_, *popped.parent, popped.slot, popped.rays & alive_);
                 if (rays == 0) continue;
                 const std::uint32_t prim_count = popped.parent->prim_count[popped.slot];
@@ -309,7 +338,7 @@ class PacketTracer {
                     if constexpr (kAnyHit) {
                         if (alive_ == 0) return;
                     } else {
-                        tlimit_max = max_tlimit();
+                        tlimit_max_ = max_tlimit();
                     }
                 }
             }
@@ -404,9 +433,13 @@ class PacketTracer {
                    std::span<Answer> answers) {
         bool found = false;
         const std::uint32_t end = first_block + block_count(prim_count, kWidth);
+        std::array<unsigned, kMaxLeafBlocks> candidates;
+        for (std::uint32_t b = first_block; b < end; ++b)
+            candidates[b - first_block] = cull_triangles(blocks_[b], interval_, tlimit_max_);
         for (int group = 0; group < kGroups; ++group) {
             const auto active = static_cast<unsigned>((rays & alive_) >> (group * kLanes) & kGroup);
-            if (active != 0) found |= test_group<kAnyHit>(first_block, end, group, active, answers);
+            if (active != 0)
+                found |= test_group<kAnyHit>(first_block, end, candidates, group, active, answers);
         }
         return found;
     }
@@ -420,7 +453,8 @@ class PacketTracer {
     // The blocks [first_block, end) against the `active` rays of one group, each triangle broadcast to the
     // group's lanes.
     template <bool kAnyHit, class Answer>
-    bool test_group(std::uint32_t first_block, std::uint32_t end, int group, unsigned active,
+    bool test_group(std::uint32_t first_block, std::uint32_t end,
+                    const std::array<unsigned, kMaxLeafBlocks>& candidates, int group, unsigned active,
                     std::span<Answer> answers) {
         const int first = group * kLanes;
         const Float tnear = Ops::load(&packet_.tnear[first]);
@@ -434,6 +468,8 @@ class PacketTracer {
                 if (prim == Block::kNoPrimitive) break;  // padding fills a block's last lanes
                 if (prim >= geometry_.triangles.size()) {
                     found |= take_scalar<kAnyHit>(prim, first, active, best, answers);  // a sphere
+                } else if (!((candidates[b - first_block] >> lane) & 1u)) {
+                    continue;
                 } else if constexpr (kWatertight) {
                     for (int code = 0; code < kPermutations; ++code) {
                         const unsigned lanes =
@@ -443,7 +479,7 @@ class PacketTracer {
                         const std::array<int, 3> axes = permutation_axes(code);
                         found |= take<kAnyHit>(
                             kernel.test(vertex(block, 0, lane, axes), vertex(block, 1, lane, axes),
-                                        vertex(block, 2, lane, axes), tnear, best.t),
+                                        vertex(block, 2, lane, axes), tnear, best.t, lanes),
                             prim, first, lanes, active, best, answers);
                     }
                 } else {
@@ -552,6 +588,7 @@ class PacketTracer {
     // Per group of lanes, the lanes of each watertight axis permutation.
     std::array<std::array<unsigned, kPermutations>, kGroups> code_lanes_{};
     LaneMask valid_ = 0, alive_ = 0;
+    float tlimit_max_ = 0.0f;  // the largest tlimit of the packet
 };
 
 // Cuts the batch into packets of consecutive rays, traces those that can go together and hands the others

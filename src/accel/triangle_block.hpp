@@ -200,8 +200,10 @@ struct WatertightLanes {
                 Ops::sub(Ops::sub(vertex.y, origin_y), Ops::mul(shear_y, z)), z};
     }
 
+    // `wanted`: the lanes the caller reads; the test stops before the division once none of them can hit
+    // (a packet's group is mostly misses; Moller-Trumbore gained nothing from the same exit and bvh8 lost).
     [[nodiscard]] LaneHits<Ops> test(const Vec3v<Ops>& v0, const Vec3v<Ops>& v1, const Vec3v<Ops>& v2,
-                                     Float tnear, Float tfar) const {
+                                     Float tnear, Float tfar, unsigned wanted = ~0u) const {
         const Vec3v<Ops> a = sheared(v0), b = sheared(v1), c = sheared(v2);
         const Float w0 = Ops::sub(Ops::mul(b.x, c.y), Ops::mul(b.y, c.x));
         const Float w1 = Ops::sub(Ops::mul(c.x, a.y), Ops::mul(c.y, a.x));
@@ -209,9 +211,18 @@ struct WatertightLanes {
         // Zero or denormal edge functions and small numerators are the scalar kernel's, in double
         // (Watertight in core/intersect.hpp).
         const Float float_min = Ops::broadcast(std::numeric_limits<float>::min());
-        const auto any_small =
+        const unsigned any_small = Ops::bits(
             Ops::mask_or(Ops::mask_or(Ops::less(Ops::abs(w0), float_min), Ops::less(Ops::abs(w1), float_min)),
-                         Ops::less(Ops::abs(w2), float_min));
+                         Ops::less(Ops::abs(w2), float_min)));
+        // Edge functions of both signs: a miss. Where all three are normal (the lanes not handed to the
+        // scalar kernel), that is a sign bit that differs between them, read from w0 ^ w1 | w0 ^ w2 (three
+        // operations where the compares took eleven). Three normal edge functions of one sign, the only
+        // lanes left: det is not zero.
+        const unsigned rejected = Ops::sign_bits(Ops::bit_or(Ops::bit_xor(w0, w1), Ops::bit_xor(w0, w2)));
+        if (((~rejected | any_small) & wanted) == 0) {
+            const Float zero = Ops::broadcast(0.0f);
+            return {zero, zero, zero, 0, 0};
+        }
         const Float det = Ops::add(Ops::add(w0, w1), w2);
         const Float az = Ops::mul(shear_z, a.z), bz = Ops::mul(shear_z, b.z), cz = Ops::mul(shear_z, c.z);
         const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
@@ -220,15 +231,10 @@ struct WatertightLanes {
         const auto t_accepted =
             Ops::mask_and(Ops::mask_and(Ops::greater_equal(t, tnear), Ops::less_equal(t, tfar)),
                           Ops::less(t, Ops::broadcast(kInfinity)));
-        // Edge functions of both signs: a miss. Where all three are normal (the lanes not handed to the
-        // scalar kernel), that is a sign bit that differs between them, read from w0 ^ w1 | w0 ^ w2 (three
-        // operations where the compares took eleven). Three normal edge functions of one sign, the only
-        // lanes left: det is not zero.
-        const unsigned rejected = Ops::sign_bits(Ops::bit_or(Ops::bit_xor(w0, w1), Ops::bit_xor(w0, w2)));
         // As in the scalar kernel, a small numerator matters only once the signs have accepted the lane: rays
         // from a triangle's plane (T near 0) would otherwise send every lane they miss to the scalar path.
         const unsigned scalar_lanes =
-            Ops::bits(any_small) |
+            any_small |
             (Ops::bits(Ops::less(Ops::abs(numerator), Ops::broadcast(Watertight::kSmallNumerator))) &
              ~rejected);
         return {t, Ops::mul(w1, inv_det), Ops::mul(w2, inv_det),
