@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -114,7 +115,7 @@ using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per l
 
 // cull_boxes on the bounding boxes of a block's 8 triangles: a triangle some ray hits lies in its box, so
 // that ray's box test passes (the same argument as for a leaf's box, which holds the triangle), and so does
-// the interval test. The bits of padding and sphere lanes (NaN vertices) are meaningless.
+// the interval test. Padding and sphere lanes (NaN vertices) are left out.
 [[nodiscard]] unsigned cull_triangles(const Block& block, const PacketInterval& packet, float tlimit_max) {
     using Ops = simd::Avx2;
     Boxes bounds;
@@ -125,7 +126,9 @@ using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per l
         bounds[Node::kHi][axis] = Ops::max(v0, Ops::max(v1, v2));
     }
     alignas(32) float entry[kWidth];
-    return cull_boxes(bounds, packet, tlimit_max, entry);
+    // NaN lanes (padding, spheres) pass cull_boxes, whose max and min drop NaN operands: cleared here.
+    const unsigned triangles = Ops::bits(Ops::equal(bounds[Node::kLo][0], bounds[Node::kLo][0]));
+    return cull_boxes(bounds, packet, tlimit_max, entry) & triangles;
 }
 
 // intersect_box on the packet's rays `rays` against child `slot` of `node`, a group of Ops::kWidth rays per
@@ -275,14 +278,14 @@ class PacketTracer {
             if (negative[axis] != 0 && negative[axis] != valid_) return false;
             const bool is_negative = negative[axis] != 0;
             interval_.near_side[axis] = is_negative ? Node::kHi : Node::kLo;
-            interval_.inv_lo[axis] = horizontal<false>(inv_lo[axis]);
-            interval_.inv_hi[axis] = horizontal<true>(inv_hi[axis]);
+            interval_.inv_lo[axis] = Ops::reduce_min(inv_lo[axis]);
+            interval_.inv_hi[axis] = Ops::reduce_max(inv_hi[axis]);
             // The entry is smallest from the origin nearest the far side, the exit largest from the other.
-            const float lo = horizontal<false>(origin_lo[axis]), hi = horizontal<true>(origin_hi[axis]);
+            const float lo = Ops::reduce_min(origin_lo[axis]), hi = Ops::reduce_max(origin_hi[axis]);
             interval_.entry_origin[axis] = is_negative ? lo : hi;
             interval_.exit_origin[axis] = is_negative ? hi : lo;
         }
-        interval_.tnear_min = horizontal<false>(tnear_min);
+        interval_.tnear_min = Ops::reduce_min(tnear_min);
         std::fill(std::begin(packet_.prim), std::end(packet_.prim), kNoHit);
         return true;
     }
@@ -345,25 +348,28 @@ class PacketTracer {
         }
     }
 
-    // The closest hits of the loaded rays, into the first rays.size() of `hits`. Invalid rays never hit, so
-    // their prim is still kNoHit.
+    // The closest hits of the loaded rays, into the first rays.size() of `hits`, a group at a time. Invalid
+    // rays never hit, so their prim is still kNoHit.
     void store_hits(std::span<Hit> hits) const {
-        for (std::size_t i = 0; i < hits.size(); ++i) {
-            const bool hit = packet_.prim[i] != kNoHit;
-            hits[i] = {hit ? packet_.tlimit[i] : kInfinity, hit ? packet_.prim[i] : -1,
-                       hit ? packet_.u[i] : 0.0f, hit ? packet_.v[i] : 0.0f};
+        static_assert(sizeof(Hit) == 4 * sizeof(float) && offsetof(Hit, prim) == 4 && offsetof(Hit, v) == 12);
+        const Float no_hit = Ops::broadcast_int(kNoHit);
+        for (std::size_t first = 0; first < hits.size(); first += kLanes) {
+            const auto prim = Ops::load(reinterpret_cast<const float*>(&packet_.prim[first]));
+            const auto missed = Ops::equal_int(prim, no_hit);
+            const Float zero = Ops::broadcast(0.0f);
+            alignas(64) Hit group[kLanes];
+            Ops::store_interleaved(
+                reinterpret_cast<float*>(group),
+                Ops::select(missed, Ops::broadcast(kInfinity), Ops::load(&packet_.tlimit[first])),
+                Ops::select(missed, Ops::broadcast_int(-1), prim),
+                Ops::select(missed, zero, Ops::load(&packet_.u[first])),
+                Ops::select(missed, zero, Ops::load(&packet_.v[first])));
+            std::copy_n(group, std::min<std::size_t>(kLanes, hits.size() - first),
+                        hits.begin() + static_cast<std::ptrdiff_t>(first));
         }
     }
 
   private:
-    // The largest (kMax) or smallest lane.
-    template <bool kMax>
-    [[nodiscard]] static float horizontal(Float x) {
-        alignas(64) float lanes[kLanes];
-        Ops::store(lanes, x);
-        return kMax ? *std::max_element(lanes, lanes + kLanes) : *std::min_element(lanes, lanes + kLanes);
-    }
-
     // Watertight::RayData lane by lane: kz the dominant axis (max_axis: the first of equal magnitudes), kx
     // and ky the next two, swapped where the direction along kz is negative; the lanes of each of the six
     // permutations are recorded for the leaf test.
@@ -435,13 +441,25 @@ class PacketTracer {
         const std::uint32_t end = first_block + block_count(prim_count, kWidth);
         std::array<unsigned, kMaxLeafBlocks> candidates;
         for (std::uint32_t b = first_block; b < end; ++b)
-            candidates[b - first_block] = cull_triangles(blocks_[b], interval_, tlimit_max_);
+            candidates[b - first_block] =
+                cull_triangles(blocks_[b], interval_, tlimit_max_) | sphere_lanes(blocks_[b]);
         for (int group = 0; group < kGroups; ++group) {
             const auto active = static_cast<unsigned>((rays & alive_) >> (group * kLanes) & kGroup);
             if (active != 0)
                 found |= test_group<kAnyHit>(first_block, end, candidates, group, active, answers);
         }
         return found;
+    }
+
+    // The lanes of a block that hold spheres (in a mixed scene), which the cull cannot bound (NaN vertices).
+    [[nodiscard]] unsigned sphere_lanes(const Block& block) const {
+        if (geometry_.spheres.empty()) return 0;
+        unsigned lanes = 0;
+        for (int lane = 0; lane < kWidth; ++lane) {
+            if (block.prim[lane] >= geometry_.triangles.size() && block.prim[lane] != Block::kNoPrimitive)
+                lanes |= 1u << lane;
+        }
+        return lanes;
     }
 
     [[nodiscard]] Vec3v vertex(const Block& block, int v, int lane, const std::array<int, 3>& axes) const {
@@ -463,13 +481,11 @@ class PacketTracer {
         const auto kernel = make_kernel(first);
         for (std::uint32_t b = first_block; b < end; ++b) {
             const Block& block = blocks_[b];
-            for (int lane = 0; lane < kWidth; ++lane) {
+            for (unsigned each = candidates[b - first_block]; each != 0; each &= each - 1) {
+                const int lane = std::countr_zero(each);
                 const std::uint32_t prim = block.prim[lane];
-                if (prim == Block::kNoPrimitive) break;  // padding fills a block's last lanes
                 if (prim >= geometry_.triangles.size()) {
                     found |= take_scalar<kAnyHit>(prim, first, active, best, answers);  // a sphere
-                } else if (!((candidates[b - first_block] >> lane) & 1u)) {
-                    continue;
                 } else if constexpr (kWatertight) {
                     for (int code = 0; code < kPermutations; ++code) {
                         const unsigned lanes =
@@ -520,23 +536,24 @@ class PacketTracer {
               unsigned& active, GroupBest& best, std::span<Answer> answers) {
         bool found = false;
         const unsigned hit_lanes = result.hit_lanes & lanes;
-        if (hit_lanes != 0) {
-            found = true;
-            if constexpr (kAnyHit) {
+        if constexpr (kAnyHit) {
+            if (hit_lanes != 0) {
+                found = true;
                 for (unsigned each = hit_lanes; each != 0; each &= each - 1)
                     answers[static_cast<std::size_t>(first + std::countr_zero(each))] = 1;
                 alive_ &= ~(static_cast<LaneMask>(hit_lanes) << first);
                 active &= ~hit_lanes;
-            } else {
-                const Float index = Ops::broadcast_int(static_cast<int>(prim));
-                const auto closer = Ops::mask_and(
-                    Ops::mask_from_bits(hit_lanes),
-                    Ops::mask_or(
-                        Ops::less(result.t, best.t),
-                        Ops::mask_and(Ops::equal(result.t, best.t), Ops::less_int(index, best.prim))));
-                best = {Ops::select(closer, result.t, best.t), Ops::select(closer, index, best.prim),
-                        Ops::select(closer, result.u, best.u), Ops::select(closer, result.v, best.v)};
             }
+        } else {
+            // Without a branch: whether a lane hits is data the predictor cannot learn.
+            found = hit_lanes != 0;
+            const Float index = Ops::broadcast_int(static_cast<int>(prim));
+            const auto closer = Ops::mask_and(
+                Ops::mask_from_bits(hit_lanes),
+                Ops::mask_or(Ops::less(result.t, best.t),
+                             Ops::mask_and(Ops::equal(result.t, best.t), Ops::less_int(index, best.prim))));
+            best = {Ops::select(closer, result.t, best.t), Ops::select(closer, index, best.prim),
+                    Ops::select(closer, result.u, best.u), Ops::select(closer, result.v, best.v)};
         }
         const unsigned scalar_lanes = result.scalar_lanes & lanes & active;
         if (scalar_lanes != 0) found |= take_scalar<kAnyHit>(prim, first, scalar_lanes, best, answers);

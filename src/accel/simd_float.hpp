@@ -104,11 +104,43 @@ struct Avx2 {
     static Mask less_int(Float a, Float b) {
         return _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_castps_si256(b), _mm256_castps_si256(a)));
     }
+    static Mask equal_int(Float a, Float b) {
+        return _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_castps_si256(a), _mm256_castps_si256(b)));
+    }
     // The mask whose lane i is set where bit i is.
     static Mask mask_from_bits(unsigned bits) {
         const __m256i lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
         return _mm256_castsi256_ps(_mm256_cmpeq_epi32(
             _mm256_and_si256(_mm256_set1_epi32(static_cast<int>(bits)), lane_bit), lane_bit));
+    }
+    // The smallest and the largest lane (no NaN lanes).
+    static float reduce_min(Float a) {
+        const __m128 half = _mm_min_ps(_mm256_castps256_ps128(a), _mm256_extractf128_ps(a, 1));
+        const __m128 pair = _mm_min_ps(half, _mm_movehl_ps(half, half));
+        return _mm_cvtss_f32(_mm_min_ss(pair, _mm_shuffle_ps(pair, pair, 1)));
+    }
+    static float reduce_max(Float a) {
+        const __m128 half = _mm_max_ps(_mm256_castps256_ps128(a), _mm256_extractf128_ps(a, 1));
+        const __m128 pair = _mm_max_ps(half, _mm_movehl_ps(half, half));
+        return _mm_cvtss_f32(_mm_max_ss(pair, _mm_shuffle_ps(pair, pair, 1)));
+    }
+    // Writes a0 b0 c0 d0 a1 b1 c1 d1 ...: four fields of 8 consecutive 16-byte records (unaligned).
+    static void store_interleaved(float* p, Float a, Float b, Float c, Float d) {
+        const __m256 ab_low = _mm256_unpacklo_ps(a, b), ab_high = _mm256_unpackhi_ps(a, b);
+        const __m256 cd_low = _mm256_unpacklo_ps(c, d), cd_high = _mm256_unpackhi_ps(c, d);
+        // Records k and k + 4 of each 128-bit half, k = 0..3.
+        const __m256 r0 =
+            _mm256_castpd_ps(_mm256_unpacklo_pd(_mm256_castps_pd(ab_low), _mm256_castps_pd(cd_low)));
+        const __m256 r1 =
+            _mm256_castpd_ps(_mm256_unpackhi_pd(_mm256_castps_pd(ab_low), _mm256_castps_pd(cd_low)));
+        const __m256 r2 =
+            _mm256_castpd_ps(_mm256_unpacklo_pd(_mm256_castps_pd(ab_high), _mm256_castps_pd(cd_high)));
+        const __m256 r3 =
+            _mm256_castpd_ps(_mm256_unpackhi_pd(_mm256_castps_pd(ab_high), _mm256_castps_pd(cd_high)));
+        _mm256_storeu_ps(p, _mm256_permute2f128_ps(r0, r1, 0x20));
+        _mm256_storeu_ps(p + 8, _mm256_permute2f128_ps(r2, r3, 0x20));
+        _mm256_storeu_ps(p + 16, _mm256_permute2f128_ps(r0, r1, 0x31));
+        _mm256_storeu_ps(p + 24, _mm256_permute2f128_ps(r2, r3, 0x31));
     }
     static Mask mask_and(Mask a, Mask b) { return _mm256_and_ps(a, b); }
     static Mask mask_or(Mask a, Mask b) { return _mm256_or_ps(a, b); }
@@ -161,7 +193,45 @@ struct Avx512 {
     static Mask less_int(Float a, Float b) {
         return _mm512_cmplt_epi32_mask(_mm512_castps_si512(a), _mm512_castps_si512(b));
     }
+    static Mask equal_int(Float a, Float b) {
+        return _mm512_cmpeq_epi32_mask(_mm512_castps_si512(a), _mm512_castps_si512(b));
+    }
     static Mask mask_from_bits(unsigned bits) { return static_cast<Mask>(bits); }
+    // Through memory: GCC 12's 512-to-256-bit casts and extractions read an uninitialised source too.
+    static float reduce_min(Float a) {
+        alignas(64) float lanes[16];
+        _mm512_store_ps(lanes, a);
+        return Avx2::reduce_min(_mm256_min_ps(_mm256_load_ps(lanes), _mm256_load_ps(lanes + 8)));
+    }
+    static float reduce_max(Float a) {
+        alignas(64) float lanes[16];
+        _mm512_store_ps(lanes, a);
+        return Avx2::reduce_max(_mm256_max_ps(_mm256_load_ps(lanes), _mm256_load_ps(lanes + 8)));
+    }
+    // The zero-masked forms with every lane set throughout, for the reason given at max() above.
+    static void store_interleaved(float* p, Float a, Float b, Float c, Float d) {
+        const __m512 ab_low = _mm512_maskz_unpacklo_ps(0xffff, a, b),
+                     ab_high = _mm512_maskz_unpackhi_ps(0xffff, a, b);
+        const __m512 cd_low = _mm512_maskz_unpacklo_ps(0xffff, c, d),
+                     cd_high = _mm512_maskz_unpackhi_ps(0xffff, c, d);
+        // Register r_k holds records k, k + 4, k + 8, k + 12 in its four 128-bit lanes.
+        auto pairs = [](__m512 x, __m512 y, bool high) {
+            const __m512d xd = _mm512_castps_pd(x), yd = _mm512_castps_pd(y);
+            return _mm512_castpd_ps(high ? _mm512_maskz_unpackhi_pd(0xff, xd, yd)
+                                         : _mm512_maskz_unpacklo_pd(0xff, xd, yd));
+        };
+        const __m512 r0 = pairs(ab_low, cd_low, false), r1 = pairs(ab_low, cd_low, true);
+        const __m512 r2 = pairs(ab_high, cd_high, false), r3 = pairs(ab_high, cd_high, true);
+        // 128-bit lanes: r01_low = r0.0 r0.1 r1.0 r1.1, and so on; then the 4 x 4 transpose of lanes.
+        const __m512 r01_low = _mm512_maskz_shuffle_f32x4(0xffff, r0, r1, 0x44);
+        const __m512 r23_low = _mm512_maskz_shuffle_f32x4(0xffff, r2, r3, 0x44);
+        const __m512 r01_high = _mm512_maskz_shuffle_f32x4(0xffff, r0, r1, 0xee);
+        const __m512 r23_high = _mm512_maskz_shuffle_f32x4(0xffff, r2, r3, 0xee);
+        _mm512_storeu_ps(p, _mm512_maskz_shuffle_f32x4(0xffff, r01_low, r23_low, 0x88));
+        _mm512_storeu_ps(p + 16, _mm512_maskz_shuffle_f32x4(0xffff, r01_low, r23_low, 0xdd));
+        _mm512_storeu_ps(p + 32, _mm512_maskz_shuffle_f32x4(0xffff, r01_high, r23_high, 0x88));
+        _mm512_storeu_ps(p + 48, _mm512_maskz_shuffle_f32x4(0xffff, r01_high, r23_high, 0xdd));
+    }
     static Mask mask_and(Mask a, Mask b) { return static_cast<Mask>(a & b); }
     static Mask mask_or(Mask a, Mask b) { return static_cast<Mask>(a | b); }
     static unsigned bits(Mask a) { return a; }

@@ -200,8 +200,9 @@ struct WatertightLanes {
                 Ops::sub(Ops::sub(vertex.y, origin_y), Ops::mul(shear_y, z)), z};
     }
 
-    // `wanted`: the lanes the caller reads; the test stops before the division once none of them can hit
-    // (a packet's group is mostly misses; Moller-Trumbore gained nothing from the same exit and bvh8 lost).
+    // `wanted`: the lanes the caller reads; the test stops before the division once none of them can hit.
+    // A packet's group mostly misses; the same exit after Moller-Trumbore's u test lost in both the packet
+    // and bvh8's block test (docs/accel/packets.md).
     [[nodiscard]] LaneHits<Ops> test(const Vec3v<Ops>& v0, const Vec3v<Ops>& v1, const Vec3v<Ops>& v2,
                                      Float tnear, Float tfar, unsigned wanted = ~0u) const {
         const Vec3v<Ops> a = sheared(v0), b = sheared(v1), c = sheared(v2);
