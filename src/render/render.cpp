@@ -139,7 +139,7 @@ class TileRenderer {
             trace_counting(rays, hits, x0, y0, x1);
             return;
         }
-        intersector_.intersect(rays, hits);
+        intersector_.intersect_coherent(rays, hits);
         rays_.add({rays.size(), 0, 0, 0});
 
         std::size_t k = 0;

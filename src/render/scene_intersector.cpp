@@ -67,6 +67,16 @@ void SceneIntersector::intersect(std::span<const Ray> rays, std::span<Hit> hits,
                                  TraversalCounters* counters) const {
     assert(rays.size() == hits.size());
     accel_.intersect(rays, hits, counters);
+    intersect_planes(rays, hits);
+}
+
+void SceneIntersector::intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const {
+    assert(rays.size() == hits.size());
+    accel_.intersect_coherent(rays, hits);
+    intersect_planes(rays, hits);
+}
+
+void SceneIntersector::intersect_planes(std::span<const Ray> rays, std::span<Hit> hits) const {
     if (scene_.planes.empty()) return;
     for (std::size_t i = 0; i < rays.size(); ++i) {
         const Ray& ray = rays[i];

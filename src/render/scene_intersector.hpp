@@ -36,6 +36,9 @@ class SceneIntersector {
     // `counters`, when given, receive the structure's traversal counts (planes are not counted).
     void intersect(std::span<const Ray> rays, std::span<Hit> hits,
                    TraversalCounters* counters = nullptr) const;
+    // intersect() for camera rays in pixel order (Accel::intersect_coherent): the same hits, by the
+    // structure's fastest path for coherent rays (Embree's COHERENT flag, for one).
+    void intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const;
 
     // occluded[i] = 1 when rays[i] hits anything in [tnear, tfar] (Accel::occluded, then the planes of the
     // rays still unoccluded), else 0. Invalid rays are unoccluded.
@@ -45,6 +48,8 @@ class SceneIntersector {
     [[nodiscard]] SurfacePoint surface(const Ray& ray, const Hit& hit) const;
 
   private:
+    // The planes (unbounded, outside the structure) improve `hits` where they are closer.
+    void intersect_planes(std::span<const Ray> rays, std::span<Hit> hits) const;
     [[nodiscard]] SurfacePoint triangle_surface(std::size_t index, const Hit& hit) const;
     [[nodiscard]] SurfacePoint sphere_surface(std::size_t index, const Ray& ray, const Hit& hit) const;
     [[nodiscard]] SurfacePoint plane_surface(std::size_t index, const Ray& ray, const Hit& hit) const;

@@ -206,12 +206,19 @@ RayCounts WhittedTracer::render_tile(int x0, int y0, int x1, int y1, Image& imag
     std::vector<Hit> hits;
     std::vector<std::uint8_t> blocked;
     const LevelShader shader(scene_, intersector_, options_, radiance, out);
+    // The first level holds the camera rays, in pixel order: the structure's coherent path.
+    bool primary = true;
     while (!level.empty()) {
         rays.clear();
         for (const RayNode& node : level)
             rays.push_back(node.ray);
         hits.assign(rays.size(), Hit{});
-        intersector_.intersect(rays, hits);
+        if (primary) {
+            intersector_.intersect_coherent(rays, hits);
+        } else {
+            intersector_.intersect(rays, hits);
+        }
+        primary = false;
 
         out.clear();
         for (std::size_t i = 0; i < level.size(); ++i)
