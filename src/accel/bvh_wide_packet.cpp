@@ -113,22 +113,25 @@ using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per l
     return cull_boxes(bounds, packet, tlimit_max, entry);
 }
 
-// cull_boxes on the bounding boxes of a block's 8 triangles: a triangle some ray hits lies in its box, so
+// The bounding boxes of a block's 8 triangles, for cull_boxes: a triangle some ray hits lies in its box, so
 // that ray's box test passes (the same argument as for a leaf's box, which holds the triangle), and so does
-// the interval test. Padding and sphere lanes (NaN vertices) are left out.
-[[nodiscard]] unsigned cull_triangles(const Block& block, const PacketInterval& packet, float tlimit_max) {
-    using Ops = simd::Avx2;
+// the interval test. `triangles`: the lanes that hold one (padding and spheres have NaN vertices, whose
+// boxes cull_boxes would pass: its max and min drop NaN operands).
+struct TriangleBoxes {
     Boxes bounds;
+    unsigned triangles;
+};
+[[nodiscard]] TriangleBoxes triangle_boxes(const Block& block) {
+    using Ops = simd::Avx2;
+    TriangleBoxes boxes;
     for (int axis = 0; axis < 3; ++axis) {
         const auto v0 = Ops::load(block.vertex[0][axis]), v1 = Ops::load(block.vertex[1][axis]),
                    v2 = Ops::load(block.vertex[2][axis]);
-        bounds[Node::kLo][axis] = Ops::min(v0, Ops::min(v1, v2));
-        bounds[Node::kHi][axis] = Ops::max(v0, Ops::max(v1, v2));
+        boxes.bounds[Node::kLo][axis] = Ops::min(v0, Ops::min(v1, v2));
+        boxes.bounds[Node::kHi][axis] = Ops::max(v0, Ops::max(v1, v2));
     }
-    alignas(32) float entry[kWidth];
-    // NaN lanes (padding, spheres) pass cull_boxes, whose max and min drop NaN operands: cleared here.
-    const unsigned triangles = Ops::bits(Ops::equal(bounds[Node::kLo][0], bounds[Node::kLo][0]));
-    return cull_boxes(bounds, packet, tlimit_max, entry) & triangles;
+    boxes.triangles = Ops::bits(Ops::equal(boxes.bounds[Node::kLo][0], boxes.bounds[Node::kLo][0]));
+    return boxes;
 }
 
 // intersect_box on the packet's rays `rays` against child `slot` of `node`, a group of Ops::kWidth rays per
@@ -224,6 +227,7 @@ class PacketTracer {
         Float tnear_min = infinity;
         std::array<LaneMask, 3> negative{};
         valid_ = 0;
+        group_intervals_ready_ = 0;
         code_lanes_ = {};
         for (int group = 0; group < kGroups; ++group) {
             const int first = group * kLanes;
@@ -432,6 +436,31 @@ class PacketTracer {
         Ops::store(&packet_.u[first], best.u), Ops::store(&packet_.v[first], best.v);
     }
 
+    // The interval of group `group`'s valid rays, made at its first leaf (most packets reach none).
+    [[nodiscard]] const PacketInterval& group_interval(int group) {
+        PacketInterval& interval = group_intervals_[static_cast<std::size_t>(group)];
+        if ((group_intervals_ready_ >> group) & 1u) return interval;
+        group_intervals_ready_ |= 1u << group;
+        const int first = group * kLanes;
+        const auto valid =
+            Ops::mask_from_bits(static_cast<unsigned>(valid_ >> first) & static_cast<unsigned>(kGroup));
+        const Float infinity = Ops::broadcast(kInfinity), minus_infinity = Ops::broadcast(-kInfinity);
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            const Float origin = Ops::load(&packet_.origin[axis][first]);
+            const Float inv_direction = Ops::load(&packet_.inv_direction[axis][first]);
+            const float lo = Ops::reduce_min(Ops::select(valid, origin, infinity));
+            const float hi = Ops::reduce_max(Ops::select(valid, origin, minus_infinity));
+            const bool is_negative = interval_.near_side[axis] == Node::kHi;
+            interval.near_side[axis] = interval_.near_side[axis];
+            interval.entry_origin[axis] = is_negative ? lo : hi;
+            interval.exit_origin[axis] = is_negative ? hi : lo;
+            interval.inv_lo[axis] = Ops::reduce_min(Ops::select(valid, inv_direction, infinity));
+            interval.inv_hi[axis] = Ops::reduce_max(Ops::select(valid, inv_direction, minus_infinity));
+        }
+        interval.tnear_min = Ops::reduce_min(Ops::load(&packet_.tnear[first]));  // +inf in invalid lanes
+        return interval;
+    }
+
     // The triangles of a leaf against its rays, a group of rays at a time; true when some ray found a
     // (closer) hit.
     template <bool kAnyHit, class Answer>
@@ -439,14 +468,24 @@ class PacketTracer {
                    std::span<Answer> answers) {
         bool found = false;
         const std::uint32_t end = first_block + block_count(prim_count, kWidth);
-        std::array<unsigned, kMaxLeafBlocks> candidates;
+        std::array<TriangleBoxes, kMaxLeafBlocks> boxes;
         for (std::uint32_t b = first_block; b < end; ++b)
-            candidates[b - first_block] =
-                cull_triangles(blocks_[b], interval_, tlimit_max_) | sphere_lanes(blocks_[b]);
+            boxes[b - first_block] = triangle_boxes(blocks_[b]);
         for (int group = 0; group < kGroups; ++group) {
             const auto active = static_cast<unsigned>((rays & alive_) >> (group * kLanes) & kGroup);
-            if (active != 0)
-                found |= test_group<kAnyHit>(first_block, end, candidates, group, active, answers);
+            if (active == 0) continue;
+            // The group's own interval: its 16 (or 8) rays span a quarter of the packet's frustum.
+            const PacketInterval& interval = group_interval(group);
+            std::array<unsigned, kMaxLeafBlocks> candidates;
+            alignas(32) float entry[kWidth];
+            unsigned any = 0;
+            for (std::uint32_t b = first_block; b < end; ++b) {
+                const TriangleBoxes& block_boxes = boxes[b - first_block];
+                any |= candidates[b - first_block] =
+                    (cull_boxes(block_boxes.bounds, interval, tlimit_max_, entry) & block_boxes.triangles) |
+                    sphere_lanes(blocks_[b]);
+            }
+            if (any != 0) found |= test_group<kAnyHit>(first_block, end, candidates, group, active, answers);
         }
         return found;
     }
@@ -602,6 +641,8 @@ class PacketTracer {
     std::array<Ray, kPacketSize> padded_;
     PacketRays packet_;
     PacketInterval interval_;
+    std::array<PacketInterval, kGroups> group_intervals_;
+    unsigned group_intervals_ready_ = 0;  // bit g: group_intervals_[g] is made
     // Per group of lanes, the lanes of each watertight axis permutation.
     std::array<std::array<unsigned, kPermutations>, kGroups> code_lanes_{};
     LaneMask valid_ = 0, alive_ = 0;
