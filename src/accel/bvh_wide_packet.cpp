@@ -231,15 +231,13 @@ class PacketTracer {
         code_lanes_ = {};
         for (int group = 0; group < kGroups; ++group) {
             const int first = group * kLanes;
-            // One field of kLanes consecutive rays per load: ox oy oz dx dy dz tnear tfar.
-            const float* record = &source[first].origin.x;
-            Float origin[3], direction[3];
-            for (int axis = 0; axis < 3; ++axis) {
-                origin[axis] = Ops::template load_strided<8>(record + axis);
-                direction[axis] = Ops::template load_strided<8>(record + 3 + axis);
-            }
-            const Float tnear = Ops::template load_strided<8>(record + 6);
-            const Float tfar = Ops::template load_strided<8>(record + 7);
+            // The fields of kLanes consecutive rays, transposed: ox oy oz dx dy dz tnear tfar.
+            static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, tfar) == 7 * sizeof(float));
+            Float fields[8];
+            Ops::load_fields8(&source[first].origin.x, fields);
+            const Float origin[3] = {fields[0], fields[1], fields[2]};
+            const Float direction[3] = {fields[3], fields[4], fields[5]};
+            const Float tnear = fields[6], tfar = fields[7];
             // is_valid: NaN compares false, so `|x| < inf` is isfinite and `tfar == tfar` is !isnan.
             auto valid = Ops::mask_and(Ops::less(Ops::abs(tnear), infinity),
                                        Ops::mask_and(Ops::equal(tfar, tfar), Ops::less_equal(tnear, tfar)));

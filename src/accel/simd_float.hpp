@@ -90,14 +90,27 @@ struct Avx2 {
     static Float select(Mask mask, Float if_true, Float if_false) {
         return _mm256_blendv_ps(if_false, if_true, mask);
     }
-    // Lane i reads p[i * kStride]: one field of consecutive records (the zero-masked gather: GCC 12's plain
-    // one reads an uninitialised source, as _mm512_max_ps below).
-    template <int kStride>
-    static Float load_strided(const float* p) {
-        const __m256i index =
-            _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(kStride));
-        return _mm256_mask_i32gather_ps(_mm256_setzero_ps(), p, index,
-                                        _mm256_castsi256_ps(_mm256_set1_epi32(-1)), 4);
+    // The 8 fields of 8 consecutive 32-byte records (Ray: ox oy oz dx dy dz tnear tfar): field[f] lane i is
+    // record i's field f. An 8 x 8 transpose in registers (unpack, shuffle, swap of 128-bit halves).
+    static void load_fields8(const float* p, Float (&field)[8]) {
+        __m256 row[8];
+        for (int i = 0; i < 8; ++i)
+            row[i] = _mm256_loadu_ps(p + 8 * i);
+        __m256 quad[8];
+        for (int half = 0; half < 2; ++half) {  // records 0-3, then 4-7
+            __m256* r = row + 4 * half;
+            const __m256 t0 = _mm256_unpacklo_ps(r[0], r[1]), t1 = _mm256_unpackhi_ps(r[0], r[1]);
+            const __m256 t2 = _mm256_unpacklo_ps(r[2], r[3]), t3 = _mm256_unpackhi_ps(r[2], r[3]);
+            // quad[4 half + k]: field k of the four records in the low half, field k + 4 in the high one.
+            quad[4 * half + 0] = _mm256_shuffle_ps(t0, t2, 0x44);
+            quad[4 * half + 1] = _mm256_shuffle_ps(t0, t2, 0xee);
+            quad[4 * half + 2] = _mm256_shuffle_ps(t1, t3, 0x44);
+            quad[4 * half + 3] = _mm256_shuffle_ps(t1, t3, 0xee);
+        }
+        for (int k = 0; k < 4; ++k) {
+            field[k] = _mm256_permute2f128_ps(quad[k], quad[4 + k], 0x20);
+            field[k + 4] = _mm256_permute2f128_ps(quad[k], quad[4 + k], 0x31);
+        }
     }
     // Integers carried in float lanes, bit for bit (a primitive index beside its hit's t).
     static Float broadcast_int(int x) { return _mm256_castsi256_ps(_mm256_set1_epi32(x)); }
@@ -182,12 +195,39 @@ struct Avx512 {
     static Float select(Mask mask, Float if_true, Float if_false) {
         return _mm512_mask_blend_ps(mask, if_false, if_true);
     }
-    template <int kStride>
-    static Float load_strided(const float* p) {
-        const __m512i index =
-            _mm512_mullo_epi32(_mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
-                               _mm512_set1_epi32(kStride));
-        return _mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xffff, index, p, 4);
+    // The 8 fields of 16 consecutive 32-byte records, field[f] lane i being record i's field f: three rounds
+    // of two-source permutes, 24 in all.
+    static void load_fields8(const float* p, Float (&field)[8]) {
+        // Round 1: fields 0-3 (low) and 4-7 (high) of records 4j .. 4j + 3, record-major.
+        const __m512i low_fields =
+            _mm512_setr_epi32(0, 1, 2, 3, 8, 9, 10, 11, 16, 17, 18, 19, 24, 25, 26, 27);
+        const __m512i high_fields =
+            _mm512_setr_epi32(4, 5, 6, 7, 12, 13, 14, 15, 20, 21, 22, 23, 28, 29, 30, 31);
+        __m512 low[4], high[4];
+        for (int j = 0; j < 4; ++j) {
+            const __m512 first = _mm512_loadu_ps(p + 32 * j), second = _mm512_loadu_ps(p + 32 * j + 16);
+            low[j] = _mm512_permutex2var_ps(first, low_fields, second);
+            high[j] = _mm512_permutex2var_ps(first, high_fields, second);
+        }
+        // Round 2: of records 8h .. 8h + 7, fields 2m and 2m + 1 (of the four in low or high), field-major.
+        const __m512i even_pair = _mm512_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28, 1, 5, 9, 13, 17, 21, 25, 29);
+        const __m512i odd_pair =
+            _mm512_setr_epi32(2, 6, 10, 14, 18, 22, 26, 30, 3, 7, 11, 15, 19, 23, 27, 31);
+        // Round 3: the first halves of the two eight-record sets, then the second halves.
+        const __m512i first_halves =
+            _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23);
+        const __m512i second_halves =
+            _mm512_setr_epi32(8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31);
+        for (int side = 0; side < 2; ++side) {  // fields 0-3, then 4-7
+            const __m512* quads = side == 0 ? low : high;
+            for (int m = 0; m < 2; ++m) {
+                const __m512i pair = m == 0 ? even_pair : odd_pair;
+                const __m512 first8 = _mm512_permutex2var_ps(quads[0], pair, quads[1]);
+                const __m512 second8 = _mm512_permutex2var_ps(quads[2], pair, quads[3]);
+                field[4 * side + 2 * m] = _mm512_permutex2var_ps(first8, first_halves, second8);
+                field[4 * side + 2 * m + 1] = _mm512_permutex2var_ps(first8, second_halves, second8);
+            }
+        }
     }
     static Float broadcast_int(int x) { return _mm512_castsi512_ps(_mm512_set1_epi32(x)); }
     static Mask less_int(Float a, Float b) {
