@@ -1,11 +1,13 @@
 #!/usr/bin/python3
 """Checks `lancer bench`'s Embree rows against bench/embree_reference (Embree called as its tutorials call it,
-with no lancer code), in the same run, on the same meshes and thread counts (issue 20: each row within 10%).
+with no lancer code), in the same run, on the same meshes and thread counts (issue 20: each row within 10%),
+and sets lancer's own structures beside Embree's fastest call (issue 20's goal: 1.25 times it).
 
     scripts/embree_check.py [--build build] [--mesh FILE]... [--threads 1,2] [--frames 5] [--watertight]
-                            [--tolerance 0.10]
+                            [--tolerance 0.10] [--lancer bvh8_packet,...]
 
-Prints one line per mesh, call and thread count with both figures and their ratio; exits 1 when a row is
+Prints one line per mesh, call and thread count with both figures and their ratio, then one line per mesh,
+thread count and lancer structure with its ratio to the fastest Embree call; exits 1 when an Embree row is
 further than the tolerance below the reference, 2 on bad input. Run it on an idle machine: the two programs
 alternate per mesh, so that drift hits both alike.
 """
@@ -49,7 +51,10 @@ def main():
     parser.add_argument("--frames", type=int, default=5)
     parser.add_argument("--watertight", action="store_true")
     parser.add_argument("--tolerance", type=float, default=0.10)
+    parser.add_argument("--lancer", default="bvh8_packet",
+                        help="lancer structures to set beside Embree's fastest call (comma-separated)")
     args = parser.parse_args()
+    structures = [name for name in args.lancer.split(",") if name]
 
     lancer = os.path.join(args.build, "apps", "lancer", "lancer")
     reference = os.path.join(args.build, "bench", "embree_reference")
@@ -64,12 +69,20 @@ def main():
     print(f"embree_check: {cpu_name()}, {os.cpu_count()} hardware threads, "
           f"{'robust (--watertight)' if args.watertight else 'default (--moller-trumbore)'} triangle test")
     rows = []
+    fastest = []  # (mesh, threads, call, Mrays/s of the fastest call, {structure: Mrays/s})
     for mesh in meshes:
         test = [] if args.watertight else ["--moller-trumbore"]
         peer = run_json([reference, mesh, "--threads", args.threads, "--frames", str(args.frames)] +
                         (["--watertight"] if args.watertight else []))
-        ours = run_json([lancer, "bench", "--mesh", mesh, "--accel", ",".join(ROW_OF_CALL.values()),
+        # lancer's structures first: the bench checks every row against the first, and keeps an Embree row
+        # that disagrees (its own triangle test) where it would drop one of lancer's.
+        ours = run_json([lancer, "bench", "--mesh", mesh, "--accel", ",".join(structures + list(ROW_OF_CALL.values())),
                          "--threads", args.threads, "--frames", str(args.frames)] + test)
+        for threads in sorted({record["threads"] for record in peer}):
+            best = max((r for r in peer if r["threads"] == threads), key=lambda r: r["mrays_per_s"])
+            lancer_rows = {r["accel"]: r["mrays_per_s"] for r in ours
+                           if r["threads"] == threads and r["accel"] in structures}
+            fastest.append((best["mesh"], threads, best["call"], best["mrays_per_s"], lancer_rows))
         for record in peer:
             row = ROW_OF_CALL[record["call"]]
             match = [r for r in ours if r["accel"] == row and r["threads"] == record["threads"]]
@@ -91,6 +104,18 @@ def main():
         failed += verdict == "FAIL"
         print(f"{mesh:<16} {call:<15} {threads:>3} {peer:>10.2f} {ours:>10.2f} {ratio:>6.2f}   {verdict}")
     print(f"\n{len(rows) - failed} passed, {failed} failed (within {args.tolerance:.0%} of the reference)")
+
+    if structures:
+        print(f"\n{'mesh':<16} {'thr':>3} {'fastest call':<15} {'Mrays/s':>8} {'lancer':<14} {'Mrays/s':>8} "
+              f"{'ratio':>6} {'of 1.25':>7}")
+        for mesh, threads, call, peer, lancer_rows in fastest:
+            for name in structures:
+                ours = lancer_rows.get(name)
+                if ours is None:
+                    print(f"{mesh:<16} {threads:>3} {call:<15} {peer:>8.2f} {name:<14} {'missing':>8}")
+                    continue
+                print(f"{mesh:<16} {threads:>3} {call:<15} {peer:>8.2f} {name:<14} {ours:>8.2f} "
+                      f"{ours / peer:>6.2f} {ours / peer / 1.25:>7.0%}")
     return 1 if failed else 0
 
 
