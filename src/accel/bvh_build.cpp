@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <limits>
 #include <numeric>
 
 #include "accel/build_util.hpp"
@@ -235,25 +236,33 @@ class BinnedBuilder {
         const auto [bounds, centroids] = bounds_of(begin, end);
         const std::size_t count = end - begin;
         const bool exact = count <= kExactSplitBelow;
+        const BinMap map(centroids, bins_);
         Split split;
+        ExactOrder exact_order;
         if (depth < kMedianSplitDepth)
-            split = exact ? exact_split(begin, end) : best_split(begin, end, centroids);
+            split = exact ? exact_split(begin, end, exact_order) : best_split(begin, end, map, centroids);
         if (stays_leaf(count, bounds.surface_area(), split, max_leaf_)) {
             slots.set_leaf(slot, bounds, begin, count);
             return;
         }
         std::size_t middle;
         if (split.axis >= 0 && !exact) {
-            const auto first_right =
-                std::partition(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                               refs_.begin() + static_cast<std::ptrdiff_t>(end),
-                               [&, &centroids = centroids](const BuildRef& ref) {
-                                   return bin_of(ref.centroid, split.axis, centroids) < split.bin;
-                               });
+            const auto first_right = std::partition(
+                refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                refs_.begin() + static_cast<std::ptrdiff_t>(end),
+                [&](const BuildRef& ref) { return map.bin(ref.centroid, split.axis) < split.bin; });
             middle = static_cast<std::size_t>(first_right - refs_.begin());
+        } else if (split.axis >= 0) {
+            // The exact split's order on its axis.
+            std::array<BuildRef, kExactSplitBelow> node_refs;
+            std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                      refs_.begin() + static_cast<std::ptrdiff_t>(end), node_refs.begin());
+            for (std::size_t i = 0; i < count; ++i)
+                refs_[begin + i] = node_refs[exact_order[i]];
+            middle = begin + split.left_count;
         } else {
-            // The exact split's order, or an object median when nothing separates the centroids.
-            if (split.axis < 0) split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
+            // An object median when nothing separates the centroids.
+            split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
             middle = begin + split.left_count;
             const int axis = split.axis;
             std::nth_element(
@@ -282,60 +291,118 @@ class BinnedBuilder {
     // cheaper than clearing and scanning the bins.
     static constexpr std::size_t kExactSplitBelow = 32;
 
-    Split exact_split(std::size_t begin, std::size_t end) const {
+    // Offsets from a node's first reference, for the exact split's orders.
+    using ExactOrder = std::array<std::uint8_t, kExactSplitBelow>;
+
+    // Every boundary between consecutive centroids on each axis, in centroid order (ties by primitive
+    // index), for a node of at most kExactSplitBelow references; `best_order` receives the order of the
+    // chosen axis, which the caller applies (no second sort to partition), and the boxes are swept four
+    // floats at a time.
+    Split exact_split(std::size_t begin, std::size_t end, ExactOrder& best_order) const {
         const std::size_t count = end - begin;
-        std::array<const BuildRef*, kExactSplitBelow> order{};
+        std::array<BinBox, kExactSplitBelow> boxes;
+        // Padding past `count` sorts after every reference: its key is +inf, above every centroid.
+        std::array<float, kExactSplitBelow> keys;
+        std::array<std::uint32_t, kExactSplitBelow> prims;
+        keys.fill(kInfinity);
+        prims.fill(std::numeric_limits<std::uint32_t>::max());
+        for (std::size_t i = 0; i < count; ++i) {
+            const BuildRef& ref = refs_[begin + i];
+            boxes[i].lo = {ref.bounds.lo.x, ref.bounds.lo.y, ref.bounds.lo.z, 0.0f};
+            boxes[i].hi = {ref.bounds.hi.x, ref.bounds.hi.y, ref.bounds.hi.z, 0.0f};
+            prims[i] = ref.prim;
+        }
+        ExactOrder order;
         std::array<float, kExactSplitBelow> right_areas{};
         Split best;
         for (int axis = 0; axis < 3; ++axis) {
             for (std::size_t i = 0; i < count; ++i)
-                order[i] = &refs_[begin + i];
-            std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(count),
-                      [axis](const BuildRef* a, const BuildRef* b) { return centroid_less(*a, *b, axis); });
-            Box3f right;
+                keys[i] = refs_[begin + i].centroid[axis];
+            // centroid_less's order by ranks: reference i goes where the count of references before it says.
+            // Branch-free compares over fixed-size arrays, which GCC vectorizes (an insertion sort
+            // mispredicts half its compares).
+            for (std::size_t i = 0; i < count; ++i) {
+                std::uint32_t rank = 0;
+                for (std::size_t j = 0; j < kExactSplitBelow; ++j) {
+                    rank += static_cast<std::uint32_t>((keys[j] < keys[i]) |
+                                                       ((keys[j] == keys[i]) & (prims[j] < prims[i])));
+                }
+                order[rank] = static_cast<std::uint8_t>(i);
+            }
+            BinBox right;
             for (std::size_t i = count - 1; i > 0; --i) {
-                right.extend(order[i]->bounds);
-                right_areas[i] = right.surface_area();
+                right.extend(boxes[order[i]].lo, boxes[order[i]].hi);
+                right_areas[i] = right.box().surface_area();
             }
-            Box3f left;
+            BinBox left;
+            bool improved = false;
             for (std::size_t i = 0; i + 1 < count; ++i) {
-                left.extend(order[i]->bounds);
-                if (order[i]->centroid[axis] == order[i + 1]->centroid[axis]) continue;
-                const float cost = left.surface_area() * static_cast<float>(i + 1) +
+                left.extend(boxes[order[i]].lo, boxes[order[i]].hi);
+                if (keys[order[i]] == keys[order[i + 1]]) continue;
+                const float cost = left.box().surface_area() * static_cast<float>(i + 1) +
                                    right_areas[i + 1] * static_cast<float>(count - i - 1);
-                if (cost < best.cost) best = {axis, cost, i + 1, 0};
+                if (cost < best.cost) best = {axis, cost, i + 1, 0}, improved = true;
             }
+            if (improved) best_order = order;
         }
         return best;
     }
     static constexpr std::size_t kParallelBinning = 65536;
 
-    // Per axis, each bin's box and reference count; sized to the bin count actually used.
+    // A box as two 4-float rows (the fourth lane unused), so that extending one is one vector min and one
+    // vector max: binning extends a bin's box three times per reference, and that was half the build.
+    struct alignas(16) BinBox {
+        std::array<float, 4> lo{kInfinity, kInfinity, kInfinity, kInfinity};
+        std::array<float, 4> hi{-kInfinity, -kInfinity, -kInfinity, -kInfinity};
+
+        // The operand order of minps / maxps, which GCC then uses.
+        void extend(const std::array<float, 4>& other_lo, const std::array<float, 4>& other_hi) {
+            for (std::size_t k = 0; k < 4; ++k) {
+                lo[k] = other_lo[k] < lo[k] ? other_lo[k] : lo[k];
+                hi[k] = other_hi[k] > hi[k] ? other_hi[k] : hi[k];
+            }
+        }
+        [[nodiscard]] Box3f box() const { return {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}; }
+    };
+
+    // Per axis, each bin's box and reference count; the first bins_ entries are used.
     struct Bins {
-        std::array<std::vector<Box3f>, 3> boxes;
-        std::array<std::vector<std::uint32_t>, 3> counts;
+        std::array<std::array<BinBox, kMaxBins>, 3> boxes;
+        std::array<std::array<std::uint32_t, kMaxBins>, 3> counts;
 
         explicit Bins(int bin_count) {
             for (std::size_t axis = 0; axis < 3; ++axis) {
-                boxes[axis].resize(static_cast<std::size_t>(bin_count));
-                counts[axis].resize(static_cast<std::size_t>(bin_count));
+                std::fill_n(boxes[axis].begin(), bin_count, BinBox{});
+                std::fill_n(counts[axis].begin(), bin_count, 0u);
             }
         }
-        void merge(const Bins& other) {
+        void merge(const Bins& other, int bin_count) {
             for (std::size_t axis = 0; axis < 3; ++axis) {
-                for (std::size_t b = 0; b < boxes[axis].size(); ++b) {
-                    boxes[axis][b].extend(other.boxes[axis][b]);
+                for (std::size_t b = 0; b < static_cast<std::size_t>(bin_count); ++b) {
+                    boxes[axis][b].extend(other.boxes[axis][b].lo, other.boxes[axis][b].hi);
                     counts[axis][b] += other.counts[axis][b];
                 }
             }
         }
     };
 
-    int bin_of(Vec3f centroid, int axis, const Box3f& centroids) const {
-        const float extent = centroids.hi[axis] - centroids.lo[axis];
-        const float scaled = (centroid[axis] - centroids.lo[axis]) / extent * static_cast<float>(bins_);
-        return std::clamp(static_cast<int>(scaled), 0, bins_ - 1);
-    }
+    // The bin of a centroid on each axis: a multiplication by bins / extent, computed once per node (Wald
+    // 2007, section 3.2). Binning and partitioning use the same function, so they agree on every reference.
+    struct BinMap {
+        Vec3f origin, scale;
+        int bins;
+
+        BinMap(const Box3f& centroids, int bin_count) : origin(centroids.lo), bins(bin_count) {
+            for (int axis = 0; axis < 3; ++axis) {
+                const float extent = centroids.hi[axis] - centroids.lo[axis];
+                scale[axis] = extent > 0.0f ? static_cast<float>(bin_count) / extent : 0.0f;
+            }
+        }
+        [[nodiscard]] int bin(Vec3f centroid, int axis) const {
+            const float scaled = (centroid[axis] - origin[axis]) * scale[axis];
+            return std::clamp(static_cast<int>(scaled), 0, bins - 1);
+        }
+    };
 
     std::pair<Box3f, Box3f> bounds_of(std::size_t begin, std::size_t end) const {
         auto accumulate = [this](std::size_t from, std::size_t to, std::pair<Box3f, Box3f> acc) {
@@ -359,14 +426,20 @@ class BinnedBuilder {
         return accumulate(begin, end, {});
     }
 
-    Bins bin(std::size_t begin, std::size_t end, const Box3f& centroids) const {
+    Bins bin(std::size_t begin, std::size_t end, const BinMap& map, const Box3f& centroids) const {
+        std::array<bool, 3> splittable{};
+        for (int axis = 0; axis < 3; ++axis)
+            splittable[static_cast<std::size_t>(axis)] = centroids.hi[axis] > centroids.lo[axis];
         auto fill = [&](std::size_t from, std::size_t to, Bins& bins) {
             for (std::size_t i = from; i < to; ++i) {
-                for (int axis = 0; axis < 3; ++axis) {
-                    if (!(centroids.hi[axis] > centroids.lo[axis])) continue;
-                    const auto b = static_cast<std::size_t>(bin_of(refs_[i].centroid, axis, centroids));
-                    bins.boxes[static_cast<std::size_t>(axis)][b].extend(refs_[i].bounds);
-                    ++bins.counts[static_cast<std::size_t>(axis)][b];
+                const BuildRef& ref = refs_[i];
+                const std::array<float, 4> lo{ref.bounds.lo.x, ref.bounds.lo.y, ref.bounds.lo.z, 0.0f};
+                const std::array<float, 4> hi{ref.bounds.hi.x, ref.bounds.hi.y, ref.bounds.hi.z, 0.0f};
+                for (std::size_t axis = 0; axis < 3; ++axis) {
+                    if (!splittable[axis]) continue;
+                    const auto b = static_cast<std::size_t>(map.bin(ref.centroid, static_cast<int>(axis)));
+                    bins.boxes[axis][b].extend(lo, hi);
+                    ++bins.counts[axis][b];
                 }
             }
         };
@@ -378,8 +451,8 @@ class BinnedBuilder {
                     fill(r.begin(), r.end(), bins);
                     return bins;
                 },
-                [](Bins a, const Bins& b) {
-                    a.merge(b);
+                [this](Bins a, const Bins& b) {
+                    a.merge(b, bins_);
                     return a;
                 });
         }
@@ -389,8 +462,8 @@ class BinnedBuilder {
         return bins;
     }
 
-    Split best_split(std::size_t begin, std::size_t end, const Box3f& centroids) const {
-        const Bins bins = bin(begin, end, centroids);
+    Split best_split(std::size_t begin, std::size_t end, const BinMap& map, const Box3f& centroids) const {
+        const Bins bins = bin(begin, end, map, centroids);
         Split best;
         std::array<float, kMaxBins> right_costs{};
         for (int axis = 0; axis < 3; ++axis) {
@@ -400,7 +473,7 @@ class BinnedBuilder {
             Box3f right;
             std::uint32_t right_count = 0;
             for (int b = bins_ - 1; b > 0; --b) {
-                right.extend(boxes[static_cast<std::size_t>(b)]);
+                right.extend(boxes[static_cast<std::size_t>(b)].box());
                 right_count += counts[static_cast<std::size_t>(b)];
                 right_costs[static_cast<std::size_t>(b)] =
                     right.surface_area() * static_cast<float>(right_count);
@@ -408,7 +481,7 @@ class BinnedBuilder {
             Box3f left;
             std::uint32_t left_count = 0;
             for (int b = 1; b < bins_; ++b) {
-                left.extend(boxes[static_cast<std::size_t>(b - 1)]);
+                left.extend(boxes[static_cast<std::size_t>(b - 1)].box());
                 left_count += counts[static_cast<std::size_t>(b - 1)];
                 if (left_count == 0 || left_count == end - begin) continue;
                 const float cost = left.surface_area() * static_cast<float>(left_count) +
