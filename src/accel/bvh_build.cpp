@@ -2,10 +2,16 @@
 
 #include <algorithm>
 #include <array>
+#include <cstddef>
 #include <limits>
 #include <numeric>
+#include <tuple>
 
 #include "accel/build_util.hpp"
+
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 #if LANCER_HAS_TBB
 #include <tbb/blocked_range.h>
@@ -229,11 +235,16 @@ class SweepBuilder {
 // boxes), so the result does not depend on the thread count.
 class BinnedBuilder {
   public:
+    // A node's reference boxes' bounds and its centroids' bounds.
+    using NodeBounds = std::pair<Box3f, Box3f>;
+
     BinnedBuilder(std::vector<BuildRef>& refs, const BvhOptions& options)
         : refs_(refs), max_leaf_(leaf_size_limit(options)), bins_(std::clamp(options.bins, 2, kMaxBins)) {}
 
-    void build(NodeSlots& slots, std::size_t slot, std::size_t begin, std::size_t end, int depth) {
-        const auto [bounds, centroids] = bounds_of(begin, end);
+    // The node over refs_[begin, end), whose reference boxes and centroids `node` bounds.
+    void build(NodeSlots& slots, std::size_t slot, std::size_t begin, std::size_t end, int depth,
+               const NodeBounds& node) {
+        const auto& [bounds, centroids] = node;
         const std::size_t count = end - begin;
         const bool exact = count <= kExactSplitBelow;
         const BinMap map(centroids, bins_);
@@ -246,42 +257,47 @@ class BinnedBuilder {
             return;
         }
         std::size_t middle;
+        NodeBounds left, right;
         if (split.axis >= 0 && !exact) {
-            const auto first_right = std::partition(
-                refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                refs_.begin() + static_cast<std::ptrdiff_t>(end),
-                [&](const BuildRef& ref) { return map.bin(ref.centroid, split.axis) < split.bin; });
-            middle = static_cast<std::size_t>(first_right - refs_.begin());
-        } else if (split.axis >= 0) {
-            // The exact split's order on its axis.
-            std::array<BuildRef, kExactSplitBelow> node_refs;
-            std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                      refs_.begin() + static_cast<std::ptrdiff_t>(end), node_refs.begin());
-            for (std::size_t i = 0; i < count; ++i)
-                refs_[begin + i] = node_refs[exact_order[i]];
-            middle = begin + split.left_count;
+            std::tie(middle, left, right) = partition(begin, end, map, split);
         } else {
-            // An object median when nothing separates the centroids.
-            split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
+            if (split.axis >= 0) {
+                // The exact split's order on its axis.
+                std::array<BuildRef, kExactSplitBelow> node_refs;
+                std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                          refs_.begin() + static_cast<std::ptrdiff_t>(end), node_refs.begin());
+                for (std::size_t i = 0; i < count; ++i)
+                    refs_[begin + i] = node_refs[exact_order[i]];
+            } else {
+                // An object median when nothing separates the centroids.
+                split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
+                const int axis = split.axis;
+                std::nth_element(
+                    refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                    refs_.begin() + static_cast<std::ptrdiff_t>(begin + split.left_count),
+                    refs_.begin() + static_cast<std::ptrdiff_t>(end),
+                    [axis](const BuildRef& a, const BuildRef& b) { return centroid_less(a, b, axis); });
+            }
             middle = begin + split.left_count;
-            const int axis = split.axis;
-            std::nth_element(
-                refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                refs_.begin() + static_cast<std::ptrdiff_t>(middle),
-                refs_.begin() + static_cast<std::ptrdiff_t>(end),
-                [axis](const BuildRef& a, const BuildRef& b) { return centroid_less(a, b, axis); });
+            left = bounds_of(begin, middle), right = bounds_of(middle, end);
         }
         const auto [first, second] = slots.set_inner(slot, bounds, split.axis, middle - begin);
 #if LANCER_HAS_TBB
         if (count > kParallelSubtree) {
             // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
-            tbb::parallel_invoke([&, left = first] { build(slots, left, begin, middle, depth + 1); },
-                                 [&, right = second] { build(slots, right, middle, end, depth + 1); });
+            tbb::parallel_invoke(
+                [&, first_slot = first] { build(slots, first_slot, begin, middle, depth + 1, left); },
+                [&, second_slot = second] { build(slots, second_slot, middle, end, depth + 1, right); });
             return;
         }
 #endif
-        build(slots, first, begin, middle, depth + 1);
-        build(slots, second, middle, end, depth + 1);
+        build(slots, first, begin, middle, depth + 1, left);
+        build(slots, second, middle, end, depth + 1, right);
+    }
+
+    // The whole reference array's node.
+    void build(NodeSlots& slots) {
+        build(slots, 0, 0, refs_.size(), 0, bounds_of(0, refs_.size()));
     }
 
   private:
@@ -308,8 +324,7 @@ class BinnedBuilder {
         prims.fill(std::numeric_limits<std::uint32_t>::max());
         for (std::size_t i = 0; i < count; ++i) {
             const BuildRef& ref = refs_[begin + i];
-            boxes[i].lo = {ref.bounds.lo.x, ref.bounds.lo.y, ref.bounds.lo.z, 0.0f};
-            boxes[i].hi = {ref.bounds.hi.x, ref.bounds.hi.y, ref.bounds.hi.z, 0.0f};
+            boxes[i] = BinBox::of(ref);
             prims[i] = ref.prim;
         }
         ExactOrder order;
@@ -331,13 +346,13 @@ class BinnedBuilder {
             }
             BinBox right;
             for (std::size_t i = count - 1; i > 0; --i) {
-                right.extend(boxes[order[i]].lo, boxes[order[i]].hi);
+                right.extend(boxes[order[i]]);
                 right_areas[i] = right.box().surface_area();
             }
             BinBox left;
             bool improved = false;
             for (std::size_t i = 0; i + 1 < count; ++i) {
-                left.extend(boxes[order[i]].lo, boxes[order[i]].hi);
+                left.extend(boxes[order[i]]);
                 if (keys[order[i]] == keys[order[i + 1]]) continue;
                 const float cost = left.box().surface_area() * static_cast<float>(i + 1) +
                                    right_areas[i + 1] * static_cast<float>(count - i - 1);
@@ -351,18 +366,47 @@ class BinnedBuilder {
 
     // A box as two 4-float rows (the fourth lane unused), so that extending one is one vector min and one
     // vector max: binning extends a bin's box three times per reference, and that was half the build.
-    struct alignas(16) BinBox {
-        std::array<float, 4> lo{kInfinity, kInfinity, kInfinity, kInfinity};
-        std::array<float, 4> hi{-kInfinity, -kInfinity, -kInfinity, -kInfinity};
+    struct BinBox {
+#if defined(__SSE2__)
+        __m128 lo = _mm_set1_ps(kInfinity);
+        __m128 hi = _mm_set1_ps(-kInfinity);
 
-        // The operand order of minps / maxps, which GCC then uses.
-        void extend(const std::array<float, 4>& other_lo, const std::array<float, 4>& other_hi) {
-            for (std::size_t k = 0; k < 4; ++k) {
-                lo[k] = other_lo[k] < lo[k] ? other_lo[k] : lo[k];
-                hi[k] = other_hi[k] > hi[k] ? other_hi[k] : hi[k];
-            }
+        // A reference's box: the loads read lo.xyz and hi.x, then hi.xyz and centroid.x, all inside the
+        // BuildRef; the fourth lane is never read back.
+        [[nodiscard]] static BinBox of(const BuildRef& ref) {
+            static_assert(offsetof(BuildRef, bounds) == 0 && offsetof(BuildRef, centroid) == sizeof(Box3f));
+            return {_mm_loadu_ps(&ref.bounds.lo.x), _mm_loadu_ps(&ref.bounds.hi.x)};
         }
-        [[nodiscard]] Box3f box() const { return {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}; }
+        // A centroid: the load reads x, y, z and the BuildRef's next field.
+        [[nodiscard]] static BinBox of_point(const Vec3f& centroid) {
+            static_assert(offsetof(BuildRef, prim) == offsetof(BuildRef, centroid) + sizeof(Vec3f));
+            const __m128 point = _mm_loadu_ps(&centroid.x);
+            return {point, point};
+        }
+        void extend(const BinBox& other) {
+            lo = _mm_min_ps(other.lo, lo), hi = _mm_max_ps(other.hi, hi);
+        }
+        [[nodiscard]] Box3f box() const {
+            alignas(16) float low[4], high[4];
+            _mm_store_ps(low, lo), _mm_store_ps(high, hi);
+            return {{low[0], low[1], low[2]}, {high[0], high[1], high[2]}};
+        }
+#else
+        Box3f bounds;
+
+        [[nodiscard]] static BinBox of(const BuildRef& ref) {
+            return {ref.bounds};
+        }
+        [[nodiscard]] static BinBox of_point(const Vec3f& centroid) {
+            return {{centroid, centroid}};
+        }
+        void extend(const BinBox& other) {
+            bounds.extend(other.bounds);
+        }
+        [[nodiscard]] Box3f box() const {
+            return bounds;
+        }
+#endif
     };
 
     // Per axis, each bin's box and reference count; the first bins_ entries are used.
@@ -379,7 +423,7 @@ class BinnedBuilder {
         void merge(const Bins& other, int bin_count) {
             for (std::size_t axis = 0; axis < 3; ++axis) {
                 for (std::size_t b = 0; b < static_cast<std::size_t>(bin_count); ++b) {
-                    boxes[axis][b].extend(other.boxes[axis][b].lo, other.boxes[axis][b].hi);
+                    boxes[axis][b].extend(other.boxes[axis][b]);
                     counts[axis][b] += other.counts[axis][b];
                 }
             }
@@ -404,8 +448,32 @@ class BinnedBuilder {
         }
     };
 
-    std::pair<Box3f, Box3f> bounds_of(std::size_t begin, std::size_t end) const {
-        auto accumulate = [this](std::size_t from, std::size_t to, std::pair<Box3f, Box3f> acc) {
+    // Two-pointer partition by the split's bin, which accumulates both sides' boxes and centroid bounds on
+    // the way: the children's NodeBounds without another pass over their references.
+    std::tuple<std::size_t, NodeBounds, NodeBounds> partition(std::size_t begin, std::size_t end,
+                                                              const BinMap& map, const Split& split) {
+        BinBox left_boxes, right_boxes, left_centroids, right_centroids;
+        auto goes_left = [&](const BuildRef& ref) { return map.bin(ref.centroid, split.axis) < split.bin; };
+        auto add = [](BinBox& boxes, BinBox& centroids, const BuildRef& ref) {
+            boxes.extend(BinBox::of(ref));
+            centroids.extend(BinBox::of_point(ref.centroid));
+        };
+        std::size_t i = begin, j = end;
+        while (true) {
+            for (; i < j && goes_left(refs_[i]); ++i)
+                add(left_boxes, left_centroids, refs_[i]);
+            for (; i < j && !goes_left(refs_[j - 1]); --j)
+                add(right_boxes, right_centroids, refs_[j - 1]);
+            if (i >= j) break;
+            std::swap(refs_[i], refs_[j - 1]);
+            add(left_boxes, left_centroids, refs_[i++]);
+            add(right_boxes, right_centroids, refs_[--j]);
+        }
+        return {i, {left_boxes.box(), left_centroids.box()}, {right_boxes.box(), right_centroids.box()}};
+    }
+
+    NodeBounds bounds_of(std::size_t begin, std::size_t end) const {
+        auto accumulate = [this](std::size_t from, std::size_t to, NodeBounds acc) {
             for (std::size_t i = from; i < to; ++i)
                 acc.first.extend(refs_[i].bounds), acc.second.extend(refs_[i].centroid);
             return acc;
@@ -413,11 +481,11 @@ class BinnedBuilder {
 #if LANCER_HAS_TBB
         if (end - begin > kParallelBinning) {
             return tbb::parallel_reduce(
-                tbb::blocked_range<std::size_t>(begin, end), std::pair<Box3f, Box3f>{},
-                [&](const tbb::blocked_range<std::size_t>& r, std::pair<Box3f, Box3f> acc) {
+                tbb::blocked_range<std::size_t>(begin, end), NodeBounds{},
+                [&](const tbb::blocked_range<std::size_t>& r, NodeBounds acc) {
                     return accumulate(r.begin(), r.end(), acc);
                 },
-                [](std::pair<Box3f, Box3f> a, const std::pair<Box3f, Box3f>& b) {
+                [](NodeBounds a, const NodeBounds& b) {
                     a.first.extend(b.first), a.second.extend(b.second);
                     return a;
                 });
@@ -433,12 +501,11 @@ class BinnedBuilder {
         auto fill = [&](std::size_t from, std::size_t to, Bins& bins) {
             for (std::size_t i = from; i < to; ++i) {
                 const BuildRef& ref = refs_[i];
-                const std::array<float, 4> lo{ref.bounds.lo.x, ref.bounds.lo.y, ref.bounds.lo.z, 0.0f};
-                const std::array<float, 4> hi{ref.bounds.hi.x, ref.bounds.hi.y, ref.bounds.hi.z, 0.0f};
+                const BinBox box = BinBox::of(ref);
                 for (std::size_t axis = 0; axis < 3; ++axis) {
                     if (!splittable[axis]) continue;
                     const auto b = static_cast<std::size_t>(map.bin(ref.centroid, static_cast<int>(axis)));
-                    bins.boxes[axis][b].extend(lo, hi);
+                    bins.boxes[axis][b].extend(box);
                     ++bins.counts[axis][b];
                 }
             }
@@ -510,7 +577,7 @@ BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
         result.prim_indices = builder.prim_indices();
     } else {
         BinnedBuilder builder(refs, options);
-        builder.build(slots, 0, 0, refs.size(), 0);
+        builder.build(slots);
         result.prim_indices.resize(refs.size());
         for (std::size_t i = 0; i < refs.size(); ++i)
             result.prim_indices[i] = refs[i].prim;
