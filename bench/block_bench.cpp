@@ -1,4 +1,4 @@
-// The triangle block kernels of the wide BVH (src/accel/triangle_block.hpp) against the scalar loop they
+// The triangle block kernels of the wide BVH (src/accel/bvh/triangle_block.hpp) against the scalar loop they
 // replace, and the wide BVHs beside Embree on the canonical view of the Stanford meshes. Google Benchmark
 // reports CPU time, which a machine shared with other work disturbs less than the wall clock of `lancer
 // bench`.
@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "accel/triangle_block.hpp"
+#include "accel/bvh/triangle_block.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/io.hpp"

@@ -9,7 +9,7 @@
 #include <random>
 #include <vector>
 
-#include "accel/bvh.hpp"
+#include "accel/bvh/bvh.hpp"
 #include "accel/kdtree.hpp"
 #include "accel/octree.hpp"
 #include "accel/plucker/plucker.hpp"
@@ -216,7 +216,7 @@ void BM_PluckerLeafStep(benchmark::State& state) {
 }
 BENCHMARK(BM_PluckerLeafStep)->Name("step/plucker_leaf_to_leaf");
 
-// One BVH inner node step (bvh.cpp's traverse): the slab tests of both children and the near-first order,
+// One BVH inner node step (bvh/bvh.cpp's traverse): the slab tests of both children and the near-first order,
 // on random (inner node, ray) pairs.
 void BM_BvhInnerStep(benchmark::State& state) {
     const Walks& scene = walks();

@@ -2,6 +2,7 @@
 // once-per-batch dispatch of the policies that shape the hot loop (style habit 2).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 
@@ -102,6 +103,27 @@ void occluded_each(TriangleTest test, std::span<const Ray> rays, std::span<std::
             *counters += counts;
         }
     });
+}
+
+// The packet loop of the packet structures: the batch cut into packets of kPacketSize consecutive rays.
+// trace_packet(packet_rays, packet_answers) traces one and returns false when its rays cannot go together;
+// `single`, the structure's single-ray sibling, then answers them one at a time. Answer: Hit (closest hit)
+// or std::uint8_t (occlusion, kAnyHit).
+template <std::size_t kPacketSize, bool kAnyHit, bool kCount, class Answer, class TracePacket>
+void for_each_packet(std::span<const Ray> rays, std::span<Answer> answers, const Accel& single,
+                     TraversalCounters& counts, TracePacket&& trace_packet) {
+    for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
+        const std::size_t count = std::min(kPacketSize, rays.size() - first);
+        const std::span<const Ray> packet_rays = rays.subspan(first, count);
+        const std::span<Answer> packet_answers = answers.subspan(first, count);
+        if (trace_packet(packet_rays, packet_answers)) {
+            if constexpr (kCount) counts.rays += count;
+        } else if constexpr (kAnyHit) {
+            single.occluded(packet_rays, packet_answers, kCount ? &counts : nullptr);
+        } else {
+            single.intersect(packet_rays, packet_answers, kCount ? &counts : nullptr);
+        }
+    }
 }
 
 }  // namespace lancer

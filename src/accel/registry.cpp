@@ -4,10 +4,10 @@
 #include <string>
 
 #include "accel/brute.hpp"
-#include "accel/bvh.hpp"
-#include "accel/bvh_packet.hpp"
-#include "accel/bvh_wide.hpp"
-#include "accel/bvh_wide_packet.hpp"
+#include "accel/bvh/bvh.hpp"
+#include "accel/bvh/packet.hpp"
+#include "accel/bvh/wide.hpp"
+#include "accel/bvh/wide_packet.hpp"
 #if LANCER_HAS_EMBREE
 #include "accel/embree.hpp"
 #endif

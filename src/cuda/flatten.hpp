@@ -5,7 +5,7 @@
 
 #include <vector>
 
-#include "accel/bvh.hpp"
+#include "accel/bvh/bvh.hpp"
 #include "accel/plucker/layout.hpp"
 #include "cuda/gpu_layout.hpp"
 #include "lancer/scene.hpp"

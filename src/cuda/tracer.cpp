@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "accel/bvh.hpp"
+#include "accel/bvh/bvh.hpp"
 #include "accel/plucker/plucker.hpp"
 #include "core/ray_conditioning.hpp"
 #include "cuda/cuda_check.hpp"

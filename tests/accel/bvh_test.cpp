@@ -1,6 +1,6 @@
 // The binary BVH: structural invariants of both builders, SAH optimality of the sweep at the root,
 // determinism whatever the thread count, bounded depth on degenerate input.
-#include "accel/bvh.hpp"
+#include "accel/bvh/bvh.hpp"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -11,7 +11,7 @@
 
 #include "accel/agreement.hpp"
 #include "accel/build_util.hpp"
-#include "accel/bvh_build.hpp"
+#include "accel/bvh/build.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
 #include "test_scenes.hpp"

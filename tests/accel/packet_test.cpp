@@ -13,7 +13,7 @@
 
 #include "accel/agreement.hpp"
 #include "accel/brute.hpp"
-#include "accel/bvh_wide_packet.hpp"
+#include "accel/bvh/wide_packet.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"

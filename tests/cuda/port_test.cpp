@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <random>
 
-#include "accel/bvh.hpp"
+#include "accel/bvh/bvh.hpp"
 #include "accel/plucker/plucker.hpp"
 #include "accel/ray_sets.hpp"
 #include "accel/test_scenes.hpp"

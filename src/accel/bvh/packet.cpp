@@ -1,4 +1,4 @@
-#include "accel/bvh_packet.hpp"
+#include "accel/bvh/packet.hpp"
 
 #include <algorithm>
 #include <array>
@@ -6,7 +6,7 @@
 #include <cmath>
 #include <vector>
 
-#include "accel/bvh_wide.hpp"
+#include "accel/bvh/wide.hpp"
 #include "accel/primitive_test.hpp"
 #include "accel/simd_float.hpp"
 
@@ -14,6 +14,7 @@ namespace lancer {
 namespace {
 
 constexpr int kPacketSize = BvhPacketAccel::kPacketSize;
+constexpr auto kPacketRays = static_cast<std::size_t>(kPacketSize);
 using LaneMask = std::uint64_t;  // bit i: ray i of the packet
 static_assert(kPacketSize <= 64 && kPacketSize % 8 == 0);
 
@@ -31,26 +32,18 @@ struct PacketSlabs {
 // slab is then the same face for every lane, and min/max of the two plane distances become a choice made
 // once. The NaN of a zero direction component on a face's plane (0 * inf) leaves the interval unchanged,
 // because max_ps / min_ps return their second operand, the interval, when either is NaN: the unbounded slab
-// of intersect_box (the same argument as bvh_wide.hpp's intersect_children_simd, whose operations these are).
+// of intersect_box (the same argument as wide.hpp's intersect_children_simd, whose operations these are).
 template <class Ops>
 [[nodiscard]] unsigned box_lanes(const PacketSlabs& slabs, const BvhNode& node, int first) {
     auto t0 = Ops::load(&slabs.tnear[static_cast<std::size_t>(first)]);
     auto t1 = Ops::load(&slabs.tlimit[static_cast<std::size_t>(first)]);
-    // widened_slab_exit lane by lane: the factor chosen by the exit distance's sign.
-    const auto grow = Ops::broadcast(kSlabExitGrow), shrink = Ops::broadcast(kSlabExitShrink);
-    const auto zero = Ops::broadcast(0.0f);
     for (std::size_t axis = 0; axis < 3; ++axis) {
         const int a = static_cast<int>(axis);
         const float near_bound = slabs.negative[axis] ? node.hi[a] : node.lo[a];
         const float far_bound = slabs.negative[axis] ? node.lo[a] : node.hi[a];
-        const auto origin = Ops::load(&slabs.origin[axis][static_cast<std::size_t>(first)]);
-        const auto inv_direction = Ops::load(&slabs.inv_direction[axis][static_cast<std::size_t>(first)]);
-        const auto near_plane = Ops::mul(Ops::sub(Ops::broadcast(near_bound), origin), inv_direction);
-        const auto far_distance = Ops::mul(Ops::sub(Ops::broadcast(far_bound), origin), inv_direction);
-        const auto far_plane =
-            Ops::mul(far_distance, Ops::select_if_greater(far_distance, zero, grow, shrink));
-        t0 = Ops::max(near_plane, t0);
-        t1 = Ops::min(far_plane, t1);
+        clip_slab<Ops>(Ops::broadcast(near_bound), Ops::broadcast(far_bound),
+                       Ops::load(&slabs.origin[axis][static_cast<std::size_t>(first)]),
+                       Ops::load(&slabs.inv_direction[axis][static_cast<std::size_t>(first)]), t0, t1);
     }
     return Ops::bits(Ops::less_equal(t0, t1));
 }
@@ -62,6 +55,7 @@ constexpr int kLaneWidth = 8;
 #else
 // One lane, with the SIMD instructions' NaN rules (second operand when either is NaN).
 struct ScalarLane {
+    using Float = float;
     static float broadcast(float x) { return x; }
     static float load(const float* p) { return *p; }
     static float sub(float a, float b) { return a - b; }
@@ -204,20 +198,14 @@ void trace_batch(const BvhAccel& bvh, const Geometry& geometry, TriangleTest tes
     dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
         PacketTracer<TriangleTestT> tracer(bvh, geometry);
-        for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
-            const std::size_t count = std::min<std::size_t>(kPacketSize, rays.size() - first);
-            const std::span<const Ray> packet_rays = rays.subspan(first, count);
-            const std::span<Answer> packet_answers = answers.subspan(first, count);
-            if (tracer.load(packet_rays)) {
+        for_each_packet<kPacketRays, kAnyHit, kCount>(
+            rays, answers, bvh, counts,
+            [&](std::span<const Ray> packet_rays, std::span<Answer> packet_answers) {
+                if (!tracer.load(packet_rays)) return false;
                 std::fill(packet_answers.begin(), packet_answers.end(), Answer{});
                 tracer.template trace<kAnyHit, kCount>(packet_answers, counts);
-                if constexpr (kCount) counts.rays += count;
-            } else if constexpr (kAnyHit) {
-                bvh.occluded(packet_rays, packet_answers, kCount ? &counts : nullptr);
-            } else {
-                bvh.intersect(packet_rays, packet_answers, kCount ? &counts : nullptr);
-            }
-        }
+                return true;
+            });
         if constexpr (kCount) *counters += counts;
     });
 }

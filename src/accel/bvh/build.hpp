@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "accel/bvh.hpp"
+#include "accel/bvh/bvh.hpp"
 
 namespace lancer {
 

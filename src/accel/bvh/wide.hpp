@@ -9,9 +9,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "accel/bvh.hpp"
+#include "accel/bvh/bvh.hpp"
+#include "accel/bvh/triangle_block.hpp"
 #include "accel/simd_float.hpp"
-#include "accel/triangle_block.hpp"
 #include "core/intersect.hpp"
 
 namespace lancer {
@@ -92,32 +92,38 @@ template <int W>
     return mask;
 }
 
+// One slab of the box test on Ops::kWidth lanes: [t0, t1] clipped by the distances to the planes at
+// near_bound and far_bound, the far one widened (widened_slab_exit, lane by lane: the factor chosen by the
+// distance's sign). _mm*_max_ps(a, b) and _mm*_min_ps(a, b) return b when either is NaN: with the plane
+// distance first, a NaN plane (0 * inf) leaves the interval as it is, as in intersect_children_scalar. The
+// wide BVH's child test, the binary BVH's packets and bvh8_packet's groups all take their slabs here.
+template <class Ops>
+inline void clip_slab(typename Ops::Float near_bound, typename Ops::Float far_bound,
+                      typename Ops::Float origin, typename Ops::Float inv_direction, typename Ops::Float& t0,
+                      typename Ops::Float& t1) {
+    const auto near_plane = Ops::mul(Ops::sub(near_bound, origin), inv_direction);
+    const auto far_distance = Ops::mul(Ops::sub(far_bound, origin), inv_direction);
+    const auto far_plane = Ops::mul(
+        far_distance, Ops::select_if_greater(far_distance, Ops::broadcast(0.0f),
+                                             Ops::broadcast(kSlabExitGrow), Ops::broadcast(kSlabExitShrink)));
+    t0 = Ops::max(near_plane, t0);
+    t1 = Ops::min(far_plane, t1);
+}
+
 #if defined(__AVX2__) || defined(__SSE4_1__)
 namespace wide_detail {
 
-// _mm*_max_ps(a, b) returns b when either is NaN and _mm*_min_ps(a, b) likewise: with the plane distance
-// first, a NaN plane leaves the interval unchanged, as in intersect_children_scalar.
 template <class Ops>
 [[nodiscard]] inline unsigned intersect_children_simd(const float* lo_hi, const WideRay& ray, float tnear,
                                                       float tfar, float* entry) {
     using Float = typename Ops::Float;
     constexpr int width = Ops::kWidth;
     Float t0 = Ops::broadcast(tnear), t1 = Ops::broadcast(tfar);
-    // widened_slab_exit, lane by lane: the factor chosen by the distance's sign.
-    const Float grow = Ops::broadcast(kSlabExitGrow), shrink = Ops::broadcast(kSlabExitShrink);
-    const Float zero = Ops::broadcast(0.0f);
     for (int axis = 0; axis < 3; ++axis) {
         const int side = ray.entry_side[axis];
-        const Float origin = Ops::broadcast(ray.origin[axis]);
-        const Float inv_direction = Ops::broadcast(ray.inv_direction[axis]);
-        const Float near_plane =
-            Ops::mul(Ops::sub(Ops::load(lo_hi + (side * 3 + axis) * width), origin), inv_direction);
-        const Float far_distance =
-            Ops::mul(Ops::sub(Ops::load(lo_hi + ((1 - side) * 3 + axis) * width), origin), inv_direction);
-        const Float far_plane =
-            Ops::mul(far_distance, Ops::select_if_greater(far_distance, zero, grow, shrink));
-        t0 = Ops::max(near_plane, t0);
-        t1 = Ops::min(far_plane, t1);
+        clip_slab<Ops>(Ops::load(lo_hi + (side * 3 + axis) * width),
+                       Ops::load(lo_hi + ((1 - side) * 3 + axis) * width), Ops::broadcast(ray.origin[axis]),
+                       Ops::broadcast(ray.inv_direction[axis]), t0, t1);
     }
     Ops::store(entry, t0);
     return Ops::bits(Ops::less_equal(t0, t1));

@@ -12,7 +12,7 @@
 
 #include <cstdint>
 
-#include "accel/bvh_wide.hpp"
+#include "accel/bvh/wide.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {

@@ -1,4 +1,4 @@
-#include "accel/bvh_wide_packet.hpp"
+#include "accel/bvh/wide_packet.hpp"
 
 #include <algorithm>
 #include <array>
@@ -10,9 +10,9 @@
 #include <string>
 #include <type_traits>
 
+#include "accel/bvh/triangle_block.hpp"
 #include "accel/primitive_test.hpp"
 #include "accel/simd_float.hpp"
-#include "accel/triangle_block.hpp"
 
 namespace lancer {
 
@@ -143,8 +143,6 @@ template <class Ops>
                                   int slot, LaneMask rays) {
     constexpr int lanes = Ops::kWidth;
     constexpr LaneMask kGroup = (LaneMask{1} << lanes) - 1;
-    const auto zero = Ops::broadcast(0.0f);
-    const auto grow = Ops::broadcast(kSlabExitGrow), shrink = Ops::broadcast(kSlabExitShrink);
     typename Ops::Float near_bound[3], far_bound[3];
     for (std::size_t axis = 0; axis < 3; ++axis) {
         const int side = interval.near_side[axis];
@@ -158,14 +156,8 @@ template <class Ops>
         auto t0 = Ops::load(&packet.tnear[first]);
         auto t1 = Ops::load(&packet.tlimit[first]);
         for (std::size_t axis = 0; axis < 3; ++axis) {
-            const auto origin = Ops::load(&packet.origin[axis][first]);
-            const auto inv_direction = Ops::load(&packet.inv_direction[axis][first]);
-            const auto near_plane = Ops::mul(Ops::sub(near_bound[axis], origin), inv_direction);
-            const auto far_distance = Ops::mul(Ops::sub(far_bound[axis], origin), inv_direction);
-            const auto far_plane =
-                Ops::mul(far_distance, Ops::select_if_greater(far_distance, zero, grow, shrink));
-            t0 = Ops::max(near_plane, t0);
-            t1 = Ops::min(far_plane, t1);
+            clip_slab<Ops>(near_bound[axis], far_bound[axis], Ops::load(&packet.origin[axis][first]),
+                           Ops::load(&packet.inv_direction[axis][first]), t0, t1);
         }
         result |= (static_cast<LaneMask>(Ops::bits(Ops::less_equal(t0, t1))) & group) << first;
     }
@@ -655,11 +647,10 @@ void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest te
     dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
         PacketTracer<Ops, TriangleTestT> tracer(bvh, geometry);
-        for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
-            const std::size_t count = std::min<std::size_t>(kPacketSize, rays.size() - first);
-            const std::span<const Ray> packet_rays = rays.subspan(first, count);
-            const std::span<Answer> packet_answers = answers.subspan(first, count);
-            if (tracer.load(packet_rays)) {
+        for_each_packet<static_cast<std::size_t>(kPacketSize), kAnyHit, kCount>(
+            rays, answers, bvh, counts,
+            [&](std::span<const Ray> packet_rays, std::span<Answer> packet_answers) {
+                if (!tracer.load(packet_rays)) return false;
                 if constexpr (kAnyHit) {
                     std::fill(packet_answers.begin(), packet_answers.end(), Answer{});
                     tracer.template trace<true, kCount>(packet_answers, counts);
@@ -667,13 +658,8 @@ void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest te
                     tracer.template trace<false, kCount>(packet_answers, counts);
                     tracer.store_hits(packet_answers);
                 }
-                if constexpr (kCount) counts.rays += count;
-            } else if constexpr (kAnyHit) {
-                bvh.occluded(packet_rays, packet_answers, kCount ? &counts : nullptr);
-            } else {
-                bvh.intersect(packet_rays, packet_answers, kCount ? &counts : nullptr);
-            }
-        }
+                return true;
+            });
         if constexpr (kCount) *counters += counts;
     });
 }

@@ -9,7 +9,7 @@
 
 #include <cstdint>
 
-#include "accel/bvh.hpp"
+#include "accel/bvh/bvh.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {

@@ -1,11 +1,11 @@
-#include "accel/bvh_wide.hpp"
+#include "accel/bvh/wide.hpp"
 
 #include <algorithm>
 #include <array>
 #include <bit>
 #include <chrono>
 
-#include "accel/bvh_build.hpp"
+#include "accel/bvh/build.hpp"
 #include "accel/primitive_test.hpp"
 
 namespace lancer {

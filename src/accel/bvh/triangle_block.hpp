@@ -126,7 +126,7 @@ struct LaneHits {
 };
 
 // MollerTrumbore::intersect on every lane: lane i tests ray i against triangle i. The triangle-SIMD block
-// test broadcasts one ray against a block's triangles; the packet test (bvh_wide_packet.cpp) broadcasts one
+// test broadcasts one ray against a block's triangles; the packet test (wide_packet.cpp) broadcasts one
 // triangle against a packet's rays: both call this, so that one source holds the kernel. A lane that
 // passes the widened float u and v tests but is grazing or within their error bound of an edge is left to
 // the scalar kernel, which decides it in double.

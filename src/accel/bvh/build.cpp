@@ -1,4 +1,4 @@
-#include "accel/bvh_build.hpp"
+#include "accel/bvh/build.hpp"
 
 #include <algorithm>
 #include <array>

@@ -1,9 +1,9 @@
-#include "accel/bvh.hpp"
+#include "accel/bvh/bvh.hpp"
 
 #include <array>
 #include <chrono>
 
-#include "accel/bvh_build.hpp"
+#include "accel/bvh/build.hpp"
 #include "accel/primitive_test.hpp"
 
 namespace lancer {
