@@ -259,6 +259,20 @@ TEST_P(PacketTest, CountersSeeEveryRayOfEveryPacket) {
         ASSERT_EQ(hits[i].prim, counted[i].prim);
 }
 
+// bvh8_packet runs the widest kernels this build has, or the AVX2 ones beside AVX-512: nothing else.
+TEST(WidePacket, LaneCountsOtherThanTheBuildsAreRefused) {
+    const int widest = WidePacketAccel::widest_lane_count();
+    EXPECT_EQ(WidePacketAccel().lane_count(), widest);
+    EXPECT_NO_THROW(WidePacketAccel{widest});
+    for (int lanes : {0, 2, 4, 32, widest * 2})
+        EXPECT_THROW(WidePacketAccel{lanes}, std::invalid_argument) << lanes;
+    if (widest == 16) {
+        EXPECT_NO_THROW(WidePacketAccel{8});
+    } else {
+        EXPECT_THROW(WidePacketAccel{16}, std::invalid_argument);
+    }
+}
+
 INSTANTIATE_TEST_SUITE_P(Packets, PacketTest, ::testing::ValuesIn(pairs()),
                          [](const auto& param_info) { return param_info.param.label(); });
 

@@ -66,14 +66,14 @@ struct PacketInterval {
     float tnear_min;
 };
 
+using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per lane
+
 // The boxes (8, one per lane) that some ray of the packet may hit within [tnear_min, tlimit_max]: bit i set,
 // with entry[i] a lower bound of where any ray enters box i. Interval arithmetic on the slab test (Overbeck
-// et al. 2008, section 4.2): every plane distance fl(fl(b - o) * r) is monotone in o and in r, so the corner
+// et al. 2008): every plane distance fl(fl(b - o) * r) is monotone in o and in r, so the corner
 // of the intervals chosen by the signs of b - o and r bounds it over the packet, in the same fp32 operations.
 // The exit's widening (widened_slab_exit) is monotone too. A ray whose own test (box_groups) passes thus
 // always finds its child's bit set. Empty slots (lo = +inf, hi = -inf) enter at +inf and leave at -inf.
-using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per lane
-
 [[nodiscard]] unsigned cull_boxes(const Boxes& bounds, const PacketInterval& packet, float tlimit_max,
                                   float (&entry)[kWidth]) {
     using Ops = simd::Avx2;
@@ -687,13 +687,12 @@ int WidePacketAccel::widest_lane_count() {
 }
 
 WidePacketAccel::WidePacketAccel(int lane_count) : lane_count_(lane_count) {
-    if (lane_count != 8 && lane_count != 16 && lane_count != 1)
+    // The widest, or 8 (AVX2) where the widest is 16.
+    if (lane_count != widest_lane_count() && !(lane_count == 8 && widest_lane_count() == 16)) {
         throw std::invalid_argument("bvh8_packet: lane count " + std::to_string(lane_count) +
-                                    ": expected 8 or 16");
-    if (lane_count > widest_lane_count())
-        throw std::invalid_argument("bvh8_packet: lane count " + std::to_string(lane_count) +
-                                    " is wider than this build's widest, " +
-                                    std::to_string(widest_lane_count()));
+                                    ": this build runs " + std::to_string(widest_lane_count()) +
+                                    (widest_lane_count() == 16 ? " or 8" : ""));
+    }
 }
 
 void WidePacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {

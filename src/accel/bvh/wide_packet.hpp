@@ -23,8 +23,9 @@ class WidePacketAccel final : public Accel {
     static constexpr int kPacketSize = 64;
 
     // The rays per instruction of the packet's box and triangle tests: 16 (AVX-512) where the build targets
-    // it, else 8 (AVX2); a build without AVX2 traces every ray through bvh8. A smaller width than the widest
-    // may be asked for, so that the tests cover both kernels.
+    // it, else 8 (AVX2); 1 in a build without AVX2, which traces every ray through bvh8. Where the widest is
+    // 16, 8 may be asked for, so that the tests cover both kernels; any other count throws
+    // std::invalid_argument.
     static int widest_lane_count();
     explicit WidePacketAccel(int lane_count = widest_lane_count());
 
