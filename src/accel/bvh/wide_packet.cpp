@@ -219,7 +219,7 @@ class PacketTracer {
         Float tnear_min = infinity;
         std::array<LaneMask, 3> negative{};
         valid_ = 0;
-        group_intervals_ready_ = 0;
+        groups_ready_ = 0;
         code_lanes_ = {};
         for (int group = 0; group < kGroups; ++group) {
             const int first = group * kLanes;
@@ -260,13 +260,6 @@ class PacketTracer {
             tnear_min = Ops::min(lane_tnear, tnear_min);
             Ops::store(&packet_.tnear[first], lane_tnear);
             Ops::store(&packet_.tlimit[first], Ops::select(valid, tfar, minus_infinity));
-            if constexpr (kWatertight) {
-                load_watertight(group, origin, direction, valid_lanes);
-            } else {
-                const Float scale = Ops::max(Ops::abs(direction[0]),
-                                             Ops::max(Ops::abs(direction[1]), Ops::abs(direction[2])));
-                Ops::store(&packet_.direction_scale[first], scale);  // MollerTrumbore::RayData
-            }
         }
         for (std::size_t axis = 0; axis < 3; ++axis) {
             if (negative[axis] != 0 && negative[axis] != valid_) return false;
@@ -426,15 +419,26 @@ class PacketTracer {
         Ops::store(&packet_.u[first], best.u), Ops::store(&packet_.v[first], best.v);
     }
 
-    // The interval of group `group`'s valid rays, made at its first leaf (most packets reach none).
-    [[nodiscard]] const PacketInterval& group_interval(int group) {
+    // At group `group`'s first leaf: the interval of its valid rays and their triangle test's RayData. Most
+    // packets reach no leaf, so neither is made at loading.
+    [[nodiscard]] const PacketInterval& prepare_group(int group) {
         PacketInterval& interval = group_intervals_[static_cast<std::size_t>(group)];
-        if ((group_intervals_ready_ >> group) & 1u) return interval;
-        group_intervals_ready_ |= 1u << group;
+        if ((groups_ready_ >> group) & 1u) return interval;
+        groups_ready_ |= 1u << group;
         const int first = group * kLanes;
-        const auto valid =
-            Ops::mask_from_bits(static_cast<unsigned>(valid_ >> first) & static_cast<unsigned>(kGroup));
+        const unsigned valid_lanes = static_cast<unsigned>(valid_ >> first) & static_cast<unsigned>(kGroup);
+        const auto valid = Ops::mask_from_bits(valid_lanes);
         const Float infinity = Ops::broadcast(kInfinity), minus_infinity = Ops::broadcast(-kInfinity);
+        const Vec3v origins = load_vec<Ops>(packet_.origin, first);
+        const Vec3v directions = load_vec<Ops>(packet_.direction, first);
+        if constexpr (kWatertight) {
+            load_watertight(group, {origins.x, origins.y, origins.z},
+                            {directions.x, directions.y, directions.z}, valid_lanes);
+        } else {
+            const Float scale =
+                Ops::max(Ops::abs(directions.x), Ops::max(Ops::abs(directions.y), Ops::abs(directions.z)));
+            Ops::store(&packet_.direction_scale[first], scale);  // MollerTrumbore::RayData
+        }
         for (std::size_t axis = 0; axis < 3; ++axis) {
             const Float origin = Ops::load(&packet_.origin[axis][first]);
             const Float inv_direction = Ops::load(&packet_.inv_direction[axis][first]);
@@ -465,7 +469,7 @@ class PacketTracer {
             const auto active = static_cast<unsigned>((rays & alive_) >> (group * kLanes) & kGroup);
             if (active == 0) continue;
             // The group's own interval: its 16 (or 8) rays span a quarter of the packet's frustum.
-            const PacketInterval& interval = group_interval(group);
+            const PacketInterval& interval = prepare_group(group);
             std::array<unsigned, kMaxLeafBlocks> candidates;
             alignas(32) float entry[kWidth];
             unsigned any = 0;
@@ -632,7 +636,7 @@ class PacketTracer {
     PacketRays packet_;
     PacketInterval interval_;
     std::array<PacketInterval, kGroups> group_intervals_;
-    unsigned group_intervals_ready_ = 0;  // bit g: group_intervals_[g] is made
+    unsigned groups_ready_ = 0;  // bit g: prepare_group(g) has run
     // Per group of lanes, the lanes of each watertight axis permutation.
     std::array<std::array<unsigned, kPermutations>, kGroups> code_lanes_{};
     LaneMask valid_ = 0, alive_ = 0;
