@@ -197,8 +197,9 @@ class PacketTracer {
 
     // Loads rays.size() <= kPacketSize rays; false when the packet cannot be traced together: two valid rays
     // disagree on a direction sign, or a reciprocal direction is not finite (a zero or denormal component,
-    // whose NaN plane distances the interval cull does not bound). A group of rays at a time: is_valid,
-    // SlabRay and the triangle test's RayData lane by lane, in the same fp32 operations.
+    // whose NaN plane distances the interval cull does not bound). A group of rays at a time: is_valid and
+    // SlabRay lane by lane, in the same fp32 operations (the triangle test's RayData waits for a leaf:
+    // prepare_group).
     [[nodiscard]] bool load(std::span<const Ray> rays) {
         rays_ = rays;
         const Ray* source = rays.data();
