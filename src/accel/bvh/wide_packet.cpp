@@ -671,7 +671,7 @@ void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest te
 
 // Calls body.template operator()<Ops>() with the vector type of `lane_count` rays.
 template <class Body>
-void dispatch_lanes(int lane_count, Body&& body) {
+void dispatch_lanes([[maybe_unused]] int lane_count, Body&& body) {
 #if defined(__AVX512F__) && defined(__AVX512DQ__)
     if (lane_count == 16) return body.template operator()<simd::Avx512>();
 #endif
