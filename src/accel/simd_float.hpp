@@ -48,10 +48,6 @@ struct Sse4 {
     static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
         return _mm_blendv_ps(otherwise, if_greater, _mm_cmpgt_ps(a, b));
     }
-    // if_true where the mask is set, else if_false.
-    static Float select(Mask mask, Float if_true, Float if_false) {
-        return _mm_blendv_ps(if_false, if_true, mask);
-    }
     static Mask mask_and(Mask a, Mask b) { return _mm_and_ps(a, b); }
     static Mask mask_or(Mask a, Mask b) { return _mm_or_ps(a, b); }
     static unsigned bits(Mask a) { return static_cast<unsigned>(_mm_movemask_ps(a)); }
@@ -87,6 +83,7 @@ struct Avx2 {
     static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
         return _mm256_blendv_ps(otherwise, if_greater, _mm256_cmp_ps(a, b, _CMP_GT_OQ));
     }
+    // if_true where the mask is set, else if_false.
     static Float select(Mask mask, Float if_true, Float if_false) {
         return _mm256_blendv_ps(if_false, if_true, mask);
     }
