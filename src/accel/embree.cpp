@@ -16,6 +16,7 @@
 #include <type_traits>
 
 #include "accel/build_util.hpp"
+#include "accel/simd_float.hpp"
 #include "core/intersect.hpp"
 #include "core/memory_limit.hpp"
 
@@ -161,28 +162,14 @@ bool taken_as_is(const Ray& ray) {
 
 #if defined(__AVX2__)
 // Eight rays into lanes [first_lane, first_lane + 8) of a packet, as they are, transposed from lancer's
-// layout (8 floats a ray: origin, direction, tnear, tfar) to Embree's SoA by the classic 8x8 transpose of
-// unpacks, shuffles and lane permutes. Returns whether Embree takes all eight as they are (taken_as_is, the
-// same tests in SIMD); when it does not, the caller writes the lanes one by one over these.
+// layout (8 floats a ray: origin, direction, tnear, tfar) to Embree's SoA (simd::Avx2::load_fields8).
+// Returns whether Embree takes all eight as they are (taken_as_is, the same tests in SIMD); when it does not,
+// the caller writes the lanes one by one over these.
 template <int N>
 bool fill_eight_as_is(const Ray* rays, RTCRayNt<N>& out, int first_lane) {
-    __m256 row[8], pair[8], quad[8], column[8];
-    for (int i = 0; i < 8; ++i)
-        row[i] = _mm256_loadu_ps(&rays[i].origin.x);
-    for (int i = 0; i < 8; i += 2) {
-        pair[i] = _mm256_unpacklo_ps(row[i], row[i + 1]);
-        pair[i + 1] = _mm256_unpackhi_ps(row[i], row[i + 1]);
-    }
-    for (int i = 0; i < 8; i += 4) {
-        quad[i] = _mm256_shuffle_ps(pair[i], pair[i + 2], 0x44);
-        quad[i + 1] = _mm256_shuffle_ps(pair[i], pair[i + 2], 0xee);
-        quad[i + 2] = _mm256_shuffle_ps(pair[i + 1], pair[i + 3], 0x44);
-        quad[i + 3] = _mm256_shuffle_ps(pair[i + 1], pair[i + 3], 0xee);
-    }
-    for (int i = 0; i < 4; ++i) {
-        column[i] = _mm256_permute2f128_ps(quad[i], quad[i + 4], 0x20);
-        column[i + 4] = _mm256_permute2f128_ps(quad[i], quad[i + 4], 0x31);
-    }
+    static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, tfar) == 7 * sizeof(float));
+    __m256 column[8];
+    simd::Avx2::load_fields8(&rays[0].origin.x, column);
     // column: origin x, y, z, direction x, y, z, tnear, tfar across the eight rays.
     const __m256 sign = _mm256_set1_ps(-0.0f), zero = _mm256_setzero_ps();
     const __m256 largest = _mm256_set1_ps(kEmbreeLargest), infinity = _mm256_set1_ps(kInfinity);

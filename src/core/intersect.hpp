@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -178,6 +179,14 @@ struct MollerTrumbore {
 // sliver 2^-126 wide, 1 unit off along a direction of 2^24). Above 2^-100 some product exceeds 2^-102, whose
 // own float rounding dwarfs the 2^-150 that underflow may cost the others.
 struct Watertight {
+    // The axes {kx, ky, kz} of a ray whose direction is dominant along kz: kx and ky the next two in cyclic
+    // order, swapped when the dominant component is negative, to keep the winding. The packet kernels
+    // (bvh/wide_packet.cpp) choose per lane from the same table.
+    [[nodiscard]] static constexpr std::array<int, 3> permutation(int kz, bool negative) {
+        const int next = kz == 2 ? 0 : kz + 1, last = next == 2 ? 0 : next + 1;
+        return negative ? std::array<int, 3>{last, next, kz} : std::array<int, 3>{next, last, kz};
+    }
+
     struct RayData {
         Vec3f origin;
         int kx, ky, kz;  // kz: the dominant axis of the direction
@@ -185,10 +194,8 @@ struct Watertight {
 
         explicit RayData(const Ray& ray) : origin(ray.origin) {
             kz = max_axis(abs(ray.direction));
-            kx = kz == 2 ? 0 : kz + 1;
-            ky = kx == 2 ? 0 : kx + 1;
-            // Keep the winding: swap x and y when the dominant component is negative.
-            if (ray.direction[kz] < 0.0f) std::swap(kx, ky);
+            const std::array<int, 3> axes = permutation(kz, ray.direction[kz] < 0.0f);
+            kx = axes[0], ky = axes[1];
             shear_x = ray.direction[kx] / ray.direction[kz];
             shear_y = ray.direction[ky] / ray.direction[kz];
             shear_z = 1.0f / ray.direction[kz];

@@ -2,6 +2,8 @@
 // along its shared edges always hit (Woop, Benthin & Wald 2013). Moller-Trumbore's leaks are counted beside.
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include <random>
 
 #include "accel/brute.hpp"
@@ -63,6 +65,27 @@ LeakCount count_leaks(const TriangleMesh& mesh, const std::vector<Vec3f>& origin
 
 const std::vector<Vec3f> kInteriorOrigins = {
     {0, 0, 0}, {0.1f, -0.2f, 0.3f}, {0.5f, 0.5f, 0.5f}, {-0.3f, 0.25f, -0.6f}, {1e-3f, 1e-3f, 0}};
+
+// The axis permutation, exhaustively: kz last, {kx, ky, kz} a permutation of the axes with kx following kz
+// cyclically (ky for a negative dominant component: the swap keeps the winding), and RayData choosing it for
+// a direction dominant along kz of either sign.
+TEST(Watertight, PermutationOfEveryDominantAxisAndSign) {
+    for (int kz = 0; kz < 3; ++kz) {
+        for (const bool negative : {false, true}) {
+            const std::array<int, 3> axes = Watertight::permutation(kz, negative);
+            EXPECT_EQ(axes[2], kz);
+            EXPECT_EQ(axes[0] + axes[1] + axes[2], 3);
+            EXPECT_NE(axes[0], axes[1]);
+            EXPECT_EQ(axes[negative ? 1 : 0], (kz + 1) % 3) << kz << " " << negative;
+            Vec3f direction(0.25f, -0.5f, 0.125f);
+            direction[kz] = negative ? -2.0f : 2.0f;
+            const Watertight::RayData data(Ray{{0, 0, 0}, direction, 0.0f, kInfinity});
+            EXPECT_EQ(data.kz, kz);
+            EXPECT_EQ(data.kx, axes[0]);
+            EXPECT_EQ(data.ky, axes[1]);
+        }
+    }
+}
 
 TEST(Watertight, NoLeakThroughSharedVerticesAndEdgesOfAnIcosphere) {
     const TriangleMesh sphere = make_icosphere(3);

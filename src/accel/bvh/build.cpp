@@ -303,6 +303,7 @@ class BinnedBuilder {
   private:
     static constexpr int kMaxBins = 256;
     static constexpr std::size_t kParallelSubtree = 4096;
+    static constexpr std::size_t kParallelBinning = 65536;
     // Below this many references, the exact sweep over the node's own sorted centroids is both better and
     // cheaper than clearing and scanning the bins.
     static constexpr std::size_t kExactSplitBelow = 32;
@@ -334,8 +335,7 @@ class BinnedBuilder {
             for (std::size_t i = 0; i < count; ++i)
                 keys[i] = refs_[begin + i].centroid[axis];
             // centroid_less's order by ranks: reference i goes where the count of references before it says.
-            // Branch-free compares over fixed-size arrays, which GCC vectorizes (an insertion sort
-            // mispredicts half its compares).
+            // Branch-free compares over fixed-size arrays, where an insertion sort mispredicts half of its.
             for (std::size_t i = 0; i < count; ++i) {
                 std::uint32_t rank = 0;
                 for (std::size_t j = 0; j < kExactSplitBelow; ++j) {
@@ -362,10 +362,9 @@ class BinnedBuilder {
         }
         return best;
     }
-    static constexpr std::size_t kParallelBinning = 65536;
 
     // A box as two 4-float rows (the fourth lane unused), so that extending one is one vector min and one
-    // vector max: binning extends a bin's box three times per reference, and that was half the build.
+    // vector max: binning extends a bin's box three times per reference.
     struct BinBox {
 #if defined(__SSE2__)
         __m128 lo = _mm_set1_ps(kInfinity);

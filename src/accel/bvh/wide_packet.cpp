@@ -28,15 +28,10 @@ using LaneMask = std::uint64_t;  // bit i: ray i of the packet
 // wins at equal t) accepts a first hit at exactly tfar, as it does against a missing Hit.
 constexpr std::int32_t kNoHit = std::numeric_limits<std::int32_t>::max();
 
-// The watertight test's axis permutation of a ray, as Watertight::RayData chooses it: kz the dominant axis,
-// kx and ky the next two, swapped when the direction along kz is negative. Six codes, 2 kz + swapped.
+// The watertight test's axis permutations (Watertight::permutation): six codes, 2 kz + (d[kz] < 0).
 constexpr int kPermutations = 6;
 [[nodiscard]] constexpr std::array<int, 3> permutation_axes(int code) {
-    const int kz = code / 2;
-    int kx = kz == 2 ? 0 : kz + 1;
-    int ky = kx == 2 ? 0 : kx + 1;
-    if (code % 2 != 0) std::swap(kx, ky);
-    return {kx, ky, kz};
+    return Watertight::permutation(code / 2, code % 2 != 0);
 }
 
 // The packet, one array per coordinate so that a group of rays loads in one instruction. Lanes without a
@@ -64,6 +59,16 @@ struct PacketInterval {
     std::array<float, 3> inv_lo, inv_hi;
     std::array<int, 3> near_side;  // WideBvhNode::kLo or kHi: the face a ray enters by on each axis
     float tnear_min;
+
+    // The intervals of one axis, its near_side set: the entry is smallest from the origin nearest the far
+    // side, the exit largest from the other.
+    void set_axis(std::size_t axis, float origin_lo, float origin_hi, float reciprocal_lo,
+                  float reciprocal_hi) {
+        const bool negative = near_side[axis] == WideBvhNode<8>::kHi;
+        entry_origin[axis] = negative ? origin_lo : origin_hi;
+        exit_origin[axis] = negative ? origin_hi : origin_lo;
+        inv_lo[axis] = reciprocal_lo, inv_hi[axis] = reciprocal_hi;
+    }
 };
 
 using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per lane
@@ -264,14 +269,9 @@ class PacketTracer {
         }
         for (std::size_t axis = 0; axis < 3; ++axis) {
             if (negative[axis] != 0 && negative[axis] != valid_) return false;
-            const bool is_negative = negative[axis] != 0;
-            interval_.near_side[axis] = is_negative ? Node::kHi : Node::kLo;
-            interval_.inv_lo[axis] = Ops::reduce_min(inv_lo[axis]);
-            interval_.inv_hi[axis] = Ops::reduce_max(inv_hi[axis]);
-            // The entry is smallest from the origin nearest the far side, the exit largest from the other.
-            const float lo = Ops::reduce_min(origin_lo[axis]), hi = Ops::reduce_max(origin_hi[axis]);
-            interval_.entry_origin[axis] = is_negative ? lo : hi;
-            interval_.exit_origin[axis] = is_negative ? hi : lo;
+            interval_.near_side[axis] = negative[axis] != 0 ? Node::kHi : Node::kLo;
+            interval_.set_axis(axis, Ops::reduce_min(origin_lo[axis]), Ops::reduce_max(origin_hi[axis]),
+                               Ops::reduce_min(inv_lo[axis]), Ops::reduce_max(inv_hi[axis]));
         }
         interval_.tnear_min = Ops::reduce_min(tnear_min);
         std::fill(std::begin(packet_.prim), std::end(packet_.prim), kNoHit);
@@ -370,19 +370,21 @@ class PacketTracer {
         const auto is_x = Ops::mask_and(Ops::greater_equal(ax, ay), Ops::greater_equal(ax, az));
         const auto is_y = Ops::mask_and(Ops::greater(ay, ax), Ops::greater_equal(ay, az));
         const unsigned kz_x = Ops::bits(is_x), kz_y = Ops::bits(is_y);
-        // The components along kz and, unswapped, along kx = kz + 1 and ky = kz + 2 (mod 3).
-        auto along = [&](const Float(&v)[3], int offset) {
-            return Ops::select(is_x, v[offset % 3],
-                               Ops::select(is_y, v[(1 + offset) % 3], v[(2 + offset) % 3]));
+        // Component k of Watertight::permutation(kz, negative), lane by lane by the kz masks.
+        auto along = [&](const Float(&v)[3], int k, bool negative) {
+            const auto axis = [&](int kz) {
+                return Watertight::permutation(kz, negative)[static_cast<std::size_t>(k)];
+            };
+            return Ops::select(is_x, v[axis(0)], Ops::select(is_y, v[axis(1)], v[axis(2)]));
         };
-        const Float d_kz = along(direction, 0);
+        const Float d_kz = along(direction, 2, false);
         const auto swapped = Ops::less(d_kz, Ops::broadcast(0.0f));
-        const Float d_next = along(direction, 1), d_last = along(direction, 2);
-        const Float o_next = along(origin, 1), o_last = along(origin, 2);
-        const Float d_kx = Ops::select(swapped, d_last, d_next), d_ky = Ops::select(swapped, d_next, d_last);
-        Ops::store(&packet_.permuted_origin[0][first], Ops::select(swapped, o_last, o_next));
-        Ops::store(&packet_.permuted_origin[1][first], Ops::select(swapped, o_next, o_last));
-        Ops::store(&packet_.permuted_origin[2][first], along(origin, 0));
+        auto permuted = [&](const Float(&v)[3], int k) {
+            return Ops::select(swapped, along(v, k, true), along(v, k, false));
+        };
+        const Float d_kx = permuted(direction, 0), d_ky = permuted(direction, 1);
+        for (int k = 0; k < 3; ++k)
+            Ops::store(&packet_.permuted_origin[k][first], permuted(origin, k));
         Ops::store(&packet_.shear[0][first], Ops::div(d_kx, d_kz));
         Ops::store(&packet_.shear[1][first], Ops::div(d_ky, d_kz));
         Ops::store(&packet_.shear[2][first], Ops::div(Ops::broadcast(1.0f), d_kz));
@@ -440,17 +442,14 @@ class PacketTracer {
                 Ops::max(Ops::abs(directions.x), Ops::max(Ops::abs(directions.y), Ops::abs(directions.z)));
             Ops::store(&packet_.direction_scale[first], scale);  // MollerTrumbore::RayData
         }
+        interval.near_side = interval_.near_side;
         for (std::size_t axis = 0; axis < 3; ++axis) {
             const Float origin = Ops::load(&packet_.origin[axis][first]);
             const Float inv_direction = Ops::load(&packet_.inv_direction[axis][first]);
-            const float lo = Ops::reduce_min(Ops::select(valid, origin, infinity));
-            const float hi = Ops::reduce_max(Ops::select(valid, origin, minus_infinity));
-            const bool is_negative = interval_.near_side[axis] == Node::kHi;
-            interval.near_side[axis] = interval_.near_side[axis];
-            interval.entry_origin[axis] = is_negative ? lo : hi;
-            interval.exit_origin[axis] = is_negative ? hi : lo;
-            interval.inv_lo[axis] = Ops::reduce_min(Ops::select(valid, inv_direction, infinity));
-            interval.inv_hi[axis] = Ops::reduce_max(Ops::select(valid, inv_direction, minus_infinity));
+            interval.set_axis(axis, Ops::reduce_min(Ops::select(valid, origin, infinity)),
+                              Ops::reduce_max(Ops::select(valid, origin, minus_infinity)),
+                              Ops::reduce_min(Ops::select(valid, inv_direction, infinity)),
+                              Ops::reduce_max(Ops::select(valid, inv_direction, minus_infinity)));
         }
         interval.tnear_min = Ops::reduce_min(Ops::load(&packet_.tnear[first]));  // +inf in invalid lanes
         return interval;
@@ -463,9 +462,13 @@ class PacketTracer {
                    std::span<Answer> answers) {
         bool found = false;
         const std::uint32_t end = first_block + block_count(prim_count, kWidth);
+        // Per block, once: its triangles' boxes, and its spheres, which every group tests without a cull.
         std::array<TriangleBoxes, kMaxLeafBlocks> boxes;
-        for (std::uint32_t b = first_block; b < end; ++b)
+        std::array<unsigned, kMaxLeafBlocks> spheres;
+        for (std::uint32_t b = first_block; b < end; ++b) {
             boxes[b - first_block] = triangle_boxes(blocks_[b]);
+            spheres[b - first_block] = sphere_lanes(blocks_[b]);
+        }
         for (int group = 0; group < kGroups; ++group) {
             const auto active = static_cast<unsigned>((rays & alive_) >> (group * kLanes) & kGroup);
             if (active == 0) continue;
@@ -478,7 +481,7 @@ class PacketTracer {
                 const TriangleBoxes& block_boxes = boxes[b - first_block];
                 any |= candidates[b - first_block] =
                     (cull_boxes(block_boxes.bounds, interval, tlimit_max_, entry) & block_boxes.triangles) |
-                    sphere_lanes(blocks_[b]);
+                    spheres[b - first_block];
             }
             if (any != 0) found |= test_group<kAnyHit>(first_block, end, candidates, group, active, answers);
         }
