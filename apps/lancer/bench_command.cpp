@@ -123,52 +123,66 @@ std::vector<BenchMesh> load_meshes(const BenchOptions& options) {
     return meshes;
 }
 
-// Rays are generated in square tiles of kTileSide x kTileSide pixels, each tile contiguous in the batch and
-// the tiles in scanline order (partial tiles at the right and bottom edges), so that consecutive rays are
-// coherent. Inside a tile the pixels go in blocks of kBlockSide x kBlockSide, row by row in a block and the
-// blocks row by row: any 16 consecutive rays are a 4x4 pixel block and any 8 a 4x2 one, the packets Embree's
-// tutorials trace (embree8, embree16), and the packet structures (bvh_packet, plucker_packet) trace one tile
-// per packet. Every structure gets the same order; hits are stored and compared at their pixel.
-constexpr int kTileSide = 8;
-constexpr int kBlockSide = PinholeCamera::kBlockSide;
-
-// Calls visit(x0, y0, x1, y1) for every block [x0, x1) x [y0, y1) of the tile rows [first_row, last_row), in
-// the batch's order (blocks at the right and bottom edges may be partial).
-template <class Visit>
-void for_each_block(int width, int height, int first_row, int last_row, Visit&& visit) {
-    for (int tile_row = first_row; tile_row < last_row; ++tile_row) {
-        const int tile_y0 = tile_row * kTileSide, tile_y1 = std::min(height, tile_y0 + kTileSide);
-        for (int tile_x0 = 0; tile_x0 < width; tile_x0 += kTileSide) {
-            const int tile_x1 = std::min(width, tile_x0 + kTileSide);
-            for (int y0 = tile_y0; y0 < tile_y1; y0 += kBlockSide) {
-                for (int x0 = tile_x0; x0 < tile_x1; x0 += kBlockSide)
-                    visit(x0, y0, std::min(tile_x1, x0 + kBlockSide), std::min(tile_y1, y0 + kBlockSide));
-            }
-        }
-    }
-}
+// Rays are generated in square tiles of kTileSide x kTileSide pixels, one RayPacket each, and the tiles go in
+// scanline order. PinholeCamera::tile_rays writes a tile's rays straight into the packet, every 16 lanes a
+// 4x4 pixel block and every 8 a 4x2 one: the packets Embree's tutorials trace (embree8, embree16), and the
+// packet structures' (bvh8_packet). Every structure gets the same packets; hits are stored and compared at
+// their pixel.
+constexpr int kTileSide = PinholeCamera::kTileSide;
 
 int tile_rows(const PinholeCamera& camera) {
     return (camera.height() + kTileSide - 1) / kTileSide;
 }
 
-// The rays of the tile rows [first_row, last_row) in the batch's order, into `rays` (resized): whole blocks
-// 16 rays at a time (PinholeCamera::block_rays), partial ones ray by ray.
-void tile_row_rays(const PinholeCamera& camera, int first_row, int last_row, std::vector<Ray>& rays) {
-    const int width = camera.width(), height = camera.height();
-    const int first_y = first_row * kTileSide, end_y = std::min(height, last_row * kTileSide);
-    rays.resize(static_cast<std::size_t>(width) * static_cast<std::size_t>(end_y - first_y));
-    std::size_t next = 0;
-    for_each_block(width, height, first_row, last_row, [&](int x0, int y0, int x1, int y1) {
-        if (x1 - x0 == kBlockSide && y1 - y0 == kBlockSide) {
-            camera.block_rays(x0, y0, std::span<Ray, kBlockSide * kBlockSide>(rays.data() + next, 16));
-            next += kBlockSide * kBlockSide;
-            return;
-        }
-        for (int j = y0; j < y1; ++j) {
-            for (int i = x0; i < x1; ++i)
-                rays[next++] = camera.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f);
-        }
+// Calls visit(x0, y0) for the corner of every tile of the tile rows [first_row, last_row), in scanline order.
+template <class Visit>
+void for_each_tile(const PinholeCamera& camera, int first_row, int last_row, Visit&& visit) {
+    for (int tile_row = first_row; tile_row < last_row; ++tile_row) {
+        for (int x0 = 0; x0 < camera.width(); x0 += kTileSide)
+            visit(x0, tile_row * kTileSide);
+    }
+}
+
+// Calls visit(lane, pixel) for every lane of the tile at (x0, y0) whose pixel lies in the image, pixel
+// being its index in row-major order.
+template <class Visit>
+void for_each_tile_pixel(const PinholeCamera& camera, int x0, int y0, Visit&& visit) {
+    const auto width = static_cast<std::size_t>(camera.width());
+    for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
+        const int i = x0 + PinholeCamera::tile_column(lane), j = y0 + PinholeCamera::tile_row(lane);
+        if (i < camera.width() && j < camera.height())
+            visit(lane, static_cast<std::size_t>(j) * width + static_cast<std::size_t>(i));
+    }
+}
+
+// Each lane's hit at its pixel. A tile inside the image goes a block row at a time: 4 lanes, 4 pixels in a
+// row of the image.
+void store_tile_hits(const PinholeCamera& camera, int x0, int y0, const HitPacket& tile_hits,
+                     std::vector<Hit>& hits) {
+    if (x0 + kTileSide > camera.width() || y0 + kTileSide > camera.height()) {
+        for_each_tile_pixel(camera, x0, y0,
+                            [&](int lane, std::size_t pixel) { hits[pixel] = tile_hits.hit(lane); });
+        return;
+    }
+    const auto width = static_cast<std::size_t>(camera.width());
+    for (int lane = 0; lane < RayPacket::kMaxSize; lane += PinholeCamera::kBlockSide) {
+        Hit* const row = hits.data() + static_cast<std::size_t>(y0 + PinholeCamera::tile_row(lane)) * width +
+                         static_cast<std::size_t>(x0 + PinholeCamera::tile_column(lane));
+        for (int k = 0; k < PinholeCamera::kBlockSide; ++k)
+            row[k] = tile_hits.hit(lane + k);
+    }
+}
+
+// The tiles of the tile rows [first_row, last_row): each tile's rays generated into a packet, traced
+// (Accel::intersect_packet), and each closest hit stored at its pixel of `hits`.
+void trace_tiles(const Accel& accel, const PinholeCamera& camera, int first_row, int last_row,
+                 std::vector<Hit>& hits, TraversalCounters* counters = nullptr) {
+    RayPacket rays;
+    HitPacket tile_hits;
+    for_each_tile(camera, first_row, last_row, [&](int x0, int y0) {
+        camera.tile_rays(x0, y0, rays);
+        accel.intersect_packet(rays, tile_hits, counters);
+        store_tile_hits(camera, x0, y0, tile_hits, hits);
     });
 }
 
@@ -176,38 +190,12 @@ void tile_row_rays(const PinholeCamera& camera, int first_row, int last_row, std
 // pixel. One task per row of tiles.
 void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hit>& hits,
                  tbb::task_arena& arena) {
-    const auto width = static_cast<std::size_t>(camera.width());
     arena.execute([&] {
-        tbb::parallel_for(
-            tbb::blocked_range<int>(0, tile_rows(camera), 1), [&](const tbb::blocked_range<int>& rows) {
-                // Buffers kept per thread across tasks and frames: fresh 100+ KiB vectors per task went to
-                // mmap and the kernel's page clearing, a third of a frame's profile for every structure.
-                thread_local std::vector<Ray> rays;
-                thread_local std::vector<Hit> tile_hits;
-                tile_row_rays(camera, rows.begin(), rows.end(), rays);
-                tile_hits.resize(rays.size());
-                accel.intersect_coherent(rays, tile_hits);
-                // Each block row of hits to its pixels in one copy.
-                auto next = tile_hits.begin();
-                for_each_block(camera.width(), camera.height(), rows.begin(), rows.end(),
-                               [&](int x0, int y0, int x1, int y1) {
-                                   for (int j = y0; j < y1; ++j) {
-                                       const auto pixel =
-                                           static_cast<std::ptrdiff_t>(static_cast<std::size_t>(j) * width +
-                                                                       static_cast<std::size_t>(x0));
-                                       std::copy_n(next, x1 - x0, hits.begin() + pixel);
-                                       next += x1 - x0;
-                                   }
-                               });
-            });
+        tbb::parallel_for(tbb::blocked_range<int>(0, tile_rows(camera), 1),
+                          [&](const tbb::blocked_range<int>& rows) {
+                              trace_tiles(accel, camera, rows.begin(), rows.end(), hits);
+                          });
     });
-}
-
-// The frame's rays in trace_frame's tile order (index k is a pixel; every structure sees the same order).
-std::vector<Ray> view_rays(const PinholeCamera& camera) {
-    std::vector<Ray> rays;
-    tile_row_rays(camera, 0, tile_rows(camera), rays);
-    return rays;
 }
 
 std::string cpu_name() {
@@ -321,18 +309,20 @@ void run(const BenchOptions& options) {
     for (const BenchMesh& mesh : meshes) {
         const SceneGeometry geometry(mesh.scene);
         const PinholeCamera camera(canonical_view(geometry.view().bounds(), options.size, options.size));
-        const std::vector<Ray> rays = view_rays(camera);
+        // Pixel order, as the hits are stored (the packets' rays, bit for bit: PinholeCamera::tile_rays).
+        const std::vector<Ray> rays = camera.pixel_centre_rays(0, 0, camera.width(), camera.height());
         std::vector<Hit> reference;
         std::string reference_name;
         for (const std::string& name : accels) {
             AccelChoice choice{name, !options.moller_trumbore, options.settings};
             const BuiltAccel built = build_timed(choice, geometry.view());
 
-            // Validate before timing: the same answers as the first structure measured.
+            // Validate before timing, through the timed path: the same answers as the first structure
+            // measured.
             std::vector<Hit> hits(rays.size());
             TraversalCounters counters;
             std::size_t mismatches = 0;
-            built.accel->intersect_coherent(rays, hits, &counters);
+            trace_tiles(*built.accel, camera, 0, tile_rows(camera), hits, &counters);
             if (reference.empty()) {
                 reference = hits;
                 reference_name = name;

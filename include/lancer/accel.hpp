@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "lancer/box.hpp"
+#include "lancer/packet.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
 
@@ -154,6 +155,12 @@ class Accel {
     // them as any batch.
     void intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits,
                             TraversalCounters* counters = nullptr) const;
+    // The closest hits of a packet's rays, lanes [0, rays.size), the same as intersect()'s bit for bit; the
+    // hits' lanes from rays.size on are unspecified. The fastest call for coherent rays: a structure with a
+    // packet kernel (bvh8_packet, embree16) reads the rays in place. Throws std::invalid_argument for a size
+    // outside [0, RayPacket::kMaxSize].
+    void intersect_packet(const RayPacket& rays, HitPacket& hits,
+                          TraversalCounters* counters = nullptr) const;
     // Any hit in [tnear, tfar]: occluded[i] = 1 when ray i hits something, 0 otherwise.
     void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                   TraversalCounters* counters = nullptr) const;
@@ -173,6 +180,10 @@ class Accel {
                                           TraversalCounters* counters) const {
         intersect_batch(rays, hits, counters);
     }
+    // A packet none of whose rays needs conditioning. By default its rays go through intersect_coherent_batch
+    // as a batch of `Ray` records.
+    virtual void intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
+                                       TraversalCounters* counters) const;
     // What build does before build_structure, for a structure that gets its arrays another way (a file):
     // checks the domain and records the scene's box for far rays.
     void accept_geometry(const Geometry& geometry);

@@ -4,6 +4,7 @@
 #include <span>
 #include <vector>
 
+#include "lancer/packet.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
 
@@ -18,11 +19,19 @@ class PinholeCamera {
     //   u = (2 film_x / W - 1) tan(fov / 2) (W / H),  v = (1 - 2 film_y / H) tan(fov / 2),
     //   direction = normalize(f + u x + v y).
     [[nodiscard]] Ray generate(float film_x, float film_y) const;
-    // A packet's pixels: kBlockSide x kBlockSide.
+    // A packet's pixels: a tile of kTileSide x kTileSide, in blocks of kBlockSide x kBlockSide.
+    static constexpr int kTileSide = 8;
     static constexpr int kBlockSide = 4;
-    // The rays through the pixel centres of the block [x0, x0 + 4) x [y0, y0 + 4), row by row: generate's
-    // rays, bit for bit, made 16 at a time in SIMD lanes.
-    void block_rays(int x0, int y0, std::span<Ray, kBlockSide * kBlockSide> out) const;
+    static_assert(kTileSide * kTileSide == RayPacket::kMaxSize);
+    // The pixel of lane `lane` of tile_rays's packet, from the tile's corner: lane 16 b + 4 r + c is column
+    // 4 (b % 2) + c and row 4 (b / 2) + r, so that every 16 lanes from a multiple of 16 are a 4x4 block and
+    // every 8 a 4x2 one (the packets Embree's tutorials trace).
+    [[nodiscard]] static constexpr int tile_column(int lane) { return 4 * ((lane / 16) % 2) + lane % 4; }
+    [[nodiscard]] static constexpr int tile_row(int lane) { return 4 * (lane / 32) + (lane / 4) % 4; }
+    // The rays through the pixel centres of the tile [x0, x0 + 8) x [y0, y0 + 8), 64 lanes in that order:
+    // generate's rays, bit for bit, made in SIMD lanes. A lane whose pixel lies outside the image gets a ray
+    // of zero direction, which misses (is_valid).
+    void tile_rays(int x0, int y0, RayPacket& out) const;
     // The rays through the pixel centres of [x0, x1) x [y0, y1), row by row.
     [[nodiscard]] std::vector<Ray> pixel_centre_rays(int x0, int y0, int x1, int y1) const;
     [[nodiscard]] int width() const { return width_; }

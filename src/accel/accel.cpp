@@ -2,6 +2,7 @@
 // (src/core/ray_conditioning.hpp), done once per batch around the structure's own batch loop.
 #include <string>
 
+#include "accel/packet_batch.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/accel.hpp"
 
@@ -63,6 +64,27 @@ void Accel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits,
                                TraversalCounters* counters) const {
     intersect_conditioned(rays, hits, bounds_, [&](std::span<const Ray> batch) {
         intersect_coherent_batch(batch, hits, counters);
+    });
+}
+
+void Accel::intersect_packet(const RayPacket& rays, HitPacket& hits, TraversalCounters* counters) const {
+    if (rays.size < 0 || rays.size > RayPacket::kMaxSize) {
+        throw std::invalid_argument("Accel::intersect_packet: packet size " + std::to_string(rays.size) +
+                                    ", expected 0 to " + std::to_string(RayPacket::kMaxSize));
+    }
+    if (!any_may_need_conditioning(rays, FarOriginFrame(bounds_))) {
+        intersect_packet_rays(rays, hits, counters);
+        return;
+    }
+    // A packet with a ray to condition (rare: a far origin or an extreme direction) takes the batch path.
+    trace_packet_as_batch(rays, hits, [&](std::span<const Ray> batch, std::span<Hit> batch_hits) {
+        intersect_coherent(batch, batch_hits, counters);
+    });
+}
+
+void Accel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits, TraversalCounters* counters) const {
+    trace_packet_as_batch(rays, hits, [&](std::span<const Ray> batch, std::span<Hit> batch_hits) {
+        intersect_coherent_batch(batch, batch_hits, counters);
     });
 }
 

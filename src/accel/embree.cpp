@@ -205,6 +205,38 @@ bool fill_eight_as_is(const Ray* rays, RTCRayHitNt<N>& out, int first_lane) {
 }
 #endif
 
+// Lanes [first, first + N) of a caller's packet into an Embree packet, copied field by field (both are SoA),
+// with valid[lane] set for the valid rays (is_valid); the others are masked off and keep the miss written
+// here. Returns false when some valid ray is not taken as it is (taken_as_is), which the caller then traces
+// through to_embree. Lane by lane on contiguous arrays, with an int accumulator, so that GCC vectorizes it.
+template <int N>
+bool fill_from_packet(const RayPacket& rays, int first, RTCRayHitNt<N>& out, int (&valid)[N]) {
+    int all_taken = 1;
+    for (int lane = 0; lane < N; ++lane) {
+        const int index = first + lane;
+        const float ox = rays.origin[0][index], oy = rays.origin[1][index], oz = rays.origin[2][index];
+        const float dx = rays.direction[0][index], dy = rays.direction[1][index],
+                    dz = rays.direction[2][index];
+        const float tnear = rays.tnear[index], tfar = rays.tfar[index];
+        // is_valid, with `|x| < inf` for isfinite and `tfar == tfar` for !isnan.
+        const int is_valid_ray = (std::fabs(ox) < kInfinity) & (std::fabs(oy) < kInfinity) &
+                                 (std::fabs(oz) < kInfinity) & (std::fabs(dx) < kInfinity) &
+                                 (std::fabs(dy) < kInfinity) & (std::fabs(dz) < kInfinity) &
+                                 ((dx != 0.0f) | (dy != 0.0f) | (dz != 0.0f)) &
+                                 (std::fabs(tnear) < kInfinity) & (tfar == tfar) & (tnear <= tfar);
+        const int as_is = (tnear >= 0.0f) & (std::fabs(ox) <= kEmbreeLargest) &
+                          (std::fabs(oy) <= kEmbreeLargest) & (std::fabs(oz) <= kEmbreeLargest);
+        all_taken &= (1 - is_valid_ray) | as_is;
+        valid[lane] = -is_valid_ray;
+        out.ray.org_x[lane] = ox, out.ray.org_y[lane] = oy, out.ray.org_z[lane] = oz;
+        out.ray.dir_x[lane] = dx, out.ray.dir_y[lane] = dy, out.ray.dir_z[lane] = dz;
+        out.ray.tnear[lane] = tnear, out.ray.tfar[lane] = tfar;
+        out.ray.time[lane] = 0.0f, out.ray.mask[lane] = ~0u, out.ray.id[lane] = 0, out.ray.flags[lane] = 0;
+        out.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+    }
+    return all_taken != 0;
+}
+
 // Embree's call for each packet type, so that one loop (trace_packets) serves every width. A packet of one
 // ray is laid out as Embree's single ray, and a masked one is not traced.
 static_assert(sizeof(RTCRayHitNt<1>) == sizeof(RTCRayHit) &&
@@ -394,6 +426,57 @@ void EmbreeAccel::intersect_with_flags(std::span<const Ray> rays, std::span<Hit>
                            packet.hit.u[lane], packet.hit.v[lane], triangle_count_);
             });
     });
+}
+
+// Each run of N lanes of the packet through one packet call, the rays read in place; when some valid ray is
+// not taken as it is, or the scene is scaled, the packet takes the batch path, which maps rays one by one.
+void EmbreeAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
+                                        TraversalCounters* counters) const {
+    if (packet_width_ == 1 || scene_scale_ != 1.0f) {
+        Accel::intersect_packet_rays(rays, hits, counters);
+        return;
+    }
+    // A partial packet is padded with invalid rays (zero direction), so that every lane read is a ray.
+    const RayPacket* source = &rays;
+    RayPacket padded;
+    if (rays.size < RayPacket::kMaxSize) {
+        padded = rays;
+        for (int lane = rays.size; lane < RayPacket::kMaxSize; ++lane)
+            padded.set(lane, Ray{{}, {}, 0.0f, 0.0f});
+        source = &padded;
+    }
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    bool traced = true;
+    with_packet_width(packet_width_, [&](auto width) {
+        constexpr int N = decltype(width)::value;
+        const DenormalsFlushed flushed;
+        for (int first = 0; first < rays.size && traced; first += N) {
+            alignas(64) RTCRayHitNt<N> packet;
+            alignas(64) int valid[N];
+            traced = fill_from_packet(*source, first, packet, valid);
+            if (!traced) break;
+            query(valid, scene_, &context, packet);
+            // to_hit lane by lane, without branches: t is finite on a hit, as the scene is not scaled.
+            const auto sphere_offset = static_cast<std::int32_t>(triangle_count_);
+            for (int lane = 0; lane < N; ++lane) {
+                const auto geometry = static_cast<std::int32_t>(packet.hit.geomID[lane]);
+                const auto primitive = static_cast<std::int32_t>(packet.hit.primID[lane]);
+                const int hit = geometry != static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID);
+                const int sphere = geometry == static_cast<std::int32_t>(kSphereGeometry);
+                hits.t[first + lane] = hit ? packet.ray.tfar[lane] : kInfinity;
+                hits.prim[first + lane] = hit ? primitive + sphere * sphere_offset : -1;
+                hits.u[first + lane] = hit ? packet.hit.u[lane] : 0.0f;
+                hits.v[first + lane] = hit ? packet.hit.v[lane] : 0.0f;
+            }
+        }
+    });
+    if (!traced) {
+        Accel::intersect_packet_rays(rays, hits, counters);
+        return;
+    }
+    if (counters != nullptr) counters->rays += static_cast<std::uint64_t>(rays.size);
 }
 
 // Embree marks an occluded ray with tfar = -inf.

@@ -36,6 +36,8 @@ class EmbreeAccel final : public Accel {
                         TraversalCounters* counters) const override;
     void intersect_coherent_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                   TraversalCounters* counters) const override;
+    void intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
+                               TraversalCounters* counters) const override;
     void intersect_with_flags(std::span<const Ray> rays, std::span<Hit> hits,
                               RTCIntersectContextFlags flags) const;
     void release_scene();

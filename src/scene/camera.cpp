@@ -17,7 +17,7 @@ PinholeCamera::PinholeCamera(const Camera& camera)
     up_ = cross(right_, forward_);
 }
 
-// Inline: block_rays vectorizes only with them inlined (only this file calls them).
+// Inline: tile_rays vectorizes only with them inlined (only this file calls them).
 inline float PinholeCamera::film_u(float film_x) const {
     return (2.0f * film_x / static_cast<float>(width_) - 1.0f) * tan_half_fov_ * aspect_;
 }
@@ -37,21 +37,40 @@ Ray PinholeCamera::generate(float film_x, float film_y) const {
     return ray;
 }
 
-void PinholeCamera::block_rays(int x0, int y0, std::span<Ray, kBlockSide * kBlockSide> out) const {
-    // u depends on the column only and v on the row only: 4 of each, not 16 (each a division).
-    float u[kBlockSide], v[kBlockSide];
-    for (int k = 0; k < kBlockSide; ++k) {
+void PinholeCamera::tile_rays(int x0, int y0, RayPacket& out) const {
+    // u depends on the column only and v on the row only: 8 of each, not 64 (each a division).
+    float u[kTileSide], v[kTileSide];
+    for (int k = 0; k < kTileSide; ++k) {
         u[k] = film_u(static_cast<float>(x0 + k) + 0.5f);
         v[k] = film_v(static_cast<float>(y0 + k) + 0.5f);
     }
-    // Field by field: GCC vectorizes the loop across the 16 pixels then (a Ray copied whole stops it), and
-    // each lane's operations are the scalar ones, so the rays are generate's bit for bit.
-    for (int k = 0; k < kBlockSide * kBlockSide; ++k) {
-        const Vec3f d = direction(u[k % kBlockSide], v[k / kBlockSide]);
-        Ray& ray = out[static_cast<std::size_t>(k)];
-        ray.origin.x = eye_.x, ray.origin.y = eye_.y, ray.origin.z = eye_.z;
-        ray.direction.x = d.x, ray.direction.y = d.y, ray.direction.z = d.z;
-        ray.tnear = 0.0f, ray.tfar = kInfinity;
+    // A block at a time, so that GCC vectorizes the loop across its 16 pixels; each lane's operations are
+    // the scalar ones, so the rays are generate's bit for bit.
+    constexpr int kBlockLanes = kBlockSide * kBlockSide;
+    for (int block = 0; block < RayPacket::kMaxSize / kBlockLanes; ++block) {
+        const float* const block_u = u + kBlockSide * (block % 2);
+        const float* const block_v = v + kBlockSide * (block / 2);
+        float* const ox = out.origin[0] + block * kBlockLanes;
+        float* const oy = out.origin[1] + block * kBlockLanes;
+        float* const oz = out.origin[2] + block * kBlockLanes;
+        float* const dx = out.direction[0] + block * kBlockLanes;
+        float* const dy = out.direction[1] + block * kBlockLanes;
+        float* const dz = out.direction[2] + block * kBlockLanes;
+        float* const tnear = out.tnear + block * kBlockLanes;
+        float* const tfar = out.tfar + block * kBlockLanes;
+        for (int k = 0; k < kBlockLanes; ++k) {
+            const Vec3f d = direction(block_u[k % kBlockSide], block_v[k / kBlockSide]);
+            ox[k] = eye_.x, oy[k] = eye_.y, oz[k] = eye_.z;
+            dx[k] = d.x, dy[k] = d.y, dz[k] = d.z;
+            tnear[k] = 0.0f, tfar[k] = kInfinity;
+        }
+    }
+    out.size = RayPacket::kMaxSize;
+    if (x0 + kTileSide <= width_ && y0 + kTileSide <= height_) return;
+    for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
+        if (x0 + tile_column(lane) < width_ && y0 + tile_row(lane) < height_) continue;
+        for (int axis = 0; axis < 3; ++axis)
+            out.direction[axis][lane] = 0.0f;
     }
 }
 

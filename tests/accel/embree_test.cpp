@@ -120,11 +120,13 @@ TEST(Embree, PacketsAnswerLikeSingleRays) {
     for (const char* name : {"embree", "embree8", "embree16"}) {
         const std::unique_ptr<Accel> accel = make_accel(name);
         accel->build(scene.geometry(), {});
-        // The plain call and the coherent one (Embree's COHERENT flag, which keeps packets together longer).
+        // The plain call, the coherent one (Embree's COHERENT flag, which keeps packets together longer) and
+        // the packet call, which reads the rays in place.
         std::vector<Hit> packed(set.rays.size()), coherent(set.rays.size());
         accel->intersect(set.rays, packed);
         accel->intersect_coherent(set.rays, coherent);
-        for (const std::vector<Hit>* answers : {&packed, &coherent}) {
+        std::vector<Hit> in_packets = testing::intersect_in_packets(*accel, set.rays);
+        for (const std::vector<Hit>* answers : {&packed, &coherent, &in_packets}) {
             for (std::size_t i = 0; i < set.rays.size(); ++i) {
                 ASSERT_EQ(single[i].prim, (*answers)[i].prim) << name << " ray " << i;
                 if (single[i].hit()) {

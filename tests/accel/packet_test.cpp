@@ -100,22 +100,25 @@ std::vector<Ray> sorted_by_octant(std::vector<Ray> rays) {
     return rays;
 }
 
-// Rays whose closest hit, or whose occlusion, differs in any bit between the two structures.
+// Rays whose closest hit, through the batch call or the packet call (Accel::intersect_packet), or whose
+// occlusion, differs in any bit between the two structures.
 std::size_t bitwise_differences(const Accel& packet, const Accel& single, std::span<const Ray> rays) {
     std::vector<Hit> packet_hits(rays.size()), single_hits(rays.size());
     packet.intersect(rays, packet_hits);
     single.intersect(rays, single_hits);
+    const std::vector<Hit> packet_call_hits = testing::intersect_in_packets(packet, rays);
     std::vector<std::uint8_t> packet_occluded(rays.size()), single_occluded(rays.size());
     packet.occluded(rays, packet_occluded);
     single.occluded(rays, single_occluded);
     std::size_t differences = 0;
+    const auto same_hit = [](const Hit& a, const Hit& b) {
+        return std::bit_cast<std::uint32_t>(a.t) == std::bit_cast<std::uint32_t>(b.t) && a.prim == b.prim &&
+               std::bit_cast<std::uint32_t>(a.u) == std::bit_cast<std::uint32_t>(b.u) &&
+               std::bit_cast<std::uint32_t>(a.v) == std::bit_cast<std::uint32_t>(b.v);
+    };
     for (std::size_t i = 0; i < rays.size(); ++i) {
-        const Hit& a = packet_hits[i];
-        const Hit& b = single_hits[i];
-        const bool same = std::bit_cast<std::uint32_t>(a.t) == std::bit_cast<std::uint32_t>(b.t) &&
-                          a.prim == b.prim &&
-                          std::bit_cast<std::uint32_t>(a.u) == std::bit_cast<std::uint32_t>(b.u) &&
-                          std::bit_cast<std::uint32_t>(a.v) == std::bit_cast<std::uint32_t>(b.v) &&
+        const bool same = same_hit(packet_hits[i], single_hits[i]) &&
+                          same_hit(packet_call_hits[i], single_hits[i]) &&
                           packet_occluded[i] == single_occluded[i];
         differences += same ? 0 : 1;
     }
@@ -257,6 +260,40 @@ TEST_P(PacketTest, CountersSeeEveryRayOfEveryPacket) {
     EXPECT_GT(counters.prims_tested, 0u);
     for (std::size_t i = 0; i < hits.size(); ++i)
         ASSERT_EQ(hits[i].prim, counted[i].prim);
+    // The packet call counts its rays too: 50 from the first that hits.
+    const auto first_hit = static_cast<std::size_t>(
+        std::find_if(hits.begin(), hits.end(), [](const Hit& hit) { return hit.hit(); }) - hits.begin());
+    ASSERT_LE(first_hit + 50, rays.size());
+    RayPacket rays_packet;
+    HitPacket hits_packet;
+    rays_packet.size = 50;
+    for (int lane = 0; lane < rays_packet.size; ++lane)
+        rays_packet.set(lane, rays[first_hit + static_cast<std::size_t>(lane)]);
+    TraversalCounters packet_counters;
+    packet->intersect_packet(rays_packet, hits_packet, &packet_counters);
+    EXPECT_EQ(packet_counters.rays, 50u);
+    EXPECT_GT(packet_counters.nodes_visited, 0u);
+}
+
+// A packet holds 0 to 64 rays: any other size is refused, naming it, before a lane is read.
+TEST(PacketCall, RefusesASizeOutsideThePacket) {
+    const TestScene scene = scenes()[0];
+    const std::unique_ptr<Accel> accel = make_accel("bvh8_packet");
+    accel->build(scene.geometry(), {});
+    RayPacket rays;
+    HitPacket hits;
+    rays.size = 0;
+    EXPECT_NO_THROW(accel->intersect_packet(rays, hits));
+    for (const int size : {-1, RayPacket::kMaxSize + 1}) {
+        rays.size = size;
+        try {
+            accel->intersect_packet(rays, hits);
+            ADD_FAILURE() << "size " << size << " accepted";
+        } catch (const std::invalid_argument& error) {
+            EXPECT_NE(std::string(error.what()).find(std::to_string(size)), std::string::npos)
+                << error.what();
+        }
+    }
 }
 
 // bvh8_packet runs the widest kernels this build has, or the AVX2 ones beside AVX-512: nothing else.

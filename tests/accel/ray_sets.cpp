@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <limits>
 
@@ -137,6 +138,25 @@ std::vector<Hit> trace_in_parallel(const Accel& accel, std::span<const Ray> rays
         accel.intersect(rays.subspan(range.begin(), range.size()),
                         std::span(hits).subspan(range.begin(), range.size()));
     });
+    return hits;
+}
+
+std::vector<Hit> intersect_in_packets(const Accel& accel, std::span<const Ray> rays) {
+    std::vector<Hit> hits(rays.size());
+    RayPacket packet;
+    HitPacket packet_hits;
+    std::size_t first = 0;
+    for (int count = 0; first < rays.size(); ++count) {
+        const std::size_t size = std::min<std::size_t>(
+            rays.size() - first, count % 3 == 2 ? 1 + (static_cast<std::size_t>(count) * 37) % 63 : 64);
+        packet.size = static_cast<int>(size);
+        for (int lane = 0; lane < packet.size; ++lane)
+            packet.set(lane, rays[first + static_cast<std::size_t>(lane)]);
+        accel.intersect_packet(packet, packet_hits);
+        for (int lane = 0; lane < packet.size; ++lane)
+            hits[first + static_cast<std::size_t>(lane)] = packet_hits.hit(lane);
+        first += size;
+    }
     return hits;
 }
 

@@ -42,6 +42,9 @@ inline constexpr std::size_t kSanitizedShare = 1;
 void keep_every(RaySet& set, std::size_t stride);
 // Closest hits of all rays, in parallel over oneTBB (large ray sets of the Stanford tests).
 std::vector<Hit> trace_in_parallel(const Accel& accel, std::span<const Ray> rays);
+// Closest hits of all rays through Accel::intersect_packet: the batch cut into packets of 64 rays, every
+// third packet cut short (to 1 to 63 rays), so that partial packets are traced too.
+std::vector<Hit> intersect_in_packets(const Accel& accel, std::span<const Ray> rays);
 // NaN, infinite, zero-direction, tnear > tfar, denormal directions: all must miss, except denormal ones
 // which are valid and must agree with the oracle.
 RaySet hostile_rays(const Box3f& bounds);

@@ -57,23 +57,47 @@ TEST(PinholeCamera, FilmEdgesSpanTheVerticalFieldOfView) {
     EXPECT_NEAR(std::atan2(top.direction.y, -top.direction.z), std::numbers::pi_v<float> / 6.0f, 1e-6f);
 }
 
-// block_rays makes 16 rays at once in SIMD lanes: they must be generate's, bit for bit, in row order, for
-// square and stretched images and blocks anywhere in them.
-TEST(PinholeCamera, BlockRaysAreGeneratesRaysBitForBit) {
+// tile_rays makes 64 rays at once in SIMD lanes: they must be generate's, bit for bit, at the pixels of
+// tile_column and tile_row, for square and stretched images and tiles anywhere in them; a lane whose pixel
+// lies outside the image gets an invalid ray.
+TEST(PinholeCamera, TileRaysAreGeneratesRaysBitForBit) {
     for (const auto& [width, height] : {std::pair{1024, 1024}, std::pair{640, 360}, std::pair{12, 100}}) {
         const PinholeCamera pinhole(canonical_view({{-1, -2, 0.5f}, {3, 1, 2}}, width, height));
-        for (const auto& [x0, y0] : {std::pair{0, 0}, std::pair{4, 8}, std::pair{width - 4, height - 4}}) {
-            std::array<Ray, 16> block;
-            pinhole.block_rays(x0, y0, block);
-            for (int k = 0; k < 16; ++k) {
-                const Ray expected = pinhole.generate(static_cast<float>(x0 + k % 4) + 0.5f,
-                                                      static_cast<float>(y0 + k / 4) + 0.5f);
-                const Ray& ray = block[static_cast<std::size_t>(k)];
+        for (const auto& [x0, y0] : {std::pair{0, 0}, std::pair{4, 8}, std::pair{width - 8, height - 8},
+                                     std::pair{width - 5, height - 3}}) {
+            RayPacket packet;
+            pinhole.tile_rays(x0, y0, packet);
+            ASSERT_EQ(packet.size, RayPacket::kMaxSize);
+            for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
+                const int i = x0 + PinholeCamera::tile_column(lane), j = y0 + PinholeCamera::tile_row(lane);
+                const Ray ray = packet.ray(lane);
+                if (i >= width || j >= height) {
+                    EXPECT_FALSE(is_valid(ray)) << "lane " << lane << " outside the image";
+                    continue;
+                }
+                const Ray expected =
+                    pinhole.generate(static_cast<float>(i) + 0.5f, static_cast<float>(j) + 0.5f);
                 EXPECT_EQ(std::memcmp(&ray, &expected, sizeof(Ray)), 0)
-                    << width << "x" << height << " block (" << x0 << ", " << y0 << ") ray " << k;
+                    << width << "x" << height << " tile (" << x0 << ", " << y0 << ") lane " << lane;
             }
         }
     }
+}
+
+// The lane order: every pixel of the tile once, every 16 lanes a 4x4 block and every 8 a 4x2 one.
+TEST(PinholeCamera, TileLanesCoverTheTileInBlocks) {
+    std::array<int, 64> seen{};
+    for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
+        const int column = PinholeCamera::tile_column(lane), row = PinholeCamera::tile_row(lane);
+        ASSERT_TRUE(column >= 0 && column < 8 && row >= 0 && row < 8);
+        ++seen[static_cast<std::size_t>(8 * row + column)];
+        const int first = lane - lane % 8;  // the 4x2 block's first lane
+        EXPECT_EQ(column - column % 4, PinholeCamera::tile_column(first));
+        EXPECT_EQ(row - row % 2, PinholeCamera::tile_row(first));
+        EXPECT_EQ(column % 4 + 4 * (row % 2), lane % 8);
+    }
+    for (const int count : seen)
+        EXPECT_EQ(count, 1);
 }
 
 }  // namespace

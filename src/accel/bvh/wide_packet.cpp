@@ -11,6 +11,7 @@
 #include <type_traits>
 
 #include "accel/bvh/triangle_block.hpp"
+#include "accel/packet_batch.hpp"
 #include "accel/primitive_test.hpp"
 #include "accel/simd_float.hpp"
 
@@ -41,6 +42,7 @@ struct alignas(64) PacketRays {
     float direction[3][kPacketSize];
     float inv_direction[3][kPacketSize];
     float tnear[kPacketSize];
+    float tfar[kPacketSize];    // the caller's, for the scalar test of a sphere
     float tlimit[kPacketSize];  // the closest hit so far, or tfar
     // Moller-Trumbore's ray data: max |d_i|.
     float direction_scale[kPacketSize];
@@ -202,19 +204,47 @@ class PacketTracer {
 
     // Loads rays.size() <= kPacketSize rays; false when the packet cannot be traced together: two valid rays
     // disagree on a direction sign, or a reciprocal direction is not finite (a zero or denormal component,
-    // whose NaN plane distances the interval cull does not bound). A group of rays at a time: is_valid and
-    // SlabRay lane by lane, in the same fp32 operations (the triangle test's RayData waits for a leaf:
-    // prepare_group).
+    // whose NaN plane distances the interval cull does not bound).
     [[nodiscard]] bool load(std::span<const Ray> rays) {
-        rays_ = rays;
         const Ray* source = rays.data();
         if (rays.size() < static_cast<std::size_t>(kPacketSize)) {
             // A partial packet, padded with rays of zero direction (invalid: no lane of theirs is traced).
-            std::copy(rays.begin(), rays.end(), padded_.begin());
-            std::fill(padded_.begin() + static_cast<std::ptrdiff_t>(rays.size()), padded_.end(),
+            std::copy(rays.begin(), rays.end(), padded_rays_.begin());
+            std::fill(padded_rays_.begin() + static_cast<std::ptrdiff_t>(rays.size()), padded_rays_.end(),
                       Ray{{}, {}, 0.0f, 0.0f});
-            source = padded_.data();
+            source = padded_rays_.data();
         }
+        // The fields of kLanes consecutive rays, transposed: ox oy oz dx dy dz tnear tfar.
+        static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, tfar) == 7 * sizeof(float));
+        return load_groups(
+            [&](int first, Float(&fields)[8]) { Ops::load_fields8(&source[first].origin.x, fields); });
+    }
+
+    // The same from a packet in the caller's SoA layout: its arrays are the fields, read in place.
+    [[nodiscard]] bool load(const RayPacket& rays) {
+        const RayPacket* source = &rays;
+        if (rays.size < kPacketSize) {
+            padded_packet_ = rays;
+            for (int lane = rays.size; lane < kPacketSize; ++lane)
+                padded_packet_.set(lane, Ray{{}, {}, 0.0f, 0.0f});
+            source = &padded_packet_;
+        }
+        return load_groups([&](int first, Float(&fields)[8]) {
+            for (int axis = 0; axis < 3; ++axis) {
+                fields[axis] = Ops::load(&source->origin[axis][first]);
+                fields[axis + 3] = Ops::load(&source->direction[axis][first]);
+            }
+            fields[6] = Ops::load(&source->tnear[first]);
+            fields[7] = Ops::load(&source->tfar[first]);
+        });
+    }
+
+  private:
+    // A group of rays at a time, fields(first, fields) giving the eight fields of the group's lanes: is_valid
+    // and SlabRay lane by lane, in the same fp32 operations (the triangle test's RayData waits for a leaf:
+    // prepare_group).
+    template <class Fields>
+    [[nodiscard]] bool load_groups(Fields&& fields_of) {
         const Float infinity = Ops::broadcast(kInfinity), minus_infinity = Ops::broadcast(-kInfinity);
         const Float zero = Ops::broadcast(0.0f), one = Ops::broadcast(1.0f);
         Float origin_lo[3], origin_hi[3], inv_lo[3], inv_hi[3];
@@ -229,10 +259,8 @@ class PacketTracer {
         code_lanes_ = {};
         for (int group = 0; group < kGroups; ++group) {
             const int first = group * kLanes;
-            // The fields of kLanes consecutive rays, transposed: ox oy oz dx dy dz tnear tfar.
-            static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, tfar) == 7 * sizeof(float));
             Float fields[8];
-            Ops::load_fields8(&source[first].origin.x, fields);
+            fields_of(first, fields);
             const Float origin[3] = {fields[0], fields[1], fields[2]};
             const Float direction[3] = {fields[3], fields[4], fields[5]};
             const Float tnear = fields[6], tfar = fields[7];
@@ -265,6 +293,7 @@ class PacketTracer {
             const Float lane_tnear = Ops::select(valid, tnear, infinity);
             tnear_min = Ops::min(lane_tnear, tnear_min);
             Ops::store(&packet_.tnear[first], lane_tnear);
+            Ops::store(&packet_.tfar[first], tfar);
             Ops::store(&packet_.tlimit[first], Ops::select(valid, tfar, minus_infinity));
         }
         for (std::size_t axis = 0; axis < 3; ++axis) {
@@ -278,6 +307,7 @@ class PacketTracer {
         return true;
     }
 
+  public:
     // Front to back: the children that survive the cull are ordered by their entry bound and pushed, the
     // nearest on top; a popped child is tested against its rays, and skipped when it is entered beyond
     // every ray's closest hit. kAnyHit: a ray leaves the packet at its first hit. `answers` starts as
@@ -354,6 +384,21 @@ class PacketTracer {
                 Ops::select(missed, zero, Ops::load(&packet_.v[first])));
             std::copy_n(group, std::min<std::size_t>(kLanes, hits.size() - first),
                         hits.begin() + static_cast<std::ptrdiff_t>(first));
+        }
+    }
+
+    // The same into a hit packet's arrays, every lane (those past the caller's rays are unspecified).
+    void store_hits(HitPacket& hits) const {
+        const Float no_hit = Ops::broadcast_int(kNoHit), zero = Ops::broadcast(0.0f);
+        for (int first = 0; first < kPacketSize; first += kLanes) {
+            const auto prim = Ops::load(reinterpret_cast<const float*>(&packet_.prim[first]));
+            const auto missed = Ops::equal_int(prim, no_hit);
+            Ops::store(&hits.t[first],
+                       Ops::select(missed, Ops::broadcast(kInfinity), Ops::load(&packet_.tlimit[first])));
+            Ops::store(reinterpret_cast<float*>(&hits.prim[first]),
+                       Ops::select(missed, Ops::broadcast_int(-1), prim));
+            Ops::store(&hits.u[first], Ops::select(missed, zero, Ops::load(&packet_.u[first])));
+            Ops::store(&hits.v[first], Ops::select(missed, zero, Ops::load(&packet_.v[first])));
         }
     }
 
@@ -615,7 +660,11 @@ class PacketTracer {
     template <bool kAnyHit, class Answer>
     bool test_scalar(std::uint32_t prim, int i, std::span<Answer> answers) {
         if (!((alive_ >> i) & 1u)) return false;
-        const PreparedRay<TriangleTestT> prepared(rays_[static_cast<std::size_t>(i)]);
+        const PreparedRay<TriangleTestT> prepared(
+            Ray{{packet_.origin[0][i], packet_.origin[1][i], packet_.origin[2][i]},
+                {packet_.direction[0][i], packet_.direction[1][i], packet_.direction[2][i]},
+                packet_.tnear[i],
+                packet_.tfar[i]});
         if constexpr (kAnyHit) {
             if (!occludes(geometry_, prim, prepared)) return false;
             answers[static_cast<std::size_t>(i)] = 1;
@@ -635,8 +684,8 @@ class PacketTracer {
     const std::vector<Node>& nodes_;
     const std::vector<Block>& blocks_;
     const Geometry& geometry_;
-    std::span<const Ray> rays_;
-    std::array<Ray, kPacketSize> padded_;
+    std::array<Ray, kPacketSize> padded_rays_;
+    RayPacket padded_packet_;
     PacketRays packet_;
     PacketInterval interval_;
     std::array<PacketInterval, kGroups> group_intervals_;
@@ -669,6 +718,29 @@ void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest te
                 return true;
             });
         if constexpr (kCount) *counters += counts;
+    });
+}
+
+// One packet in the caller's SoA layout, traced in place, or through bvh8 a ray at a time when its rays
+// cannot go together.
+template <class Ops>
+void trace_soa_packet(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
+                      const RayPacket& rays, HitPacket& hits, TraversalCounters* counters) {
+    dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+        TraversalCounters counts;
+        PacketTracer<Ops, TriangleTestT> tracer(bvh, geometry);
+        if (tracer.load(rays)) {
+            tracer.template trace<false, kCount>(std::span<Hit>(), counts);
+            tracer.store_hits(hits);
+            if constexpr (kCount) {
+                counts.rays += static_cast<std::uint64_t>(rays.size);
+                *counters += counts;
+            }
+            return;
+        }
+        trace_packet_as_batch(rays, hits, [&](std::span<const Ray> batch, std::span<Hit> batch_hits) {
+            bvh.intersect(batch, batch_hits, counters);
+        });
     });
 }
 
@@ -717,6 +789,17 @@ void WidePacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> 
     });
 #else
     bvh8_.intersect(rays, hits, counters);
+#endif
+}
+
+void WidePacketAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
+                                            TraversalCounters* counters) const {
+#if defined(__AVX2__)
+    dispatch_lanes(lane_count_, [&]<class Ops>() {
+        trace_soa_packet<Ops>(bvh8_, geometry_, triangle_test_, rays, hits, counters);
+    });
+#else
+    Accel::intersect_packet_rays(rays, hits, counters);
 #endif
 }
 

@@ -21,6 +21,7 @@ class WidePacketAccel final : public Accel {
   public:
     // Rays traced together: one 8x8 tile of `lancer bench`, and the 64 bits of a lane mask.
     static constexpr int kPacketSize = 64;
+    static_assert(kPacketSize == RayPacket::kMaxSize, "a RayPacket is traced as one packet");
 
     // The rays per instruction of the packet's box and triangle tests: 16 (AVX-512) where the build targets
     // it, else 8 (AVX2); 1 in a build without AVX2, which traces every ray through bvh8. Where the widest is
@@ -41,6 +42,8 @@ class WidePacketAccel final : public Accel {
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                         TraversalCounters* counters) const override;
+    void intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
+                               TraversalCounters* counters) const override;
 
     Bvh8Accel bvh8_;
     Geometry geometry_;
