@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -21,6 +22,7 @@
 #include "common.hpp"
 #include "cuda_device.hpp"
 #include "lancer/camera.hpp"
+#include "lancer/denormals.hpp"
 #include "lancer/generate.hpp"
 
 namespace lancer::cli {
@@ -156,7 +158,7 @@ void for_each_tile_pixel(const PinholeCamera& camera, int x0, int y0, Visit&& vi
 }
 
 // Each lane's hit at its pixel. A tile inside the image goes a block row at a time: 4 lanes, 4 pixels in a
-// row of the image.
+// row of the image (HitPacket::copy_four).
 void store_tile_hits(const PinholeCamera& camera, int x0, int y0, const HitPacket& tile_hits,
                      std::vector<Hit>& hits) {
     if (x0 + kTileSide > camera.width() || y0 + kTileSide > camera.height()) {
@@ -168,8 +170,7 @@ void store_tile_hits(const PinholeCamera& camera, int x0, int y0, const HitPacke
     for (int lane = 0; lane < RayPacket::kMaxSize; lane += PinholeCamera::kBlockSide) {
         Hit* const row = hits.data() + static_cast<std::size_t>(y0 + PinholeCamera::tile_row(lane)) * width +
                          static_cast<std::size_t>(x0 + PinholeCamera::tile_column(lane));
-        for (int k = 0; k < PinholeCamera::kBlockSide; ++k)
-            row[k] = tile_hits.hit(lane + k);
+        tile_hits.copy_four(lane, row);
     }
 }
 
@@ -179,20 +180,35 @@ void trace_tiles(const Accel& accel, const PinholeCamera& camera, int first_row,
                  std::vector<Hit>& hits, TraversalCounters* counters = nullptr) {
     RayPacket rays;
     HitPacket tile_hits;
+    const auto width = static_cast<std::size_t>(camera.width());
     for_each_tile(camera, first_row, last_row, [&](int x0, int y0) {
         camera.tile_rays(x0, y0, rays);
+        // The tile's pixels asked for, for writing, before the trace: the 64 hits are stored at once after
+        // it, and the lines of a cold 16 MB image fetched then stalled the stores (Embree's tutorials store
+        // each packet's hits as they come, which overlaps those fetches with the trace). Written here, not in
+        // a function of its own: GCC deems a function of prefetches alone pure and drops its calls.
+        for (int row = 0; row < std::min(kTileSide, camera.height() - y0); ++row) {
+            const Hit* const pixels =
+                hits.data() + static_cast<std::size_t>(y0 + row) * width + static_cast<std::size_t>(x0);
+            __builtin_prefetch(pixels, 1);
+            __builtin_prefetch(pixels + std::min(kTileSide, camera.width() - x0) - 1, 1);
+        }
         accel.intersect_packet(rays, tile_hits, counters);
         store_tile_hits(camera, x0, y0, tile_hits, hits);
     });
 }
 
 // One frame as VIEWS.md times it: generate every ray from the camera, trace it, store its closest hit at its
-// pixel. One task per row of tiles.
+// pixel. One task per row of tiles. An Embree row's tasks set flush-to-zero once, as Embree's manual and
+// tutorials do (lancer/denormals.hpp); lancer's structures run in the IEEE mode.
 void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hit>& hits,
                  tbb::task_arena& arena) {
+    const bool flush_denormals = accel.name().starts_with("embree");
     arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<int>(0, tile_rows(camera), 1),
                           [&](const tbb::blocked_range<int>& rows) {
+                              std::optional<DenormalsFlushed> flushed;
+                              if (flush_denormals) flushed.emplace();
                               trace_tiles(accel, camera, rows.begin(), rows.end(), hits);
                           });
     });

@@ -7,6 +7,10 @@
 #include <cstddef>
 #include <cstdint>
 
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+#endif
+
 #include "lancer/ray.hpp"
 
 namespace lancer {
@@ -46,6 +50,27 @@ struct alignas(64) HitPacket {
     float v[RayPacket::kMaxSize];
 
     [[nodiscard]] Hit hit(int lane) const { return {t[lane], prim[lane], u[lane], v[lane]}; }
+    // The hits of lanes [first, first + 4) as four records (a row of a 4x4 pixel block). With SSE, one 4x4
+    // transpose and a 16-byte store per record: a record written field by field took three stores, and the
+    // stores into a frame's cold image were a third of a fast structure's frame time.
+    void copy_four(int first, Hit* out) const {
+#if defined(__SSE2__)
+        static_assert(sizeof(Hit) == 16 && offsetof(Hit, prim) == 4 && offsetof(Hit, u) == 8 &&
+                      offsetof(Hit, v) == 12);
+        __m128 t_row = _mm_loadu_ps(t + first),
+               prim_row = _mm_loadu_ps(reinterpret_cast<const float*>(prim + first));
+        __m128 u_row = _mm_loadu_ps(u + first), v_row = _mm_loadu_ps(v + first);
+        _MM_TRANSPOSE4_PS(t_row, prim_row, u_row, v_row);
+        auto* record = reinterpret_cast<float*>(out);
+        _mm_storeu_ps(record, t_row);
+        _mm_storeu_ps(record + 4, prim_row);
+        _mm_storeu_ps(record + 8, u_row);
+        _mm_storeu_ps(record + 12, v_row);
+#else
+        for (int k = 0; k < 4; ++k)
+            out[k] = hit(first + k);
+#endif
+    }
     void set(int lane, const Hit& hit) {
         t[lane] = hit.t, prim[lane] = hit.prim, u[lane] = hit.u, v[lane] = hit.v;
     }

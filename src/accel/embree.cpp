@@ -3,8 +3,6 @@
 #if defined(__AVX2__)
 #include <immintrin.h>
 #endif
-#include <pmmintrin.h>  // _MM_SET_DENORMALS_ZERO_MODE's bit
-#include <xmmintrin.h>  // _mm_getcsr, _mm_setcsr
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -19,6 +17,7 @@
 #include "accel/simd_float.hpp"
 #include "core/intersect.hpp"
 #include "core/memory_limit.hpp"
+#include "lancer/denormals.hpp"
 
 namespace lancer {
 namespace {
@@ -89,23 +88,10 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float
     return query;
 }
 
-// Flush-to-zero and denormals-are-zero for the lifetime of the object, the mode Embree's manual asks its
-// callers to set ("Performance Recommendations", MXCSR): without it a denormal made its triangle test report
-// a hit at t = NaN, on which the next geometry's traversal asserted `ray.valid()` and aborted (fuzz finding
-// 18, docs/robustness.md). The mode is per thread; it is set once per batch and the caller's restored after,
-// so that lancer's own code keeps IEEE denormals.
-class DenormalsFlushed {
-  public:
-    DenormalsFlushed() : caller_mode_(_mm_getcsr()) {
-        _mm_setcsr(caller_mode_ | _MM_FLUSH_ZERO_ON | _MM_DENORMALS_ZERO_ON);
-    }
-    ~DenormalsFlushed() { _mm_setcsr(caller_mode_); }
-    DenormalsFlushed(const DenormalsFlushed&) = delete;
-    DenormalsFlushed& operator=(const DenormalsFlushed&) = delete;
-
-  private:
-    unsigned int caller_mode_;
-};
+// Embree runs with flush-to-zero and denormals-are-zero (lancer/denormals.hpp), the mode its manual asks for:
+// without it a denormal made its triangle test report a hit at t = NaN, on which the next geometry's
+// traversal asserted `ray.valid()` and aborted (fuzz finding 18, docs/robustness.md). Every call sets it for
+// its duration, unless the caller has already.
 
 // Embree numbers primitives per geometry; lancer's global numbering puts the spheres after the triangles.
 Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, float v,
