@@ -50,9 +50,8 @@ struct alignas(64) HitPacket {
     float v[RayPacket::kMaxSize];
 
     [[nodiscard]] Hit hit(int lane) const { return {t[lane], prim[lane], u[lane], v[lane]}; }
-    // The hits of lanes [first, first + 4) as four records (a row of a 4x4 pixel block). With SSE, one 4x4
-    // transpose and a 16-byte store per record: a record written field by field took three stores, and the
-    // stores into a frame's cold image were a third of a fast structure's frame time.
+    // The hits of lanes [first, first + 4) as four records (a row of a 4x4 pixel block): with SSE, one 4x4
+    // transpose and a 16-byte store per record, where GCC writes a record built field by field in three.
     void copy_four(int first, Hit* out) const {
 #if defined(__SSE2__)
         static_assert(sizeof(Hit) == 16 && offsetof(Hit, prim) == 4 && offsetof(Hit, u) == 8 &&

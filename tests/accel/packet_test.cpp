@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cstring>
 #include <random>
 
 #include "accel/agreement.hpp"
@@ -273,6 +274,25 @@ TEST_P(PacketTest, CountersSeeEveryRayOfEveryPacket) {
     packet->intersect_packet(rays_packet, hits_packet, &packet_counters);
     EXPECT_EQ(packet_counters.rays, 50u);
     EXPECT_GT(packet_counters.nodes_visited, 0u);
+}
+
+// copy_four writes lanes [first, first + 4) as the records hit() gives, bit for bit, and nothing around them.
+TEST(PacketCall, HitPacketCopiesFourRecords) {
+    HitPacket packet;
+    for (int lane = 0; lane < RayPacket::kMaxSize; ++lane)
+        packet.set(lane, {1.5f * static_cast<float>(lane), lane % 7 == 0 ? -1 : lane, 0.25f, -0.0f});
+    for (const int first : {0, 4, 29, 60}) {
+        std::array<Hit, 6> out;
+        out.fill({-2.0f, -3, -4.0f, -5.0f});
+        packet.copy_four(first, out.data() + 1);
+        EXPECT_EQ(out[0].prim, -3);
+        EXPECT_EQ(out[5].prim, -3);
+        for (int k = 0; k < 4; ++k) {
+            const Hit expected = packet.hit(first + k);
+            EXPECT_EQ(std::memcmp(&out[static_cast<std::size_t>(k) + 1], &expected, sizeof(Hit)), 0)
+                << "lane " << first + k;
+        }
+    }
 }
 
 // A packet holds 0 to 64 rays: any other size is refused, naming it, before a lane is read.
