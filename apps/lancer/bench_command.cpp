@@ -187,11 +187,14 @@ void trace_tiles(const Accel& accel, const PinholeCamera& camera, int first_row,
         // it, and the lines of a cold 16 MB image fetched then stalled the stores (Embree's tutorials store
         // each packet's hits as they come, which overlaps those fetches with the trace). Written here, not in
         // a function of its own: GCC deems a function of prefetches alone pure and drops its calls.
+        // A tile row's 128 bytes may straddle three lines: every fourth pixel and the last are asked for.
+        const int columns = std::min(kTileSide, camera.width() - x0);
         for (int row = 0; row < std::min(kTileSide, camera.height() - y0); ++row) {
             const Hit* const pixels =
                 hits.data() + static_cast<std::size_t>(y0 + row) * width + static_cast<std::size_t>(x0);
-            __builtin_prefetch(pixels, 1);
-            __builtin_prefetch(pixels + std::min(kTileSide, camera.width() - x0) - 1, 1);
+            for (int column = 0; column < columns; column += 4)
+                __builtin_prefetch(pixels + column, 1);
+            __builtin_prefetch(pixels + columns - 1, 1);
         }
         accel.intersect_packet(rays, tile_hits, counters);
         store_tile_hits(camera, x0, y0, tile_hits, hits);
