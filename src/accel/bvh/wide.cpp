@@ -94,10 +94,16 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
         }
         const SubtreeRange& range = input.ranges[children[slot]];
         if (range.as_leaf) {
+            // Each primitive once: with spatial splits, two binary leaves merged here may share one.
+            std::array<std::uint32_t, BvhAccel::kMaxLeafSize> prims;
+            std::uint32_t count = 0;
+            for (const std::uint32_t prim : std::span(input.prim_indices).subspan(range.first, range.count)) {
+                if (std::find(prims.begin(), prims.begin() + count, prim) == prims.begin() + count)
+                    prims[count++] = prim;
+            }
             wide[index].child[slot] = static_cast<std::uint32_t>(blocks.size());
-            wide[index].prim_count[slot] = range.count;
-            append_leaf_blocks(input.geometry,
-                               std::span(input.prim_indices).subspan(range.first, range.count), blocks);
+            wide[index].prim_count[slot] = count;
+            append_leaf_blocks(input.geometry, std::span(prims).first(count), blocks);
         } else {
             // Not a reference into `wide`: the recursion may reallocate it.
             const std::uint32_t child_index = collapse<W>(input, children[slot], wide, blocks);
