@@ -306,6 +306,79 @@ class BinnedBuilder {
     // Offsets from a node's first reference, for the exact split's orders.
     using ExactOrder = std::array<std::uint8_t, kExactSplitBelow>;
 
+    // An object split and its children's boxes, whose overlap decides whether a spatial split is tried.
+    struct ObjectSplit {
+        Split split;
+        Box3f left_bounds, right_bounds;
+    };
+
+    // A spatial split: the plane on `split.axis` at boundary `split.bin` of the node's spatial bins, and the
+    // children as binning saw them, which reference unsplitting weighs each cut reference against.
+    struct SpatialSplit {
+        Split split;
+        float plane = 0.0f;
+        Box3f left_bounds, right_bounds;
+        std::uint32_t left_count = 0, right_count = 0;
+    };
+
+    struct Children {
+        int axis = -1;
+        RefRange left, right;
+        NodeBounds left_bounds, right_bounds;
+    };
+
+    // Every boundary between consecutive centroids on each axis, in centroid order (ties by primitive
+    // index), for a node of at most kExactSplitBelow references; `best_order` receives the order of the
+    // chosen axis, which the caller applies (no second sort to partition), and the boxes are swept four
+    // floats at a time.
+    Split exact_split(std::size_t begin, std::size_t end, ExactOrder& best_order) const {
+        const std::size_t count = end - begin;
+        std::array<BinBox, kExactSplitBelow> boxes;
+        // Padding past `count` sorts after every reference: its key is +inf, above every centroid.
+        std::array<float, kExactSplitBelow> keys;
+        std::array<std::uint32_t, kExactSplitBelow> prims;
+        keys.fill(kInfinity);
+        prims.fill(std::numeric_limits<std::uint32_t>::max());
+        for (std::size_t i = 0; i < count; ++i) {
+            const BuildRef& ref = refs_[begin + i];
+            boxes[i] = BinBox::of(ref);
+            prims[i] = ref.prim;
+        }
+        ExactOrder order;
+        std::array<float, kExactSplitBelow> right_areas{};
+        Split best;
+        for (int axis = 0; axis < 3; ++axis) {
+            for (std::size_t i = 0; i < count; ++i)
+                keys[i] = refs_[begin + i].centroid[axis];
+            // centroid_less's order by ranks: reference i goes where the count of references before it says.
+            // Branch-free compares over fixed-size arrays, where an insertion sort mispredicts half of its.
+            for (std::size_t i = 0; i < count; ++i) {
+                std::uint32_t rank = 0;
+                for (std::size_t j = 0; j < kExactSplitBelow; ++j) {
+                    rank += static_cast<std::uint32_t>((keys[j] < keys[i]) |
+                                                       ((keys[j] == keys[i]) & (prims[j] < prims[i])));
+                }
+                order[rank] = static_cast<std::uint8_t>(i);
+            }
+            BinBox right;
+            for (std::size_t i = count - 1; i > 0; --i) {
+                right.extend(boxes[order[i]]);
+                right_areas[i] = right.box().surface_area();
+            }
+            BinBox left;
+            bool improved = false;
+            for (std::size_t i = 0; i + 1 < count; ++i) {
+                left.extend(boxes[order[i]]);
+                if (keys[order[i]] == keys[order[i + 1]]) continue;
+                const float cost = left.box().surface_area() * static_cast<float>(i + 1) +
+                                   right_areas[i + 1] * static_cast<float>(count - i - 1);
+                if (cost < best.cost) best = {axis, cost, i + 1, 0}, improved = true;
+            }
+            if (improved) best_order = order;
+        }
+        return best;
+    }
+
     // A box as two 4-float rows (the fourth lane unused), so that extending one is one vector min and one
     // vector max: binning extends a bin's box three times per reference.
     struct BinBox {
@@ -416,184 +489,6 @@ class BinnedBuilder {
             return std::clamp(static_cast<int>(scaled), 0, bins - 1);
         }
     };
-
-    // An object split and its children's boxes, whose overlap decides whether a spatial split is tried.
-    struct ObjectSplit {
-        Split split;
-        Box3f left_bounds, right_bounds;
-    };
-
-    // A spatial split: the plane on `split.axis` at boundary `split.bin` of the node's spatial bins, and the
-    // children as binning saw them, which reference unsplitting weighs each cut reference against.
-    struct SpatialSplit {
-        Split split;
-        float plane = 0.0f;
-        Box3f left_bounds, right_bounds;
-        std::uint32_t left_count = 0, right_count = 0;
-    };
-
-    struct Children {
-        int axis = -1;
-        RefRange left, right;
-        NodeBounds left_bounds, right_bounds;
-    };
-
-    // The node over refs_[range.begin, range.end), whose reference boxes and centroids `node` bounds.
-    void build(NodeSlots& slots, std::size_t slot, const RefRange& range, int depth, const NodeBounds& node) {
-        const auto& [bounds, centroids] = node;
-        const std::size_t count = range.size();
-        const bool exact = count <= kExactSplitBelow;
-        const BinMap map(centroids, bins_);
-        ObjectSplit object;
-        ExactOrder exact_order;
-        SpatialSplit spatial;
-        if (depth < kMedianSplitDepth) {
-            object = exact ? exact_split(range.begin, range.end, exact_order)
-                           : best_split(range.begin, range.end, map, centroids);
-            if (worth_a_spatial_split(range, object)) spatial = best_spatial_split(range, bounds);
-        }
-        const bool spatial_is_better = spatial.split.cost < object.split.cost;
-        if (stays_leaf(count, bounds.surface_area(), spatial_is_better ? spatial.split : object.split,
-                       max_leaf_)) {
-            slots.set_leaf(slot, bounds, range.begin, count);
-            return;
-        }
-        std::optional<Children> children;
-        if (spatial_is_better) children = spatial_partition(range, bounds, spatial);
-        if (!children) children = object_partition(range, object.split, map, exact_order, centroids);
-        const auto [first, second] = slots.set_inner(slot, bounds, children->axis, children->left.capacity());
-#if LANCER_HAS_TBB
-        if (count > kParallelSubtree) {
-            // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
-            tbb::parallel_invoke(
-                [&, first_slot = first] {
-                    build(slots, first_slot, children->left, depth + 1, children->left_bounds);
-                },
-                [&, second_slot = second] {
-                    build(slots, second_slot, children->right, depth + 1, children->right_bounds);
-                });
-            return;
-        }
-#endif
-        build(slots, first, children->left, depth + 1, children->left_bounds);
-        build(slots, second, children->right, depth + 1, children->right_bounds);
-    }
-
-    // The object split's children: the binned partition, the exact split's order, or an object median when
-    // nothing separates the centroids.
-    Children object_partition(const RefRange& range, Split split, const BinMap& map,
-                              const ExactOrder& exact_order, const Box3f& centroids) {
-        const std::size_t begin = range.begin, end = range.end, count = range.size();
-        Children children;
-        std::size_t middle;
-        if (split.axis >= 0 && count > kExactSplitBelow) {
-            std::tie(middle, children.left_bounds, children.right_bounds) = partition(begin, end, map, split);
-        } else {
-            if (split.axis >= 0) {
-                // The exact split's order on its axis.
-                std::array<BuildRef, kExactSplitBelow> node_refs;
-                std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                          refs_.begin() + static_cast<std::ptrdiff_t>(end), node_refs.begin());
-                for (std::size_t i = 0; i < count; ++i)
-                    refs_[begin + i] = node_refs[exact_order[i]];
-            } else {
-                split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
-                const int median_axis = split.axis;
-                std::nth_element(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                                 refs_.begin() + static_cast<std::ptrdiff_t>(begin + split.left_count),
-                                 refs_.begin() + static_cast<std::ptrdiff_t>(end),
-                                 [median_axis](const BuildRef& a, const BuildRef& b) {
-                                     return centroid_less(a, b, median_axis);
-                                 });
-            }
-            middle = begin + split.left_count;
-            children.left_bounds = bounds_of(begin, middle), children.right_bounds = bounds_of(middle, end);
-        }
-        children.axis = split.axis;
-        std::tie(children.left, children.right) = share_free_positions(range, middle - begin, end - middle);
-        if (children.right.begin != middle) {
-            // Make room for the left child's free positions: the right child's first references move past
-            // its last (Embree's moveExtentedRange), the others stay.
-            const std::size_t moved = std::min(children.right.begin - middle, end - middle);
-            std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(middle),
-                      refs_.begin() + static_cast<std::ptrdiff_t>(middle + moved),
-                      refs_.begin() + static_cast<std::ptrdiff_t>(children.right.end - moved));
-        }
-        return children;
-    }
-
-    // The children's ranges for `left_count` then `right_count` references out of a node whose range is
-    // `range`: the free positions are shared in proportion to the references (Embree's
-    // setExtentedRanges), so that a child has room for spatial splits in proportion to its size.
-    static std::pair<RefRange, RefRange> share_free_positions(const RefRange& range, std::size_t left_count,
-                                                              std::size_t right_count) {
-        const std::size_t free = range.capacity() - left_count - right_count;
-        const auto left_free = std::min(
-            free, static_cast<std::size_t>(static_cast<double>(free) * static_cast<double>(left_count) /
-                                           static_cast<double>(left_count + right_count)));
-        const std::size_t right_begin = range.begin + left_count + left_free;
-        return {{range.begin, range.begin + left_count, right_begin},
-                {right_begin, right_begin + right_count, range.capacity_end}};
-    }
-
-    // Every boundary between consecutive centroids on each axis, in centroid order (ties by primitive
-    // index), for a node of at most kExactSplitBelow references; `best_order` receives the order of the
-    // chosen axis, which the caller applies (no second sort to partition), and the boxes are swept four
-    // floats at a time. The children's boxes are filled in only for spatial splits.
-    ObjectSplit exact_split(std::size_t begin, std::size_t end, ExactOrder& best_order) const {
-        const std::size_t count = end - begin;
-        std::array<BinBox, kExactSplitBelow> boxes;
-        // Padding past `count` sorts after every reference: its key is +inf, above every centroid.
-        std::array<float, kExactSplitBelow> keys;
-        std::array<std::uint32_t, kExactSplitBelow> prims;
-        keys.fill(kInfinity);
-        prims.fill(std::numeric_limits<std::uint32_t>::max());
-        for (std::size_t i = 0; i < count; ++i) {
-            const BuildRef& ref = refs_[begin + i];
-            boxes[i] = BinBox::of(ref);
-            prims[i] = ref.prim;
-        }
-        ExactOrder order;
-        std::array<float, kExactSplitBelow> right_areas{};
-        Split best;
-        for (int axis = 0; axis < 3; ++axis) {
-            for (std::size_t i = 0; i < count; ++i)
-                keys[i] = refs_[begin + i].centroid[axis];
-            // centroid_less's order by ranks: reference i goes where the count of references before it says.
-            // Branch-free compares over fixed-size arrays, where an insertion sort mispredicts half of its.
-            for (std::size_t i = 0; i < count; ++i) {
-                std::uint32_t rank = 0;
-                for (std::size_t j = 0; j < kExactSplitBelow; ++j) {
-                    rank += static_cast<std::uint32_t>((keys[j] < keys[i]) |
-                                                       ((keys[j] == keys[i]) & (prims[j] < prims[i])));
-                }
-                order[rank] = static_cast<std::uint8_t>(i);
-            }
-            BinBox right;
-            for (std::size_t i = count - 1; i > 0; --i) {
-                right.extend(boxes[order[i]]);
-                right_areas[i] = right.box().surface_area();
-            }
-            BinBox left;
-            bool improved = false;
-            for (std::size_t i = 0; i + 1 < count; ++i) {
-                left.extend(boxes[order[i]]);
-                if (keys[order[i]] == keys[order[i + 1]]) continue;
-                const float cost = left.box().surface_area() * static_cast<float>(i + 1) +
-                                   right_areas[i + 1] * static_cast<float>(count - i - 1);
-                if (cost < best.cost) best = {axis, cost, i + 1, 0}, improved = true;
-            }
-            if (improved) best_order = order;
-        }
-        ObjectSplit object{best, {}, {}};
-        if (spatial_splits_ && best.axis >= 0) {
-            BinBox left, right;
-            for (std::size_t i = 0; i < count; ++i)
-                (i < best.left_count ? left : right).extend(boxes[best_order[i]]);
-            object.left_bounds = left.box(), object.right_bounds = right.box();
-        }
-        return object;
-    }
 
     // Two-pointer partition by the split's bin, which accumulates both sides' boxes and centroid bounds on
     // the way: the children's NodeBounds without another pass over their references.
@@ -712,6 +607,109 @@ class BinnedBuilder {
             object.left_bounds = left.box(), object.right_bounds = right.box();
         }
         return object;
+    }
+
+    // The node over refs_[range.begin, range.end), whose reference boxes and centroids `node` bounds.
+    void build(NodeSlots& slots, std::size_t slot, const RefRange& range, int depth, const NodeBounds& node) {
+        const auto& [bounds, centroids] = node;
+        const std::size_t count = range.size();
+        const bool exact = count <= kExactSplitBelow;
+        const BinMap map(centroids, bins_);
+        ObjectSplit object;
+        ExactOrder exact_order;
+        SpatialSplit spatial;
+        if (depth < kMedianSplitDepth && exact) {
+            // No spatial split here: the references are large beside the node and cross most of its bins, so
+            // chopped binning would cost the most per reference, for the least gain (docs/accel/bvh.md,
+            // "Spatial splits": half the build time on the bunny and the armadillo, 0.1% of the SAH cost).
+            object.split = exact_split(range.begin, range.end, exact_order);
+        } else if (depth < kMedianSplitDepth) {
+            object = best_split(range.begin, range.end, map, centroids);
+            if (worth_a_spatial_split(range, object)) spatial = best_spatial_split(range, bounds);
+        }
+        const bool spatial_is_better = spatial.split.cost < object.split.cost;
+        if (stays_leaf(count, bounds.surface_area(), spatial_is_better ? spatial.split : object.split,
+                       max_leaf_)) {
+            slots.set_leaf(slot, bounds, range.begin, count);
+            return;
+        }
+        std::optional<Children> children;
+        if (spatial_is_better) children = spatial_partition(range, bounds, spatial);
+        if (!children) children = object_partition(range, object.split, map, exact_order, centroids);
+        const auto [first, second] = slots.set_inner(slot, bounds, children->axis, children->left.capacity());
+#if LANCER_HAS_TBB
+        if (count > kParallelSubtree) {
+            // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
+            tbb::parallel_invoke(
+                [&, first_slot = first] {
+                    build(slots, first_slot, children->left, depth + 1, children->left_bounds);
+                },
+                [&, second_slot = second] {
+                    build(slots, second_slot, children->right, depth + 1, children->right_bounds);
+                });
+            return;
+        }
+#endif
+        build(slots, first, children->left, depth + 1, children->left_bounds);
+        build(slots, second, children->right, depth + 1, children->right_bounds);
+    }
+
+    // The object split's children: the binned partition, the exact split's order, or an object median when
+    // nothing separates the centroids.
+    Children object_partition(const RefRange& range, Split split, const BinMap& map,
+                              const ExactOrder& exact_order, const Box3f& centroids) {
+        const std::size_t begin = range.begin, end = range.end, count = range.size();
+        Children children;
+        std::size_t middle;
+        if (split.axis >= 0 && count > kExactSplitBelow) {
+            std::tie(middle, children.left_bounds, children.right_bounds) = partition(begin, end, map, split);
+        } else {
+            if (split.axis >= 0) {
+                // The exact split's order on its axis.
+                std::array<BuildRef, kExactSplitBelow> node_refs;
+                std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                          refs_.begin() + static_cast<std::ptrdiff_t>(end), node_refs.begin());
+                for (std::size_t i = 0; i < count; ++i)
+                    refs_[begin + i] = node_refs[exact_order[i]];
+            } else {
+                // An object median when nothing separates the centroids.
+                split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
+                const int median_axis = split.axis;
+                std::nth_element(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                                 refs_.begin() + static_cast<std::ptrdiff_t>(begin + split.left_count),
+                                 refs_.begin() + static_cast<std::ptrdiff_t>(end),
+                                 [median_axis](const BuildRef& a, const BuildRef& b) {
+                                     return centroid_less(a, b, median_axis);
+                                 });
+            }
+            middle = begin + split.left_count;
+            children.left_bounds = bounds_of(begin, middle), children.right_bounds = bounds_of(middle, end);
+        }
+        children.axis = split.axis;
+        std::tie(children.left, children.right) = share_free_positions(range, middle - begin, end - middle);
+        if (children.right.begin != middle) {
+            // Make room for the left child's free positions: the right child's first references move past
+            // its last (Embree's moveExtentedRange), the others stay.
+            const std::size_t moved = std::min(children.right.begin - middle, end - middle);
+            std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(middle),
+                      refs_.begin() + static_cast<std::ptrdiff_t>(middle + moved),
+                      refs_.begin() + static_cast<std::ptrdiff_t>(children.right.end - moved));
+        }
+        return children;
+    }
+
+    // The children's ranges for `left_count` then `right_count` references out of a node whose range is
+    // `range`: the free positions are shared in proportion to the references (Embree's
+    // setExtentedRanges), so that a child has room for spatial splits in proportion to its size.
+    static std::pair<RefRange, RefRange> share_free_positions(const RefRange& range, std::size_t left_count,
+                                                              std::size_t right_count) {
+        const std::size_t free = range.capacity() - left_count - right_count;
+        const auto left_free = std::min(
+            free, static_cast<std::size_t>(static_cast<double>(free) * static_cast<double>(left_count) /
+                                           static_cast<double>(left_count + right_count)));
+        const std::size_t right_begin = range.begin + left_count + left_free;
+        return {{range.begin, range.begin + left_count, right_begin},
+                {right_begin, right_begin + right_count, range.capacity_end}};
     }
 
     // ---------------------------------------------------------------------------------------------------
@@ -920,8 +918,8 @@ class BinnedBuilder {
 
     // Applies a spatial split: a reference on one side of the plane goes to that side; one that the plane
     // cuts either goes to both sides, each with the bounds of its part, or, where that is cheaper, whole to
-    // one side (Stich et al., section 4.4, reference unsplitting; the children's boxes and counts are those
-    // of the binning, so that every reference's choice is independent of the others'). Cuts stop once the
+    // one side (Stich et al., "reference unsplitting"; the children's boxes and counts are those of the
+    // binning, so that every reference's choice is independent of the others'). Cuts stop once the
     // node's free positions are used up: the remaining cut references are unsplit to their cheaper side.
     // No children (a fall back to the object split) when one side ends up empty, which the rounding of the
     // plane against the bins can cause.
