@@ -621,7 +621,7 @@ class BinnedBuilder {
         if (depth < kMedianSplitDepth && exact) {
             // No spatial split here: the references are large beside the node and cross most of its bins, so
             // chopped binning would cost the most per reference, for the least gain (docs/accel/bvh.md,
-            // "Spatial splits": half the build time on the bunny and the armadillo, 0.1% of the SAH cost).
+            // "Spatial splits": half the bunny's build time, for at most 0.5% of the SAH cost).
             object.split = exact_split(range.begin, range.end, exact_order);
         } else if (depth < kMedianSplitDepth) {
             object = best_split(range.begin, range.end, map, centroids);
