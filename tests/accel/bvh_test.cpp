@@ -133,22 +133,28 @@ TEST(Bvh, BothBuildersGiveValidHierarchies) {
     }
 }
 
-TEST(Bvh, SweepBuilderAgreesWithBruteForce) {
-    const std::vector<Triangle> triangles = knot_triangles(300);
-    const Geometry geometry{triangles, {}};
-    BvhAccel bvh;
-    bvh.build(geometry, with_builder(BvhBuilder::SweepSah));
+// The closest hits of brute force on random rays, rays through vertices and edges and axis-parallel rays,
+// `count` of each (Moller-Trumbore, as `bvh` was built).
+void expect_agrees_with_brute_force(const BvhAccel& bvh, const Geometry& geometry, std::size_t count) {
     const std::unique_ptr<Accel> brute = make_accel("brute");
     brute->build(geometry, {});
-    for (const auto& set :
-         {testing::random_rays(geometry.bounds(), 5000, 1), testing::vertex_and_edge_rays(triangles, 5000, 2),
-          testing::axis_parallel_rays(geometry.bounds(), 5000, 3)}) {
+    for (const auto& set : {testing::random_rays(geometry.bounds(), count, 1),
+                            testing::vertex_and_edge_rays(geometry.triangles, count, 2),
+                            testing::axis_parallel_rays(geometry.bounds(), count, 3)}) {
         std::vector<Hit> expected(set.rays.size()), actual(set.rays.size());
         brute->intersect(set.rays, expected);
         bvh.intersect(set.rays, actual);
         const Agreement agreement = compare_hits(set.rays, expected, actual);
         EXPECT_EQ(agreement.mismatches, 0u) << set.name << ": " << agreement.summary();
     }
+}
+
+TEST(Bvh, SweepBuilderAgreesWithBruteForce) {
+    const std::vector<Triangle> triangles = knot_triangles(300);
+    const Geometry geometry{triangles, {}};
+    BvhAccel bvh;
+    bvh.build(geometry, with_builder(BvhBuilder::SweepSah));
+    expect_agrees_with_brute_force(bvh, geometry, 5000);
 }
 
 // The root's split cost A(L) N(L) + A(R) N(R), from the built children (boxes shrunk back by the margin).
@@ -235,27 +241,8 @@ TEST(Bvh, SpatialSplitsIsASetKey) {
     EXPECT_THROW(set_build_option(options, "bvh.spatial_splits=yes"), std::invalid_argument);
 }
 
-// Small triangles spread in a cube, and long thin ones along its diagonal: the long ones' boxes inflate every
-// node that holds them, whatever object split is made, while planes that cut them into short pieces keep the
-// nodes tight (the case spatial splits are for: Stich et al. 2009, section 1).
-std::vector<Triangle> small_and_long_triangles(int small, int long_ones) {
-    std::mt19937 rng(12);
-    std::uniform_real_distribution<float> offset(0.0f, 100.0f);
-    std::vector<Triangle> triangles;
-    for (int i = 0; i < small; ++i) {
-        const Vec3f corner(offset(rng), offset(rng), offset(rng));
-        triangles.push_back({corner, corner + Vec3f(1, 0, 0), corner + Vec3f(0, 1, 1)});
-    }
-    for (int i = 0; i < long_ones; ++i) {
-        const Vec3f start(offset(rng), offset(rng), 0.0f);
-        const Vec3f end = start + Vec3f(100.0f);
-        triangles.push_back({start, end, end + Vec3f(0.5f, -0.5f, 0.0f)});
-    }
-    return triangles;
-}
-
 TEST(Bvh, SpatialSplitsCutLongTriangles) {
-    const std::vector<Triangle> triangles = small_and_long_triangles(4000, 100);
+    const std::vector<Triangle> triangles = testing::small_and_long_triangles(4000, 100);
     const Geometry geometry{triangles, {}};
     BvhAccel objects, spatial;
     objects.build(geometry, with_builder(BvhBuilder::BinnedSah));
@@ -266,39 +253,21 @@ TEST(Bvh, SpatialSplitsCutLongTriangles) {
                 without.sah_cost, with.sah_cost, with.references);
     EXPECT_LT(with.sah_cost, 0.7 * without.sah_cost);
     EXPECT_GT(with.references, triangles.size() + 400);  // the long triangles are cut several times each
-
-    const std::unique_ptr<Accel> brute = make_accel("brute");
-    brute->build(geometry, {});
-    for (const auto& set :
-         {testing::random_rays(geometry.bounds(), 4000, 1), testing::vertex_and_edge_rays(triangles, 4000, 2),
-          testing::axis_parallel_rays(geometry.bounds(), 4000, 3)}) {
-        std::vector<Hit> expected(set.rays.size()), actual(set.rays.size());
-        brute->intersect(set.rays, expected);
-        spatial.intersect(set.rays, actual);
-        const Agreement agreement = compare_hits(set.rays, expected, actual);
-        EXPECT_EQ(agreement.mismatches, 0u) << set.name << ": " << agreement.summary();
-    }
+    expect_agrees_with_brute_force(spatial, geometry, 4000);
 }
 
-// Inputs that are hard on the cuts: degenerate triangles (points, segments), triangles lying in the planes of
-// the spatial bins (a grid of axis-aligned squares, whose edges fall on the bins' planes) and the largest
-// coordinates of the contract's domain.
-// Long thin triangles side by side along the diagonal of a cube: every node would cut every one of them.
+// Only long thin triangles side by side along the diagonal of a cube: every node would cut every one of them.
 TEST(Bvh, SpatialSplitsStopAtTheirBudget) {
-    std::mt19937 rng(14);
-    std::uniform_real_distribution<float> offset(0.0f, 100.0f);
-    std::vector<Triangle> triangles;
-    for (int i = 0; i < 3000; ++i) {
-        const Vec3f start(offset(rng), offset(rng), 0.0f);
-        const Vec3f end = start + Vec3f(100.0f);
-        triangles.push_back({start, end, end + Vec3f(0.5f, -0.5f, 0.0f)});
-    }
+    const std::vector<Triangle> triangles = testing::small_and_long_triangles(0, 3000);
     BvhAccel bvh;
     bvh.build({triangles, {}}, with_spatial_splits());
     expect_valid_hierarchy(bvh, {triangles, {}}, 4, true);
     EXPECT_EQ(bvh.stats().references, triangles.size() * 3 / 2);  // used up, not exceeded
 }
 
+// Inputs that are hard on the cuts: degenerate triangles (points, segments), triangles lying in the planes of
+// the spatial bins (a grid of axis-aligned squares, whose edges fall on the bins' planes) and the largest
+// coordinates of the contract's domain.
 TEST(Bvh, SpatialSplitsOnDegenerateInPlaneAndHugeTriangles) {
     std::mt19937 rng(13);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
@@ -324,22 +293,12 @@ TEST(Bvh, SpatialSplitsOnDegenerateInPlaneAndHugeTriangles) {
         huge.push_back({a, -a, Vec3f(limit, -limit, limit * (2 * unit(rng) - 1))});
     }
     const std::vector<Sphere> spheres = {{{8, 8, 8}, 9.0f, 0}, {{1, 15, 3}, 0.0f, 0}, {{4, 4, 4}, 1e-3f, 0}};
-    const std::unique_ptr<Accel> brute = make_accel("brute");
     for (const Geometry geometry : {Geometry{hard, spheres}, Geometry{huge, {}}}) {
         for (const int leaf : {1, 4}) {
             BvhAccel bvh;
             bvh.build(geometry, with_spatial_splits(leaf));
             expect_valid_hierarchy(bvh, geometry, leaf, true);
-            brute->build(geometry, {});
-            for (const auto& set : {testing::random_rays(geometry.bounds(), 3000, 4),
-                                    testing::vertex_and_edge_rays(geometry.triangles, 3000, 5),
-                                    testing::axis_parallel_rays(geometry.bounds(), 3000, 6)}) {
-                std::vector<Hit> expected(set.rays.size()), actual(set.rays.size());
-                brute->intersect(set.rays, expected);
-                bvh.intersect(set.rays, actual);
-                const Agreement agreement = compare_hits(set.rays, expected, actual);
-                EXPECT_EQ(agreement.mismatches, 0u) << set.name << ": " << agreement.summary();
-            }
+            expect_agrees_with_brute_force(bvh, geometry, 3000);
         }
     }
 }

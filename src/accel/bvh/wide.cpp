@@ -17,7 +17,9 @@ constexpr double kPrimitiveCost = 1.0;
 
 // The primitives under a binary node: the range [first, first + count) of prim_indices (depth first layout)
 // and whether the collapse keeps the whole subtree as one leaf: a binary leaf, or a subtree of at most
-// kBlockLanes primitives, which one triangle block tests at the cost of one of its leaves.
+// kBlockLanes primitives, which one triangle block tests at the cost of one of its leaves. Such a subtree
+// never holds a primitive twice: spatial splits, which put one primitive in several leaves, cut only nodes
+// of more than 32 references (docs/accel/bvh.md, "Spatial splits"; WideBvh.LeavesHoldEachPrimitiveOnce).
 struct SubtreeRange {
     std::uint32_t first = 0, count = 0;
     bool as_leaf = false;
@@ -94,16 +96,10 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
         }
         const SubtreeRange& range = input.ranges[children[slot]];
         if (range.as_leaf) {
-            // Each primitive once: with spatial splits, two binary leaves merged here may share one.
-            std::array<std::uint32_t, BvhAccel::kMaxLeafSize> prims;
-            std::uint32_t count = 0;
-            for (const std::uint32_t prim : std::span(input.prim_indices).subspan(range.first, range.count)) {
-                if (std::find(prims.begin(), prims.begin() + count, prim) == prims.begin() + count)
-                    prims[count++] = prim;
-            }
             wide[index].child[slot] = static_cast<std::uint32_t>(blocks.size());
-            wide[index].prim_count[slot] = count;
-            append_leaf_blocks(input.geometry, std::span(prims).first(count), blocks);
+            wide[index].prim_count[slot] = range.count;
+            append_leaf_blocks(input.geometry,
+                               std::span(input.prim_indices).subspan(range.first, range.count), blocks);
         } else {
             // Not a reference into `wide`: the recursion may reallocate it.
             const std::uint32_t child_index = collapse<W>(input, children[slot], wide, blocks);
