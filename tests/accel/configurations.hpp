@@ -3,7 +3,7 @@
 // splits (bvh.spatial_splits), which change their leaves.
 #pragma once
 
-#include <algorithm>
+#include <ostream>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -26,6 +26,11 @@ struct Configuration {
         return options;
     }
 };
+
+// How GoogleTest names a configuration in its messages and in CTest's test names.
+inline void PrintTo(const Configuration& configuration, std::ostream* os) {
+    *os << configuration.label();
+}
 
 [[nodiscard]] inline bool built_on_the_binary_bvh(std::string_view name) {
     return name == "bvh" || name == "bvh_packet" || name == "bvh4" || name == "bvh8" || name == "bvh8_packet";

@@ -146,8 +146,8 @@ TEST_P(OracleTest, AgreesWithBruteForceOnEveryRay) {
                 // The packet call (Accel::intersect_packet), partial packets included: the same answers.
                 const Agreement packets =
                     compare_hits(set.rays, expected, testing::intersect_in_packets(*accel, set.rays));
-                EXPECT_EQ(packets.mismatches, 0u) << GetParam() << " in packets, " << scene.name << ", "
-                                                  << set.name << ": " << packets.summary();
+                EXPECT_EQ(packets.mismatches, 0u) << GetParam().label() << " in packets, " << scene.name
+                                                  << ", " << set.name << ": " << packets.summary();
                 std::vector<std::uint8_t> occluded(set.rays.size());
                 accel->occluded(set.rays, occluded);
                 const Agreement any = compare_occlusion(set.rays, expected, occluded);
