@@ -77,6 +77,10 @@ struct BvhOptions {
     BvhBuilder builder = BvhBuilder::BinnedSah;
     int max_leaf_size = 4;
     int bins = 32;
+    // Spatial splits (Stich, Friedrich & Dietrich 2009, the SBVH) in the binned builder: a node may also
+    // be split by a plane that cuts references in two, a primitive then appearing in several leaves, within
+    // a budget of references (docs/accel/bvh.md, "Spatial splits"). The sweep builder ignores it.
+    bool spatial_splits = false;
 };
 
 // Embree's build quality for the `embree` structures: HIGH (with spatial splits, its best trace speed) or
@@ -97,7 +101,8 @@ struct BuildOptions {
 // plucker.max_depth, plucker.leaf_size, plucker.balanced, plucker.stored_boxes, plucker.morton (true |
 // false), kdtree.cost (wald-havran | seed003), kdtree.traversal_cost, kdtree.intersection_cost,
 // kdtree.empty_bonus, kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins,
-// embree.quality (high | medium). Throws std::invalid_argument naming the key and the values it accepts.
+// bvh.spatial_splits (true | false), embree.quality (high | medium). Throws std::invalid_argument naming the
+// key and the values it accepts.
 void set_build_option(BuildOptions& options, std::string_view assignment);
 
 // Defaults with the given triangle test (brace-initialising the aggregate would leave the rest to -Wextra).

@@ -94,6 +94,8 @@ const std::map<std::string, Setter, std::less<>>& setters() {
              }
          }},
         {"bvh.bins", [](BuildOptions& o, auto k, auto v) { o.bvh.bins = parse_number(k, v, 2, 256); }},
+        {"bvh.spatial_splits",
+         [](BuildOptions& o, auto k, auto v) { o.bvh.spatial_splits = parse_bool(k, v); }},
     };
     return table;
 }

@@ -1,11 +1,13 @@
 // The binary BVH: structural invariants of both builders, SAH optimality of the sweep at the root,
-// determinism whatever the thread count, bounded depth on degenerate input.
+// determinism whatever the thread count, bounded depth on degenerate input; spatial splits that happen where
+// they should, within their budget, and on the inputs that are hard on the cuts.
 #include "accel/bvh/bvh.hpp"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <random>
 
@@ -21,29 +23,65 @@ namespace {
 
 using testing::knot_triangles;
 
-BuildOptions with_builder(BvhBuilder builder, int max_leaf_size = 4) {
+BuildOptions with_builder(BvhBuilder builder, int max_leaf_size = 4, bool spatial_splits = false) {
     BuildOptions options;
     options.bvh.builder = builder;
     options.bvh.max_leaf_size = max_leaf_size;
+    options.bvh.spatial_splits = spatial_splits;
     return options;
 }
 
-// Every node contains its children and its primitives; every primitive appears exactly once.
-void expect_valid_hierarchy(const BvhAccel& bvh, const Geometry& geometry, int max_leaf_size) {
+BuildOptions with_spatial_splits(int max_leaf_size = 4) {
+    return with_builder(BvhBuilder::BinnedSah, max_leaf_size, true);
+}
+
+bool contains(const Box3f& outer, const Box3f& inner) {
+    return outer.lo.x <= inner.lo.x && outer.lo.y <= inner.lo.y && outer.lo.z <= inner.lo.z &&
+           outer.hi.x >= inner.hi.x && outer.hi.y >= inner.hi.y && outer.hi.z >= inner.hi.z;
+}
+
+// Points of a primitive: a triangle's vertices, the middles of its edges and its centroid; a sphere's poles.
+std::vector<Vec3f> points_of(const Geometry& geometry, std::uint32_t prim) {
+    if (prim < geometry.triangles.size()) {
+        const Triangle& tri = geometry.triangles[prim];
+        return {tri.v0,
+                tri.v1,
+                tri.v2,
+                0.5f * (tri.v0 + tri.v1),
+                0.5f * (tri.v1 + tri.v2),
+                0.5f * (tri.v2 + tri.v0),
+                (tri.v0 + tri.v1 + tri.v2) * (1.0f / 3.0f)};
+    }
+    const Sphere& sphere = geometry.spheres[prim - geometry.triangles.size()];
+    std::vector<Vec3f> poles;
+    for (int axis = 0; axis < 3; ++axis) {
+        for (const float sign : {-1.0f, 1.0f}) {
+            Vec3f pole = sphere.center;
+            pole[axis] += sign * sphere.radius;
+            poles.push_back(pole);
+        }
+    }
+    return poles;
+}
+
+// Every node has a box and contains its children; every primitive is referenced by leaves whose boxes cover
+// it: exactly one containing it without spatial splits, one or more, each with a part of it, with them (the
+// points of points_of each lie in one of them).
+void expect_valid_hierarchy(const BvhAccel& bvh, const Geometry& geometry, int max_leaf_size,
+                            bool spatial_splits = false) {
     const std::vector<BvhNode>& nodes = bvh.nodes();
-    std::vector<int> seen(geometry.size(), 0);
-    auto contains = [](const Box3f& outer, const Box3f& inner) {
-        return outer.lo.x <= inner.lo.x && outer.lo.y <= inner.lo.y && outer.lo.z <= inner.lo.z &&
-               outer.hi.x >= inner.hi.x && outer.hi.y >= inner.hi.y && outer.hi.z >= inner.hi.z;
-    };
+    std::vector<std::vector<std::uint32_t>> leaves_of(geometry.size());
     for (std::size_t i = 0; i < nodes.size(); ++i) {
         const BvhNode& node = nodes[i];
+        ASSERT_FALSE(node.bounds().empty()) << "node " << i;  // no reference was cut down to nothing
         if (node.is_leaf()) {
             ASSERT_LE(node.prim_count, max_leaf_size);
             for (std::uint32_t k = node.offset; k < node.offset + node.prim_count; ++k) {
                 const std::uint32_t prim = bvh.prim_indices()[k];
-                ++seen[prim];
-                ASSERT_TRUE(contains(node.bounds(), primitive_bounds(geometry, prim))) << "leaf " << i;
+                leaves_of[prim].push_back(static_cast<std::uint32_t>(i));
+                if (!spatial_splits) {
+                    ASSERT_TRUE(contains(node.bounds(), primitive_bounds(geometry, prim))) << "leaf " << i;
+                }
             }
         } else {
             ASSERT_LT(node.offset, nodes.size());
@@ -52,14 +90,29 @@ void expect_valid_hierarchy(const BvhAccel& bvh, const Geometry& geometry, int m
             ASSERT_TRUE(contains(node.bounds(), nodes[node.offset].bounds()));
         }
     }
-    for (std::size_t prim = 0; prim < seen.size(); ++prim)
-        ASSERT_EQ(seen[prim], 1) << "primitive " << prim;
+    for (std::uint32_t prim = 0; prim < geometry.size(); ++prim) {
+        const std::vector<std::uint32_t>& leaves = leaves_of[prim];
+        if (!spatial_splits) {
+            ASSERT_EQ(leaves.size(), 1u) << "primitive " << prim;
+        }
+        for (const Vec3f& point : points_of(geometry, prim)) {
+            ASSERT_TRUE(std::any_of(leaves.begin(), leaves.end(),
+                                    [&](std::uint32_t leaf) { return nodes[leaf].bounds().contains(point); }))
+                << "primitive " << prim;
+        }
+    }
     const AccelStats stats = bvh.stats();
     EXPECT_EQ(stats.nodes, nodes.size());
     EXPECT_EQ(stats.leaves * 2 - 1, nodes.size());  // a full binary tree
-    EXPECT_EQ(stats.references, geometry.size());
+    EXPECT_EQ(stats.references, bvh.prim_indices().size());
+    if (spatial_splits) {
+        EXPECT_GE(stats.references, geometry.size());
+        EXPECT_LE(stats.references, geometry.size() * 3 / 2);  // the duplication budget
+    } else {
+        EXPECT_EQ(stats.references, geometry.size());
+    }
     EXPECT_LE(stats.max_depth, BvhAccel::kMaxDepth);
-    EXPECT_EQ(bvh.memory_bytes(), nodes.size() * sizeof(BvhNode) + geometry.size() * sizeof(std::uint32_t));
+    EXPECT_EQ(bvh.memory_bytes(), nodes.size() * sizeof(BvhNode) + stats.references * sizeof(std::uint32_t));
 }
 
 TEST(Bvh, BothBuildersGiveValidHierarchies) {
@@ -73,6 +126,27 @@ TEST(Bvh, BothBuildersGiveValidHierarchies) {
             expect_valid_hierarchy(bvh, geometry, leaf);
         }
     }
+    for (int leaf : {1, 4, 16}) {
+        BvhAccel bvh;
+        bvh.build(geometry, with_spatial_splits(leaf));
+        expect_valid_hierarchy(bvh, geometry, leaf, true);
+    }
+}
+
+// The closest hits of brute force on random rays, rays through vertices and edges and axis-parallel rays,
+// `count` of each (Moller-Trumbore, as `bvh` was built).
+void expect_agrees_with_brute_force(const BvhAccel& bvh, const Geometry& geometry, std::size_t count) {
+    const std::unique_ptr<Accel> brute = make_accel("brute");
+    brute->build(geometry, {});
+    for (const auto& set : {testing::random_rays(geometry.bounds(), count, 1),
+                            testing::vertex_and_edge_rays(geometry.triangles, count, 2),
+                            testing::axis_parallel_rays(geometry.bounds(), count, 3)}) {
+        std::vector<Hit> expected(set.rays.size()), actual(set.rays.size());
+        brute->intersect(set.rays, expected);
+        bvh.intersect(set.rays, actual);
+        const Agreement agreement = compare_hits(set.rays, expected, actual);
+        EXPECT_EQ(agreement.mismatches, 0u) << set.name << ": " << agreement.summary();
+    }
 }
 
 TEST(Bvh, SweepBuilderAgreesWithBruteForce) {
@@ -80,17 +154,7 @@ TEST(Bvh, SweepBuilderAgreesWithBruteForce) {
     const Geometry geometry{triangles, {}};
     BvhAccel bvh;
     bvh.build(geometry, with_builder(BvhBuilder::SweepSah));
-    const std::unique_ptr<Accel> brute = make_accel("brute");
-    brute->build(geometry, {});
-    for (const auto& set :
-         {testing::random_rays(geometry.bounds(), 5000, 1), testing::vertex_and_edge_rays(triangles, 5000, 2),
-          testing::axis_parallel_rays(geometry.bounds(), 5000, 3)}) {
-        std::vector<Hit> expected(set.rays.size()), actual(set.rays.size());
-        brute->intersect(set.rays, expected);
-        bvh.intersect(set.rays, actual);
-        const Agreement agreement = compare_hits(set.rays, expected, actual);
-        EXPECT_EQ(agreement.mismatches, 0u) << set.name << ": " << agreement.summary();
-    }
+    expect_agrees_with_brute_force(bvh, geometry, 5000);
 }
 
 // The root's split cost A(L) N(L) + A(R) N(R), from the built children (boxes shrunk back by the margin).
@@ -131,32 +195,111 @@ TEST(Bvh, FullSweepFindsARootSplitNoWorseThanBinning) {
 TEST(Bvh, BuildIsDeterministicWhateverTheThreadCount) {
     // Large enough for the parallel binning and the parallel subtrees to engage.
     const std::vector<Triangle> triangles = knot_triangles(6000);
-    auto build_with = [&](int threads) {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                                  static_cast<std::size_t>(threads));
-        BvhAccel bvh;
-        bvh.build({triangles, {}}, with_builder(BvhBuilder::BinnedSah));
-        return std::make_pair(bvh.nodes(), bvh.prim_indices());
-    };
-    const auto one = build_with(1);
-    const auto two = build_with(2);
-    const auto again = build_with(2);
-    ASSERT_EQ(one.first.size(), two.first.size());
-    EXPECT_EQ(std::memcmp(one.first.data(), two.first.data(), one.first.size() * sizeof(BvhNode)), 0);
-    EXPECT_EQ(one.second, two.second);
-    EXPECT_EQ(std::memcmp(two.first.data(), again.first.data(), two.first.size() * sizeof(BvhNode)), 0);
+    for (const bool spatial_splits : {false, true}) {
+        auto build_with = [&](int threads) {
+            tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                      static_cast<std::size_t>(threads));
+            BvhAccel bvh;
+            bvh.build({triangles, {}}, with_builder(BvhBuilder::BinnedSah, 4, spatial_splits));
+            return std::make_pair(bvh.nodes(), bvh.prim_indices());
+        };
+        const auto one = build_with(1);
+        const auto two = build_with(2);
+        const auto again = build_with(2);
+        ASSERT_EQ(one.first.size(), two.first.size());
+        EXPECT_EQ(std::memcmp(one.first.data(), two.first.data(), one.first.size() * sizeof(BvhNode)), 0);
+        EXPECT_EQ(one.second, two.second);
+        ASSERT_EQ(two.first.size(), again.first.size());
+        EXPECT_EQ(std::memcmp(two.first.data(), again.first.data(), two.first.size() * sizeof(BvhNode)), 0);
+        if (spatial_splits) {
+            EXPECT_GT(one.second.size(), triangles.size());  // the spatial splits did happen
+        }
+    }
 }
 
 TEST(Bvh, CoincidentPrimitivesStayBounded) {
     const std::vector<Triangle> triangles(5000, Triangle{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
-    for (BvhBuilder builder : {BvhBuilder::SweepSah, BvhBuilder::BinnedSah}) {
+    for (const BuildOptions& options :
+         {with_builder(BvhBuilder::SweepSah), with_builder(BvhBuilder::BinnedSah), with_spatial_splits()}) {
         BvhAccel bvh;
-        bvh.build({triangles, {}}, with_builder(builder));
-        expect_valid_hierarchy(bvh, {triangles, {}}, 4);
+        bvh.build({triangles, {}}, options);
+        expect_valid_hierarchy(bvh, {triangles, {}}, 4, options.bvh.spatial_splits);
         const Ray ray{{0.2f, 0.2f, 1.0f}, {0, 0, -1}, 0.0f, kInfinity};
         Hit hit;
         bvh.intersect({&ray, 1}, {&hit, 1});
         EXPECT_EQ(hit.prim, 0);  // the tie goes to the smallest index
+    }
+}
+
+TEST(Bvh, SpatialSplitsIsASetKey) {
+    BuildOptions options;
+    EXPECT_FALSE(options.bvh.spatial_splits);  // off by default (docs/accel/bvh.md, "Spatial splits")
+    set_build_option(options, "bvh.spatial_splits=true");
+    EXPECT_TRUE(options.bvh.spatial_splits);
+    set_build_option(options, "bvh.spatial_splits=false");
+    EXPECT_FALSE(options.bvh.spatial_splits);
+    EXPECT_THROW(set_build_option(options, "bvh.spatial_splits=yes"), std::invalid_argument);
+}
+
+TEST(Bvh, SpatialSplitsCutLongTriangles) {
+    const std::vector<Triangle> triangles = testing::small_and_long_triangles(4000, 100);
+    const Geometry geometry{triangles, {}};
+    BvhAccel objects, spatial;
+    objects.build(geometry, with_builder(BvhBuilder::BinnedSah));
+    spatial.build(geometry, with_spatial_splits());
+    expect_valid_hierarchy(spatial, geometry, 4, true);
+    const AccelStats without = objects.stats(), with = spatial.stats();
+    std::printf("small and long triangles: SAH %.1f without spatial splits, %.1f with, %zu references\n",
+                without.sah_cost, with.sah_cost, with.references);
+    EXPECT_LT(with.sah_cost, 0.7 * without.sah_cost);
+    EXPECT_GT(with.references, triangles.size() + 400);  // the long triangles are cut several times each
+    expect_agrees_with_brute_force(spatial, geometry, 4000);
+}
+
+// Only long thin triangles side by side along the diagonal of a cube: every node would cut every one of them.
+TEST(Bvh, SpatialSplitsStopAtTheirBudget) {
+    const std::vector<Triangle> triangles = testing::small_and_long_triangles(0, 3000);
+    BvhAccel bvh;
+    bvh.build({triangles, {}}, with_spatial_splits());
+    expect_valid_hierarchy(bvh, {triangles, {}}, 4, true);
+    EXPECT_EQ(bvh.stats().references, triangles.size() * 3 / 2);  // used up, not exceeded
+}
+
+// Inputs that are hard on the cuts: degenerate triangles (points, segments), triangles lying in the planes of
+// the spatial bins (a grid of axis-aligned squares, whose edges fall on the bins' planes) and the largest
+// coordinates of the contract's domain.
+TEST(Bvh, SpatialSplitsOnDegenerateInPlaneAndHugeTriangles) {
+    std::mt19937 rng(13);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::vector<Triangle> hard;
+    for (int i = 0; i < 16; ++i) {
+        for (int j = 0; j < 16; ++j) {
+            const auto x = static_cast<float>(i), y = static_cast<float>(j);
+            hard.push_back({{x, y, 0}, {x + 1, y, 0}, {x + 1, y + 1, 0}});  // in the plane z = 0
+            hard.push_back({{x, 0, y}, {x + 1, 0, y}, {x, 16, y + 1}});     // edges on bin planes
+        }
+    }
+    for (int i = 0; i < 200; ++i) {
+        const Vec3f a(16 * unit(rng), 16 * unit(rng), 16 * unit(rng));
+        const Vec3f b(16 * unit(rng), 16 * unit(rng), 16 * unit(rng));
+        hard.push_back({a, a, a});                 // a point
+        hard.push_back({a, b, 0.5f * (a + b)});    // a segment
+        hard.push_back({a, b, b + Vec3f(0.01f)});  // a sliver
+    }
+    std::vector<Triangle> huge;
+    constexpr float limit = kCoordinateLimit;
+    for (int i = 0; i < 300; ++i) {
+        const Vec3f a = limit * Vec3f(2 * unit(rng) - 1, 2 * unit(rng) - 1, 2 * unit(rng) - 1);
+        huge.push_back({a, -a, Vec3f(limit, -limit, limit * (2 * unit(rng) - 1))});
+    }
+    const std::vector<Sphere> spheres = {{{8, 8, 8}, 9.0f, 0}, {{1, 15, 3}, 0.0f, 0}, {{4, 4, 4}, 1e-3f, 0}};
+    for (const Geometry geometry : {Geometry{hard, spheres}, Geometry{huge, {}}}) {
+        for (const int leaf : {1, 4}) {
+            BvhAccel bvh;
+            bvh.build(geometry, with_spatial_splits(leaf));
+            expect_valid_hierarchy(bvh, geometry, leaf, true);
+            expect_agrees_with_brute_force(bvh, geometry, 3000);
+        }
     }
 }
 

@@ -130,6 +130,45 @@ TEST(WideBvh, CollapseGivesValidHierarchies) {
     check_structure<8>(geometry);
 }
 
+// With spatial splits a primitive may sit in several leaves, but in none twice: the subtrees the collapse
+// merges into one block are too small for spatial splits (docs/accel/bvh.md, "Spatial splits").
+template <int W>
+void expect_leaves_hold_each_primitive_once(const Geometry& geometry, int max_leaf_size) {
+    BuildOptions options;
+    options.bvh.max_leaf_size = max_leaf_size;
+    options.bvh.spatial_splits = true;
+    WideBvhAccel<W> bvh;
+    bvh.build(geometry, options);
+    std::vector<int> leaves_of(geometry.size(), 0);
+    std::size_t references = 0;
+    for (const WideBvhNode<W>& node : bvh.nodes()) {
+        for (int slot = 0; slot < W; ++slot) {
+            if (node.is_empty(slot) || node.prim_count[slot] == 0) continue;
+            std::vector<std::uint32_t> prims;
+            for (std::uint32_t k = 0; k < node.prim_count[slot]; ++k) {
+                const auto& block = bvh.blocks()[node.child[slot] + k / WideBvhAccel<W>::kBlockLanes];
+                prims.push_back(block.prim[k % WideBvhAccel<W>::kBlockLanes]);
+            }
+            std::sort(prims.begin(), prims.end());
+            ASSERT_EQ(std::adjacent_find(prims.begin(), prims.end()), prims.end());
+            for (const std::uint32_t prim : prims)
+                ++leaves_of[prim];
+            references += prims.size();
+        }
+    }
+    EXPECT_EQ(std::count(leaves_of.begin(), leaves_of.end(), 0), 0);
+    EXPECT_EQ(bvh.stats().references, references);
+    EXPECT_GT(references, geometry.size());  // the spatial splits did cut
+}
+
+TEST(WideBvh, LeavesHoldEachPrimitiveOnce) {
+    const std::vector<Triangle> triangles = testing::small_and_long_triangles(4000, 100);
+    for (const int leaf : {1, 4, 16}) {
+        expect_leaves_hold_each_primitive_once<4>({triangles, {}}, leaf);
+        expect_leaves_hold_each_primitive_once<8>({triangles, {}}, leaf);
+    }
+}
+
 TEST(WideBvh, TinyScenesHaveOneRootNode) {
     const std::vector<Triangle> one = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}};
     Bvh8Accel wide;

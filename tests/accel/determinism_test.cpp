@@ -2,7 +2,8 @@
 // the thread count of the trace and the run. Each registered structure is built in a one-thread arena and
 // twice in a four-thread arena, and each build traces the same rays in batches (as `lancer rays` and the
 // renderer split them) over 1, 2 and 4 threads: every Hit array must equal the first byte for byte, every
-// occlusion array likewise. The structural equality of parallel builds is tested beside each structure.
+// occlusion array likewise. The structures built on the binary BVH run again with spatial splits. The
+// structural equality of parallel builds is tested beside each structure.
 #include <gtest/gtest.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -13,6 +14,7 @@
 #include <optional>
 #include <random>
 
+#include "configurations.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
@@ -43,10 +45,10 @@ TestScene mixed_scene(int icosphere_subdivisions, int knot_segments) {
     return scene;
 }
 
-std::unique_ptr<Accel> build_in_arena(std::string_view name, const Geometry& geometry, TriangleTest test,
-                                      int threads) {
-    std::unique_ptr<Accel> accel = make_accel(name);
-    tbb::task_arena(threads).execute([&] { accel->build(geometry, build_options(test)); });
+std::unique_ptr<Accel> build_in_arena(const testing::Configuration& configuration, const Geometry& geometry,
+                                      TriangleTest test, int threads) {
+    std::unique_ptr<Accel> accel = make_accel(configuration.name);
+    tbb::task_arena(threads).execute([&] { accel->build(geometry, configuration.options(test)); });
     return accel;
 }
 
@@ -68,10 +70,10 @@ Answers trace_in_batches(const Accel& accel, std::span<const Ray> rays, int thre
     return answers;
 }
 
-class Determinism : public ::testing::TestWithParam<std::string_view> {};
+class Determinism : public ::testing::TestWithParam<testing::Configuration> {};
 
 TEST_P(Determinism, HitsAreBitIdenticalWhateverTheThreadsAndTheRun) {
-    const TestScene scene = GetParam() == "brute" ? mixed_scene(2, 30) : mixed_scene(3, 2800);
+    const TestScene scene = GetParam().name == "brute" ? mixed_scene(2, 30) : mixed_scene(3, 2800);
     const Box3f bounds = scene.geometry().bounds();
     constexpr std::size_t share = testing::kSanitizedShare;
     std::vector<Ray> rays = testing::random_rays(bounds, 12'000 / share, 31).rays;
@@ -108,8 +110,9 @@ TEST_P(Determinism, HitsAreBitIdenticalWhateverTheThreadsAndTheRun) {
     }
 }
 
-INSTANTIATE_TEST_SUITE_P(Structures, Determinism, ::testing::ValuesIn(accel_names()),
-                         [](const auto& param_info) { return std::string(param_info.param); });
+INSTANTIATE_TEST_SUITE_P(Structures, Determinism,
+                         ::testing::ValuesIn(testing::with_spatial_splits(accel_names())),
+                         [](const auto& param_info) { return param_info.param.label(); });
 
 }  // namespace
 }  // namespace lancer

@@ -7,6 +7,7 @@
 
 #include "accel/agreement.hpp"
 #include "accel/brute.hpp"
+#include "configurations.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
 #include "test_scenes.hpp"
@@ -123,14 +124,14 @@ const std::vector<Hit>& oracle_hits(std::size_t scene_index, std::size_t set_ind
     return it->second;
 }
 
-class OracleTest : public ::testing::TestWithParam<std::string_view> {};
+class OracleTest : public ::testing::TestWithParam<testing::Configuration> {};
 
 TEST_P(OracleTest, AgreesWithBruteForceOnEveryRay) {
     for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
         for (std::size_t scene_index = 0; scene_index < scenes().size(); ++scene_index) {
             const TestScene& scene = scenes()[scene_index];
-            const std::unique_ptr<Accel> accel = make_accel(GetParam());
-            accel->build(scene.geometry(), build_options(test));
+            const std::unique_ptr<Accel> accel = make_accel(GetParam().name);
+            accel->build(scene.geometry(), GetParam().options(test));
             const std::vector<testing::RaySet> sets = ray_sets(scene);
             for (std::size_t set_index = 0; set_index < sets.size(); ++set_index) {
                 const testing::RaySet& set = sets[set_index];
@@ -139,19 +140,19 @@ TEST_P(OracleTest, AgreesWithBruteForceOnEveryRay) {
                 accel->intersect(set.rays, hits);
                 const Agreement closest = compare_hits(set.rays, expected, hits);
                 EXPECT_EQ(closest.mismatches, 0u)
-                    << GetParam() << ", " << scene.name << ", " << set.name << ", "
+                    << GetParam().label() << ", " << scene.name << ", " << set.name << ", "
                     << (test == TriangleTest::Watertight ? "watertight" : "moller") << ": "
                     << closest.summary();
                 // The packet call (Accel::intersect_packet), partial packets included: the same answers.
                 const Agreement packets =
                     compare_hits(set.rays, expected, testing::intersect_in_packets(*accel, set.rays));
-                EXPECT_EQ(packets.mismatches, 0u) << GetParam() << " in packets, " << scene.name << ", "
-                                                  << set.name << ": " << packets.summary();
+                EXPECT_EQ(packets.mismatches, 0u) << GetParam().label() << " in packets, " << scene.name
+                                                  << ", " << set.name << ": " << packets.summary();
                 std::vector<std::uint8_t> occluded(set.rays.size());
                 accel->occluded(set.rays, occluded);
                 const Agreement any = compare_occlusion(set.rays, expected, occluded);
                 EXPECT_EQ(any.mismatches, 0u)
-                    << GetParam() << ", " << scene.name << ", " << set.name << ": " << any.summary();
+                    << GetParam().label() << ", " << scene.name << ", " << set.name << ": " << any.summary();
             }
         }
     }
@@ -159,8 +160,8 @@ TEST_P(OracleTest, AgreesWithBruteForceOnEveryRay) {
 
 TEST_P(OracleTest, CountersSeeEveryValidRay) {
     const TestScene& scene = scenes()[0];
-    const std::unique_ptr<Accel> accel = make_accel(GetParam());
-    accel->build(scene.geometry(), {});
+    const std::unique_ptr<Accel> accel = make_accel(GetParam().name);
+    accel->build(scene.geometry(), GetParam().options(TriangleTest::MollerTrumbore));
     const testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 1000, 5);
     std::vector<Hit> hits(set.rays.size()), counted_hits(set.rays.size());
     accel->intersect(set.rays, hits);
@@ -176,17 +177,18 @@ TEST_P(OracleTest, CountersSeeEveryValidRay) {
     }
 }
 
-// Every lancer structure. Embree, measured beside them, keeps its own triangle test and sphere rounding: it
-// is checked against brute force with its own tolerance in embree_test.cpp.
-std::vector<std::string_view> structures_under_test() {
+// Every lancer structure, and those built on the binary BVH with spatial splits too. Embree, measured beside
+// them, keeps its own triangle test and sphere rounding: it is checked against brute force with its own
+// tolerance in embree_test.cpp.
+std::vector<testing::Configuration> structures_under_test() {
     std::vector<std::string_view> names = accel_names();
     std::erase(names, std::string_view("brute"));
     std::erase_if(names, [](std::string_view name) { return name.starts_with("embree"); });
-    return names;
+    return testing::with_spatial_splits(names);
 }
 
 INSTANTIATE_TEST_SUITE_P(Structures, OracleTest, ::testing::ValuesIn(structures_under_test()),
-                         [](const auto& param_info) { return std::string(param_info.param); });
+                         [](const auto& param_info) { return param_info.param.label(); });
 GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(OracleTest);
 
 }  // namespace

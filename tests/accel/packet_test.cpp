@@ -1,10 +1,10 @@
 // The packet structures against their single-ray siblings, bit for bit (bvh_packet / bvh, bvh8_packet / bvh8
-// with each of its vector widths, plucker_packet / plucker), and against brute force, on the batches that
-// reach the packet code: tiles of a pinhole camera (coherent), rays of mixed direction signs (bvh_packet's
-// fallback), batches that end in a partial packet, rays clipped by tnear and tfar, zero direction components
-// and invalid rays inside coherent packets. The oracle test's ray sets have random directions, so most of
-// their packets are incoherent: here the same adversarial sets are sorted by direction octant, which makes
-// their packets coherent.
+// with each of its vector widths, plucker_packet / plucker; the BVH pairs again built with spatial splits),
+// and against brute force, on the batches that reach the packet code: tiles of a pinhole camera (coherent),
+// rays of mixed direction signs (bvh_packet's fallback), batches that end in a partial packet, rays clipped
+// by tnear and tfar, zero direction components and invalid rays inside coherent packets. The oracle test's
+// ray sets have random directions, so most of their packets are incoherent: here the same adversarial sets
+// are sorted by direction octant, which makes their packets coherent.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -26,14 +26,22 @@ namespace {
 using testing::TestScene;
 
 // `lanes`: for bvh8_packet, the vector width its kernels run at (0: the registry's, the widest).
+// `spatial_splits`: both structures built with bvh.spatial_splits.
 struct Pair {
     std::string_view packet, single;
     int lanes = 0;
+    bool spatial_splits = false;
 
     [[nodiscard]] std::string label() const {
         std::string label(packet);
         if (lanes != 0) label.append("_").append(std::to_string(lanes)).append("_lanes");
+        if (spatial_splits) label.append("_spatial_splits");
         return label;
+    }
+    [[nodiscard]] BuildOptions options(TriangleTest test) const {
+        BuildOptions options = build_options(test);
+        options.bvh.spatial_splits = spatial_splits;
+        return options;
     }
     [[nodiscard]] std::unique_ptr<Accel> make_packet() const {
         return lanes == 0 ? make_accel(packet) : std::make_unique<WidePacketAccel>(lanes);
@@ -41,7 +49,11 @@ struct Pair {
 };
 
 std::vector<Pair> pairs() {
-    std::vector<Pair> all = {{"bvh_packet", "bvh"}, {"bvh8_packet", "bvh8"}, {"plucker_packet", "plucker"}};
+    std::vector<Pair> all = {{"bvh_packet", "bvh"},
+                             {"bvh8_packet", "bvh8"},
+                             {"plucker_packet", "plucker"},
+                             {"bvh_packet", "bvh", 0, true},
+                             {"bvh8_packet", "bvh8", 0, true}};
     // The AVX2 kernels where the registry's row runs the AVX-512 ones: both paths are tested.
     if (WidePacketAccel::widest_lane_count() > 8) all.push_back({"bvh8_packet", "bvh8", 8});
     return all;
@@ -142,8 +154,8 @@ class PacketTest : public ::testing::TestWithParam<Pair> {
             for (const TestScene& scene : scenes()) {
                 const std::unique_ptr<Accel> packet = GetParam().make_packet();
                 const std::unique_ptr<Accel> single = make_accel(GetParam().single);
-                packet->build(scene.geometry(), build_options(test));
-                single->build(scene.geometry(), build_options(test));
+                packet->build(scene.geometry(), GetParam().options(test));
+                single->build(scene.geometry(), GetParam().options(test));
                 SCOPED_TRACE(scene.name + (test == TriangleTest::Watertight ? ", watertight" : ", moller"));
                 check(*packet, *single, scene, test);
             }
@@ -250,7 +262,7 @@ TEST_P(PacketTest, AdversarialSetsSortedIntoCoherentPackets) {
 TEST_P(PacketTest, CountersSeeEveryRayOfEveryPacket) {
     const TestScene scene = scenes()[0];
     const std::unique_ptr<Accel> packet = GetParam().make_packet();
-    packet->build(scene.geometry(), {});
+    packet->build(scene.geometry(), GetParam().options(TriangleTest::MollerTrumbore));
     const std::vector<Ray> rays = tile_rays(scene.geometry().bounds(), 40, 30);
     std::vector<Hit> hits(rays.size()), counted(rays.size());
     packet->intersect(rays, hits);

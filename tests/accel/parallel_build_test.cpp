@@ -137,6 +137,13 @@ TEST_P(ParallelBuild, OneAndManyThreadsGiveTheSameStructureAndAnswers) {
 INSTANTIATE_TEST_SUITE_P(Structures, ParallelBuild,
                          ::testing::Values("grid", "octree", "plucker", "kdtree", "bvh"));
 
+TEST(ParallelBuildArrays, BvhWithSpatialSplitsIsTheSame) {
+    BuildOptions options;
+    options.bvh.spatial_splits = true;
+    expect_same_structure("bvh", mixed_scene(), options);
+    expect_same_structure("bvh8", mixed_scene(), options);
+}
+
 TEST(ParallelBuildArrays, GridCoarsenedPastItsBudgetIsTheSame) {
     const TestScene scene = overlapping_scene();
     const Geometry geometry = scene.geometry();

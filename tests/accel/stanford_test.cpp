@@ -3,12 +3,15 @@
 // vertices and edges, axis-parallel rays and rays with tnear > 0 and finite tfar; brute force on a sample of
 // each set. A sanitized build traces 1/testing::kSanitizedStride of each (ray_sets.hpp). Brute force on all 2
 // x 10^6 rays of the dragon would take hours (1.7e12 triangle tests), so the chain is: brute == bvh on the
-// sample, then bvh == every other structure on every ray.
+// sample, then bvh == every other structure on every ray. The structures built on the binary BVH are tested
+// again with spatial splits, with both triangle tests.
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
 
 #include "accel/agreement.hpp"
+#include "configurations.hpp"
 #include "lancer/io.hpp"
 #include "ray_sets.hpp"
 
@@ -34,41 +37,57 @@ TEST_P(StanfordMesh, EveryStructureAgreesOnTheCanonicalViewAndOnRandomRays) {
         testing::axis_parallel_rays(bounds, 50'000, 19), testing::clipped_rays(bounds, 50'000, 20)};
     for (testing::RaySet& set : sets)
         testing::keep_every(set, testing::kSanitizedStride);
-    const std::unique_ptr<Accel> reference = make_accel("bvh");
-    reference->build(geometry.view(), {});
-    const std::unique_ptr<Accel> brute = make_accel("brute");
-    brute->build(geometry.view(), {});
-
-    for (const testing::RaySet& set : sets) {
-        const std::vector<Hit> reference_hits = testing::trace_in_parallel(*reference, set.rays);
-
-        // Brute force on an evenly spread sample: about 4e9 triangle tests per mesh over all the sets.
-        const std::size_t sample_size =
-            4'000'000'000 / testing::kSanitizedStride / geometry.view().size() / sets.size();
-        std::vector<Ray> sample;
-        std::vector<Hit> sample_reference;
-        for (std::size_t i = 0; i < set.rays.size();
-             i += std::max<std::size_t>(1, set.rays.size() / sample_size)) {
-            sample.push_back(set.rays[i]);
-            sample_reference.push_back(reference_hits[i]);
+    // The reference, bvh with its defaults, per triangle test and set; brute force agrees with it on an
+    // evenly spread sample of each set: about 4e9 triangle tests per mesh and triangle test over all the
+    // sets.
+    const std::size_t sample_size =
+        4'000'000'000 / testing::kSanitizedStride / geometry.view().size() / sets.size();
+    std::map<TriangleTest, std::vector<std::vector<Hit>>> reference_hits;
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        const char* test_name = test == TriangleTest::Watertight ? "watertight" : "moller";
+        const std::unique_ptr<Accel> reference = make_accel("bvh");
+        reference->build(geometry.view(), build_options(test));
+        const std::unique_ptr<Accel> brute = make_accel("brute");
+        brute->build(geometry.view(), build_options(test));
+        for (const testing::RaySet& set : sets) {
+            const std::vector<Hit>& hits =
+                reference_hits[test].emplace_back(testing::trace_in_parallel(*reference, set.rays));
+            std::vector<Ray> sample;
+            std::vector<Hit> sample_reference;
+            for (std::size_t i = 0; i < set.rays.size();
+                 i += std::max<std::size_t>(1, set.rays.size() / sample_size)) {
+                sample.push_back(set.rays[i]);
+                sample_reference.push_back(hits[i]);
+            }
+            const Agreement with_brute =
+                compare_hits(sample, testing::trace_in_parallel(*brute, sample), sample_reference);
+            std::printf("%s, %s, %s: bvh vs brute on %zu sampled rays: %s\n", GetParam(), set.name.c_str(),
+                        test_name, sample.size(), with_brute.summary().c_str());
+            EXPECT_EQ(with_brute.mismatches, 0u) << test_name << ": " << with_brute.summary();
+            EXPECT_GT(with_brute.hits, sample.size() / 20);
         }
-        const Agreement with_brute =
-            compare_hits(sample, testing::trace_in_parallel(*brute, sample), sample_reference);
-        std::printf("%s, %s: bvh vs brute on %zu sampled rays: %s\n", GetParam(), set.name.c_str(),
-                    sample.size(), with_brute.summary().c_str());
-        EXPECT_EQ(with_brute.mismatches, 0u) << with_brute.summary();
-        EXPECT_GT(with_brute.hits, sample.size() / 20);
+    }
 
-        for (std::string_view name : accel_names()) {
-            if (name == "brute" || name == "bvh" || name.starts_with("embree"))
-                continue;  // embree: see embree_test.cpp
-            const std::unique_ptr<Accel> accel = make_accel(name);
-            accel->build(geometry.view(), {});
-            const Agreement agreement =
-                compare_hits(set.rays, reference_hits, testing::trace_in_parallel(*accel, set.rays));
-            std::printf("%s, %s: %s vs bvh on every ray: %s\n", GetParam(), set.name.c_str(),
-                        std::string(name).c_str(), agreement.summary().c_str());
-            EXPECT_EQ(agreement.mismatches, 0u) << name << ": " << agreement.summary();
+    // Every other structure on every ray (embree: see embree_test.cpp), with the Moller-Trumbore test; those
+    // built on the binary BVH again with spatial splits, with both triangle tests.
+    std::vector<std::string_view> names = accel_names();
+    std::erase_if(names, [](std::string_view name) { return name == "brute" || name.starts_with("embree"); });
+    for (const testing::Configuration& configuration : testing::with_spatial_splits(names)) {
+        if (configuration.name == "bvh" && !configuration.spatial_splits) continue;  // the reference
+        for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+            if (test == TriangleTest::Watertight && !configuration.spatial_splits) continue;
+            const char* test_name = test == TriangleTest::Watertight ? "watertight" : "moller";
+            const std::unique_ptr<Accel> accel = make_accel(configuration.name);
+            accel->build(geometry.view(), configuration.options(test));
+            for (std::size_t k = 0; k < sets.size(); ++k) {
+                const testing::RaySet& set = sets[k];
+                const Agreement agreement = compare_hits(set.rays, reference_hits[test][k],
+                                                         testing::trace_in_parallel(*accel, set.rays));
+                std::printf("%s, %s, %s: %s vs bvh on every ray: %s\n", GetParam(), set.name.c_str(),
+                            test_name, configuration.label().c_str(), agreement.summary().c_str());
+                EXPECT_EQ(agreement.mismatches, 0u) << configuration.label() << ", " << set.name << ", "
+                                                    << test_name << ": " << agreement.summary();
+            }
         }
     }
 }

@@ -123,14 +123,17 @@ std::vector<Hit> trace_each(std::span<const Ray> rays, const Box3f& scene_bounds
     return hits;
 }
 
-// The four GPU traversals of one triangle test on the CPU, against the two CPU structures.
+// The four GPU traversals of one triangle test on the CPU, against the two CPU structures; the BVH with
+// spatial splits where `spatial_splits` (its leaves then share primitives, which the flattened BVH copies).
 template <class TriangleTestT>
 void expect_ports_agree(const Geometry& geometry, TriangleTest test, std::span<const testing::RaySet> sets,
-                        const std::string& scene_name, std::size_t& hits_seen) {
+                        const std::string& scene_name, std::size_t& hits_seen, bool spatial_splits = false) {
+    BuildOptions options = build_options(test);
+    options.bvh.spatial_splits = spatial_splits;
     BvhAccel bvh;
-    bvh.build(geometry, build_options(test));
+    bvh.build(geometry, options);
     PluckerAccel plucker;
-    plucker.build(geometry, build_options(test));
+    plucker.build(geometry, options);
     const gpu::FlatBvh flat = gpu::flatten_bvh(bvh, geometry);
     const gpu::BvhView bvh_view = flat.view();
     const gpu::PluckerView plucker_view = gpu::plucker_view(plucker.layout());
@@ -170,16 +173,18 @@ void expect_ports_agree(const Geometry& geometry, TriangleTest test, std::span<c
 }
 
 TEST(CudaPorts, AgreeBitForBitWithTheCpuStructuresOnTheTestScenes) {
-    std::size_t hits_seen = 0;
-    for (const TestScene& scene : make_triangle_scenes()) {
-        const std::vector<testing::RaySet> sets = ray_sets_for(scene);
-        expect_ports_agree<gpu::MollerTrumboreTest>(scene.geometry(), TriangleTest::MollerTrumbore, sets,
-                                                    scene.name, hits_seen);
-        expect_ports_agree<gpu::WatertightTest>(scene.geometry(), TriangleTest::Watertight, sets, scene.name,
-                                                hits_seen);
+    for (const bool spatial_splits : {false, true}) {
+        std::size_t hits_seen = 0;
+        for (const TestScene& scene : make_triangle_scenes()) {
+            const std::vector<testing::RaySet> sets = ray_sets_for(scene);
+            expect_ports_agree<gpu::MollerTrumboreTest>(scene.geometry(), TriangleTest::MollerTrumbore, sets,
+                                                        scene.name, hits_seen, spatial_splits);
+            expect_ports_agree<gpu::WatertightTest>(scene.geometry(), TriangleTest::Watertight, sets,
+                                                    scene.name, hits_seen, spatial_splits);
+        }
+        // The comparison means something only if the rays hit: most scenes are hit by a good share of them.
+        EXPECT_GT(hits_seen, 20000u);
     }
-    // The comparison means something only if the rays hit: most scenes are hit by a good share of them.
-    EXPECT_GT(hits_seen, 20000u);
 }
 
 TEST(CudaPorts, AgreeBitForBitOnTheBunnysCanonicalView) {
@@ -275,10 +280,16 @@ TEST(CudaPorts, HelpersRoundAsTheCpuCode) {
     }
 }
 
-TEST(CudaPorts, FlatBvhKeepsEveryChildBoxAndReference) {
-    const TestScene scene = make_triangle_scenes()[0];
+// Also with spatial splits, on the triangle soup, whose large triangles they cut: a triangle then sits in
+// several leaves, and the flattened BVH copies it into each.
+void expect_flat_bvh_keeps_every_child_box_and_reference(const TestScene& scene, bool spatial_splits) {
+    BuildOptions options;
+    options.bvh.spatial_splits = spatial_splits;
     BvhAccel bvh;
-    bvh.build(scene.geometry(), {});
+    bvh.build(scene.geometry(), options);
+    if (spatial_splits) {
+        EXPECT_GT(bvh.prim_indices().size(), scene.triangles.size());
+    }
     const gpu::FlatBvh flat = gpu::flatten_bvh(bvh, scene.geometry());
     std::size_t inner = 0;
     for (const BvhNode& node : bvh.nodes())
@@ -318,6 +329,11 @@ TEST(CudaPorts, FlatBvhKeepsEveryChildBoxAndReference) {
         }
     }
     EXPECT_EQ(references, bvh.prim_indices().size());
+}
+
+TEST(CudaPorts, FlatBvhKeepsEveryChildBoxAndReference) {
+    expect_flat_bvh_keeps_every_child_box_and_reference(make_triangle_scenes()[0], false);
+    expect_flat_bvh_keeps_every_child_box_and_reference(make_triangle_scenes()[1], true);
 }
 
 TEST(CudaPorts, RefuseWhatTheKernelsDoNotTrace) {

@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <tuple>
 
 #include "accel/build_util.hpp"
@@ -48,13 +50,14 @@ struct Split {
     int bin = 0;                 // binned builder: first bin on the right
 };
 
-// Node slots: a subtree over n references has at most 2n - 1 nodes, so a node in slot i over n references
-// puts its first child in slot i + 1 and its second in slot i + 2 n_first. Subtrees built in parallel write
-// disjoint slots, and compact() renumbers the used slots depth first: the layout does not depend on which
-// task finished first.
+// Node slots: a subtree that may hold up to n references has at most 2n - 1 nodes, so a node in slot i
+// whose first child may hold n_first references puts that child in slot i + 1 and its second in slot
+// i + 2 n_first. Without spatial splits n is the subtree's reference count; with them, its capacity
+// (RefRange below). Subtrees built in parallel write disjoint slots, and compact() renumbers the used slots
+// depth first: the layout does not depend on which task finished first.
 class NodeSlots {
   public:
-    explicit NodeSlots(std::size_t references) : slots_(2 * references - 1), used_(2 * references - 1, 0) {}
+    explicit NodeSlots(std::size_t capacity) : slots_(2 * capacity - 1), used_(2 * capacity - 1, 0) {}
 
     void set_leaf(std::size_t slot, const Box3f& bounds, std::size_t first, std::size_t count) {
         BvhNode& node = slots_[slot];
@@ -65,17 +68,22 @@ class NodeSlots {
     }
     // Returns the slots of the two children.
     std::pair<std::size_t, std::size_t> set_inner(std::size_t slot, const Box3f& bounds, int axis,
-                                                  std::size_t first_child_references) {
+                                                  std::size_t first_child_capacity) {
         BvhNode& node = slots_[slot];
         node.lo = bounds.lo, node.hi = bounds.hi;
         node.axis = static_cast<std::uint8_t>(axis);
-        node.offset = static_cast<std::uint32_t>(slot + 2 * first_child_references);
+        node.offset = static_cast<std::uint32_t>(slot + 2 * first_child_capacity);
         used_[slot] = 1;
         return {slot + 1, node.offset};
     }
 
-    [[nodiscard]] std::vector<BvhNode> compact() const {
-        std::vector<BvhNode> nodes;
+    // The nodes depth first, and the leaves' primitives in the same order: `prim_at(i)` is the primitive
+    // of the reference at position i, which the leaves' offsets index until they are renumbered here (a
+    // spatial split build leaves unused positions between its leaves).
+    template <class PrimAt>
+    [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at) const {
+        BvhBuildResult result;
+        std::vector<BvhNode>& nodes = result.nodes;
         nodes.reserve(static_cast<std::size_t>(std::count(used_.begin(), used_.end(), 1)));
         // Depth first from the root: (slot, index of the parent whose second-child offset awaits it).
         std::vector<std::pair<std::size_t, std::size_t>> pending = {{0, SIZE_MAX}};
@@ -83,7 +91,13 @@ class NodeSlots {
             const auto [slot, parent] = pending.back();
             pending.pop_back();
             if (parent != SIZE_MAX) nodes[parent].offset = static_cast<std::uint32_t>(nodes.size());
-            const BvhNode& node = slots_[slot];
+            BvhNode node = slots_[slot];
+            if (node.is_leaf()) {
+                const std::uint32_t first = node.offset;
+                node.offset = static_cast<std::uint32_t>(result.prim_indices.size());
+                for (std::uint32_t i = first; i < first + node.prim_count; ++i)
+                    result.prim_indices.push_back(prim_at(i));
+            }
             nodes.push_back(node);
             if (!node.is_leaf()) {
                 pending.push_back(
@@ -91,13 +105,23 @@ class NodeSlots {
                 pending.push_back({slot + 1, SIZE_MAX});  // first child: the very next node
             }
         }
-        return nodes;
+        return result;
     }
 
   private:
     std::vector<BvhNode> slots_;
     std::vector<std::uint8_t> used_;
 };
+
+// With spatial splits, the references of a build, the parts of cut primitives included, are at most this many
+// times the primitives (Embree's split factor): the bound on the build's memory (docs/accel/bvh.md).
+constexpr double kReferenceBudget = 1.5;
+
+std::size_t reference_capacity(std::size_t primitives) {
+    const auto budget = static_cast<std::size_t>(static_cast<double>(primitives) * kReferenceBudget);
+    // Leaf offsets are 32-bit.
+    return std::max(primitives, std::min<std::size_t>(budget, std::numeric_limits<std::uint32_t>::max()));
+}
 
 std::vector<BuildRef> make_refs(const Geometry& geometry) {
     std::vector<BuildRef> refs(geometry.size());
@@ -163,12 +187,8 @@ class SweepBuilder {
         build(slots, second, middle, end, depth + 1);
     }
 
-    [[nodiscard]] std::vector<std::uint32_t> prim_indices() const {
-        std::vector<std::uint32_t> prims(refs_.size());
-        for (std::size_t i = 0; i < prims.size(); ++i)
-            prims[i] = refs_[orders_[0][i]].prim;
-        return prims;
-    }
+    // The primitive at position i of the leaves' ranges.
+    [[nodiscard]] std::uint32_t prim_at(std::size_t i) const { return refs_[orders_[0][i]].prim; }
 
   private:
     Split best_split(std::size_t begin, std::size_t end) {
@@ -230,74 +250,44 @@ class SweepBuilder {
 };
 
 // ---------------------------------------------------------------------------------------------------------
+// A node's references refs[begin, end), and the free positions [end, capacity_end) that spatial splits in
+// its subtree may fill with the second parts of the references they cut (Embree's extended ranges). Without
+// spatial splits there are none: capacity_end == end.
+struct RefRange {
+    std::size_t begin = 0, end = 0, capacity_end = 0;
+
+    [[nodiscard]] std::size_t size() const { return end - begin; }
+    [[nodiscard]] std::size_t free() const { return capacity_end - end; }
+    [[nodiscard]] std::size_t capacity() const { return capacity_end - begin; }
+};
+
 // Binned SAH (Wald 2007): centroids are binned on each axis, only bin boundaries are candidates. Large nodes
 // bin in parallel and large subtrees build in parallel; bin merges are exact (integer counts, min/max of
 // boxes), so the result does not depend on the thread count.
+//
+// With spatial splits (Stich, Friedrich & Dietrich, "Spatial Splits in Bounding Volume Hierarchies", HPG
+// 2009), a node whose best object split leaves overlapping children also bins its references between planes
+// of its own box, each reference clipped to every bin it crosses, and may split at a plane that cuts
+// references in two. The second parts go to the node's free positions, which every split shares between
+// its children in proportion to their references; the whole array, hence the number of references, is
+// bounded by kReferenceBudget primitives (docs/accel/bvh.md, "Spatial splits").
 class BinnedBuilder {
   public:
     // A node's reference boxes' bounds and its centroids' bounds.
     using NodeBounds = std::pair<Box3f, Box3f>;
 
-    BinnedBuilder(std::vector<BuildRef>& refs, const BvhOptions& options)
-        : refs_(refs), max_leaf_(leaf_size_limit(options)), bins_(std::clamp(options.bins, 2, kMaxBins)) {}
+    // refs[0, primitives) are the primitives' references; the rest of `refs` is free for spatial splits.
+    BinnedBuilder(std::vector<BuildRef>& refs, const Geometry& geometry, const BvhOptions& options)
+        : refs_(refs),
+          geometry_(geometry),
+          max_leaf_(leaf_size_limit(options)),
+          bins_(std::clamp(options.bins, 2, kMaxBins)),
+          spatial_splits_(options.spatial_splits) {}
 
-    // The node over refs_[begin, end), whose reference boxes and centroids `node` bounds.
-    void build(NodeSlots& slots, std::size_t slot, std::size_t begin, std::size_t end, int depth,
-               const NodeBounds& node) {
-        const auto& [bounds, centroids] = node;
-        const std::size_t count = end - begin;
-        const bool exact = count <= kExactSplitBelow;
-        const BinMap map(centroids, bins_);
-        Split split;
-        ExactOrder exact_order;
-        if (depth < kMedianSplitDepth)
-            split = exact ? exact_split(begin, end, exact_order) : best_split(begin, end, map, centroids);
-        if (stays_leaf(count, bounds.surface_area(), split, max_leaf_)) {
-            slots.set_leaf(slot, bounds, begin, count);
-            return;
-        }
-        std::size_t middle;
-        NodeBounds left, right;
-        if (split.axis >= 0 && !exact) {
-            std::tie(middle, left, right) = partition(begin, end, map, split);
-        } else {
-            if (split.axis >= 0) {
-                // The exact split's order on its axis.
-                std::array<BuildRef, kExactSplitBelow> node_refs;
-                std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                          refs_.begin() + static_cast<std::ptrdiff_t>(end), node_refs.begin());
-                for (std::size_t i = 0; i < count; ++i)
-                    refs_[begin + i] = node_refs[exact_order[i]];
-            } else {
-                // An object median when nothing separates the centroids.
-                split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
-                const int axis = split.axis;
-                std::nth_element(
-                    refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                    refs_.begin() + static_cast<std::ptrdiff_t>(begin + split.left_count),
-                    refs_.begin() + static_cast<std::ptrdiff_t>(end),
-                    [axis](const BuildRef& a, const BuildRef& b) { return centroid_less(a, b, axis); });
-            }
-            middle = begin + split.left_count;
-            left = bounds_of(begin, middle), right = bounds_of(middle, end);
-        }
-        const auto [first, second] = slots.set_inner(slot, bounds, split.axis, middle - begin);
-#if LANCER_HAS_TBB
-        if (count > kParallelSubtree) {
-            // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
-            tbb::parallel_invoke(
-                [&, first_slot = first] { build(slots, first_slot, begin, middle, depth + 1, left); },
-                [&, second_slot = second] { build(slots, second_slot, middle, end, depth + 1, right); });
-            return;
-        }
-#endif
-        build(slots, first, begin, middle, depth + 1, left);
-        build(slots, second, middle, end, depth + 1, right);
-    }
-
-    // The whole reference array's node.
-    void build(NodeSlots& slots) {
-        build(slots, 0, 0, refs_.size(), 0, bounds_of(0, refs_.size()));
+    void build(NodeSlots& slots, std::size_t primitives) {
+        const NodeBounds root = bounds_of(0, primitives);
+        min_overlap_area_ = kMinOverlap * root.first.surface_area();
+        build(slots, 0, {0, primitives, refs_.size()}, 0, root);
     }
 
   private:
@@ -307,9 +297,35 @@ class BinnedBuilder {
     // Below this many references, the exact sweep over the node's own sorted centroids is both better and
     // cheaper than clearing and scanning the bins.
     static constexpr std::size_t kExactSplitBelow = 32;
+    // Stich et al.'s alpha ("restricting spatial split attempts"): a spatial split is tried only where the
+    // object split's children overlap by more than this share of the root's area.
+    static constexpr float kMinOverlap = 1e-5f;
+    // Planes tried per axis by a spatial split, as Embree's SBVH builder (HeuristicArraySpatialSAH).
+    static constexpr int kSpatialBins = 16;
 
     // Offsets from a node's first reference, for the exact split's orders.
     using ExactOrder = std::array<std::uint8_t, kExactSplitBelow>;
+
+    // An object split and its children's boxes, whose overlap decides whether a spatial split is tried.
+    struct ObjectSplit {
+        Split split;
+        Box3f left_bounds, right_bounds;
+    };
+
+    // A spatial split: the plane on `split.axis` at boundary `split.bin` of the node's spatial bins, and the
+    // children as binning saw them, which reference unsplitting weighs each cut reference against.
+    struct SpatialSplit {
+        Split split;
+        float plane = 0.0f;
+        Box3f left_bounds, right_bounds;
+        std::uint32_t left_count = 0, right_count = 0;
+    };
+
+    struct Children {
+        int axis = -1;
+        RefRange left, right;
+        NodeBounds left_bounds, right_bounds;
+    };
 
     // Every boundary between consecutive centroids on each axis, in centroid order (ties by primitive
     // index), for a node of at most kExactSplitBelow references; `best_order` receives the order of the
@@ -382,8 +398,23 @@ class BinnedBuilder {
             const __m128 point = _mm_loadu_ps(&centroid.x);
             return {point, point};
         }
+        [[nodiscard]] static BinBox of_box(const Box3f& box) {
+            return {_mm_setr_ps(box.lo.x, box.lo.y, box.lo.z, 0.0f),
+                    _mm_setr_ps(box.hi.x, box.hi.y, box.hi.z, 0.0f)};
+        }
+        [[nodiscard]] static BinBox of_vertex(const Vec3f& point) {
+            const __m128 row = _mm_setr_ps(point.x, point.y, point.z, 0.0f);
+            return {row, row};
+        }
         void extend(const BinBox& other) {
             lo = _mm_min_ps(other.lo, lo), hi = _mm_max_ps(other.hi, hi);
+        }
+        void clip(const BinBox& other) {
+            lo = _mm_max_ps(other.lo, lo), hi = _mm_min_ps(other.hi, hi);
+        }
+        // As Box3f::empty: lo > hi, or a NaN, on some axis.
+        [[nodiscard]] bool empty() const {
+            return (_mm_movemask_ps(_mm_cmpnle_ps(lo, hi)) & 0b111) != 0;
         }
         [[nodiscard]] Box3f box() const {
             alignas(16) float low[4], high[4];
@@ -399,8 +430,20 @@ class BinnedBuilder {
         [[nodiscard]] static BinBox of_point(const Vec3f& centroid) {
             return {{centroid, centroid}};
         }
+        [[nodiscard]] static BinBox of_box(const Box3f& box) {
+            return {box};
+        }
+        [[nodiscard]] static BinBox of_vertex(const Vec3f& point) {
+            return {{point, point}};
+        }
         void extend(const BinBox& other) {
             bounds.extend(other.bounds);
+        }
+        void clip(const BinBox& other) {
+            bounds = intersection(bounds, other.bounds);
+        }
+        [[nodiscard]] bool empty() const {
+            return bounds.empty();
         }
         [[nodiscard]] Box3f box() const {
             return bounds;
@@ -528,7 +571,8 @@ class BinnedBuilder {
         return bins;
     }
 
-    Split best_split(std::size_t begin, std::size_t end, const BinMap& map, const Box3f& centroids) const {
+    ObjectSplit best_split(std::size_t begin, std::size_t end, const BinMap& map,
+                           const Box3f& centroids) const {
         const Bins bins = bin(begin, end, map, centroids);
         Split best;
         std::array<float, kMaxBins> right_costs{};
@@ -555,33 +599,419 @@ class BinnedBuilder {
                 if (cost < best.cost) best = {axis, cost, left_count, b};
             }
         }
+        ObjectSplit object{best, {}, {}};
+        if (spatial_splits_ && best.axis >= 0) {
+            BinBox left, right;
+            for (int b = 0; b < bins_; ++b)
+                (b < best.bin ? left : right).extend(bins.boxes[static_cast<std::size_t>(best.axis)][b]);
+            object.left_bounds = left.box(), object.right_bounds = right.box();
+        }
+        return object;
+    }
+
+    // The node over refs_[range.begin, range.end), whose reference boxes and centroids `node` bounds.
+    void build(NodeSlots& slots, std::size_t slot, const RefRange& range, int depth, const NodeBounds& node) {
+        const auto& [bounds, centroids] = node;
+        const std::size_t count = range.size();
+        const bool exact = count <= kExactSplitBelow;
+        const BinMap map(centroids, bins_);
+        ObjectSplit object;
+        ExactOrder exact_order;
+        SpatialSplit spatial;
+        if (depth < kMedianSplitDepth && exact) {
+            // No spatial split here: the references are large beside the node and cross most of its bins, so
+            // chopped binning would cost the most per reference, for the least gain (docs/accel/bvh.md,
+            // "Spatial splits": half the bunny's build time, for at most 0.5% of the SAH cost).
+            object.split = exact_split(range.begin, range.end, exact_order);
+        } else if (depth < kMedianSplitDepth) {
+            object = best_split(range.begin, range.end, map, centroids);
+            if (worth_a_spatial_split(range, object)) spatial = best_spatial_split(range, bounds);
+        }
+        const bool spatial_is_better = spatial.split.cost < object.split.cost;
+        if (stays_leaf(count, bounds.surface_area(), spatial_is_better ? spatial.split : object.split,
+                       max_leaf_)) {
+            slots.set_leaf(slot, bounds, range.begin, count);
+            return;
+        }
+        std::optional<Children> children;
+        if (spatial_is_better) children = spatial_partition(range, bounds, spatial);
+        if (!children) children = object_partition(range, object.split, map, exact_order, centroids);
+        const auto [first, second] = slots.set_inner(slot, bounds, children->axis, children->left.capacity());
+#if LANCER_HAS_TBB
+        if (count > kParallelSubtree) {
+            // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
+            tbb::parallel_invoke(
+                [&, first_slot = first] {
+                    build(slots, first_slot, children->left, depth + 1, children->left_bounds);
+                },
+                [&, second_slot = second] {
+                    build(slots, second_slot, children->right, depth + 1, children->right_bounds);
+                });
+            return;
+        }
+#endif
+        build(slots, first, children->left, depth + 1, children->left_bounds);
+        build(slots, second, children->right, depth + 1, children->right_bounds);
+    }
+
+    // The object split's children: the binned partition, the exact split's order, or an object median when
+    // nothing separates the centroids.
+    Children object_partition(const RefRange& range, Split split, const BinMap& map,
+                              const ExactOrder& exact_order, const Box3f& centroids) {
+        const std::size_t begin = range.begin, end = range.end, count = range.size();
+        Children children;
+        std::size_t middle;
+        if (split.axis >= 0 && count > kExactSplitBelow) {
+            std::tie(middle, children.left_bounds, children.right_bounds) = partition(begin, end, map, split);
+        } else {
+            if (split.axis >= 0) {
+                // The exact split's order on its axis.
+                std::array<BuildRef, kExactSplitBelow> node_refs;
+                std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                          refs_.begin() + static_cast<std::ptrdiff_t>(end), node_refs.begin());
+                for (std::size_t i = 0; i < count; ++i)
+                    refs_[begin + i] = node_refs[exact_order[i]];
+            } else {
+                // An object median when nothing separates the centroids.
+                split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
+                const int median_axis = split.axis;
+                std::nth_element(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                                 refs_.begin() + static_cast<std::ptrdiff_t>(begin + split.left_count),
+                                 refs_.begin() + static_cast<std::ptrdiff_t>(end),
+                                 [median_axis](const BuildRef& a, const BuildRef& b) {
+                                     return centroid_less(a, b, median_axis);
+                                 });
+            }
+            middle = begin + split.left_count;
+            children.left_bounds = bounds_of(begin, middle), children.right_bounds = bounds_of(middle, end);
+        }
+        children.axis = split.axis;
+        std::tie(children.left, children.right) = share_free_positions(range, middle - begin, end - middle);
+        if (children.right.begin != middle) {
+            // Make room for the left child's free positions: the right child's first references move past
+            // its last (Embree's moveExtentedRange), the others stay.
+            const std::size_t moved = std::min(children.right.begin - middle, end - middle);
+            std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(middle),
+                      refs_.begin() + static_cast<std::ptrdiff_t>(middle + moved),
+                      refs_.begin() + static_cast<std::ptrdiff_t>(children.right.end - moved));
+        }
+        return children;
+    }
+
+    // The children's ranges for `left_count` then `right_count` references out of a node whose range is
+    // `range`: the free positions are shared in proportion to the references (Embree's
+    // setExtentedRanges), so that a child has room for spatial splits in proportion to its size.
+    static std::pair<RefRange, RefRange> share_free_positions(const RefRange& range, std::size_t left_count,
+                                                              std::size_t right_count) {
+        const std::size_t free = range.capacity() - left_count - right_count;
+        const auto left_free = std::min(
+            free, static_cast<std::size_t>(static_cast<double>(free) * static_cast<double>(left_count) /
+                                           static_cast<double>(left_count + right_count)));
+        const std::size_t right_begin = range.begin + left_count + left_free;
+        return {{range.begin, range.begin + left_count, right_begin},
+                {right_begin, right_begin + right_count, range.capacity_end}};
+    }
+
+    // ---------------------------------------------------------------------------------------------------
+    // Spatial splits (Stich et al. 2009).
+
+    // Tried only where the node has free positions for the parts of the references it would cut, and where
+    // the best object split's children overlap by more than alpha times the root's area (Stich et al.,
+    // "restricting spatial split attempts": below that, a spatial split can gain little).
+    [[nodiscard]] bool worth_a_spatial_split(const RefRange& range, const ObjectSplit& object) const {
+        return spatial_splits_ && range.free() > 0 && object.split.axis >= 0 &&
+               intersection(object.left_bounds, object.right_bounds).surface_area() > min_overlap_area_;
+    }
+
+    // kSpatialBins bins of equal width over the node's box on each axis (not over its centroids: the planes
+    // cut references, wherever their centroids lie).
+    struct SpatialBinMap {
+        Vec3f origin, scale, width;
+        std::array<bool, 3> splittable{};
+
+        explicit SpatialBinMap(const Box3f& bounds) : origin(bounds.lo) {
+            for (int axis = 0; axis < 3; ++axis) {
+                const float extent = bounds.hi[axis] - bounds.lo[axis];
+                scale[axis] = extent > 0.0f ? static_cast<float>(kSpatialBins) / extent : 0.0f;
+                width[axis] = extent / static_cast<float>(kSpatialBins);
+                // A denormal extent gives an infinite scale, and 0 * inf a NaN bin: such an axis is not
+                // split.
+                splittable[static_cast<std::size_t>(axis)] = scale[axis] > 0.0f && std::isfinite(scale[axis]);
+            }
+        }
+        [[nodiscard]] int bin(float coordinate, int axis) const {
+            const float scaled = (coordinate - origin[axis]) * scale[axis];
+            return std::clamp(static_cast<int>(scaled), 0, kSpatialBins - 1);
+        }
+        // The plane between bins boundary - 1 and boundary.
+        [[nodiscard]] float plane(int boundary, int axis) const {
+            return origin[axis] + width[axis] * static_cast<float>(boundary);
+        }
+    };
+
+    // Per axis, each bin's box (of the references' parts inside it) and how many references enter and
+    // leave there (Stich et al.'s chopped binning).
+    struct SpatialBins {
+        std::array<std::array<BinBox, kSpatialBins>, 3> boxes;
+        std::array<std::array<std::uint32_t, kSpatialBins>, 3> entries{}, exits{};
+
+        void merge(const SpatialBins& other) {
+            for (std::size_t axis = 0; axis < 3; ++axis) {
+                for (std::size_t b = 0; b < kSpatialBins; ++b) {
+                    boxes[axis][b].extend(other.boxes[axis][b]);
+                    entries[axis][b] += other.entries[axis][b];
+                    exits[axis][b] += other.exits[axis][b];
+                }
+            }
+        }
+    };
+
+    // A reference's primitive cut by axis-aligned planes: the exact bounds of its part between two planes
+    // and inside the reference's box (Stich et al.'s chopped references). A triangle's part is the polygon
+    // whose corners are the triangle's vertices between the planes and the points where its edges cross
+    // them (Karras's splitReference); a crossing is set exactly on its plane, its other coordinates rounded
+    // by a few ulps of the vertices' magnitude, within the node boxes' geometric tolerance
+    // (docs/numerical-contract.md, "Boxes"). A sphere's part is its box cut. The primitive is read once for
+    // all the planes that cut the reference.
+    class ChoppedReference {
+      public:
+        ChoppedReference(const Geometry& geometry, const BuildRef& ref)
+            : bounds_(ref.bounds), box_(BinBox::of(ref)), is_triangle_(ref.prim < geometry.triangles.size()) {
+            if (!is_triangle_) return;
+            const Triangle& tri = geometry.triangles[ref.prim];
+            vertices_ = {tri.v0, tri.v1, tri.v2};
+            for (std::size_t v = 0; v < 3; ++v)
+                corners_[v] = BinBox::of_vertex(vertices_[v]);
+        }
+
+        // The points where the triangle's edges cross the plane; a vertex on the plane is not a crossing but
+        // a corner of the parts on both sides.
+        [[nodiscard]] BinBox crossings(int axis, float plane) const {
+            BinBox points;
+            if (!is_triangle_) return points;
+            for (std::size_t i = 0; i < 3; ++i) {
+                const Vec3f& a = vertices_[i];
+                const Vec3f& b = vertices_[(i + 1) % 3];
+                // Strictly on both sides: b - a is not zero on the axis, and the fraction lies in [0, 1].
+                if ((a[axis] < plane && plane < b[axis]) || (b[axis] < plane && plane < a[axis])) {
+                    Vec3f crossing = a + ((plane - a[axis]) / (b[axis] - a[axis])) * (b - a);
+                    crossing[axis] = plane;
+                    points.extend(BinBox::of_vertex(crossing));
+                }
+            }
+            return points;
+        }
+
+        // The part between the planes lo and hi on `axis` (-inf and +inf for none), given their crossings.
+        [[nodiscard]] BinBox part(int axis, float lo, float hi, const BinBox& lo_crossings,
+                                  const BinBox& hi_crossings) const {
+            if (!is_triangle_) {
+                Box3f cut = bounds_;
+                cut.lo[axis] = std::max(cut.lo[axis], lo);
+                cut.hi[axis] = std::min(cut.hi[axis], hi);
+                return BinBox::of_box(cut);
+            }
+            BinBox part = lo_crossings;
+            part.extend(hi_crossings);
+            for (std::size_t v = 0; v < 3; ++v) {
+                if (lo <= vertices_[v][axis] && vertices_[v][axis] <= hi) part.extend(corners_[v]);
+            }
+            part.clip(box_);
+            return part;
+        }
+
+      private:
+        Box3f bounds_;
+        BinBox box_;
+        bool is_triangle_;
+        std::array<Vec3f, 3> vertices_{};
+        std::array<BinBox, 3> corners_{};
+    };
+
+    void spatial_bin_reference(const BuildRef& ref, const SpatialBinMap& map, SpatialBins& bins) const {
+        std::optional<ChoppedReference> chopped;
+        for (int axis = 0; axis < 3; ++axis) {
+            const auto a = static_cast<std::size_t>(axis);
+            if (!map.splittable[a]) continue;
+            const int first = map.bin(ref.bounds.lo[axis], axis), last = map.bin(ref.bounds.hi[axis], axis);
+            ++bins.entries[a][static_cast<std::size_t>(first)];
+            ++bins.exits[a][static_cast<std::size_t>(last)];
+            if (first == last) {
+                bins.boxes[a][static_cast<std::size_t>(first)].extend(BinBox::of(ref));
+                continue;
+            }
+            // Chopped binning: the part of the primitive in each bin it crosses, each plane's crossings
+            // shared by the two bins it bounds.
+            if (!chopped) chopped.emplace(geometry_, ref);
+            BinBox lo_crossings;
+            for (int b = first; b <= last; ++b) {
+                const float lo = b == first ? -kInfinity : map.plane(b, axis);
+                const float hi = b == last ? kInfinity : map.plane(b + 1, axis);
+                const BinBox hi_crossings = b == last ? BinBox{} : chopped->crossings(axis, hi);
+                const BinBox part = chopped->part(axis, lo, hi, lo_crossings, hi_crossings);
+                if (!part.empty()) bins.boxes[a][static_cast<std::size_t>(b)].extend(part);
+                lo_crossings = hi_crossings;
+            }
+        }
+    }
+
+    SpatialBins spatial_bin(std::size_t begin, std::size_t end, const SpatialBinMap& map) const {
+        auto fill = [&](std::size_t from, std::size_t to, SpatialBins& bins) {
+            for (std::size_t i = from; i < to; ++i)
+                spatial_bin_reference(refs_[i], map, bins);
+        };
+#if LANCER_HAS_TBB
+        if (end - begin > kParallelBinning) {
+            return tbb::parallel_reduce(
+                tbb::blocked_range<std::size_t>(begin, end, 16384), SpatialBins{},
+                [&](const tbb::blocked_range<std::size_t>& r, SpatialBins bins) {
+                    fill(r.begin(), r.end(), bins);
+                    return bins;
+                },
+                [](SpatialBins a, const SpatialBins& b) {
+                    a.merge(b);
+                    return a;
+                });
+        }
+#endif
+        SpatialBins bins;
+        fill(begin, end, bins);
+        return bins;
+    }
+
+    // The cheapest plane of the node's spatial bins: the left child holds every reference that enters left
+    // of it, the right child every one that leaves right of it, the cut ones in both.
+    SpatialSplit best_spatial_split(const RefRange& range, const Box3f& bounds) const {
+        const SpatialBinMap map(bounds);
+        const SpatialBins bins = spatial_bin(range.begin, range.end, map);
+        SpatialSplit best;
+        std::array<Box3f, kSpatialBins> right_boxes;
+        std::array<std::uint32_t, kSpatialBins> right_counts{};
+        for (int axis = 0; axis < 3; ++axis) {
+            const auto a = static_cast<std::size_t>(axis);
+            if (!map.splittable[a]) continue;
+            Box3f right;
+            std::uint32_t right_count = 0;
+            for (std::size_t b = kSpatialBins - 1; b > 0; --b) {
+                right.extend(bins.boxes[a][b].box());
+                right_count += bins.exits[a][b];
+                right_boxes[b] = right, right_counts[b] = right_count;
+            }
+            Box3f left;
+            std::uint32_t left_count = 0;
+            for (std::size_t b = 1; b < kSpatialBins; ++b) {
+                left.extend(bins.boxes[a][b - 1].box());
+                left_count += bins.entries[a][b - 1];
+                if (left_count == 0 || right_counts[b] == 0) continue;
+                const float cost = left.surface_area() * static_cast<float>(left_count) +
+                                   right_boxes[b].surface_area() * static_cast<float>(right_counts[b]);
+                if (cost < best.split.cost) {
+                    best.split = {axis, cost, left_count, static_cast<int>(b)};
+                    best.plane = map.plane(static_cast<int>(b), axis);
+                    best.left_bounds = left, best.right_bounds = right_boxes[b];
+                    best.left_count = left_count, best.right_count = right_counts[b];
+                }
+            }
+        }
         return best;
     }
 
+    // Applies a spatial split: a reference on one side of the plane goes to that side; one that the plane
+    // cuts either goes to both sides, each with the bounds of its part, or, where that is cheaper, whole to
+    // one side (Stich et al., "reference unsplitting"; the children's boxes and counts are those of the
+    // binning, so that every reference's choice is independent of the others'). Cuts stop once the
+    // node's free positions are used up: the remaining cut references are unsplit to their cheaper side.
+    // No children (a fall back to the object split) when one side ends up empty, which the rounding of the
+    // plane against the bins can cause.
+    std::optional<Children> spatial_partition(const RefRange& range, const Box3f& bounds,
+                                              const SpatialSplit& spatial) {
+        const int axis = spatial.split.axis;
+        const SpatialBinMap map(bounds);
+        const float left_area = spatial.left_bounds.surface_area();
+        const float right_area = spatial.right_bounds.surface_area();
+        const auto left_count = static_cast<float>(spatial.left_count);
+        const auto right_count = static_cast<float>(spatial.right_count);
+        const float split_cost = left_area * left_count + right_area * right_count;
+        std::vector<BuildRef> left, right;
+        left.reserve(spatial.left_count), right.reserve(spatial.right_count);
+        std::size_t cuts_left = range.free();
+        for (std::size_t i = range.begin; i < range.end; ++i) {
+            const BuildRef& ref = refs_[i];
+            if (map.bin(ref.bounds.hi[axis], axis) < spatial.split.bin) {
+                left.push_back(ref);
+                continue;
+            }
+            if (map.bin(ref.bounds.lo[axis], axis) >= spatial.split.bin) {
+                right.push_back(ref);
+                continue;
+            }
+            const ChoppedReference chopped(geometry_, ref);
+            const BinBox crossings = chopped.crossings(axis, spatial.plane);
+            const Box3f left_part = chopped.part(axis, -kInfinity, spatial.plane, {}, crossings).box();
+            const Box3f right_part = chopped.part(axis, spatial.plane, kInfinity, crossings, {}).box();
+            if (left_part.empty() || right_part.empty()) {
+                // The plane does not cut the primitive itself: its part on the one side is all of it.
+                (left_part.empty() ? right : left)
+                    .push_back(with_bounds(ref, left_part.empty() ? right_part : left_part));
+                continue;
+            }
+            Box3f left_with_ref = spatial.left_bounds, right_with_ref = spatial.right_bounds;
+            left_with_ref.extend(ref.bounds), right_with_ref.extend(ref.bounds);
+            const float cost_all_left =
+                left_with_ref.surface_area() * left_count + right_area * (right_count - 1.0f);
+            const float cost_all_right =
+                left_area * (left_count - 1.0f) + right_with_ref.surface_area() * right_count;
+            if (cuts_left > 0 && split_cost <= std::min(cost_all_left, cost_all_right)) {
+                --cuts_left;
+                left.push_back(with_bounds(ref, left_part));
+                right.push_back(with_bounds(ref, right_part));
+            } else {
+                (cost_all_left <= cost_all_right ? left : right).push_back(ref);
+            }
+        }
+        if (left.empty() || right.empty()) return std::nullopt;
+        Children children;
+        children.axis = axis;
+        std::tie(children.left, children.right) = share_free_positions(range, left.size(), right.size());
+        std::copy(left.begin(), left.end(), refs_.begin() + static_cast<std::ptrdiff_t>(children.left.begin));
+        std::copy(right.begin(), right.end(),
+                  refs_.begin() + static_cast<std::ptrdiff_t>(children.right.begin));
+        children.left_bounds = bounds_of(children.left.begin, children.left.end);
+        children.right_bounds = bounds_of(children.right.begin, children.right.end);
+        return children;
+    }
+
+    [[nodiscard]] static BuildRef with_bounds(const BuildRef& ref, const Box3f& bounds) {
+        return {bounds, bounds.center(), ref.prim};
+    }
+
     std::vector<BuildRef>& refs_;
+    const Geometry& geometry_;
     int max_leaf_;
     int bins_;
+    bool spatial_splits_;
+    float min_overlap_area_ = 0.0f;
 };
 
 }  // namespace
 
 BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
-    BvhBuildResult result;
-    if (geometry.size() == 0) return result;
+    if (geometry.size() == 0) return {};
     std::vector<BuildRef> refs = make_refs(geometry);
-    NodeSlots slots(refs.size());
+    const std::size_t primitives = refs.size();
+    BvhBuildResult result;
     if (options.builder == BvhBuilder::SweepSah) {
+        NodeSlots slots(primitives);
         SweepBuilder builder(refs, options);
-        builder.build(slots, 0, 0, refs.size(), 0);
-        result.prim_indices = builder.prim_indices();
+        builder.build(slots, 0, 0, primitives, 0);
+        result = slots.compact([&](std::size_t i) { return builder.prim_at(i); });
     } else {
-        BinnedBuilder builder(refs, options);
-        builder.build(slots);
-        result.prim_indices.resize(refs.size());
-        for (std::size_t i = 0; i < refs.size(); ++i)
-            result.prim_indices[i] = refs[i].prim;
+        if (options.spatial_splits) refs.resize(reference_capacity(primitives));
+        NodeSlots slots(refs.size());
+        BinnedBuilder builder(refs, geometry, options);
+        builder.build(slots, primitives);
+        result = slots.compact([&](std::size_t i) { return refs[i].prim; });
     }
-    result.nodes = slots.compact();
     const Vec3f margin(geometric_tolerance(result.nodes[0].bounds()));
     for (BvhNode& node : result.nodes)
         node.lo -= margin, node.hi += margin;

@@ -17,7 +17,9 @@ constexpr double kPrimitiveCost = 1.0;
 
 // The primitives under a binary node: the range [first, first + count) of prim_indices (depth first layout)
 // and whether the collapse keeps the whole subtree as one leaf: a binary leaf, or a subtree of at most
-// kBlockLanes primitives, which one triangle block tests at the cost of one of its leaves.
+// kBlockLanes primitives, which one triangle block tests at the cost of one of its leaves. Such a subtree
+// never holds a primitive twice: spatial splits, which put one primitive in several leaves, cut only nodes
+// of more than 32 references (docs/accel/bvh.md, "Spatial splits"; WideBvh.LeavesHoldEachPrimitiveOnce).
 struct SubtreeRange {
     std::uint32_t first = 0, count = 0;
     bool as_leaf = false;
