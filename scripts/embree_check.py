@@ -3,13 +3,14 @@
 with no lancer code), in the same run, on the same meshes and thread counts (issue 20: each row within 10%),
 and sets lancer's own structures beside Embree's fastest call (issue 20's goal: 1.25 times it).
 
-    scripts/embree_check.py [--build build] [--mesh FILE]... [--threads 1,2] [--frames 5] [--watertight]
-                            [--tolerance 0.10] [--lancer bvh8_packet,...]
+    scripts/embree_check.py [--build build] [--mesh FILE]... [--threads 1,2] [--frames 5] [--repeat 3]
+                            [--watertight] [--tolerance 0.10] [--lancer bvh8_packet,...]
 
 Prints one line per mesh, call and thread count with both figures and their ratio, then one line per mesh,
 thread count and lancer structure with its ratio to the fastest Embree call; exits 1 when an Embree row is
 further than the tolerance below the reference, 2 on bad input. Run it on an idle machine: the two programs
-alternate per mesh, so that drift hits both alike.
+alternate per mesh, --repeat times, and each figure is the median of its runs, so that drift hits both alike
+(one run of each moved single rows by up to 10% between runs).
 """
 import argparse
 import json
@@ -43,12 +44,26 @@ def run_json(command):
         return json.load(open(out.name))
 
 
+def median_records(runs, key):
+    """One record per key(record) across the runs, its Mrays/s the median of the runs' figures."""
+    grouped = {}
+    for run in runs:
+        for record in run:
+            grouped.setdefault(key(record), []).append(record)
+    merged = []
+    for records in grouped.values():
+        figures = sorted(r["mrays_per_s"] for r in records)
+        merged.append(dict(records[0], mrays_per_s=figures[len(figures) // 2]))
+    return merged
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--build", default=os.path.join(ROOT, "build"))
     parser.add_argument("--mesh", action="append")
     parser.add_argument("--threads", default="1,2")
     parser.add_argument("--frames", type=int, default=5)
+    parser.add_argument("--repeat", type=int, default=3, help="alternated runs of both programs per mesh")
     parser.add_argument("--watertight", action="store_true")
     parser.add_argument("--tolerance", type=float, default=0.10)
     parser.add_argument("--lancer", default="bvh8_packet",
@@ -72,12 +87,17 @@ def main():
     fastest = []  # (mesh, threads, call, Mrays/s of the fastest call, {structure: Mrays/s})
     for mesh in meshes:
         test = [] if args.watertight else ["--moller-trumbore"]
-        peer = run_json([reference, mesh, "--threads", args.threads, "--frames", str(args.frames)] +
-                        (["--watertight"] if args.watertight else []))
-        # lancer's structures first: the bench checks every row against the first, and keeps an Embree row
-        # that disagrees (its own triangle test) where it would drop one of lancer's.
-        ours = run_json([lancer, "bench", "--mesh", mesh, "--accel", ",".join(structures + list(ROW_OF_CALL.values())),
-                         "--threads", args.threads, "--frames", str(args.frames)] + test)
+        peer_runs, our_runs = [], []
+        for _ in range(max(1, args.repeat)):
+            peer_runs.append(run_json([reference, mesh, "--threads", args.threads, "--frames", str(args.frames)] +
+                                      (["--watertight"] if args.watertight else [])))
+            # lancer's structures first: the bench checks every row against the first, and keeps an Embree
+            # row that disagrees (its own triangle test) where it would drop one of lancer's.
+            our_runs.append(run_json([lancer, "bench", "--mesh", mesh, "--accel",
+                                      ",".join(structures + list(ROW_OF_CALL.values())), "--threads",
+                                      args.threads, "--frames", str(args.frames)] + test))
+        peer = median_records(peer_runs, lambda r: (r["call"], r["threads"]))
+        ours = median_records(our_runs, lambda r: (r["accel"], r["threads"]))
         for threads in sorted({record["threads"] for record in peer}):
             best = max((r for r in peer if r["threads"] == threads), key=lambda r: r["mrays_per_s"])
             lancer_rows = {r["accel"]: r["mrays_per_s"] for r in ours
