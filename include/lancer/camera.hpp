@@ -23,11 +23,24 @@ class PinholeCamera {
     static constexpr int kTileSide = 8;
     static constexpr int kBlockSide = 4;
     static_assert(kTileSide * kTileSide == RayPacket::kMaxSize);
+    static constexpr int kBlockLanes = kBlockSide * kBlockSide;
+    static constexpr int kBlocksPerTileRow = kTileSide / kBlockSide;
+    // The corner of block `block` of a tile (blocks row by row), from the tile's corner.
+    [[nodiscard]] static constexpr int block_column(int block) {
+        return kBlockSide * (block % kBlocksPerTileRow);
+    }
+    [[nodiscard]] static constexpr int block_row(int block) {
+        return kBlockSide * (block / kBlocksPerTileRow);
+    }
     // The pixel of lane `lane` of tile_rays's packet, from the tile's corner: lane 16 b + 4 r + c is column
-    // 4 (b % 2) + c and row 4 (b / 2) + r, so that every 16 lanes from a multiple of 16 are a 4x4 block and
-    // every 8 a 4x2 one (the packets Embree's tutorials trace).
-    [[nodiscard]] static constexpr int tile_column(int lane) { return 4 * ((lane / 16) % 2) + lane % 4; }
-    [[nodiscard]] static constexpr int tile_row(int lane) { return 4 * (lane / 32) + (lane / 4) % 4; }
+    // c and row r of block b, so that every 16 lanes from a multiple of 16 are a 4x4 block and every 8 a 4x2
+    // one (the packets Embree's tutorials trace).
+    [[nodiscard]] static constexpr int tile_column(int lane) {
+        return block_column(lane / kBlockLanes) + lane % kBlockSide;
+    }
+    [[nodiscard]] static constexpr int tile_row(int lane) {
+        return block_row(lane / kBlockLanes) + (lane / kBlockSide) % kBlockSide;
+    }
     // The rays through the pixel centres of the tile [x0, x0 + 8) x [y0, y0 + 8), 64 lanes in that order:
     // generate's rays, bit for bit, made in SIMD lanes. A lane whose pixel lies outside the image gets a ray
     // of zero direction, which misses (is_valid).

@@ -251,21 +251,13 @@ struct ConditionedRays {
 #endif
 }
 
-// The same question for lanes [0, size) of a packet, in the packet's own layout: a loop over lanes that GCC
-// vectorizes (the arrays are contiguous, the compares are the scalar ones, and the answer is accumulated as
-// an int: a bool accumulator keeps GCC 12 from vectorizing).
+// The same question for lanes [0, size) of a packet: may_need_conditioning lane by lane, which GCC vectorizes
+// over the packet's contiguous arrays once the answer is accumulated as an int (with a bool accumulator GCC
+// 12 keeps the loop scalar).
 [[nodiscard]] inline bool any_may_need_conditioning(const RayPacket& rays, const FarOriginFrame& frame) {
-    const Vec3f centre = frame.centre();
-    const float far = frame.far_limit();
     int any = 0;
-    for (int lane = 0; lane < rays.size; ++lane) {
-        const float largest = max_component(
-            abs(Vec3f(rays.direction[0][lane], rays.direction[1][lane], rays.direction[2][lane])));
-        any |= !(largest >= kDirectionLowest) | !(largest <= kDirectionHighest) |
-               (std::fabs(rays.origin[0][lane] - centre.x) > far) |
-               (std::fabs(rays.origin[1][lane] - centre.y) > far) |
-               (std::fabs(rays.origin[2][lane] - centre.z) > far);
-    }
+    for (int lane = 0; lane < rays.size; ++lane)
+        any |= may_need_conditioning(rays.ray(lane), frame);
     return any != 0;
 }
 

@@ -46,10 +46,9 @@ void PinholeCamera::tile_rays(int x0, int y0, RayPacket& out) const {
     }
     // A block at a time, so that GCC vectorizes the loop across its 16 pixels; each lane's operations are
     // the scalar ones, so the rays are generate's bit for bit.
-    constexpr int kBlockLanes = kBlockSide * kBlockSide;
     for (int block = 0; block < RayPacket::kMaxSize / kBlockLanes; ++block) {
-        const float* const block_u = u + kBlockSide * (block % 2);
-        const float* const block_v = v + kBlockSide * (block / 2);
+        const float* const block_u = u + block_column(block);
+        const float* const block_v = v + block_row(block);
         float* const ox = out.origin[0] + block * kBlockLanes;
         float* const oy = out.origin[1] + block * kBlockLanes;
         float* const oz = out.origin[2] + block * kBlockLanes;

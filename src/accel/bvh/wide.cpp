@@ -157,17 +157,10 @@ bool traverse(const std::vector<WideBvhNode<W>>& nodes,
             const WideBvhNode<W>& node = nodes[current.child];
             const float t_limit = best.hit() ? best.t : ray.tfar;
             alignas(32) float entry[W];
-            unsigned hit_mask = intersect_children(node, wide_ray, ray.tnear, t_limit, entry);
+            const unsigned hit_mask = intersect_children(node, wide_ray, ray.tnear, t_limit, entry);
             if (hit_mask != 0) {
                 std::array<int, W> order;
-                int hit_count = 0;
-                for (; hit_mask != 0; hit_mask &= hit_mask - 1) {
-                    const int slot = std::countr_zero(hit_mask);
-                    int position = hit_count++;
-                    for (; position > 0 && entry[order[position - 1]] > entry[slot]; --position)
-                        order[position] = order[position - 1];
-                    order[position] = slot;
-                }
+                const int hit_count = order_by_entry<W>(hit_mask, entry, order);
                 for (int k = hit_count - 1; k > 0; --k) {
                     const int slot = order[k];
                     stack[stack_size++] = {{node.child[slot], node.prim_count[slot]}, entry[slot]};

@@ -325,16 +325,9 @@ class PacketTracer {
             // INNER: cull the children, push the survivors farthest first.
             if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
             alignas(32) float entry[kWidth];
-            unsigned maybe = cull_children(*node, interval_, tlimit_max_, entry);
             std::array<int, kWidth> order;
-            int count = 0;
-            for (; maybe != 0; maybe &= maybe - 1) {
-                const int slot = std::countr_zero(maybe);
-                int position = count++;
-                for (; position > 0 && entry[order[position - 1]] > entry[slot]; --position)
-                    order[position] = order[position - 1];
-                order[position] = slot;
-            }
+            const int count =
+                order_by_entry<kWidth>(cull_children(*node, interval_, tlimit_max_, entry), entry, order);
             for (int k = count - 1; k >= 0; --k)
                 stack[stack_size++] = {node, order[k], entry[order[k]], rays};
             // POP until an inner child with rays in it, testing the leaves on the way.
@@ -370,18 +363,11 @@ class PacketTracer {
     // rays never hit, so their prim is still kNoHit.
     void store_hits(std::span<Hit> hits) const {
         static_assert(sizeof(Hit) == 4 * sizeof(float) && offsetof(Hit, prim) == 4 && offsetof(Hit, v) == 12);
-        const Float no_hit = Ops::broadcast_int(kNoHit);
         for (std::size_t first = 0; first < hits.size(); first += kLanes) {
-            const auto prim = Ops::load(reinterpret_cast<const float*>(&packet_.prim[first]));
-            const auto missed = Ops::equal_int(prim, no_hit);
-            const Float zero = Ops::broadcast(0.0f);
+            const GroupBest answer = group_answer(static_cast<int>(first));
             alignas(64) Hit group[kLanes];
-            Ops::store_interleaved(
-                reinterpret_cast<float*>(group),
-                Ops::select(missed, Ops::broadcast(kInfinity), Ops::load(&packet_.tlimit[first])),
-                Ops::select(missed, Ops::broadcast_int(-1), prim),
-                Ops::select(missed, zero, Ops::load(&packet_.u[first])),
-                Ops::select(missed, zero, Ops::load(&packet_.v[first])));
+            Ops::store_interleaved(reinterpret_cast<float*>(group), answer.t, answer.prim, answer.u,
+                                   answer.v);
             std::copy_n(group, std::min<std::size_t>(kLanes, hits.size() - first),
                         hits.begin() + static_cast<std::ptrdiff_t>(first));
         }
@@ -389,16 +375,12 @@ class PacketTracer {
 
     // The same into a hit packet's arrays, every lane (those past the caller's rays are unspecified).
     void store_hits(HitPacket& hits) const {
-        const Float no_hit = Ops::broadcast_int(kNoHit), zero = Ops::broadcast(0.0f);
         for (int first = 0; first < kPacketSize; first += kLanes) {
-            const auto prim = Ops::load(reinterpret_cast<const float*>(&packet_.prim[first]));
-            const auto missed = Ops::equal_int(prim, no_hit);
-            Ops::store(&hits.t[first],
-                       Ops::select(missed, Ops::broadcast(kInfinity), Ops::load(&packet_.tlimit[first])));
-            Ops::store(reinterpret_cast<float*>(&hits.prim[first]),
-                       Ops::select(missed, Ops::broadcast_int(-1), prim));
-            Ops::store(&hits.u[first], Ops::select(missed, zero, Ops::load(&packet_.u[first])));
-            Ops::store(&hits.v[first], Ops::select(missed, zero, Ops::load(&packet_.v[first])));
+            const GroupBest answer = group_answer(first);
+            Ops::store(&hits.t[first], answer.t);
+            Ops::store(reinterpret_cast<float*>(&hits.prim[first]), answer.prim);
+            Ops::store(&hits.u[first], answer.u);
+            Ops::store(&hits.v[first], answer.v);
         }
     }
 
@@ -465,6 +447,16 @@ class PacketTracer {
         Ops::store(&packet_.tlimit[first], best.t);
         Ops::store(reinterpret_cast<float*>(&packet_.prim[first]), best.prim);
         Ops::store(&packet_.u[first], best.u), Ops::store(&packet_.v[first], best.v);
+    }
+    // The group's closest hits as `Hit` fields: a lane still at kNoHit (no hit, or an invalid ray) answers a
+    // miss, Hit{}'s t = inf, prim -1, u = v = 0.
+    [[nodiscard]] GroupBest group_answer(int first) const {
+        const GroupBest best = load_best(first);
+        const auto missed = Ops::equal_int(best.prim, Ops::broadcast_int(kNoHit));
+        const Float zero = Ops::broadcast(0.0f);
+        return {Ops::select(missed, Ops::broadcast(kInfinity), best.t),
+                Ops::select(missed, Ops::broadcast_int(-1), best.prim), Ops::select(missed, zero, best.u),
+                Ops::select(missed, zero, best.v)};
     }
 
     // At group `group`'s first leaf: the interval of its valid rays and their triangle test's RayData. Most
