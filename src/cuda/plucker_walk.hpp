@@ -16,13 +16,22 @@
 
 namespace lancer::gpu {
 
+// Per-axis flags and the ray's row of the exit-face table are packed in words, not arrays: the step reads
+// them at a per-thread axis or pattern, and on the GPU an array so indexed lives in local memory, and a
+// constant-memory table read at per-lane addresses is served one address at a time.
 struct PluckerWalkRay {
     Vec3f origin;
     Vec3d direction;  // in double: exact Pluecker products (walk.hpp's WalkRay)
     Vec3f abs_direction;
-    std::uint32_t up[3];
-    std::uint8_t tie[3];
-    int octant;
+    std::uint32_t octant;      // bit `axis`: walk.hpp's up[axis], the side the ray moves to
+    std::uint32_t tie_bits;    // bits 3 axis .. 3 axis + 2: walk.hpp's tie[axis]
+    std::uint32_t exit_faces;  // bits 3 pattern .. 3 pattern + 2: exit_face[octant][pattern]
+
+    LANCER_HOST_DEVICE std::uint32_t up(int axis) const { return (octant >> axis) & 1u; }
+    LANCER_HOST_DEVICE int tie(int axis) const { return static_cast<int>((tie_bits >> (3 * axis)) & 7u); }
+    LANCER_HOST_DEVICE int exit_face(int pattern) const {
+        return static_cast<int>((exit_faces >> (3 * pattern)) & 7u);
+    }
 };
 
 // OctreeCube::plane: the exact float of face i of the cells of `level` on `axis`.
@@ -33,18 +42,22 @@ LANCER_HOST_DEVICE inline float cube_plane(const PluckerView& octree, const Pluc
 
 LANCER_HOST_DEVICE inline PluckerWalkRay make_walk_ray(const PluckerView& octree, const PluckerTables& tables,
                                                        const Ray& ray) {
-    PluckerWalkRay walk_ray{ray.origin, Vec3d(ray.direction), {}, {}, {}, 0};
+    PluckerWalkRay walk_ray{ray.origin, Vec3d(ray.direction), {}, 0, 0, 0};
     for (int axis = 0; axis < 3; ++axis) {
         const float d = ray.direction[axis];
         walk_ray.abs_direction[axis] = abs_of(d);
         const bool moves = d != 0.0f;
         const float centre = octree.cube_lo[axis] + 0.5f * octree.cube_size;
-        walk_ray.up[axis] = (moves ? d > 0.0f : ray.origin[axis] < centre) ? 1u : 0u;
-        walk_ray.octant |= static_cast<int>(walk_ray.up[axis]) << axis;
+        walk_ray.octant |= ((moves ? d > 0.0f : ray.origin[axis] < centre) ? 1u : 0u) << axis;
     }
     for (int axis = 0; axis < 3; ++axis)
-        walk_ray.tie[axis] =
-            tables.quadrant_tie[2 * axis + static_cast<int>(walk_ray.up[axis])][walk_ray.octant];
+        walk_ray.tie_bits |=
+            static_cast<std::uint32_t>(
+                tables.quadrant_tie[2 * axis + static_cast<int>(walk_ray.up(axis))][walk_ray.octant])
+            << (3 * axis);
+    for (int pattern = 0; pattern < 8; ++pattern)
+        walk_ray.exit_faces |= static_cast<std::uint32_t>(tables.exit_face[walk_ray.octant][pattern])
+                               << (3 * pattern);
     return walk_ray;
 }
 
@@ -78,7 +91,7 @@ LANCER_HOST_DEVICE inline std::uint32_t plucker_descend(const PluckerView& octre
         std::uint32_t child = 0;
         for (int axis = 0; axis < 3; ++axis) {
             const float mid = cube_plane(octree, tables, axis, level + 1, 2u * coordinates[axis] + 1u);
-            const std::uint32_t bit = ray.up[axis] ? p[axis] >= mid : p[axis] > mid;
+            const std::uint32_t bit = ray.up(axis) ? p[axis] >= mid : p[axis] > mid;
             child |= bit << axis;
             coordinates[axis] = 2u * coordinates[axis] + bit;
         }
@@ -111,26 +124,27 @@ LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, con
         address = plucker_descend(octree, tables, 0, 0, 0, 0, 0, p, walk_ray);
         return true;
     }
-    const std::uint32_t entry_up = walk_ray.up[entry_axis];
+    const std::uint32_t entry_up = walk_ray.up(entry_axis);
     const int face = 2 * entry_axis + (entry_up ? 0 : 1);
     const std::uint32_t level = octree.cube_map_level[face];
     const int u = entry_axis == 0 ? 1 : 0, v = entry_axis == 2 ? 1 : 2;  // the in-face axes, increasing
     Vec3f p = ray.origin + t_entry * ray.direction;
     p[entry_axis] = entry_up ? cube_plane(octree, tables, entry_axis, 0, 0)
                              : cube_plane(octree, tables, entry_axis, 0, 1);
-    const std::uint32_t i = plucker_cell_index(octree, tables, u, level, p[u], walk_ray.up[u]);
-    const std::uint32_t j = plucker_cell_index(octree, tables, v, level, p[v], walk_ray.up[v]);
+    const std::uint32_t i = plucker_cell_index(octree, tables, u, level, p[u], walk_ray.up(u));
+    const std::uint32_t j = plucker_cell_index(octree, tables, v, level, p[v], walk_ray.up(v));
     const std::uint32_t texel = read_only(octree.texels + octree.cube_map_offset[face] + i + (j << level));
     if (!(texel & plucker::kInnerBit)) {
         address = texel;
         return true;
     }
-    std::uint32_t coordinates[3];
-    coordinates[entry_axis] = entry_up ? 0u : (1u << level) - 1u;
-    coordinates[u] = i;
-    coordinates[v] = j;
-    address = plucker_descend(octree, tables, texel & plucker::kAddressMask, static_cast<int>(level),
-                              coordinates[0], coordinates[1], coordinates[2], p, walk_ray);
+    // The cell's coordinates: the boundary layer on entry_axis, (i, j) on (u, v).
+    const std::uint32_t boundary = entry_up ? 0u : (1u << level) - 1u;
+    const std::uint32_t x = entry_axis == 0 ? boundary : i;
+    const std::uint32_t y = entry_axis == 1 ? boundary : (entry_axis == 0 ? i : j);
+    const std::uint32_t z = entry_axis == 2 ? boundary : j;
+    address = plucker_descend(octree, tables, texel & plucker::kAddressMask, static_cast<int>(level), x, y, z,
+                              p, walk_ray);
     return true;
 }
 
@@ -163,14 +177,14 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
         // EXIT-FACE (4.2.1): three Pluecker products against the edges through the exit vertex.
         const plucker::PluckerBox* box = octree.boxes + read_only(leaf + plucker::kBoxWord);
         const float* planes = box->planes.data();
-        const Vec3f w(read_only(planes + 6 * walk_ray.up[0]) - o.x,
-                      read_only(planes + 1 + 6 * walk_ray.up[1]) - o.y,
-                      read_only(planes + 2 + 6 * walk_ray.up[2]) - o.z);
+        const Vec3f w(read_only(planes + 6 * walk_ray.up(0)) - o.x,
+                      read_only(planes + 1 + 6 * walk_ray.up(1)) - o.y,
+                      read_only(planes + 2 + 6 * walk_ray.up(2)) - o.z);
         const Vec3d products = cross(walk_ray.direction, Vec3d(w));
         const int pattern = (products.x > 0.0) | (products.y > 0.0) << 1 | (products.z > 0.0) << 2;
-        const int face = tables.exit_face[walk_ray.octant][pattern];
+        const int face = walk_ray.exit_face(pattern);
         const int axis = face >> 1;
-        const float ahead = walk_ray.up[axis] ? w[axis] : -w[axis];
+        const float ahead = walk_ray.up(axis) ? w[axis] : -w[axis];
         if (static_cast<double>(limit) * walk_ray.abs_direction[axis] <= plucker_exit_lower_bound(ahead))
             return best;
         // NEIGHBOR (4.2.2): the sub-face test only when four neighbours share the face.
@@ -186,7 +200,7 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
             const Vec3d sub = cross(walk_ray.direction, Vec3d(to_centre));
             const int signs = (sub.x > 0.0) | (sub.y > 0.0) << 1 | (sub.z > 0.0) << 2;
             const int zeros = (sub.x == 0.0) | (sub.y == 0.0) << 1 | (sub.z == 0.0) << 2;
-            link_index += tables.neighbour_quadrant[face][signs | (zeros & walk_ray.tie[axis])];
+            link_index += tables.neighbour_quadrant[face][signs | (zeros & walk_ray.tie(axis))];
         }
         address = read_only(leaf + kHeader + link_index);
     }
