@@ -67,10 +67,10 @@ FlatBvh flatten_bvh(const BvhAccel& bvh, const Geometry& geometry) {
 }
 
 PluckerView plucker_view(const plucker::PluckerLayout& layout) {
-    if (!layout.options.balanced || !layout.options.stored_boxes)
+    if (!layout.options.balanced)
         throw std::invalid_argument(
-            "cuda: the GPU walk takes the default Pluecker layout (plucker.balanced=true, "
-            "plucker.stored_boxes=true)");
+            "cuda: the GPU walk takes the 2:1 balanced Pluecker layout "
+            "(plucker.balanced=true)");
     for (const plucker::PluckerPrimitive& primitive : layout.primitives)
         if (primitive.prim >= layout.triangle_count)
             throw std::invalid_argument("cuda: the GPU kernels trace triangles only; the scene has spheres");
@@ -83,6 +83,7 @@ PluckerView plucker_view(const plucker::PluckerLayout& layout) {
     view.cube_lo = layout.cube.lo;
     view.cube_size = layout.cube.size;
     view.tolerance = layout.tolerance;
+    view.stored_boxes = layout.options.stored_boxes;
     for (std::size_t face = 0; face < 6; ++face) {
         view.cube_map_level[face] = layout.cube_map.level[face];
         view.cube_map_offset[face] = layout.cube_map.offset[face];
@@ -101,8 +102,6 @@ PluckerTables plucker_tables() {
             tables.quadrant_tie[face][pattern] = plucker::kQuadrantTieBits[face][pattern];
         }
     }
-    for (std::size_t level = 0; level < OctreeCube::kInversePowersOfTwo.size(); ++level)
-        tables.inverse_powers[level] = OctreeCube::kInversePowersOfTwo[level];
     return tables;
 }
 

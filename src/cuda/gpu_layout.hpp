@@ -68,6 +68,8 @@ struct PluckerView {
     Vec3f cube_lo;
     float cube_size = 0.0f;
     float tolerance = 0.0f;
+    bool stored_boxes = true;  // plucker.stored_boxes: a leaf's box word indexes `boxes`, else it holds the
+                               // leaf's integer coordinates and level
     std::uint32_t cube_map_level[6] = {};
     std::uint32_t cube_map_offset[6] = {};
 };
@@ -78,7 +80,6 @@ struct PluckerTables {
     std::uint8_t exit_face[8][8];
     std::uint8_t neighbour_quadrant[6][8];
     std::uint8_t quadrant_tie[6][8];
-    float inverse_powers[OctreeCube::kInversePowersOfTwo.size()];  // 2^-level, OctreeCube::plane's factor
 };
 
 // The canonical camera as PinholeCamera holds it (scene/camera.cpp), for the frame kernels.

@@ -51,6 +51,15 @@ LANCER_HOST_DEVICE inline float widened_exit(float t) {
     return t * (t > 0.0f ? 1.0f + 2.0f * gamma_of(3) : 1.0f - 2.0f * gamma_of(3));
 }
 
+// 2^-level, exactly (OctreeCube::kInversePowersOfTwo[level]), from its bits rather than a table: the walk
+// reads it at a per-lane level, and a constant-memory table is served one address at a time.
+LANCER_HOST_DEVICE inline float inverse_power_of_two(int level) {
+    const auto bits = static_cast<std::uint32_t>(127 - level) << 23;
+    float power;
+    std::memcpy(&power, &bits, sizeof(power));
+    return power;
+}
+
 // closer() of lancer/ray.hpp: the smaller t, then the smaller primitive index.
 LANCER_HOST_DEVICE inline bool is_closer(float t, std::int32_t prim, const Hit& best) {
     return t < best.t || (t == best.t && prim < best.prim);
@@ -64,6 +73,16 @@ LANCER_HOST_DEVICE inline T read_only(const T* address) {
     return __ldg(address);
 #else
     return *address;
+#endif
+}
+
+// Asks the L1 cache for the line at `address` without waiting for it (PTX prefetch.global.L1); nothing on
+// the host.
+LANCER_HOST_DEVICE inline void prefetch_line(const void* address) {
+#if defined(__CUDA_ARCH__)
+    asm volatile("prefetch.global.L1 [%0];" ::"l"(address));
+#else
+    (void)address;
 #endif
 }
 

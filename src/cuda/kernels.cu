@@ -52,10 +52,11 @@ struct BatchRays {
     }
 };
 
-template <CudaKernel kKernel, class TriangleTestT, class Steps>
+// kStoredBoxes: the walk's box layout (PluckerView::stored_boxes); the BVH kernels ignore it.
+template <CudaKernel kKernel, class TriangleTestT, bool kStoredBoxes, class Steps>
 __device__ Hit trace_one(const LaunchScene& scene, const Ray& ray, Steps& steps) {
     if constexpr (kKernel == CudaKernel::Plucker) {
-        return trace_plucker<TriangleTestT>(scene.plucker, c_tables, ray, steps);
+        return trace_plucker<TriangleTestT, kStoredBoxes>(scene.plucker, c_tables, ray, steps);
     } else if constexpr (kKernel == CudaKernel::WhileWhile) {
         return trace_bvh<false, TriangleTestT>(scene.bvh, ray, WarpVote{}, steps);
     } else {
@@ -64,28 +65,28 @@ __device__ Hit trace_one(const LaunchScene& scene, const Ray& ray, Steps& steps)
 }
 
 // Stores a ray's answer, and its step count when the kernel counts (the heatmap).
-template <CudaKernel kKernel, class TriangleTestT, bool kCount>
+template <CudaKernel kKernel, class TriangleTestT, bool kCount, bool kStoredBoxes = true>
 __device__ void trace_and_store(const LaunchScene& scene, const Ray& ray, std::uint32_t slot, Hit* hits,
                                 std::uint32_t* steps) {
     if constexpr (kCount) {
         CountSteps counted;
-        hits[slot] = trace_one<kKernel, TriangleTestT>(scene, ray, counted);
+        hits[slot] = trace_one<kKernel, TriangleTestT, kStoredBoxes>(scene, ray, counted);
         steps[slot] = counted.steps;
     } else {
         NoSteps none;
-        hits[slot] = trace_one<kKernel, TriangleTestT>(scene, ray, none);
+        hits[slot] = trace_one<kKernel, TriangleTestT, kStoredBoxes>(scene, ray, none);
     }
 }
 
 // One thread per ray.
-template <CudaKernel kKernel, class TriangleTestT, bool kCount, class Source>
+template <CudaKernel kKernel, class TriangleTestT, bool kCount, class Source, bool kStoredBoxes = true>
 __global__ void __launch_bounds__(kBlockSize)
     trace_kernel(LaunchScene scene, Source source, Hit* hits, std::uint32_t* steps) {
     const std::uint32_t index = blockIdx.x * blockDim.x + threadIdx.x;
     Ray ray;
     std::uint32_t slot;
     if (source.get(index, ray, slot))
-        trace_and_store<kKernel, TriangleTestT, kCount>(scene, ray, slot, hits, steps);
+        trace_and_store<kKernel, TriangleTestT, kCount, kStoredBoxes>(scene, ray, slot, hits, steps);
 }
 
 // Persistent threads: as many warps as fit on the GPU at once; lane 0 takes the next 32 ray indices and
@@ -114,8 +115,12 @@ void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, s
     const unsigned blocks = (count + kBlockSize - 1) / kBlockSize;
     switch (kernel) {
         case CudaKernel::Plucker:
-            trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount>
-                <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+            if (scene.plucker.stored_boxes)
+                trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, true>
+                    <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+            else
+                trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, false>
+                    <<<blocks, kBlockSize>>>(scene, source, hits, steps);
             break;
         case CudaKernel::WhileWhile:
             trace_kernel<CudaKernel::WhileWhile, TriangleTestT, kCount>

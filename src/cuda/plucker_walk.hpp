@@ -1,9 +1,9 @@
 // The Pluecker octree walk of seed 000 section 4 (ENTRY 4.1, EXIT-FACE 4.2.1, NEIGHBOR 4.2.2, the loop of
 // 4.2.3) for the device and the host, over the serialised arrays as the CPU lays them out (gpu_layout.hpp,
-// PluckerView) and the tables in constant memory (PluckerTables). It is accel/plucker/walk.hpp's default
-// variant (2:1 balanced, stored boxes) with its deviations from the seed (docs/plucker-octree.md), written
-// without the standard library: the same operations in the same order, so that on the CPU it returns the
-// `plucker` structure's hits bit for bit (tests/cuda/plucker_port_test.cpp). The seed's branch-free
+// PluckerView) and the tables in constant memory (PluckerTables). It is accel/plucker/walk.hpp's 2:1
+// balanced walk, with stored or computed boxes, and its deviations from the seed (docs/plucker-octree.md),
+// written without the standard library: the same operations in the same order, so that on the CPU it returns
+// the `plucker` structure's hits bit for bit (tests/cuda/plucker_port_test.cpp). The seed's branch-free
 // neighbour index (count / 4 times the sub-face, equation 10 and 5.3.2) is kept as walk.hpp's branch: on a
 // warp both cost about the same, and the branch keeps the two ports one reading (a profiler question,
 // docs/cuda.md).
@@ -35,9 +35,47 @@ struct PluckerWalkRay {
 };
 
 // OctreeCube::plane: the exact float of face i of the cells of `level` on `axis`.
-LANCER_HOST_DEVICE inline float cube_plane(const PluckerView& octree, const PluckerTables& tables, int axis,
-                                           int level, std::uint32_t i) {
-    return octree.cube_lo[axis] + octree.cube_size * (static_cast<float>(i) * tables.inverse_powers[level]);
+LANCER_HOST_DEVICE inline float cube_plane(const PluckerView& octree, int axis, int level, std::uint32_t i) {
+    return octree.cube_lo[axis] + octree.cube_size * (static_cast<float>(i) * inverse_power_of_two(level));
+}
+
+// layout.hpp's exit_plane_of: a cell's face, the root's faces grown by the tolerance.
+LANCER_HOST_DEVICE inline float exit_plane(const PluckerView& octree, int axis, int level, std::uint32_t i) {
+    if (i == 0) return cube_plane(octree, axis, 0, 0) - octree.tolerance;
+    if (i == 1u << level) return cube_plane(octree, axis, 0, 1) + octree.tolerance;
+    return cube_plane(octree, axis, level, i);
+}
+
+// The planes of a leaf that the step reads (walk.hpp's StoredBoxes and ComputedBoxes): from the boxes array
+// (the seed's layout), or computed from the leaf's integer coordinates and level (section 6,
+// plucker.stored_boxes=false), which spares the step the box's load after the leaf's. kStoredBoxes is
+// PluckerView::stored_boxes, a template parameter so that the step does not branch on it.
+struct LeafPlanes {
+    Vec3f exit;  // on each axis, the face the ray moves towards
+    Vec3f mid;   // the mid planes, the faces the leaf's finer neighbours share
+};
+
+template <bool kStoredBoxes>
+LANCER_HOST_DEVICE LeafPlanes leaf_planes(const PluckerView& octree, const std::uint32_t* leaf,
+                                          const PluckerWalkRay& ray) {
+    LeafPlanes planes;
+    if constexpr (kStoredBoxes) {
+        const float* box = (octree.boxes + read_only(leaf + plucker::kBoxWord))->planes.data();
+        for (int axis = 0; axis < 3; ++axis) {
+            planes.exit[axis] = read_only(box + axis + 6 * static_cast<int>(ray.up(axis)));
+            planes.mid[axis] = read_only(box + 3 + axis);
+        }
+    } else {
+        const std::uint32_t xy = read_only(leaf + plucker::kBoxWord),
+                            z_level = read_only(leaf + plucker::kBoxWord + 1);
+        const std::uint32_t coordinates[3] = {xy & 0xFFFFu, xy >> 16, z_level & 0xFFFFu};
+        const int level = static_cast<int>(z_level >> 16);
+        for (int axis = 0; axis < 3; ++axis) {
+            planes.exit[axis] = exit_plane(octree, axis, level, coordinates[axis] + ray.up(axis));
+            planes.mid[axis] = cube_plane(octree, axis, level + 1, 2u * coordinates[axis] + 1u);
+        }
+    }
+    return planes;
 }
 
 LANCER_HOST_DEVICE inline PluckerWalkRay make_walk_ray(const PluckerView& octree, const PluckerTables& tables,
@@ -62,26 +100,23 @@ LANCER_HOST_DEVICE inline PluckerWalkRay make_walk_ray(const PluckerView& octree
 }
 
 // walk.hpp's cell_index: the cell of `level` holding p on `axis`, ties to the ray's side, clamped.
-LANCER_HOST_DEVICE inline std::uint32_t plucker_cell_index(const PluckerView& octree,
-                                                           const PluckerTables& tables, int axis,
+LANCER_HOST_DEVICE inline std::uint32_t plucker_cell_index(const PluckerView& octree, int axis,
                                                            std::uint32_t level, float p, std::uint32_t up) {
     const std::uint32_t last = (1u << level) - 1u;
     const float scaled = (p - octree.cube_lo[axis]) / octree.cube_size * static_cast<float>(1u << level);
     std::uint32_t i =
         scaled <= 0.0f ? 0u : min_of(last, static_cast<std::uint32_t>(min_of(scaled, 65536.0f)));
     const int l = static_cast<int>(level);
-    while (i > 0 &&
-           (up ? p < cube_plane(octree, tables, axis, l, i) : p <= cube_plane(octree, tables, axis, l, i)))
+    while (i > 0 && (up ? p < cube_plane(octree, axis, l, i) : p <= cube_plane(octree, axis, l, i)))
         --i;
-    while (i < last && (up ? p >= cube_plane(octree, tables, axis, l, i + 1)
-                           : p > cube_plane(octree, tables, axis, l, i + 1)))
+    while (i < last &&
+           (up ? p >= cube_plane(octree, axis, l, i + 1) : p > cube_plane(octree, axis, l, i + 1)))
         ++i;
     return i;
 }
 
 // walk.hpp's descend: the leaf holding p below tree cell `node`.
-LANCER_HOST_DEVICE inline std::uint32_t plucker_descend(const PluckerView& octree,
-                                                        const PluckerTables& tables, std::uint32_t node,
+LANCER_HOST_DEVICE inline std::uint32_t plucker_descend(const PluckerView& octree, std::uint32_t node,
                                                         int level, std::uint32_t x, std::uint32_t y,
                                                         std::uint32_t z, const Vec3f& p,
                                                         const PluckerWalkRay& ray) {
@@ -90,7 +125,7 @@ LANCER_HOST_DEVICE inline std::uint32_t plucker_descend(const PluckerView& octre
     while (word & 1u) {
         std::uint32_t child = 0;
         for (int axis = 0; axis < 3; ++axis) {
-            const float mid = cube_plane(octree, tables, axis, level + 1, 2u * coordinates[axis] + 1u);
+            const float mid = cube_plane(octree, axis, level + 1, 2u * coordinates[axis] + 1u);
             const std::uint32_t bit = ray.up(axis) ? p[axis] >= mid : p[axis] > mid;
             child |= bit << axis;
             coordinates[axis] = 2u * coordinates[axis] + bit;
@@ -103,15 +138,14 @@ LANCER_HOST_DEVICE inline std::uint32_t plucker_descend(const PluckerView& octre
 }
 
 // ENTRY (section 4.1): walk.hpp's entry_leaf.
-LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, const PluckerTables& tables,
-                                                  const Ray& ray, const PluckerWalkRay& walk_ray,
-                                                  std::uint32_t& address) {
+LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, const Ray& ray,
+                                                  const PluckerWalkRay& walk_ray, std::uint32_t& address) {
     float t_entry = -kInfinity, t_exit = kInfinity;
     int entry_axis = 0;
     for (int axis = 0; axis < 3; ++axis) {
         const float inverse = 1.0f / ray.direction[axis];
-        const float lo = cube_plane(octree, tables, axis, 0, 0) - octree.tolerance,
-                    hi = cube_plane(octree, tables, axis, 0, 1) + octree.tolerance;
+        const float lo = cube_plane(octree, axis, 0, 0) - octree.tolerance,
+                    hi = cube_plane(octree, axis, 0, 1) + octree.tolerance;
         const float t_lo = (lo - ray.origin[axis]) * inverse, t_hi = (hi - ray.origin[axis]) * inverse;
         float slab_near = min_of(t_lo, t_hi), slab_far = widened_exit(max_of(t_lo, t_hi));
         if (is_nan(t_lo) || is_nan(t_hi)) slab_near = -kInfinity, slab_far = kInfinity;
@@ -121,7 +155,7 @@ LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, con
     if (!(max_of(t_entry, ray.tnear) <= min_of(t_exit, ray.tfar))) return false;
     if (t_entry <= ray.tnear) {
         const Vec3f p = ray.origin + ray.tnear * ray.direction;
-        address = plucker_descend(octree, tables, 0, 0, 0, 0, 0, p, walk_ray);
+        address = plucker_descend(octree, 0, 0, 0, 0, 0, p, walk_ray);
         return true;
     }
     const std::uint32_t entry_up = walk_ray.up(entry_axis);
@@ -129,10 +163,9 @@ LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, con
     const std::uint32_t level = octree.cube_map_level[face];
     const int u = entry_axis == 0 ? 1 : 0, v = entry_axis == 2 ? 1 : 2;  // the in-face axes, increasing
     Vec3f p = ray.origin + t_entry * ray.direction;
-    p[entry_axis] = entry_up ? cube_plane(octree, tables, entry_axis, 0, 0)
-                             : cube_plane(octree, tables, entry_axis, 0, 1);
-    const std::uint32_t i = plucker_cell_index(octree, tables, u, level, p[u], walk_ray.up(u));
-    const std::uint32_t j = plucker_cell_index(octree, tables, v, level, p[v], walk_ray.up(v));
+    p[entry_axis] = entry_up ? cube_plane(octree, entry_axis, 0, 0) : cube_plane(octree, entry_axis, 0, 1);
+    const std::uint32_t i = plucker_cell_index(octree, u, level, p[u], walk_ray.up(u));
+    const std::uint32_t j = plucker_cell_index(octree, v, level, p[v], walk_ray.up(v));
     const std::uint32_t texel = read_only(octree.texels + octree.cube_map_offset[face] + i + (j << level));
     if (!(texel & plucker::kInnerBit)) {
         address = texel;
@@ -143,8 +176,8 @@ LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, con
     const std::uint32_t x = entry_axis == 0 ? boundary : i;
     const std::uint32_t y = entry_axis == 1 ? boundary : (entry_axis == 0 ? i : j);
     const std::uint32_t z = entry_axis == 2 ? boundary : j;
-    address = plucker_descend(octree, tables, texel & plucker::kAddressMask, static_cast<int>(level), x, y, z,
-                              p, walk_ray);
+    address =
+        plucker_descend(octree, texel & plucker::kAddressMask, static_cast<int>(level), x, y, z, p, walk_ray);
     return true;
 }
 
@@ -155,54 +188,64 @@ LANCER_HOST_DEVICE inline float plucker_exit_lower_bound(float distance) {
 }
 
 // The closest hit of one ray (ties to the smaller primitive index), a miss for an invalid ray. Triangles
-// only: the caller refuses layouts with spheres (CudaTracer, tests).
-template <class TriangleTestT, class Steps = NoSteps>
+// only: the caller refuses layouts with spheres (CudaTracer, tests), and passes octree.stored_boxes as
+// kStoredBoxes.
+template <class TriangleTestT, bool kStoredBoxes, class Steps = NoSteps>
 LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTables& tables, const Ray& ray,
                                      Steps&& steps = {}) {
     Hit best;
     if (!is_valid_ray(ray)) return best;
     const PluckerWalkRay walk_ray = make_walk_ray(octree, tables, ray);
     std::uint32_t address;
-    if (!plucker_entry_leaf(octree, tables, ray, walk_ray, address)) return best;
+    if (!plucker_entry_leaf(octree, ray, walk_ray, address)) return best;
     const typename TriangleTestT::RayData triangle_ray(ray);
-    constexpr std::uint32_t kHeader = plucker::header_words(true);
+    constexpr std::uint32_t kHeader = plucker::header_words(kStoredBoxes);
     const Vec3f& o = walk_ray.origin;
     while (true) {
-        // LEAF
+        // LEAF. The exit face and the link through it do not depend on the leaf's triangles, so they are
+        // found first and the triangles tested after: the box-and-link loads and the triangle loads are then
+        // in flight together, and only the exit test waits for both (walk.hpp's order, with the same
+        // operations, would wait on the triangles, then the box, then the link).
         steps.step();
         const std::uint32_t* leaf = octree.cells + address;
-        intersect_leaf<TriangleTestT>(octree.primitives + read_only(leaf + plucker::kTriangleOffset),
-                                      read_only(leaf + plucker::kTriangleCount), triangle_ray, ray, best);
-        const float limit = best.prim >= 0 ? best.t : ray.tfar;
+        const plucker::PluckerPrimitive* triangles =
+            octree.primitives + read_only(leaf + plucker::kTriangleOffset);
+        const std::uint32_t triangle_count = read_only(leaf + plucker::kTriangleCount);
+        if (triangle_count != 0) prefetch_line(triangles);  // the triangles' first line while the box loads
+        const LeafPlanes planes = leaf_planes<kStoredBoxes>(octree, leaf, walk_ray);
+        const std::uint32_t ends = read_only(leaf + kHeader - 1);
         // EXIT-FACE (4.2.1): three Pluecker products against the edges through the exit vertex.
-        const plucker::PluckerBox* box = octree.boxes + read_only(leaf + plucker::kBoxWord);
-        const float* planes = box->planes.data();
-        const Vec3f w(read_only(planes + 6 * walk_ray.up(0)) - o.x,
-                      read_only(planes + 1 + 6 * walk_ray.up(1)) - o.y,
-                      read_only(planes + 2 + 6 * walk_ray.up(2)) - o.z);
+        const Vec3f w = planes.exit - o;
+        const Vec3f& mid = planes.mid;
         const Vec3d products = cross(walk_ray.direction, Vec3d(w));
         const int pattern = (products.x > 0.0) | (products.y > 0.0) << 1 | (products.z > 0.0) << 2;
         const int face = walk_ray.exit_face(pattern);
         const int axis = face >> 1;
-        const float ahead = walk_ray.up(axis) ? w[axis] : -w[axis];
-        if (static_cast<double>(limit) * walk_ray.abs_direction[axis] <= plucker_exit_lower_bound(ahead))
-            return best;
-        // NEIGHBOR (4.2.2): the sub-face test only when four neighbours share the face.
-        const std::uint32_t ends = read_only(leaf + kHeader - 1);
+        // NEIGHBOR (4.2.2): the sub-face test only when four neighbours share the face; none on the root's
+        // boundary.
         const std::uint32_t start = plucker::neighbour_start(ends, face);
         const std::uint32_t neighbours = plucker::neighbour_end(ends, face) - start;
-        if (neighbours == 0) return best;  // the root's boundary
-        std::uint32_t link_index = start;
-        if (neighbours == 4) {
-            const Vec3f to_centre(axis == 0 ? w.x : read_only(planes + 3) - o.x,
-                                  axis == 1 ? w.y : read_only(planes + 4) - o.y,
-                                  axis == 2 ? w.z : read_only(planes + 5) - o.z);
-            const Vec3d sub = cross(walk_ray.direction, Vec3d(to_centre));
-            const int signs = (sub.x > 0.0) | (sub.y > 0.0) << 1 | (sub.z > 0.0) << 2;
-            const int zeros = (sub.x == 0.0) | (sub.y == 0.0) << 1 | (sub.z == 0.0) << 2;
-            link_index += tables.neighbour_quadrant[face][signs | (zeros & walk_ray.tie(axis))];
+        std::uint32_t next = 0;
+        if (neighbours != 0) {
+            std::uint32_t link_index = start;
+            if (neighbours == 4) {
+                const Vec3f to_centre(axis == 0 ? w.x : mid.x - o.x, axis == 1 ? w.y : mid.y - o.y,
+                                      axis == 2 ? w.z : mid.z - o.z);
+                const Vec3d sub = cross(walk_ray.direction, Vec3d(to_centre));
+                const int signs = (sub.x > 0.0) | (sub.y > 0.0) << 1 | (sub.z > 0.0) << 2;
+                const int zeros = (sub.x == 0.0) | (sub.y == 0.0) << 1 | (sub.z == 0.0) << 2;
+                link_index += tables.neighbour_quadrant[face][signs | (zeros & walk_ray.tie(axis))];
+            }
+            next = read_only(leaf + kHeader + link_index);
         }
-        address = read_only(leaf + kHeader + link_index);
+        intersect_leaf<TriangleTestT>(triangles, triangle_count, triangle_ray, ray, best);
+        // The walk ends at a hit before the exit face, or at the root's boundary.
+        const float limit = best.prim >= 0 ? best.t : ray.tfar;
+        const float ahead = walk_ray.up(axis) ? w[axis] : -w[axis];
+        if (static_cast<double>(limit) * walk_ray.abs_direction[axis] <= plucker_exit_lower_bound(ahead) ||
+            neighbours == 0)
+            return best;
+        address = next;
     }
 }
 

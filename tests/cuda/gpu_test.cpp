@@ -6,6 +6,7 @@
 
 #include <cstring>
 #include <filesystem>
+#include <utility>
 
 #include "accel/agreement.hpp"
 #include "accel/ray_sets.hpp"
@@ -23,6 +24,13 @@ std::string_view structure_of(CudaKernel kernel) {
     return kernel == CudaKernel::Plucker ? "plucker" : "bvh";
 }
 
+// Each kernel on its structure's default build; the walk also on the layout without stored boxes.
+constexpr std::pair<CudaKernel, bool> kConfigurations[] = {{CudaKernel::Plucker, true},
+                                                           {CudaKernel::Plucker, false},
+                                                           {CudaKernel::WhileWhile, true},
+                                                           {CudaKernel::SpeculativeWhileWhile, true},
+                                                           {CudaKernel::Persistent, true}};
+
 std::size_t bit_identical(std::span<const Hit> expected, std::span<const Hit> actual) {
     std::size_t same = 0;
     for (std::size_t i = 0; i < expected.size(); ++i)
@@ -35,10 +43,14 @@ void expect_kernels_agree(const Geometry& geometry, std::span<const Ray> batch, 
                           const std::string& scene_name) {
     const testing::RaySet frame = testing::canonical_view_rays(geometry.bounds(), camera.width);
     for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
-        for (const CudaKernel kernel : kKernels) {
+        for (const auto& [kernel, stored_boxes] : kConfigurations) {
             const std::unique_ptr<Accel> accel = make_accel(structure_of(kernel));
-            accel->build(geometry, build_options(test));
+            BuildOptions options = build_options(test);
+            options.plucker.stored_boxes = stored_boxes;
+            accel->build(geometry, options);
             CudaTracer tracer(*accel, geometry, test, kernel);
+            const std::string name =
+                std::string(cuda_kernel_name(kernel)) + (stored_boxes ? "" : " (computed boxes)");
             for (const bool is_frame : {false, true}) {
                 const std::span<const Ray> rays = is_frame ? std::span<const Ray>(frame.rays) : batch;
                 const std::vector<Hit> expected = testing::trace_in_parallel(*accel, rays);
@@ -46,12 +58,12 @@ void expect_kernels_agree(const Geometry& geometry, std::span<const Ray> batch, 
                 ASSERT_EQ(traced.hits.size(), rays.size());
                 const Agreement agreement = compare_hits(rays, expected, traced.hits);
                 std::printf("%s, %s, %s, %s: %s, %zu bit-identical, kernel %.3f ms\n", scene_name.c_str(),
-                            is_frame ? "frame" : "batch", std::string(cuda_kernel_name(kernel)).c_str(),
+                            is_frame ? "frame" : "batch", name.c_str(),
                             test == TriangleTest::Watertight ? "watertight" : "moller",
                             agreement.summary().c_str(), bit_identical(expected, traced.hits),
                             traced.kernel_ms);
                 EXPECT_EQ(agreement.mismatches, 0u)
-                    << scene_name << ", " << cuda_kernel_name(kernel) << ": " << agreement.summary();
+                    << scene_name << ", " << name << ": " << agreement.summary();
                 EXPECT_GT(agreement.hits, 0u);
             }
         }

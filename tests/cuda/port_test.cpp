@@ -132,11 +132,15 @@ void expect_ports_agree(const Geometry& geometry, TriangleTest test, std::span<c
     options.bvh.spatial_splits = spatial_splits;
     BvhAccel bvh;
     bvh.build(geometry, options);
-    PluckerAccel plucker;
+    PluckerAccel plucker, plucker_computed_boxes;
     plucker.build(geometry, options);
+    BuildOptions computed_boxes = options;
+    computed_boxes.plucker.stored_boxes = false;
+    plucker_computed_boxes.build(geometry, computed_boxes);
     const gpu::FlatBvh flat = gpu::flatten_bvh(bvh, geometry);
     const gpu::BvhView bvh_view = flat.view();
     const gpu::PluckerView plucker_view = gpu::plucker_view(plucker.layout());
+    const gpu::PluckerView computed_boxes_view = gpu::plucker_view(plucker_computed_boxes.layout());
     const gpu::PluckerTables tables = gpu::plucker_tables();
     const char* test_name = test == TriangleTest::Watertight ? "watertight" : "moller";
     for (const testing::RaySet& set : sets) {
@@ -148,9 +152,16 @@ void expect_ports_agree(const Geometry& geometry, TriangleTest test, std::span<c
         std::string first;
 
         const auto walk = trace_each(set.rays, bvh.bounds(), [&](const Ray& ray) {
-            return gpu::trace_plucker<TriangleTestT>(plucker_view, tables, ray);
+            return gpu::trace_plucker<TriangleTestT, true>(plucker_view, tables, ray);
         });
         EXPECT_EQ(count_differences(expected_plucker, walk, first), 0u) << where << "plucker walk, " << first;
+        std::vector<Hit> expected_computed_boxes(set.rays.size());
+        plucker_computed_boxes.intersect(set.rays, expected_computed_boxes);
+        const auto walk_computed_boxes = trace_each(set.rays, bvh.bounds(), [&](const Ray& ray) {
+            return gpu::trace_plucker<TriangleTestT, false>(computed_boxes_view, tables, ray);
+        });
+        EXPECT_EQ(count_differences(expected_computed_boxes, walk_computed_boxes, first), 0u)
+            << where << "plucker walk with computed boxes, " << first;
 
         const auto while_while = trace_each(set.rays, bvh.bounds(), [&](const Ray& ray) {
             return gpu::trace_bvh<false, TriangleTestT>(bvh_view, ray, gpu::LoneLane{});
@@ -232,7 +243,7 @@ TEST(CudaPorts, StepCountsAreTheCpuWalksLeaves) {
         TraversalCounters counters;
         plucker.intersect({&ray, 1}, {&expected, 1}, &counters);
         gpu::CountSteps walk_steps, bvh_steps;
-        (void)gpu::trace_plucker<gpu::MollerTrumboreTest>(view, tables, ray, walk_steps);
+        (void)gpu::trace_plucker<gpu::MollerTrumboreTest, true>(view, tables, ray, walk_steps);
         ASSERT_EQ(walk_steps.steps, counters.nodes_visited);
         leaves += walk_steps.steps;
         const Hit hit =
@@ -265,6 +276,8 @@ TEST(CudaPorts, FrameTilesCoverEveryPixelOnce) {
 
 TEST(CudaPorts, HelpersRoundAsTheCpuCode) {
     EXPECT_EQ(gpu::gamma_of(3), gamma_bound(3));
+    for (std::size_t level = 0; level < OctreeCube::kInversePowersOfTwo.size(); ++level)
+        EXPECT_EQ(gpu::inverse_power_of_two(static_cast<int>(level)), OctreeCube::kInversePowersOfTwo[level]);
     const float values[] = {0.0f, -0.0f, 1.5f, -2.0f, kInfinity, -kInfinity, std::nanf("")};
     for (const float a : values) {
         for (const float b : values) {
