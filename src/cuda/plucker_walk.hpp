@@ -2,11 +2,11 @@
 // 4.2.3) for the device and the host, over the serialised arrays as the CPU lays them out (gpu_layout.hpp,
 // PluckerView) and the tables in constant memory (PluckerTables). It is accel/plucker/walk.hpp's 2:1
 // balanced walk, with stored or computed boxes, and its deviations from the seed (docs/plucker-octree.md),
-// written without the standard library: the same operations in the same order, so that on the CPU it returns
-// the `plucker` structure's hits bit for bit (tests/cuda/plucker_port_test.cpp). The seed's branch-free
-// neighbour index (count / 4 times the sub-face, equation 10 and 5.3.2) is kept as walk.hpp's branch: on a
-// warp both cost about the same, and the branch keeps the two ports one reading (a profiler question,
-// docs/cuda.md).
+// written without the standard library: the same operations (a step finds its exit before it tests the
+// leaf's triangles, which changes no result), so that on the CPU it returns the `plucker` structure's hits
+// bit for bit (tests/cuda/port_test.cpp). The seed's branch-free neighbour index (count / 4 times the
+// sub-face, equation 10 and 5.3.2) is kept as walk.hpp's branch: on a warp both cost about the same, and the
+// branch keeps the two ports one reading (a profiler question, docs/cuda.md).
 #pragma once
 
 #include "core/vec3d.hpp"
@@ -52,7 +52,8 @@ LANCER_HOST_DEVICE inline float exit_plane(const PluckerView& octree, int axis, 
 // PluckerView::stored_boxes, a template parameter so that the step does not branch on it.
 struct LeafPlanes {
     Vec3f exit;  // on each axis, the face the ray moves towards
-    Vec3f mid;   // the mid planes, the faces the leaf's finer neighbours share
+    Vec3f mid;   // the mid planes, the faces the leaf's finer neighbours share (read with the exit planes,
+                 // so that the sub-face test waits on no further load)
 };
 
 template <bool kStoredBoxes>
