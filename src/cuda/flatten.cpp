@@ -67,10 +67,6 @@ FlatBvh flatten_bvh(const BvhAccel& bvh, const Geometry& geometry) {
 }
 
 PluckerView plucker_view(const plucker::PluckerLayout& layout) {
-    if (!layout.options.balanced)
-        throw std::invalid_argument(
-            "cuda: the GPU walk takes the 2:1 balanced Pluecker layout "
-            "(plucker.balanced=true)");
     for (const plucker::PluckerPrimitive& primitive : layout.primitives)
         if (primitive.prim >= layout.triangle_count)
             throw std::invalid_argument("cuda: the GPU kernels trace triangles only; the scene has spheres");
@@ -83,7 +79,9 @@ PluckerView plucker_view(const plucker::PluckerLayout& layout) {
     view.cube_lo = layout.cube.lo;
     view.cube_size = layout.cube.size;
     view.tolerance = layout.tolerance;
+    view.balanced = layout.options.balanced;
     view.stored_boxes = layout.options.stored_boxes;
+    view.cell_words = static_cast<std::uint32_t>(layout.cells.size());  // cell addresses are 31-bit words
     for (std::size_t face = 0; face < 6; ++face) {
         view.cube_map_level[face] = layout.cube_map.level[face];
         view.cube_map_offset[face] = layout.cube_map.offset[face];

@@ -52,11 +52,11 @@ struct BatchRays {
     }
 };
 
-// kStoredBoxes: the walk's box layout (PluckerView::stored_boxes); the BVH kernels ignore it.
-template <CudaKernel kKernel, class TriangleTestT, bool kStoredBoxes, class Steps>
+// Layout: the walk's WalkLayout (the octree's variant); the BVH kernels ignore it.
+template <CudaKernel kKernel, class TriangleTestT, class Layout, class Steps>
 __device__ Hit trace_one(const LaunchScene& scene, const Ray& ray, Steps& steps) {
     if constexpr (kKernel == CudaKernel::Plucker) {
-        return trace_plucker<TriangleTestT, kStoredBoxes>(scene.plucker, c_tables, ray, steps);
+        return trace_plucker<TriangleTestT, Layout>(scene.plucker, c_tables, ray, steps);
     } else if constexpr (kKernel == CudaKernel::WhileWhile) {
         return trace_bvh<false, TriangleTestT>(scene.bvh, ray, WarpVote{}, steps);
     } else {
@@ -65,28 +65,28 @@ __device__ Hit trace_one(const LaunchScene& scene, const Ray& ray, Steps& steps)
 }
 
 // Stores a ray's answer, and its step count when the kernel counts (the heatmap).
-template <CudaKernel kKernel, class TriangleTestT, bool kCount, bool kStoredBoxes = true>
+template <CudaKernel kKernel, class TriangleTestT, bool kCount, class Layout = SeedLayout>
 __device__ void trace_and_store(const LaunchScene& scene, const Ray& ray, std::uint32_t slot, Hit* hits,
                                 std::uint32_t* steps) {
     if constexpr (kCount) {
         CountSteps counted;
-        hits[slot] = trace_one<kKernel, TriangleTestT, kStoredBoxes>(scene, ray, counted);
+        hits[slot] = trace_one<kKernel, TriangleTestT, Layout>(scene, ray, counted);
         steps[slot] = counted.steps;
     } else {
         NoSteps none;
-        hits[slot] = trace_one<kKernel, TriangleTestT, kStoredBoxes>(scene, ray, none);
+        hits[slot] = trace_one<kKernel, TriangleTestT, Layout>(scene, ray, none);
     }
 }
 
 // One thread per ray.
-template <CudaKernel kKernel, class TriangleTestT, bool kCount, class Source, bool kStoredBoxes = true>
+template <CudaKernel kKernel, class TriangleTestT, bool kCount, class Source, class Layout = SeedLayout>
 __global__ void __launch_bounds__(kBlockSize)
     trace_kernel(LaunchScene scene, Source source, Hit* hits, std::uint32_t* steps) {
     const std::uint32_t index = blockIdx.x * blockDim.x + threadIdx.x;
     Ray ray;
     std::uint32_t slot;
     if (source.get(index, ray, slot))
-        trace_and_store<kKernel, TriangleTestT, kCount, kStoredBoxes>(scene, ray, slot, hits, steps);
+        trace_and_store<kKernel, TriangleTestT, kCount, Layout>(scene, ray, slot, hits, steps);
 }
 
 // Persistent threads: as many warps as fit on the GPU at once; lane 0 takes the next 32 ray indices and
@@ -109,18 +109,32 @@ __global__ void __launch_bounds__(kBlockSize)
     }
 }
 
+// The walk compiled for the octree's layout.
+template <class TriangleTestT, bool kCount, class Source>
+void launch_walk(unsigned blocks, const LaunchScene& scene, const Source& source, Hit* hits,
+                 std::uint32_t* steps) {
+    const PluckerView& octree = scene.plucker;
+    if (octree.balanced && octree.stored_boxes)
+        trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, WalkLayout<true, true>>
+            <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+    else if (octree.balanced)
+        trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, WalkLayout<true, false>>
+            <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+    else if (octree.stored_boxes)
+        trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, WalkLayout<false, true>>
+            <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+    else
+        trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, WalkLayout<false, false>>
+            <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+}
+
 template <class TriangleTestT, bool kCount, class Source>
 void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count, Hit* hits,
             std::uint32_t* steps, std::uint32_t* next_ray) {
     const unsigned blocks = (count + kBlockSize - 1) / kBlockSize;
     switch (kernel) {
         case CudaKernel::Plucker:
-            if (scene.plucker.stored_boxes)
-                trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, true>
-                    <<<blocks, kBlockSize>>>(scene, source, hits, steps);
-            else
-                trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, false>
-                    <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+            launch_walk<TriangleTestT, kCount>(blocks, scene, source, hits, steps);
             break;
         case CudaKernel::WhileWhile:
             trace_kernel<CudaKernel::WhileWhile, TriangleTestT, kCount>

@@ -46,29 +46,36 @@ LANCER_HOST_DEVICE inline float exit_plane(const PluckerView& octree, int axis, 
     return cube_plane(octree, axis, level, i);
 }
 
-// The planes of a leaf that the step reads (walk.hpp's StoredBoxes and ComputedBoxes): from the boxes array
-// (the seed's layout), or computed from the leaf's integer coordinates and level (section 6,
-// plucker.stored_boxes=false), which spares the step the box's load after the leaf's. kStoredBoxes is
-// PluckerView::stored_boxes, a template parameter so that the step does not branch on it.
-struct LeafPlanes {
+// The Pluecker layout a walk is compiled for: PluckerView::balanced and stored_boxes as template parameters,
+// so that the step does not branch on them (walk.hpp's Walker and Boxes).
+template <bool kBalancedLayout, bool kStoredBoxesLayout>
+struct WalkLayout {
+    static constexpr bool kBalanced = kBalancedLayout;
+    static constexpr bool kStoredBoxes = kStoredBoxesLayout;
+};
+using SeedLayout = WalkLayout<true, true>;  // the default: 2:1 balanced, stored boxes
+
+// The planes of a cell whose box word(s) start at `box_words` (walk.hpp's StoredBoxes and ComputedBoxes):
+// from the boxes array (the seed's layout), or computed from the cell's integer coordinates and level
+// (section 6, plucker.stored_boxes=false), which spares the step the box's load after the cell's.
+struct CellPlanes {
     Vec3f exit;  // on each axis, the face the ray moves towards
     Vec3f mid;   // the mid planes, the faces the leaf's finer neighbours share (read with the exit planes,
                  // so that the sub-face test waits on no further load)
 };
 
 template <bool kStoredBoxes>
-LANCER_HOST_DEVICE LeafPlanes leaf_planes(const PluckerView& octree, const std::uint32_t* leaf,
+LANCER_HOST_DEVICE CellPlanes cell_planes(const PluckerView& octree, const std::uint32_t* box_words,
                                           const PluckerWalkRay& ray) {
-    LeafPlanes planes;
+    CellPlanes planes;
     if constexpr (kStoredBoxes) {
-        const float* box = (octree.boxes + read_only(leaf + plucker::kBoxWord))->planes.data();
+        const float* box = (octree.boxes + read_only(box_words))->planes.data();
         for (int axis = 0; axis < 3; ++axis) {
             planes.exit[axis] = read_only(box + axis + 6 * static_cast<int>(ray.up(axis)));
             planes.mid[axis] = read_only(box + 3 + axis);
         }
     } else {
-        const std::uint32_t xy = read_only(leaf + plucker::kBoxWord),
-                            z_level = read_only(leaf + plucker::kBoxWord + 1);
+        const std::uint32_t xy = read_only(box_words), z_level = read_only(box_words + 1);
         const std::uint32_t coordinates[3] = {xy & 0xFFFFu, xy >> 16, z_level & 0xFFFFu};
         const int level = static_cast<int>(z_level >> 16);
         for (int axis = 0; axis < 3; ++axis) {
@@ -188,10 +195,26 @@ LANCER_HOST_DEVICE inline float plucker_exit_lower_bound(float distance) {
     return distance * (distance > 0.0f ? 1.0f - shrink : 1.0f + shrink);
 }
 
+// walk.hpp's sub_face: the quadrant of `face` the ray crosses, from the products against the lines through
+// the centre of the face (equations 9-10). `w` is the exit vertex minus the origin (its `axis` coordinate is
+// the face's), `mid` the mid planes of the cell whose face is split.
+LANCER_HOST_DEVICE inline std::uint32_t plucker_sub_face(const PluckerWalkRay& walk_ray,
+                                                         const PluckerTables& tables, int face,
+                                                         const Vec3f& w, const Vec3f& mid) {
+    const int axis = face >> 1;
+    const Vec3f& o = walk_ray.origin;
+    const Vec3f to_centre(axis == 0 ? w.x : mid.x - o.x, axis == 1 ? w.y : mid.y - o.y,
+                          axis == 2 ? w.z : mid.z - o.z);
+    const Vec3d sub = cross(walk_ray.direction, Vec3d(to_centre));
+    const int signs = (sub.x > 0.0) | (sub.y > 0.0) << 1 | (sub.z > 0.0) << 2;
+    const int zeros = (sub.x == 0.0) | (sub.y == 0.0) << 1 | (sub.z == 0.0) << 2;
+    return tables.neighbour_quadrant[face][signs | (zeros & walk_ray.tie(axis))];
+}
+
 // The closest hit of one ray (ties to the smaller primitive index), a miss for an invalid ray. Triangles
-// only: the caller refuses layouts with spheres (CudaTracer, tests), and passes octree.stored_boxes as
-// kStoredBoxes.
-template <class TriangleTestT, bool kStoredBoxes, class Steps = NoSteps>
+// only: the caller refuses layouts with spheres (CudaTracer, tests), and compiles the walk for the octree's
+// layout (Layout::kBalanced is octree.balanced, Layout::kStoredBoxes octree.stored_boxes).
+template <class TriangleTestT, class Layout, class Steps = NoSteps>
 LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTables& tables, const Ray& ray,
                                      Steps&& steps = {}) {
     Hit best;
@@ -200,8 +223,10 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
     std::uint32_t address;
     if (!plucker_entry_leaf(octree, ray, walk_ray, address)) return best;
     const typename TriangleTestT::RayData triangle_ray(ray);
-    constexpr std::uint32_t kHeader = plucker::header_words(kStoredBoxes);
+    constexpr std::uint32_t kHeader = plucker::header_words(Layout::kStoredBoxes);
     const Vec3f& o = walk_ray.origin;
+    // Without the 2:1 rule a walk is bounded by the number of cell words (walk.hpp's Walker).
+    std::uint32_t steps_left = octree.cell_words;
     while (true) {
         // LEAF. The exit face and the link through it do not depend on the leaf's triangles, so they are
         // found first and the triangles tested after: the box-and-link loads and the triangle loads are then
@@ -213,11 +238,11 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
             octree.primitives + read_only(leaf + plucker::kTriangleOffset);
         const std::uint32_t triangle_count = read_only(leaf + plucker::kTriangleCount);
         if (triangle_count != 0) prefetch_line(triangles);  // the triangles' first line while the box loads
-        const LeafPlanes planes = leaf_planes<kStoredBoxes>(octree, leaf, walk_ray);
+        const CellPlanes planes =
+            cell_planes<Layout::kStoredBoxes>(octree, leaf + plucker::kBoxWord, walk_ray);
         const std::uint32_t ends = read_only(leaf + kHeader - 1);
         // EXIT-FACE (4.2.1): three Pluecker products against the edges through the exit vertex.
         const Vec3f w = planes.exit - o;
-        const Vec3f& mid = planes.mid;
         const Vec3d products = cross(walk_ray.direction, Vec3d(w));
         const int pattern = (products.x > 0.0) | (products.y > 0.0) << 1 | (products.z > 0.0) << 2;
         const int face = walk_ray.exit_face(pattern);
@@ -228,15 +253,8 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
         const std::uint32_t neighbours = plucker::neighbour_end(ends, face) - start;
         std::uint32_t next = 0;
         if (neighbours != 0) {
-            std::uint32_t link_index = start;
-            if (neighbours == 4) {
-                const Vec3f to_centre(axis == 0 ? w.x : mid.x - o.x, axis == 1 ? w.y : mid.y - o.y,
-                                      axis == 2 ? w.z : mid.z - o.z);
-                const Vec3d sub = cross(walk_ray.direction, Vec3d(to_centre));
-                const int signs = (sub.x > 0.0) | (sub.y > 0.0) << 1 | (sub.z > 0.0) << 2;
-                const int zeros = (sub.x == 0.0) | (sub.y == 0.0) << 1 | (sub.z == 0.0) << 2;
-                link_index += tables.neighbour_quadrant[face][signs | (zeros & walk_ray.tie(axis))];
-            }
+            const std::uint32_t link_index =
+                start + (neighbours == 4 ? plucker_sub_face(walk_ray, tables, face, w, planes.mid) : 0u);
             next = read_only(leaf + kHeader + link_index);
         }
         intersect_leaf<TriangleTestT>(triangles, triangle_count, triangle_ray, ray, best);
@@ -246,6 +264,21 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
         if (static_cast<double>(limit) * walk_ray.abs_direction[axis] <= plucker_exit_lower_bound(ahead) ||
             neighbours == 0)
             return best;
+        if constexpr (!Layout::kBalanced) {
+            // A same-level inner cell: descend it, each level by the sub-face test on its face (the exit
+            // plane is the same), to the child on the near side of the face.
+            if (--steps_left == 0) return best;
+            const std::uint32_t near_bit = walk_ray.up(axis) ? 0u : 1u;
+            const int u = axis == 0 ? 1 : 0, v = axis == 2 ? 1 : 2;  // the in-face axes, increasing
+            while (next & plucker::kInnerBit) {
+                const std::uint32_t* inner = octree.cells + (next & plucker::kAddressMask);
+                steps.step();
+                const CellPlanes inner_planes = cell_planes<Layout::kStoredBoxes>(octree, inner, walk_ray);
+                const std::uint32_t quadrant = plucker_sub_face(walk_ray, tables, face, w, inner_planes.mid);
+                const std::uint32_t child = near_bit << axis | (quadrant & 1u) << u | (quadrant >> 1) << v;
+                next = read_only(inner + plucker::box_words(Layout::kStoredBoxes) + child);
+            }
+        }
         address = next;
     }
 }

@@ -6,7 +6,6 @@
 
 #include <cstring>
 #include <filesystem>
-#include <utility>
 
 #include "accel/agreement.hpp"
 #include "accel/ray_sets.hpp"
@@ -24,12 +23,19 @@ std::string_view structure_of(CudaKernel kernel) {
     return kernel == CudaKernel::Plucker ? "plucker" : "bvh";
 }
 
-// Each kernel on its structure's default build; the walk also on the layout without stored boxes.
-constexpr std::pair<CudaKernel, bool> kConfigurations[] = {{CudaKernel::Plucker, true},
-                                                           {CudaKernel::Plucker, false},
-                                                           {CudaKernel::WhileWhile, true},
-                                                           {CudaKernel::SpeculativeWhileWhile, true},
-                                                           {CudaKernel::Persistent, true}};
+// Each kernel on its structure's default build; the walk also on the other three Pluecker layouts (without
+// the 2:1 rule, with computed boxes).
+struct Configuration {
+    CudaKernel kernel;
+    bool balanced = true, stored_boxes = true;
+};
+constexpr Configuration kConfigurations[] = {{CudaKernel::Plucker, true, true},
+                                             {CudaKernel::Plucker, true, false},
+                                             {CudaKernel::Plucker, false, true},
+                                             {CudaKernel::Plucker, false, false},
+                                             {CudaKernel::WhileWhile},
+                                             {CudaKernel::SpeculativeWhileWhile},
+                                             {CudaKernel::Persistent}};
 
 std::size_t bit_identical(std::span<const Hit> expected, std::span<const Hit> actual) {
     std::size_t same = 0;
@@ -43,14 +49,16 @@ void expect_kernels_agree(const Geometry& geometry, std::span<const Ray> batch, 
                           const std::string& scene_name) {
     const testing::RaySet frame = testing::canonical_view_rays(geometry.bounds(), camera.width);
     for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
-        for (const auto& [kernel, stored_boxes] : kConfigurations) {
+        for (const auto& [kernel, balanced, stored_boxes] : kConfigurations) {
             const std::unique_ptr<Accel> accel = make_accel(structure_of(kernel));
             BuildOptions options = build_options(test);
+            options.plucker.balanced = balanced;
             options.plucker.stored_boxes = stored_boxes;
             accel->build(geometry, options);
             CudaTracer tracer(*accel, geometry, test, kernel);
-            const std::string name =
-                std::string(cuda_kernel_name(kernel)) + (stored_boxes ? "" : " (computed boxes)");
+            const std::string name = std::string(cuda_kernel_name(kernel)) +
+                                     (balanced ? "" : ", no 2:1 rule") +
+                                     (stored_boxes ? "" : ", computed boxes");
             for (const bool is_frame : {false, true}) {
                 const std::span<const Ray> rays = is_frame ? std::span<const Ray>(frame.rays) : batch;
                 const std::vector<Hit> expected = testing::trace_in_parallel(*accel, rays);
@@ -88,18 +96,24 @@ TEST(CudaGpu, PluckerStepsAreTheCpuWalksLeaves) {
     if (!cuda_available(&why)) GTEST_SKIP() << why;
     const std::vector<Triangle> triangles = testing::knot_triangles(300);
     const Geometry geometry{triangles, {}};
-    const std::unique_ptr<Accel> accel = make_accel("plucker");
-    accel->build(geometry, {});
-    CudaTracer tracer(*accel, geometry, TriangleTest::MollerTrumbore, CudaKernel::Plucker);
     const Camera camera = canonical_view(geometry.bounds(), 128, 128);
-    const CudaTrace traced = tracer.trace_frame(camera, true);
     const testing::RaySet frame = testing::canonical_view_rays(geometry.bounds(), 128);
-    ASSERT_EQ(traced.steps.size(), frame.rays.size());
-    for (std::size_t i = 0; i < frame.rays.size(); ++i) {
-        Hit hit;
-        TraversalCounters counters;
-        accel->intersect({&frame.rays[i], 1}, {&hit, 1}, &counters);
-        ASSERT_EQ(traced.steps[i], counters.nodes_visited) << "ray " << i;
+    // Without the 2:1 rule the steps take in the inner cells the links descend, as on the CPU.
+    for (const bool balanced : {true, false}) {
+        BuildOptions options;
+        options.plucker.balanced = balanced;
+        const std::unique_ptr<Accel> accel = make_accel("plucker");
+        accel->build(geometry, options);
+        CudaTracer tracer(*accel, geometry, TriangleTest::MollerTrumbore, CudaKernel::Plucker);
+        const CudaTrace traced = tracer.trace_frame(camera, true);
+        ASSERT_EQ(traced.steps.size(), frame.rays.size());
+        for (std::size_t i = 0; i < frame.rays.size(); ++i) {
+            Hit hit;
+            TraversalCounters counters;
+            accel->intersect({&frame.rays[i], 1}, {&hit, 1}, &counters);
+            ASSERT_EQ(traced.steps[i], counters.nodes_visited)
+                << (balanced ? "2:1" : "unconstrained") << ", ray " << i;
+        }
     }
 }
 
