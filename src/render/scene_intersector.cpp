@@ -67,28 +67,37 @@ void SceneIntersector::intersect(std::span<const Ray> rays, std::span<Hit> hits,
                                  TraversalCounters* counters) const {
     assert(rays.size() == hits.size());
     accel_.intersect(rays, hits, counters);
-    intersect_planes(rays, hits);
+    if (scene_.planes.empty()) return;
+    for (std::size_t i = 0; i < rays.size(); ++i)
+        intersect_planes(rays[i], hits[i]);
 }
 
 void SceneIntersector::intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const {
     assert(rays.size() == hits.size());
     accel_.intersect_coherent(rays, hits);
-    intersect_planes(rays, hits);
+    if (scene_.planes.empty()) return;
+    for (std::size_t i = 0; i < rays.size(); ++i)
+        intersect_planes(rays[i], hits[i]);
 }
 
-void SceneIntersector::intersect_planes(std::span<const Ray> rays, std::span<Hit> hits) const {
+void SceneIntersector::intersect_packet(const RayPacket& rays, HitPacket& hits) const {
+    accel_.intersect_packet(rays, hits);
     if (scene_.planes.empty()) return;
-    for (std::size_t i = 0; i < rays.size(); ++i) {
-        const Ray& ray = rays[i];
-        if (!is_valid(ray)) continue;
-        Hit& best = hits[i];
-        for (std::size_t p = 0; p < scene_.planes.size(); ++p) {
-            const auto id = first_plane_id_ + static_cast<std::int32_t>(p);
-            float t;
-            if (intersect_plane(ray, scene_.planes[p], ray.tnear, best.hit() ? best.t : ray.tfar, t) &&
-                closer(t, id, best)) {
-                best = {t, id, 0.0f, 0.0f};
-            }
+    for (int lane = 0; lane < rays.size; ++lane) {
+        Hit best = hits.hit(lane);
+        intersect_planes(rays.ray(lane), best);
+        hits.set(lane, best);
+    }
+}
+
+void SceneIntersector::intersect_planes(const Ray& ray, Hit& best) const {
+    if (!is_valid(ray)) return;
+    for (std::size_t p = 0; p < scene_.planes.size(); ++p) {
+        const auto id = first_plane_id_ + static_cast<std::int32_t>(p);
+        float t;
+        if (intersect_plane(ray, scene_.planes[p], ray.tnear, best.hit() ? best.t : ray.tfar, t) &&
+            closer(t, id, best)) {
+            best = {t, id, 0.0f, 0.0f};
         }
     }
 }

@@ -39,6 +39,9 @@ class SceneIntersector {
     // intersect() for camera rays in pixel order (Accel::intersect_coherent): the same hits, by the
     // structure's fastest path for coherent rays (Embree's COHERENT flag, for one).
     void intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const;
+    // intersect() for a packet of camera rays (Accel::intersect_packet, PinholeCamera::tile_rays's lanes):
+    // the same hits, lane by lane.
+    void intersect_packet(const RayPacket& rays, HitPacket& hits) const;
 
     // occluded[i] = 1 when rays[i] hits anything in [tnear, tfar] (Accel::occluded, then the planes of the
     // rays still unoccluded), else 0. Invalid rays are unoccluded.
@@ -48,8 +51,8 @@ class SceneIntersector {
     [[nodiscard]] SurfacePoint surface(const Ray& ray, const Hit& hit) const;
 
   private:
-    // The planes (unbounded, outside the structure) improve `hits` where they are closer.
-    void intersect_planes(std::span<const Ray> rays, std::span<Hit> hits) const;
+    // The planes (unbounded, outside the structure) improve `best` where they are closer.
+    void intersect_planes(const Ray& ray, Hit& best) const;
     [[nodiscard]] SurfacePoint triangle_surface(std::size_t index, const Hit& hit) const;
     [[nodiscard]] SurfacePoint sphere_surface(std::size_t index, const Ray& ray, const Hit& hit) const;
     [[nodiscard]] SurfacePoint plane_surface(std::size_t index, const Ray& ray, const Hit& hit) const;

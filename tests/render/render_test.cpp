@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <stdexcept>
 
 #include "accel/brute.hpp"
@@ -254,6 +255,32 @@ TEST(Render, SameBitsWhateverThreadsAndTiles) {
                 options.threads = threads;
                 options.tile_size = tile_size;
                 const Image image = render_with_brute(scene, tiny_camera(), options);
+                ASSERT_EQ(image.pixels.size(), reference.pixels.size());
+                EXPECT_EQ(std::memcmp(image.pixels.data(), reference.pixels.data(),
+                                      image.pixels.size() * sizeof(Vec3f)),
+                          0);
+            }
+        }
+    }
+}
+
+// The primary modes trace 8x8 packets (Accel::intersect_packet): the packet structures' own kernels, over
+// tiles that packets overhang (7) and an image that is not a whole number of packets (40x30), give the
+// brute-force image bit for bit.
+TEST(Render, PacketStructuresGiveTheBruteForceImage) {
+    const Scene scene = tiny_scene();
+    const SceneGeometry geometry(scene);
+    for (ShadingMode mode : {ShadingMode::Flat, ShadingMode::Normal, ShadingMode::Depth}) {
+        const Image reference = render_with_brute(scene, tiny_camera(), with_mode(mode));
+        for (const char* name : {"bvh8_packet", "bvh_packet", "bvh"}) {
+            const std::unique_ptr<Accel> accel = make_accel(name);
+            accel->build(geometry.view(), {});
+            for (int tile_size : {7, 16}) {
+                SCOPED_TRACE(testing::Message()
+                             << "mode " << static_cast<int>(mode) << ", " << name << ", tile " << tile_size);
+                RenderOptions options = with_mode(mode);
+                options.tile_size = tile_size;
+                const Image image = render(scene, geometry, *accel, tiny_camera(), options);
                 ASSERT_EQ(image.pixels.size(), reference.pixels.size());
                 EXPECT_EQ(std::memcmp(image.pixels.data(), reference.pixels.data(),
                                       image.pixels.size() * sizeof(Vec3f)),
