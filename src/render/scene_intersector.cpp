@@ -67,17 +67,13 @@ void SceneIntersector::intersect(std::span<const Ray> rays, std::span<Hit> hits,
                                  TraversalCounters* counters) const {
     assert(rays.size() == hits.size());
     accel_.intersect(rays, hits, counters);
-    if (scene_.planes.empty()) return;
-    for (std::size_t i = 0; i < rays.size(); ++i)
-        intersect_planes(rays[i], hits[i]);
+    intersect_planes(rays, hits);
 }
 
 void SceneIntersector::intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const {
     assert(rays.size() == hits.size());
     accel_.intersect_coherent(rays, hits);
-    if (scene_.planes.empty()) return;
-    for (std::size_t i = 0; i < rays.size(); ++i)
-        intersect_planes(rays[i], hits[i]);
+    intersect_planes(rays, hits);
 }
 
 void SceneIntersector::intersect_packet(const RayPacket& rays, HitPacket& hits) const {
@@ -88,6 +84,12 @@ void SceneIntersector::intersect_packet(const RayPacket& rays, HitPacket& hits) 
         intersect_planes(rays.ray(lane), best);
         hits.set(lane, best);
     }
+}
+
+void SceneIntersector::intersect_planes(std::span<const Ray> rays, std::span<Hit> hits) const {
+    if (scene_.planes.empty()) return;
+    for (std::size_t i = 0; i < rays.size(); ++i)
+        intersect_planes(rays[i], hits[i]);
 }
 
 void SceneIntersector::intersect_planes(const Ray& ray, Hit& best) const {

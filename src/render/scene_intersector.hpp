@@ -51,7 +51,8 @@ class SceneIntersector {
     [[nodiscard]] SurfacePoint surface(const Ray& ray, const Hit& hit) const;
 
   private:
-    // The planes (unbounded, outside the structure) improve `best` where they are closer.
+    // The planes (unbounded, outside the structure) improve `hits` where they are closer.
+    void intersect_planes(std::span<const Ray> rays, std::span<Hit> hits) const;
     void intersect_planes(const Ray& ray, Hit& best) const;
     [[nodiscard]] SurfacePoint triangle_surface(std::size_t index, const Hit& hit) const;
     [[nodiscard]] SurfacePoint sphere_surface(std::size_t index, const Ray& ray, const Hit& hit) const;
