@@ -536,44 +536,47 @@ class BinnedBuilder {
         return accumulate(begin, end, {});
     }
 
-    Bins bin(std::size_t begin, std::size_t end, const BinMap& map, const Box3f& centroids) const {
+    // Fills `bins` (made empty by the caller). An out parameter, not a returned value: GCC does not elide
+    // the copy of a returned Bins (27 KB, every node) from a function with two returns.
+    void bin(std::size_t begin, std::size_t end, const BinMap& map, const Box3f& centroids,
+             Bins& bins) const {
         std::array<bool, 3> splittable{};
         for (int axis = 0; axis < 3; ++axis)
             splittable[static_cast<std::size_t>(axis)] = centroids.hi[axis] > centroids.lo[axis];
-        auto fill = [&](std::size_t from, std::size_t to, Bins& bins) {
+        auto fill = [&](std::size_t from, std::size_t to, Bins& into) {
             for (std::size_t i = from; i < to; ++i) {
                 const BuildRef& ref = refs_[i];
                 const BinBox box = BinBox::of(ref);
                 for (std::size_t axis = 0; axis < 3; ++axis) {
                     if (!splittable[axis]) continue;
                     const auto b = static_cast<std::size_t>(map.bin(ref.centroid, static_cast<int>(axis)));
-                    bins.boxes[axis][b].extend(box);
-                    ++bins.counts[axis][b];
+                    into.boxes[axis][b].extend(box);
+                    ++into.counts[axis][b];
                 }
             }
         };
 #if LANCER_HAS_TBB
         if (end - begin > kParallelBinning) {
-            return tbb::parallel_reduce(
+            bins = tbb::parallel_reduce(
                 tbb::blocked_range<std::size_t>(begin, end, 16384), Bins(bins_),
-                [&](const tbb::blocked_range<std::size_t>& r, Bins bins) {
-                    fill(r.begin(), r.end(), bins);
-                    return bins;
+                [&](const tbb::blocked_range<std::size_t>& r, Bins chunk) {
+                    fill(r.begin(), r.end(), chunk);
+                    return chunk;
                 },
                 [this](Bins a, const Bins& b) {
                     a.merge(b, bins_);
                     return a;
                 });
+            return;
         }
 #endif
-        Bins bins(bins_);
         fill(begin, end, bins);
-        return bins;
     }
 
     ObjectSplit best_split(std::size_t begin, std::size_t end, const BinMap& map,
                            const Box3f& centroids) const {
-        const Bins bins = bin(begin, end, map, centroids);
+        Bins bins(bins_);
+        bin(begin, end, map, centroids, bins);
         Split best;
         std::array<float, kMaxBins> right_costs{};
         for (int axis = 0; axis < 3; ++axis) {
@@ -855,35 +858,36 @@ class BinnedBuilder {
         }
     }
 
-    SpatialBins spatial_bin(std::size_t begin, std::size_t end, const SpatialBinMap& map) const {
-        auto fill = [&](std::size_t from, std::size_t to, SpatialBins& bins) {
+    // Fills `bins` (made empty by the caller), an out parameter for the reason bin() gives.
+    void spatial_bin(std::size_t begin, std::size_t end, const SpatialBinMap& map, SpatialBins& bins) const {
+        auto fill = [&](std::size_t from, std::size_t to, SpatialBins& into) {
             for (std::size_t i = from; i < to; ++i)
-                spatial_bin_reference(refs_[i], map, bins);
+                spatial_bin_reference(refs_[i], map, into);
         };
 #if LANCER_HAS_TBB
         if (end - begin > kParallelBinning) {
-            return tbb::parallel_reduce(
+            bins = tbb::parallel_reduce(
                 tbb::blocked_range<std::size_t>(begin, end, 16384), SpatialBins{},
-                [&](const tbb::blocked_range<std::size_t>& r, SpatialBins bins) {
-                    fill(r.begin(), r.end(), bins);
-                    return bins;
+                [&](const tbb::blocked_range<std::size_t>& r, SpatialBins chunk) {
+                    fill(r.begin(), r.end(), chunk);
+                    return chunk;
                 },
                 [](SpatialBins a, const SpatialBins& b) {
                     a.merge(b);
                     return a;
                 });
+            return;
         }
 #endif
-        SpatialBins bins;
         fill(begin, end, bins);
-        return bins;
     }
 
     // The cheapest plane of the node's spatial bins: the left child holds every reference that enters left
     // of it, the right child every one that leaves right of it, the cut ones in both.
     SpatialSplit best_spatial_split(const RefRange& range, const Box3f& bounds) const {
         const SpatialBinMap map(bounds);
-        const SpatialBins bins = spatial_bin(range.begin, range.end, map);
+        SpatialBins bins;
+        spatial_bin(range.begin, range.end, map, bins);
         SpatialSplit best;
         std::array<Box3f, kSpatialBins> right_boxes;
         std::array<std::uint32_t, kSpatialBins> right_counts{};
