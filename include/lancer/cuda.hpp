@@ -52,7 +52,7 @@ class CudaTracer {
   public:
     // `accel` is a built `plucker` (kernel Plucker) or `bvh` (the others) on `geometry`, with `test` its
     // triangle test. Uploads the arrays once. Throws CudaError (no device, a CUDA call failed) or
-    // std::invalid_argument (a structure or scene the kernels do not trace: spheres, other layouts).
+    // std::invalid_argument (a structure or scene the kernels do not trace: another structure, spheres).
     CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTest test, CudaKernel kernel);
     ~CudaTracer();
     CudaTracer(const CudaTracer&) = delete;
