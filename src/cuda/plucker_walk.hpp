@@ -1,12 +1,12 @@
 // The Pluecker octree walk of seed 000 section 4 (ENTRY 4.1, EXIT-FACE 4.2.1, NEIGHBOR 4.2.2, the loop of
 // 4.2.3) for the device and the host, over the serialised arrays as the CPU lays them out (gpu_layout.hpp,
-// PluckerView) and the tables in constant memory (PluckerTables). It is accel/plucker/walk.hpp's 2:1
-// balanced walk, with stored or computed boxes, and its deviations from the seed (docs/plucker-octree.md),
-// written without the standard library: the same operations (a step finds its exit before it tests the
-// leaf's triangles, which changes no result), so that on the CPU it returns the `plucker` structure's hits
-// bit for bit (tests/cuda/port_test.cpp). The seed's branch-free neighbour index (count / 4 times the
-// sub-face, equation 10 and 5.3.2) is kept as walk.hpp's branch: on a warp both cost about the same, and the
-// branch keeps the two ports one reading (a profiler question, docs/cuda.md).
+// PluckerView) and the tables in constant memory (PluckerTables). It is accel/plucker/walk.hpp's walk on its
+// four layouts (with or without the 2:1 rule, stored or computed boxes), and its deviations from the seed
+// (docs/plucker-octree.md), written without the standard library: the same operations (a step finds its exit
+// before it tests the leaf's triangles, which changes no result), so that on the CPU it returns the `plucker`
+// structure's hits bit for bit (tests/cuda/port_test.cpp). The seed's branch-free neighbour index (count / 4
+// times the sub-face, equation 10 and 5.3.2) is kept as walk.hpp's branch: on a warp both cost about the
+// same, and the branch keeps the two ports one reading (a profiler question, docs/cuda.md).
 #pragma once
 
 #include "core/vec3d.hpp"
