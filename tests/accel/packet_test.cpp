@@ -63,7 +63,8 @@ void PrintTo(const Pair& pair, std::ostream* os) {
     *os << pair.label() << " against " << pair.single;
 }
 
-// Torus knot, icosphere and spheres; and a plane of triangles whose shared edges make exact ties.
+// Torus knot, icosphere and spheres; a plane of triangles whose shared edges make exact ties; and a finely
+// tessellated sphere.
 std::vector<TestScene> scenes() {
     std::vector<TestScene> all;
     TestScene mixed{"knot, icosphere and spheres", testing::knot_triangles(200), {}};
@@ -82,6 +83,11 @@ std::vector<TestScene> scenes() {
         }
     }
     all.push_back(std::move(plane));
+    // Triangles smaller than a pixel of the test views: a leaf meets few rays of a group, and
+    // bvh8_packet's Moller-Trumbore tests it a ray at a time (PacketTracer::test_rays).
+    TestScene fine{"icosphere of 5120 triangles", {}, {}};
+    make_icosphere(4, {0.1f, -0.2f, 0.3f}, 1.0f).append_triangles(fine.triangles);
+    all.push_back(std::move(fine));
     return all;
 }
 

@@ -125,6 +125,22 @@ struct LaneHits {
     unsigned scalar_lanes = 0;
 };
 
+// What Moller-Trumbore computes from the triangle alone, in the scalar kernel's operations. The packet
+// test broadcasts one triangle to all its lanes, so it makes these once per block of triangles instead of
+// once per (triangle, group of rays): a sixth of the kernel's operations.
+template <class Ops>
+struct MollerTrumboreEdges {
+    Vec3v<Ops> v0, e1, e2;
+    typename Ops::Float e1_scale, e2_scale;  // max_component(abs(e1)), max_component(abs(e2))
+};
+template <class Ops>
+[[nodiscard]] inline MollerTrumboreEdges<Ops> moller_trumbore_edges(const Vec3v<Ops>& v0,
+                                                                    const Vec3v<Ops>& v1,
+                                                                    const Vec3v<Ops>& v2) {
+    const Vec3v<Ops> e1 = sub(v1, v0), e2 = sub(v2, v0);
+    return {v0, e1, e2, max_abs_component(e1), max_abs_component(e2)};
+}
+
 // MollerTrumbore::intersect on every lane: lane i tests ray i against triangle i. The triangle-SIMD block
 // test broadcasts one ray against a block's triangles; the packet test (wide_packet.cpp) broadcasts one
 // triangle against a packet's rays: both call this, so that one source holds the kernel. A lane that
@@ -146,12 +162,16 @@ struct MollerTrumboreLanes {
 
     [[nodiscard]] LaneHits<Ops> test(const Vec3v<Ops>& v0, const Vec3v<Ops>& v1, const Vec3v<Ops>& v2,
                                      Float tnear, Float tfar) const {
-        const Vec3v<Ops> e1 = sub(v1, v0);
-        const Vec3v<Ops> e2 = sub(v2, v0);
+        return test(moller_trumbore_edges(v0, v1, v2), tnear, tfar);
+    }
+
+    [[nodiscard]] LaneHits<Ops> test(const MollerTrumboreEdges<Ops>& triangle, Float tnear,
+                                     Float tfar) const {
+        const Vec3v<Ops>&v0 = triangle.v0, &e1 = triangle.e1, &e2 = triangle.e2;
+        const Float e1_scale = triangle.e1_scale, e2_scale = triangle.e2_scale;
         const Vec3v<Ops> p = cross(direction, e2);
         const Float det = dot(p, e1);
         const Float abs_det = Ops::abs(det);
-        const Float e1_scale = max_abs_component(e1), e2_scale = max_abs_component(e2);
         const Float band = Ops::mul(Ops::mul(band_scale, e1_scale), e2_scale);
         auto accept =
             Ops::mask_and(Ops::greater(abs_det, band), Ops::less(abs_det, Ops::broadcast(kInfinity)));

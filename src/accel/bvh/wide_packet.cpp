@@ -141,6 +141,65 @@ struct TriangleBoxes {
     return boxes;
 }
 
+// A block's Moller-Trumbore edges (block_detail::MollerTrumboreEdges), made in one 8-lane pass per leaf
+// and read by both leaf tests: a triangle's broadcast to a group (test_group), or a row repeated in each
+// half of a ray test (test_rays).
+struct BlockEdges {
+    alignas(32) float e1[3][kWidth];
+    alignas(32) float e2[3][kWidth];
+    alignas(32) float e1_scale[kWidth];
+    alignas(32) float e2_scale[kWidth];
+};
+[[nodiscard]] BlockEdges block_edges(const Block& block) {
+    using Ops = simd::Avx2;
+    static_assert(Ops::kWidth == kWidth);
+    const auto edges = block_detail::moller_trumbore_edges<Ops>(block_detail::load_vertex<Ops>(block, 0),
+                                                                block_detail::load_vertex<Ops>(block, 1),
+                                                                block_detail::load_vertex<Ops>(block, 2));
+    BlockEdges out;
+    Ops::store(out.e1[0], edges.e1.x), Ops::store(out.e1[1], edges.e1.y), Ops::store(out.e1[2], edges.e1.z);
+    Ops::store(out.e2[0], edges.e2.x), Ops::store(out.e2[1], edges.e2.y), Ops::store(out.e2[2], edges.e2.z);
+    Ops::store(out.e1_scale, edges.e1_scale), Ops::store(out.e2_scale, edges.e2_scale);
+    return out;
+}
+
+// The lanes of a test that holds rays against whole blocks (PacketTracer::test_rays): each 8-lane half of
+// the vector is one ray of a group against a block's 8 triangles, as in bvh8's block test, so an AVX-512
+// test takes two rays and an AVX2 test one.
+template <class Ops>
+struct BlockRays;
+
+template <>
+struct BlockRays<simd::Avx2> {
+    static constexpr int kRays = 1;
+    __m256i index;  // the ray's lane in its group
+
+    explicit BlockRays(const std::array<int, 2>& rays) : index(_mm256_set1_epi32(rays[0])) {}
+    // Each lane takes its ray's value of a group vector.
+    [[nodiscard]] __m256 spread(__m256 group) const { return _mm256_permutevar8x32_ps(group, index); }
+    // A block row, 8 floats, in each half.
+    [[nodiscard]] static __m256 repeat(const float* row) { return _mm256_load_ps(row); }
+};
+
+#if defined(__AVX512F__) && defined(__AVX512DQ__)
+template <>
+struct BlockRays<simd::Avx512> {
+    static constexpr int kRays = 2;
+    __m512i index;  // lanes 0-7: the first ray's lane in its group, lanes 8-15: the second's
+
+    explicit BlockRays(const std::array<int, 2>& rays)
+        : index(_mm512_mask_set1_epi32(_mm512_set1_epi32(rays[0]), 0xff00, rays[1])) {}
+    // The zero-masked forms with every lane set: GCC 12's plain ones read an uninitialised
+    // _mm512_undefined_ps() (simd::Avx512::max).
+    [[nodiscard]] __m512 spread(__m512 group) const {
+        return _mm512_maskz_permutexvar_ps(0xffff, index, group);
+    }
+    [[nodiscard]] static __m512 repeat(const float* row) {
+        return _mm512_maskz_broadcast_f32x8(0xffff, _mm256_load_ps(row));
+    }
+};
+#endif
+
 // intersect_box on the packet's rays `rays` against child `slot` of `node`, a group of Ops::kWidth rays per
 // instruction: the rays whose [tnear, tlimit] meets the child's box. Every ray's reciprocal direction is
 // finite and of the packet's sign on each axis, so no plane distance is NaN and the near face is the same
@@ -506,6 +565,8 @@ class PacketTracer {
             boxes[b - first_block] = triangle_boxes(blocks_[b]);
             spheres[b - first_block] = sphere_lanes(blocks_[b]);
         }
+        std::array<BlockEdges, kMaxLeafBlocks> edges;  // Moller-Trumbore only, at the first group with a test
+        bool edges_ready = false;
         for (int group = 0; group < kGroups; ++group) {
             const auto active = static_cast<unsigned>((rays & alive_) >> (group * kLanes) & kGroup);
             if (active == 0) continue;
@@ -520,7 +581,16 @@ class PacketTracer {
                     (cull_boxes(block_boxes.bounds, interval, tlimit_max_, entry) & block_boxes.triangles) |
                     spheres[b - first_block];
             }
-            if (any != 0) found |= test_group<kAnyHit>(first_block, end, candidates, group, active, answers);
+            if (any == 0) continue;
+            if (!kWatertight && !edges_ready) {
+                for (std::uint32_t b = first_block; b < end; ++b)
+                    edges[b - first_block] = block_edges(blocks_[b]);
+                edges_ready = true;
+            }
+            if (prefer_ray_tests(first_block, end, candidates, spheres, active))
+                found |= test_rays<kAnyHit>(first_block, end, candidates, edges, group, active, answers);
+            else
+                found |= test_group<kAnyHit>(first_block, end, candidates, edges, group, active, answers);
         }
         return found;
     }
@@ -542,11 +612,124 @@ class PacketTracer {
                 Ops::broadcast(block.vertex[v][axes[2]][lane])};
     }
 
+    // Whether the `active` rays of `group` should test the leaf's blocks a ray at a time (test_rays) rather
+    // than its candidate triangles a triangle at a time (test_group). Where triangles are small beside the
+    // packet's footprint few rays of a group reach a leaf (the dragon: 3.2 of 16, against 3.8 candidates
+    // of 8), and most lanes of a broadcast triangle idle. A ray test costs about twice a triangle test
+    // (docs/accel/packets.md, "Few rays at a leaf"). Moller-Trumbore only: the watertight kernel stops
+    // before its division when no lane survives its edge signs, so idle lanes cost it less, and it lost
+    // ground on the bunny and the armadillo with ray tests. Spheres take the broadcast path.
+    [[nodiscard]] bool prefer_ray_tests(std::uint32_t first_block, std::uint32_t end,
+                                        const std::array<unsigned, kMaxLeafBlocks>& candidates,
+                                        const std::array<unsigned, kMaxLeafBlocks>& spheres,
+                                        unsigned active) const {
+        if constexpr (kWatertight) return false;
+        constexpr int kRays = BlockRays<Ops>::kRays;
+        int triangle_tests = 0, blocks = 0;
+        for (std::uint32_t b = first_block; b < end; ++b) {
+            if (spheres[b - first_block] != 0) return false;
+            triangle_tests += std::popcount(candidates[b - first_block]);
+            blocks += candidates[b - first_block] != 0;
+        }
+        const int ray_tests = (std::popcount(active) + kRays - 1) / kRays * blocks;
+        return 2 * ray_tests < triangle_tests;
+    }
+
+    // Moller-Trumbore on the blocks [first_block, end) against the `active` rays of one group,
+    // BlockRays<Ops>::kRays rays per test, each against a block's candidate triangles: the lane kernel of
+    // test_group on the same operands, so the same hits. The closest hits are merged in the packet's arrays.
+    template <bool kAnyHit, class Answer>
+    bool test_rays(std::uint32_t first_block, std::uint32_t end,
+                   const std::array<unsigned, kMaxLeafBlocks>& candidates,
+                   const std::array<BlockEdges, kMaxLeafBlocks>& edges, int group, unsigned active,
+                   std::span<Answer> answers) {
+        using Rays = BlockRays<Ops>;
+        const int first = group * kLanes;
+        auto spread = [&](const Rays& rays, const float* group_values) {
+            return rays.spread(Ops::load(group_values + first));
+        };
+        auto repeat = [](const float(&soa)[3][kWidth]) {
+            return Vec3v{Rays::repeat(soa[0]), Rays::repeat(soa[1]), Rays::repeat(soa[2])};
+        };
+        bool found = false;
+        for (unsigned left = active; left != 0;) {
+            // The next rays: a lone last one fills both halves, the second masked off.
+            std::array<int, 2> ray;
+            ray[0] = std::countr_zero(left), left &= left - 1;
+            ray[1] = Rays::kRays == 2 && left != 0 ? std::countr_zero(left) : ray[0];
+            const bool second = ray[1] != ray[0];
+            if (second) left &= left - 1;
+            const Rays rays(ray);
+            const block_detail::MollerTrumboreLanes<Ops> kernel(
+                {spread(rays, packet_.origin[0]), spread(rays, packet_.origin[1]),
+                 spread(rays, packet_.origin[2])},
+                {spread(rays, packet_.direction[0]), spread(rays, packet_.direction[1]),
+                 spread(rays, packet_.direction[2])},
+                spread(rays, packet_.direction_scale));
+            const Float tnear = spread(rays, packet_.tnear);
+            for (std::uint32_t b = first_block; b < end; ++b) {
+                // A ray an occlusion ended drops out.
+                const unsigned alive = static_cast<unsigned>(alive_ >> first);
+                const unsigned block_lanes = candidates[b - first_block];
+                const unsigned lanes = ((alive >> ray[0]) & 1u ? block_lanes : 0u) |
+                                       (second && ((alive >> ray[1]) & 1u) ? block_lanes << kWidth : 0u);
+                if (lanes == 0) continue;
+                const Block& block = blocks_[b];
+                const BlockEdges& block_edges = edges[b - first_block];
+                const auto result =
+                    kernel.test({repeat(block.vertex[0]), repeat(block_edges.e1), repeat(block_edges.e2),
+                                 Rays::repeat(block_edges.e1_scale), Rays::repeat(block_edges.e2_scale)},
+                                tnear, spread(rays, packet_.tlimit));
+                found |= take_block<kAnyHit>(result, block, first, ray, lanes, answers);
+            }
+        }
+        return found;
+    }
+
+    // test_rays' answer on `lanes`: lane l is ray[l / 8] of the group at `first` against triangle l % 8 of
+    // `block`. A closest hit replaces the ray's by closer()'s rule (take's, one lane at a time: hits are
+    // few); an occlusion ends the ray; the uncertain lanes go through the scalar test.
+    template <bool kAnyHit, class Answer>
+    bool take_block(const block_detail::LaneHits<Ops>& result, const Block& block, int first,
+                    const std::array<int, 2>& ray, unsigned lanes, std::span<Answer> answers) {
+        const unsigned hit_lanes = result.hit_lanes & lanes, scalar_lanes = result.scalar_lanes & lanes;
+        if ((hit_lanes | scalar_lanes) == 0) return false;
+        alignas(64) float t[kLanes], u[kLanes], v[kLanes];
+        Ops::store(t, result.t), Ops::store(u, result.u), Ops::store(v, result.v);
+        bool found = false;
+        for (unsigned each = hit_lanes; each != 0; each &= each - 1) {
+            const int lane = std::countr_zero(each);
+            const int i = first + ray[static_cast<std::size_t>(lane / kWidth)];
+            const auto prim = static_cast<std::int32_t>(block.prim[lane % kWidth]);
+            if constexpr (kAnyHit) {
+                answers[static_cast<std::size_t>(i)] = 1;
+                alive_ &= ~(LaneMask{1} << i);
+                found = true;
+            } else if (t[lane] < packet_.tlimit[i] ||
+                       (t[lane] == packet_.tlimit[i] && prim < packet_.prim[i])) {
+                packet_.tlimit[i] = t[lane], packet_.prim[i] = prim;
+                packet_.u[i] = u[lane], packet_.v[i] = v[lane];
+                found = true;
+            }
+        }
+        for (unsigned each = scalar_lanes; each != 0; each &= each - 1) {
+            const int lane = std::countr_zero(each);
+            found |= test_scalar<kAnyHit>(block.prim[lane % kWidth],
+                                          first + ray[static_cast<std::size_t>(lane / kWidth)], answers);
+        }
+        return found;
+    }
+
+    [[nodiscard]] static Vec3v broadcast_vec(const float (&soa)[3][kWidth], int lane) {
+        return {Ops::broadcast(soa[0][lane]), Ops::broadcast(soa[1][lane]), Ops::broadcast(soa[2][lane])};
+    }
+
     // The blocks [first_block, end) against the `active` rays of one group, each triangle broadcast to the
     // group's lanes.
     template <bool kAnyHit, class Answer>
     bool test_group(std::uint32_t first_block, std::uint32_t end,
-                    const std::array<unsigned, kMaxLeafBlocks>& candidates, int group, unsigned active,
+                    const std::array<unsigned, kMaxLeafBlocks>& candidates,
+                    const std::array<BlockEdges, kMaxLeafBlocks>& edges, int group, unsigned active,
                     std::span<Answer> answers) {
         const int first = group * kLanes;
         const Float tnear = Ops::load(&packet_.tnear[first]);
@@ -574,10 +757,13 @@ class PacketTracer {
                     }
                 } else {
                     constexpr std::array<int, 3> kXyz = {0, 1, 2};
-                    found |=
-                        take<kAnyHit>(kernel.test(vertex(block, 0, lane, kXyz), vertex(block, 1, lane, kXyz),
-                                                  vertex(block, 2, lane, kXyz), tnear, best.t),
-                                      prim, first, active, active, best, answers);
+                    const BlockEdges& block_edges = edges[b - first_block];
+                    const block_detail::MollerTrumboreEdges<Ops> triangle{
+                        vertex(block, 0, lane, kXyz), broadcast_vec(block_edges.e1, lane),
+                        broadcast_vec(block_edges.e2, lane), Ops::broadcast(block_edges.e1_scale[lane]),
+                        Ops::broadcast(block_edges.e2_scale[lane])};
+                    found |= take<kAnyHit>(kernel.test(triangle, tnear, best.t), prim, first, active, active,
+                                           best, answers);
                 }
                 if constexpr (kAnyHit) {
                     if (active == 0) return found;
