@@ -211,6 +211,35 @@ TEST_F(Cli, BenchWritesOneRecordPerStructureAndThreadCount) {
     EXPECT_EQ(run("bench --mesh " + mesh.string() + " --accel nope").exit_code, 2);
 }
 
+// --view adds the secondary sets of VIEWS.md, one record per view; their answers are checked across
+// structures like the camera rays'. A floor under a floating triangle: some diffuse rays come back to the
+// scene and some shadow rays are blocked.
+TEST_F(Cli, BenchTimesTheDiffuseAndShadowViews) {
+    const fs::path mesh = write("floor.off",
+                                "OFF\n7 2 0\n0 0 0\n2 0 0\n2 2 0\n0 2 0\n"
+                                "0.5 0.6 0.5\n1.5 0.6 0.5\n1 1.6 0.5\n4 0 1 2 3\n3 4 5 6\n");
+    const fs::path json = dir_ / "views.json";
+    const Result result = run("bench --mesh " + mesh.string() +
+                              " --accel bvh,grid,bvh8_packet --threads 1 --size 32 --frames 1 --view "
+                              "primary,diffuse,shadow --json " +
+                              json.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    std::ostringstream text;
+    text << std::ifstream(json).rdbuf();
+    const std::string records = text.str();
+    for (const char* view : {"\"view\": \"primary\"", "\"view\": \"diffuse\"", "\"view\": \"shadow\""}) {
+        std::size_t count = 0;
+        for (std::size_t at = records.find(view); at != std::string::npos; at = records.find(view, at + 1)) {
+            ++count;
+            const std::size_t field = records.find("\"hit_fraction\": ", at);
+            ASSERT_NE(field, std::string::npos);
+            EXPECT_GT(std::stod(records.substr(field + 16)), 0.01) << view;
+        }
+        EXPECT_EQ(count, 3u) << view << "\n" << records;  // 3 structures, 1 thread count
+    }
+    EXPECT_EQ(run("bench --mesh " + mesh.string() + " --view primary,glossy").exit_code, 2);
+}
+
 // The default mode is Whitted's: a lit scene with a mirror ball reports its rays by kind; `.exr` writes
 // OpenEXR (its magic number 76 2f 31 01).
 TEST_F(Cli, RenderDefaultsToWhittedAndWritesExr) {
