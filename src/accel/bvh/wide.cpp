@@ -127,10 +127,10 @@ constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
 // Front to back, as the binary BVH (docs/accel/bvh.md): all W child boxes are tested at once, the hit ones
 // are ordered by entry distance (insertion sort: ties keep slot order), the nearest is visited and the
 // others pushed, farthest first. A popped child is skipped when it is entered beyond the best hit.
-template <int W, bool kAnyHit, bool kCount, class TriangleTestT>
-bool traverse(const std::vector<WideBvhNode<W>>& nodes,
-              const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
-              const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters) {
+template <int W, bool kAnyHit, bool kCount, bool kForward, class TriangleTestT>
+bool traverse_from(const std::vector<WideBvhNode<W>>& nodes,
+                   const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
+                   const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters) {
     constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
     if (nodes.empty()) return false;
     const Ray& ray = prepared.ray;
@@ -157,8 +157,21 @@ bool traverse(const std::vector<WideBvhNode<W>>& nodes,
             const WideBvhNode<W>& node = nodes[current.child];
             const float t_limit = best.hit() ? best.t : ray.tfar;
             alignas(32) float entry[W];
-            const unsigned hit_mask = intersect_children(node, wide_ray, ray.tnear, t_limit, entry);
-            if (hit_mask != 0) {
+            const unsigned hit_mask =
+                intersect_children<W, kForward>(node, wide_ray, ray.tnear, t_limit, entry);
+            if constexpr (kAnyHit) {
+                // Any hit ends the walk, so the order only matters through where the first one is found:
+                // the children in slot order, without the sort (tinybvh PR #294 found the same).
+                if (hit_mask != 0) {
+                    const int first_slot = std::countr_zero(hit_mask);
+                    for (unsigned rest = hit_mask & (hit_mask - 1); rest != 0; rest &= rest - 1) {
+                        const int slot = std::countr_zero(rest);
+                        stack[stack_size++] = {{node.child[slot], node.prim_count[slot]}, entry[slot]};
+                    }
+                    current = {node.child[first_slot], node.prim_count[first_slot]};
+                    continue;
+                }
+            } else if (hit_mask != 0) {
                 std::array<int, W> order;
                 const int hit_count = order_by_entry<W>(hit_mask, entry, order);
                 for (int k = hit_count - 1; k > 0; --k) {
@@ -177,6 +190,16 @@ bool traverse(const std::vector<WideBvhNode<W>>& nodes,
             if (!best.hit() || popped.t_entry <= best.t) break;
         } while (true);
     }
+}
+
+// The walk, with the box test's cheaper exit widening for the rays that start at tnear >= 0 (all but a few).
+template <int W, bool kAnyHit, bool kCount, class TriangleTestT>
+bool traverse(const std::vector<WideBvhNode<W>>& nodes,
+              const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
+              const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters) {
+    if (prepared.ray.tnear >= 0.0f)
+        return traverse_from<W, kAnyHit, kCount, true>(nodes, blocks, geometry, prepared, best, counters);
+    return traverse_from<W, kAnyHit, kCount, false>(nodes, blocks, geometry, prepared, best, counters);
 }
 
 }  // namespace
