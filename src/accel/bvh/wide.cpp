@@ -125,8 +125,9 @@ template <int W>
 constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
 
 // Front to back, as the binary BVH (docs/accel/bvh.md): all W child boxes are tested at once, the hit ones
-// are ordered by entry distance (insertion sort: ties keep slot order), the nearest is visited and the
-// others pushed, farthest first. A popped child is skipped when it is entered beyond the best hit.
+// are ordered by entry distance (insertion sort: ties keep slot order; occlusion keeps slot order), the
+// nearest is visited and the others pushed, farthest first. A popped child is skipped when it is entered
+// beyond the best hit. kForward: the ray has tnear >= 0, which allows clip_slab's cheaper exit widening.
 template <int W, bool kAnyHit, bool kCount, bool kForward, class TriangleTestT>
 bool traverse_from(const std::vector<WideBvhNode<W>>& nodes,
                    const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
@@ -160,8 +161,8 @@ bool traverse_from(const std::vector<WideBvhNode<W>>& nodes,
             const unsigned hit_mask =
                 intersect_children<W, kForward>(node, wide_ray, ray.tnear, t_limit, entry);
             if constexpr (kAnyHit) {
-                // Any hit ends the walk, so the order only matters through where the first one is found:
-                // the children in slot order, without the sort (tinybvh PR #294 found the same).
+                // Any hit ends the walk, so the order only decides where the first is found: the children
+                // go in slot order, without the sort.
                 if (hit_mask != 0) {
                     const int first_slot = std::countr_zero(hit_mask);
                     for (unsigned rest = hit_mask & (hit_mask - 1); rest != 0; rest &= rest - 1) {
