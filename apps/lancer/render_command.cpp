@@ -1,7 +1,9 @@
 // lancer render [SCENE]: renders a scene (the authored default scene when none is given) to PNG or OpenEXR,
-// then prints a summary: sizes, timings, rays by kind and Mrays/s.
+// then prints a summary: sizes, timings, rays by kind and Mrays/s; with --beside NAME, the same frame
+// rendered again with structure NAME (Embree's, typically) and its Mrays/s beside the first.
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <cctype>
 #include <filesystem>
 #include <map>
@@ -22,6 +24,7 @@ struct RenderCommandOptions {
     std::string size;
     ShadingMode mode = ShadingMode::Whitted;
     AccelChoice accel;
+    std::string beside;  // a second structure that renders the same frame, for its Mrays/s
     DeviceChoice device;
     int threads = 0;
     int samples_per_pixel = 4;
@@ -66,10 +69,38 @@ void print_summary(const RenderCommandOptions& options, const LoadedScene& loade
     fmt::print("wrote {}\n", options.output);
 }
 
+// The frame again with the structure --beside names, on the same geometry, triangle test and threads; its
+// image is not written. Its ray counts are printed too when they differ (a peer's own triangle test may
+// send a few shadow or secondary rays elsewhere).
+void render_beside(const RenderCommandOptions& options, const SceneGeometry& geometry, const Scene& scene,
+                   const Camera& camera, const RenderOptions& render_options, const BuiltAccel& built,
+                   const RenderStats& stats) {
+    AccelChoice choice = options.accel;
+    choice.name = options.beside;
+    const BuiltAccel other = build_timed(choice, geometry.view());
+    RenderStats other_stats;
+    static_cast<void>(render(scene, geometry, *other.accel, camera, render_options, &other_stats));
+    const double mrays = static_cast<double>(stats.total_rays()) / (stats.trace_ms * 1e3);
+    const double other_mrays = static_cast<double>(other_stats.total_rays()) / (other_stats.trace_ms * 1e3);
+    fmt::print("beside: {} build {:.1f} ms, render {:.1f} ms, {:.2f} Mrays/s; {} at {:.2f}x of it\n",
+               other.accel->name(), other.build_ms, other_stats.trace_ms, other_mrays, built.accel->name(),
+               mrays / other_mrays);
+    if (other_stats.total_rays() != stats.total_rays())
+        fmt::print("beside: {} traced {} rays where {} traced {}\n", other.accel->name(),
+                   other_stats.total_rays(), built.accel->name(), stats.total_rays());
+}
+
 void run(const RenderCommandOptions& options) {
     if (options.device.cuda() && options.mode != ShadingMode::Flat && options.mode != ShadingMode::Heatmap)
         throw InputError("--device cuda renders --mode flat or heatmap only");
     options.device.require_available();
+    if (!options.beside.empty()) {
+        if (options.device.cuda())
+            throw InputError("--beside compares structures on the CPU: leave out --device cuda");
+        const auto names = accel_names();
+        if (std::find(names.begin(), names.end(), options.beside) == names.end())
+            throw InputError("--beside: unknown structure '" + options.beside + "'");
+    }
     const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
     const LoadedScene& loaded = prepared.loaded;
     const Scene& scene = loaded.scene;
@@ -101,6 +132,8 @@ void run(const RenderCommandOptions& options) {
         throw InputError(error.what());
     }
     print_summary(options, loaded, built, image, stats);
+    if (!options.beside.empty())
+        render_beside(options, geometry, scene, camera, render_options, built, stats);
 }
 
 }  // namespace
@@ -143,6 +176,9 @@ void add_render_command(CLI::App& app) {
                       "Whitted mode: split transmission between reflection and refraction by Fresnel's "
                       "equations");
     options->accel.add_options(*command);
+    command->add_option("--beside", options->beside,
+                        "Render the frame again with this structure (e.g. embree, embree16) and print its "
+                        "Mrays/s beside the first's");
     options->device.add_options(*command);
     command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
     command->callback([options] { run(*options); });

@@ -242,6 +242,24 @@ TEST_F(Cli, BenchTimesTheDiffuseAndShadowViews) {
 
 // The default mode is Whitted's: a lit scene with a mirror ball reports its rays by kind; `.exr` writes
 // OpenEXR (its magic number 76 2f 31 01).
+// --beside renders the same frame with a second structure and prints its Mrays/s; lancer's structures
+// trace the same rays, so no ray-count line follows.
+TEST_F(Cli, RenderBesideASecondStructure) {
+    const fs::path scene =
+        write("ball.nff",
+              "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 40\nhither 0.01\nresolution 16 12\n"
+              "l 3 3 3\nf 0.8 0.8 0.8 0.5 0.5 20 0 1\ns 0 0 0 1\nplane 0 1 0 -1 checkered\n");
+    const fs::path png = dir_ / "beside.png";
+    Result result = run("render " + scene.string() + " --accel bvh --beside grid -o " + png.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("beside: grid build"), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find("bvh at "), std::string::npos) << result.output;
+    EXPECT_EQ(result.output.find("traced"), std::string::npos) << result.output;
+    result = run("render " + scene.string() + " --beside nope -o " + png.string());
+    EXPECT_EQ(result.exit_code, 2) << result.output;
+    EXPECT_NE(result.output.find("--beside: unknown structure 'nope'"), std::string::npos) << result.output;
+}
+
 TEST_F(Cli, RenderDefaultsToWhittedAndWritesExr) {
     const fs::path scene =
         write("ball.nff",
