@@ -242,13 +242,15 @@ TEST_F(Cli, BenchTimesTheDiffuseAndShadowViews) {
 
 // The default mode is Whitted's: a lit scene with a mirror ball reports its rays by kind; `.exr` writes
 // OpenEXR (its magic number 76 2f 31 01).
+// A lit, half-reflective ball over a checkered plane at 16x12: shadow and reflection rays.
+const char* const kBallScene =
+    "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 40\nhither 0.01\nresolution 16 12\n"
+    "l 3 3 3\nf 0.8 0.8 0.8 0.5 0.5 20 0 1\ns 0 0 0 1\nplane 0 1 0 -1 checkered\n";
+
 // --beside renders the same frame with a second structure and prints its Mrays/s; lancer's structures
 // trace the same rays, so no ray-count line follows.
 TEST_F(Cli, RenderBesideASecondStructure) {
-    const fs::path scene =
-        write("ball.nff",
-              "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 40\nhither 0.01\nresolution 16 12\n"
-              "l 3 3 3\nf 0.8 0.8 0.8 0.5 0.5 20 0 1\ns 0 0 0 1\nplane 0 1 0 -1 checkered\n");
+    const fs::path scene = write("ball.nff", kBallScene);
     const fs::path png = dir_ / "beside.png";
     Result result = run("render " + scene.string() + " --accel bvh --beside grid -o " + png.string());
     ASSERT_EQ(result.exit_code, 0) << result.output;
@@ -261,10 +263,7 @@ TEST_F(Cli, RenderBesideASecondStructure) {
 }
 
 TEST_F(Cli, RenderDefaultsToWhittedAndWritesExr) {
-    const fs::path scene =
-        write("ball.nff",
-              "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 40\nhither 0.01\nresolution 16 12\n"
-              "l 3 3 3\nf 0.8 0.8 0.8 0.5 0.5 20 0 1\ns 0 0 0 1\nplane 0 1 0 -1 checkered\n");
+    const fs::path scene = write("ball.nff", kBallScene);
     const fs::path exr = dir_ / "out.exr";
     const Result result = run("render " + scene.string() + " --spp 2 -o " + exr.string());
     ASSERT_EQ(result.exit_code, 0) << result.output;
