@@ -6,9 +6,13 @@
 //   - flush-to-zero and denormals-are-zero set once per tracing thread;
 //   - the HIGH build quality (spatial splits), or MEDIUM; the robust flag only for --watertight.
 // A frame is timed as VIEWS.md says: generate every ray, trace it, store its closest hit (16 bytes).
+// --view diffuse or shadow times VIEWS.md's secondary sets instead, made here from this program's own
+// canonical-view hits and traced from an array in memory, 4096 consecutive rays a task, as `lancer bench
+// --view` does: rtcIntersect1/8/16 (closest hit) or rtcOccluded1/8/16 (any hit, one byte stored) on
+// consecutive rays, without the COHERENT flag, as the tutorials trace secondary rays.
 //
 //   embree_reference MESH [--size 1024] [--frames 5] [--threads 1,2] [--calls 1,8,16] [--quality high]
-//                         [--watertight] [--json FILE]
+//                         [--view primary|diffuse|shadow] [--watertight] [--json FILE]
 #include <assimp/cimport.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -48,8 +52,11 @@ Float3 operator*(float s, Float3 a) {
 Float3 cross(Float3 a, Float3 b) {
     return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
+float dot(Float3 a, Float3 b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 Float3 normalize(Float3 a) {
-    return (1.0f / std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z)) * a;
+    return (1.0f / std::sqrt(dot(a, a))) * a;
 }
 
 struct Mesh {
@@ -188,6 +195,127 @@ void trace_frame(RTCScene scene, const Camera& camera, std::vector<PixelHit>& hi
     });
 }
 
+// A secondary ray of VIEWS.md.
+struct SecondaryRay {
+    Float3 origin, direction;
+    float tfar;
+};
+
+// VIEWS.md's PCG hash (Jarzynski & Olano 2020), in wrapping uint32 arithmetic.
+std::uint32_t pcg_hash(std::uint32_t x) {
+    const std::uint32_t state = x * 747796405u + 2891336453u;
+    const std::uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+// The diffuse (4 cosine-weighted rays per hit, Duff et al. 2017's basis) or the shadow set (1 ray per hit to
+// the point light c + (0.5 r, 2 r, 1.5 r), tfar = 1 - 1e-4) from the canonical view's hits, in pixel order.
+std::vector<SecondaryRay> secondary_rays(const Mesh& mesh, const Camera& camera,
+                                         const std::vector<PixelHit>& hits, bool diffuse) {
+    const Float3 centre = 0.5f * (mesh.lo + mesh.hi);
+    const Float3 diagonal = mesh.hi - mesh.lo;
+    const float radius = 0.5f * std::sqrt(dot(diagonal, diagonal));
+    const Float3 light = centre + Float3{0.5f * radius, 2.0f * radius, 1.5f * radius};
+    std::vector<SecondaryRay> rays;
+    for (int j = 0; j < camera.size; ++j) {
+        for (int i = 0; i < camera.size; ++i) {
+            const std::size_t pixel = static_cast<std::size_t>(j) * camera.size + i;
+            const PixelHit& hit = hits[pixel];
+            if (!(hit.t < INFINITY)) continue;
+            const Float3 d = camera.direction(i, j);
+            const Float3 v0 = mesh.vertices[mesh.indices[3 * hit.prim]];
+            const Float3 v1 = mesh.vertices[mesh.indices[3 * hit.prim + 1]];
+            const Float3 v2 = mesh.vertices[mesh.indices[3 * hit.prim + 2]];
+            Float3 n = normalize(cross(v1 - v0, v2 - v0));
+            if (dot(n, d) >= 0.0f) n = -1.0f * n;
+            const Float3 origin = camera.eye + hit.t * d + (1e-4f * radius) * n;
+            if (!diffuse) {
+                rays.push_back({origin, light - origin, 1.0f - 1e-4f});
+                continue;
+            }
+            const float sign = std::copysign(1.0f, n.z);
+            const float a = -1.0f / (sign + n.z), b = n.x * n.y * a;
+            const Float3 t1{1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x};
+            const Float3 t2{b, sign + n.y * n.y * a, -n.y};
+            for (std::uint32_t k = 0; k < 4; ++k) {
+                const std::uint32_t ha = pcg_hash(4u * static_cast<std::uint32_t>(pixel) + k),
+                                    hb = pcg_hash(ha);
+                const float u1 = static_cast<float>(ha >> 8u) * 0x1p-24f,
+                            u2 = static_cast<float>(hb >> 8u) * 0x1p-24f;
+                const float phi = 2.0f * std::numbers::pi_v<float> * u1, rho = std::sqrt(u2);
+                rays.push_back(
+                    {origin, rho * std::cos(phi) * t1 + rho * std::sin(phi) * t2 + std::sqrt(1.0f - u2) * n,
+                     INFINITY});
+            }
+        }
+    }
+    return rays;
+}
+
+constexpr std::size_t kChunk = 4096;  // consecutive rays a task, as lancer bench's arrays
+
+// The rays [first, last) in calls of kLanes consecutive rays: closest hits into `hits` (diffuse), or
+// occlusion bytes into `occluded` (shadow).
+template <int kLanes>
+void trace_chunk(RTCScene scene, const std::vector<SecondaryRay>& rays, std::size_t first, std::size_t last,
+                 bool shadow, std::vector<PixelHit>& hits, std::vector<std::uint8_t>& occluded) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);  // INCOHERENT: secondary rays
+    auto fill = [&](auto& ray, std::size_t index, int lane) {
+        const SecondaryRay& r = rays[index];
+        ray.org_x[lane] = r.origin.x, ray.org_y[lane] = r.origin.y, ray.org_z[lane] = r.origin.z;
+        ray.dir_x[lane] = r.direction.x, ray.dir_y[lane] = r.direction.y, ray.dir_z[lane] = r.direction.z;
+        ray.tnear[lane] = 0.0f, ray.tfar[lane] = r.tfar, ray.time[lane] = 0.0f, ray.mask[lane] = ~0u;
+        ray.id[lane] = 0, ray.flags[lane] = 0;
+    };
+    for (std::size_t base = first; base < last; base += kLanes) {
+        alignas(64) int valid[kLanes];
+        for (int lane = 0; lane < kLanes; ++lane)
+            valid[lane] = base + lane < last ? -1 : 0;
+        if (shadow) {
+            alignas(64) RTCRayNt<kLanes> packet;
+            for (int lane = 0; lane < kLanes; ++lane)
+                fill(packet, std::min(base + lane, last - 1), lane);
+            if constexpr (kLanes == 1) rtcOccluded1(scene, &context, reinterpret_cast<RTCRay*>(&packet));
+            if constexpr (kLanes == 8)
+                rtcOccluded8(valid, scene, &context, reinterpret_cast<RTCRay8*>(&packet));
+            if constexpr (kLanes == 16)
+                rtcOccluded16(valid, scene, &context, reinterpret_cast<RTCRay16*>(&packet));
+            for (int lane = 0; lane < kLanes && base + lane < last; ++lane)
+                occluded[base + lane] = packet.tfar[lane] == -INFINITY ? 1 : 0;
+        } else {
+            alignas(64) RTCRayHitNt<kLanes> packet;
+            for (int lane = 0; lane < kLanes; ++lane) {
+                fill(packet.ray, std::min(base + lane, last - 1), lane);
+                packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+            }
+            if constexpr (kLanes == 1) rtcIntersect1(scene, &context, reinterpret_cast<RTCRayHit*>(&packet));
+            if constexpr (kLanes == 8)
+                rtcIntersect8(valid, scene, &context, reinterpret_cast<RTCRayHit8*>(&packet));
+            if constexpr (kLanes == 16)
+                rtcIntersect16(valid, scene, &context, reinterpret_cast<RTCRayHit16*>(&packet));
+            for (int lane = 0; lane < kLanes && base + lane < last; ++lane)
+                hits[base + lane] = {packet.ray.tfar[lane], packet.hit.primID[lane], packet.hit.u[lane],
+                                     packet.hit.v[lane]};
+        }
+    }
+}
+
+template <int kLanes>
+void trace_array(RTCScene scene, const std::vector<SecondaryRay>& rays, bool shadow,
+                 std::vector<PixelHit>& hits, std::vector<std::uint8_t>& occluded, tbb::task_arena& arena) {
+    arena.execute([&] {
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(0, rays.size(), kChunk),
+            [&](const tbb::blocked_range<std::size_t>& range) {
+                _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+                _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+                trace_chunk<kLanes>(scene, rays, range.begin(), range.end(), shadow, hits, occluded);
+            },
+            tbb::simple_partitioner());
+    });
+}
+
 std::vector<int> parse_list(const std::string& text) {
     std::vector<int> values;
     std::size_t start = 0;
@@ -203,7 +331,8 @@ std::vector<int> parse_list(const std::string& text) {
 
 int main(int argc, char** argv) {
     CLI::App app("Embree on VIEWS.md's canonical view, called as its tutorials do (no lancer code)");
-    std::string file, thread_list = "1,2", call_list = "1,8,16", quality = "high", json_file;
+    std::string file, thread_list = "1,2", call_list = "1,8,16", quality = "high", view = "primary",
+                      json_file;
     int size = 1024, frames = 5;
     bool watertight = false;
     app.add_option("mesh", file, "Mesh file (OBJ, OFF, PLY: read by assimp)")->required();
@@ -212,6 +341,7 @@ int main(int argc, char** argv) {
     app.add_option("--threads", thread_list, "Comma-separated thread counts");
     app.add_option("--calls", call_list, "Comma-separated calls: 1 (rtcIntersect1), 8, 16");
     app.add_option("--quality", quality, "Build quality")->check(CLI::IsMember({"high", "medium"}));
+    app.add_option("--view", view, "VIEWS.md's view")->check(CLI::IsMember({"primary", "diffuse", "shadow"}));
     app.add_flag("--watertight", watertight, "Embree's robust mode (RTC_SCENE_FLAG_ROBUST)");
     app.add_option("--json", json_file, "Write one record per call and thread count");
     CLI11_PARSE(app, argc, argv);
@@ -240,6 +370,16 @@ int main(int argc, char** argv) {
     const Camera camera(mesh, size);
     const std::string mesh_name = std::filesystem::path(file).filename().string();
     std::vector<PixelHit> hits(static_cast<std::size_t>(size) * static_cast<std::size_t>(size));
+    std::vector<SecondaryRay> secondary;
+    std::vector<std::uint8_t> occluded;
+    const bool primary = view == "primary", shadow = view == "shadow";
+    if (!primary) {
+        tbb::task_arena arena;
+        trace_frame<1>(scene, camera, hits, arena);
+        secondary = secondary_rays(mesh, camera, hits, view == "diffuse");
+        hits.assign(secondary.size(), {});
+        occluded.assign(secondary.size(), 0);
+    }
     std::string json = "[\n";
     std::printf("embree_reference: %s, %zu triangles, %s build %.1f ms%s\n", mesh_name.c_str(), triangles,
                 quality.c_str(), build_ms, watertight ? ", robust" : "");
@@ -253,26 +393,35 @@ int main(int argc, char** argv) {
             std::vector<double> mrays;
             for (int frame = -1; frame < frames; ++frame) {  // frame -1: the warm-up
                 const auto start = std::chrono::steady_clock::now();
-                if (calls == 1) trace_frame<1>(scene, camera, hits, arena);
-                if (calls == 8) trace_frame<8>(scene, camera, hits, arena);
-                if (calls == 16) trace_frame<16>(scene, camera, hits, arena);
+                if (primary && calls == 1) trace_frame<1>(scene, camera, hits, arena);
+                if (primary && calls == 8) trace_frame<8>(scene, camera, hits, arena);
+                if (primary && calls == 16) trace_frame<16>(scene, camera, hits, arena);
+                if (!primary && calls == 1) trace_array<1>(scene, secondary, shadow, hits, occluded, arena);
+                if (!primary && calls == 8) trace_array<8>(scene, secondary, shadow, hits, occluded, arena);
+                if (!primary && calls == 16) trace_array<16>(scene, secondary, shadow, hits, occluded, arena);
                 const double seconds =
                     std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
                 if (frame >= 0) mrays.push_back(static_cast<double>(hits.size()) / seconds * 1e-6);
             }
             std::sort(mrays.begin(), mrays.end());
             std::size_t hit_count = 0;
-            for (const PixelHit& hit : hits)
-                hit_count += hit.t < INFINITY ? 1 : 0;
+            if (shadow) {
+                hit_count = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
+            } else {
+                for (const PixelHit& hit : hits)
+                    hit_count += hit.t < INFINITY ? 1 : 0;
+            }
             const double median = mrays[mrays.size() / 2];
             const double hit_fraction = static_cast<double>(hit_count) / static_cast<double>(hits.size());
-            const std::string call = calls == 1 ? "rtcIntersect1" : "rtcIntersect" + std::to_string(calls);
-            std::printf("%-16s %-14s threads %d: %8.2f Mrays/s (min %.2f, max %.2f), hits %.2f%%\n",
-                        mesh_name.c_str(), call.c_str(), threads, median, mrays.front(), mrays.back(),
-                        100.0 * hit_fraction);
+            const std::string call =
+                std::string(shadow ? "rtcOccluded" : "rtcIntersect") + std::to_string(calls);
+            std::printf("%-16s %-8s %-14s threads %d: %8.2f Mrays/s (min %.2f, max %.2f), hits %.2f%%\n",
+                        mesh_name.c_str(), view.c_str(), call.c_str(), threads, median, mrays.front(),
+                        mrays.back(), 100.0 * hit_fraction);
             std::fflush(stdout);
             json += std::string(json.size() > 2 ? ",\n" : "") + "  {\"mesh\": \"" + mesh_name +
-                    "\", \"triangles\": " + std::to_string(triangles) + ", \"call\": \"" + call +
+                    "\", \"view\": \"" + view + "\", \"rays\": " + std::to_string(hits.size()) +
+                    ", \"triangles\": " + std::to_string(triangles) + ", \"call\": \"" + call +
                     "\", \"packet\": " + std::to_string(calls) + ", \"threads\": " + std::to_string(threads) +
                     ", \"build_ms\": " + std::to_string(build_ms) +
                     ", \"mrays_per_s\": " + std::to_string(median) +

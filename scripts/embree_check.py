@@ -4,10 +4,12 @@ with no lancer code), in the same run, on the same meshes and thread counts (iss
 and sets lancer's own structures beside Embree's fastest call (issue 20's goal: 1.25 times it).
 
     scripts/embree_check.py [--build build] [--mesh FILE]... [--threads 1,2] [--frames 5] [--repeat 3]
-                            [--watertight] [--tolerance 0.10] [--lancer bvh8_packet,...]
+                            [--view primary|diffuse|shadow] [--watertight] [--tolerance 0.10]
+                            [--lancer bvh8_packet,...]
 
 Prints one line per mesh, call and thread count with both figures and their ratio, then one line per mesh,
-thread count and lancer structure with its ratio to the fastest Embree call; exits 1 when an Embree row is
+thread count and lancer structure with its ratio to the fastest Embree call (issue 21: the same on the
+diffuse and shadow views of VIEWS.md, with --view); exits 1 when an Embree row is
 further than the tolerance below the reference, 2 on bad input. Run it on an idle machine: the two programs
 alternate per mesh, --repeat times, and each figure is the median of its runs, so that drift hits both alike
 (one run of each moved single rows by up to 10% between runs).
@@ -23,7 +25,9 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MESHES = ["bunny.obj", "armadillo.off", "dragon.ply"]
 # lancer bench's row name for each Embree call of the reference.
-ROW_OF_CALL = {"rtcIntersect1": "embree", "rtcIntersect8": "embree8", "rtcIntersect16": "embree16"}
+ROW_OF_CALL = {"rtcIntersect1": "embree", "rtcIntersect8": "embree8", "rtcIntersect16": "embree16",
+               "rtcOccluded1": "embree", "rtcOccluded8": "embree8", "rtcOccluded16": "embree16"}
+EMBREE_ROWS = ["embree", "embree8", "embree16"]
 
 
 def cpu_name():
@@ -64,6 +68,7 @@ def main():
     parser.add_argument("--threads", default="1,2")
     parser.add_argument("--frames", type=int, default=5)
     parser.add_argument("--repeat", type=int, default=3, help="alternated runs of both programs per mesh")
+    parser.add_argument("--view", default="primary", choices=["primary", "diffuse", "shadow"])
     parser.add_argument("--watertight", action="store_true")
     parser.add_argument("--tolerance", type=float, default=0.10)
     parser.add_argument("--lancer", default="bvh8_packet",
@@ -82,20 +87,21 @@ def main():
         parser.error("no mesh found (--mesh FILE, or ../shared/data/meshes)")
 
     print(f"embree_check: {cpu_name()}, {os.cpu_count()} hardware threads, "
-          f"{'robust (--watertight)' if args.watertight else 'default (--moller-trumbore)'} triangle test")
+          f"{'robust (--watertight)' if args.watertight else 'default (--moller-trumbore)'} triangle test, "
+          f"{args.view} view")
     rows = []
     fastest = []  # (mesh, threads, call, Mrays/s of the fastest call, {structure: Mrays/s})
     for mesh in meshes:
         test = [] if args.watertight else ["--moller-trumbore"]
         peer_runs, our_runs = [], []
         for _ in range(max(1, args.repeat)):
-            peer_runs.append(run_json([reference, mesh, "--threads", args.threads, "--frames", str(args.frames)] +
-                                      (["--watertight"] if args.watertight else [])))
+            peer_runs.append(run_json([reference, mesh, "--threads", args.threads, "--frames", str(args.frames),
+                                       "--view", args.view] + (["--watertight"] if args.watertight else [])))
             # lancer's structures first: the bench checks every row against the first, and keeps an Embree
             # row that disagrees (its own triangle test) where it would drop one of lancer's.
             our_runs.append(run_json([lancer, "bench", "--mesh", mesh, "--accel",
-                                      ",".join(structures + list(ROW_OF_CALL.values())), "--threads",
-                                      args.threads, "--frames", str(args.frames)] + test))
+                                      ",".join(structures + EMBREE_ROWS), "--threads", args.threads,
+                                      "--frames", str(args.frames), "--view", args.view] + test))
         peer = median_records(peer_runs, lambda r: (r["call"], r["threads"]))
         ours = median_records(our_runs, lambda r: (r["accel"], r["threads"]))
         for threads in sorted({record["threads"] for record in peer}):
