@@ -119,8 +119,10 @@ inline void clip_slab(typename Ops::Float near_bound, typename Ops::Float far_bo
 #if defined(__AVX2__) || defined(__SSE4_1__)
 namespace wide_detail {
 
+// Always inlined: it runs at every node of the walk, and GCC's inlining budget left it an out-of-line call
+// (the ray's planes then go through memory at every node).
 template <class Ops, bool kForward>
-[[nodiscard]] inline unsigned intersect_children_simd(const float* lo_hi, const WideRay& ray, float tnear,
+[[nodiscard, gnu::always_inline]] inline unsigned intersect_children_simd(const float* lo_hi, const WideRay& ray, float tnear,
                                                       float tfar, float* entry) {
     using Float = typename Ops::Float;
     constexpr int width = Ops::kWidth;
@@ -142,7 +144,7 @@ template <class Ops, bool kForward>
 // (-march=native), intersect_children_scalar otherwise. Same hits and entry distances either way (kForward,
 // for tnear >= 0 only: clip_slab).
 template <int W, bool kForward = false>
-[[nodiscard]] inline unsigned intersect_children(const WideBvhNode<W>& node, const WideRay& ray, float tnear,
+[[nodiscard, gnu::always_inline]] inline unsigned intersect_children(const WideBvhNode<W>& node, const WideRay& ray, float tnear,
                                                  float tfar, float (&entry)[W]) {
 #if defined(__SSE4_1__)
     if constexpr (W == 4) {
