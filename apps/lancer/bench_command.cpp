@@ -331,12 +331,15 @@ std::vector<ViewRays> make_views(const std::vector<BenchView>& wanted, const Geo
             primary_hits.resize(primary.size());
             build_timed(AccelChoice{"bvh", watertight, {}}, geometry).accel->intersect(primary, primary_hits);
         }
-        views.push_back(
-            {view,
-             secondary_view_rays(view == BenchView::Diffuse ? SecondaryView::Diffuse : SecondaryView::Shadow,
-                                 geometry, primary, primary_hits),
-             {},
-             {}});
+        std::vector<Ray> rays =
+            secondary_view_rays(view == BenchView::Diffuse ? SecondaryView::Diffuse : SecondaryView::Shadow,
+                                geometry, primary, primary_hits);
+        // No camera ray hit (a mesh seen edge on): nothing to time.
+        if (rays.empty()) {
+            fmt::print("bench: the {} view has no rays: no camera ray hits the mesh\n", view_name(view));
+            continue;
+        }
+        views.push_back({view, std::move(rays), {}, {}});
     }
     return views;
 }

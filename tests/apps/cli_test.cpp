@@ -238,6 +238,12 @@ TEST_F(Cli, BenchTimesTheDiffuseAndShadowViews) {
         EXPECT_EQ(count, 3u) << view << "\n" << records;  // 3 structures, 1 thread count
     }
     EXPECT_EQ(run("bench --mesh " + mesh.string() + " --view primary,glossy").exit_code, 2);
+    // A triangle seen edge on: no camera ray hits it, so the secondary views have no rays and say so.
+    const fs::path edge_on = write("edge.off", "OFF\n3 1 0\n0 0 0\n0 1 0\n0 0 1\n3 0 1 2\n");
+    const Result empty = run("bench --mesh " + edge_on.string() +
+                             " --accel bvh --threads 1 --size 32 --frames 1 --view diffuse");
+    ASSERT_EQ(empty.exit_code, 0) << empty.output;
+    EXPECT_NE(empty.output.find("the diffuse view has no rays"), std::string::npos) << empty.output;
 }
 
 // The default mode is Whitted's: a lit scene with a mirror ball reports its rays by kind; `.exr` writes
