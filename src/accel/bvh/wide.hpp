@@ -122,8 +122,9 @@ namespace wide_detail {
 // Always inlined: it runs at every node of the walk, and GCC's inlining budget left it an out-of-line call
 // (the ray's planes then go through memory at every node).
 template <class Ops, bool kForward>
-[[nodiscard, gnu::always_inline]] inline unsigned intersect_children_simd(const float* lo_hi, const WideRay& ray, float tnear,
-                                                      float tfar, float* entry) {
+[[nodiscard, gnu::always_inline]] inline unsigned intersect_children_simd(const float* lo_hi,
+                                                                          const WideRay& ray, float tnear,
+                                                                          float tfar, float* entry) {
     using Float = typename Ops::Float;
     constexpr int width = Ops::kWidth;
     Float t0 = Ops::broadcast(tnear), t1 = Ops::broadcast(tfar);
@@ -144,8 +145,9 @@ template <class Ops, bool kForward>
 // (-march=native), intersect_children_scalar otherwise. Same hits and entry distances either way (kForward,
 // for tnear >= 0 only: clip_slab).
 template <int W, bool kForward = false>
-[[nodiscard, gnu::always_inline]] inline unsigned intersect_children(const WideBvhNode<W>& node, const WideRay& ray, float tnear,
-                                                 float tfar, float (&entry)[W]) {
+[[nodiscard, gnu::always_inline]] inline unsigned intersect_children(const WideBvhNode<W>& node,
+                                                                     const WideRay& ray, float tnear,
+                                                                     float tfar, float (&entry)[W]) {
 #if defined(__SSE4_1__)
     if constexpr (W == 4) {
         return wide_detail::intersect_children_simd<simd::Sse4, kForward>(&node.bounds[0][0][0], ray, tnear,
