@@ -3,7 +3,8 @@
 // the first structure's before it is timed, ray by ray; a disagreement fails the bench (exit code 1). The
 // canonical (primary) view's rays go to the structures in 8x8 pixel tiles, tiles in scanline order
 // (trace_frame); the secondary views' (diffuse, shadow) are made once per mesh and traced from an array in
-// memory (trace_array).
+// memory, 4096 consecutive rays a task (intersect_parallel, occluded_parallel): Embree's rows then call
+// rtcIntersectN or rtcOccludedN on consecutive rays without the COHERENT flag.
 #include <fmt/core.h>
 #include <fmt/os.h>
 #include <tbb/blocked_range.h>
@@ -256,28 +257,6 @@ void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hi
     });
 }
 
-// A secondary view is traced from its array in chunks of consecutive rays, one task each: closest hits into
-// `hits` (diffuse) or occlusion bytes into `occluded` (shadow), through the batch calls (Embree's rows:
-// rtcIntersectN and rtcOccludedN on consecutive rays, without the COHERENT flag, flush-to-zero set per
-// chunk by the wrapper).
-constexpr std::size_t kArrayChunk = 4096;
-
-void trace_array(const Accel& accel, BenchView view, std::span<const Ray> rays, std::span<Hit> hits,
-                 std::span<std::uint8_t> occluded, tbb::task_arena& arena) {
-    arena.execute([&] {
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, rays.size(), kArrayChunk),
-            [&](const tbb::blocked_range<std::size_t>& range) {
-                const std::span<const Ray> chunk = rays.subspan(range.begin(), range.size());
-                if (view == BenchView::Shadow)
-                    accel.occluded(chunk, occluded.subspan(range.begin(), range.size()));
-                else
-                    accel.intersect(chunk, hits.subspan(range.begin(), range.size()));
-            },
-            tbb::simple_partitioner());
-    });
-}
-
 // One view of one mesh: its rays (in pixel order for the primary view, as its hits are stored) and the
 // first structure's answers, which every other structure must give. The shadow view's reference is the
 // first structure's closest hits: a ray is occluded when it has one.
@@ -471,10 +450,8 @@ void run(const BenchOptions& options) {
                 ViewAnswers answers = answer_view(*built.accel, view, camera);
                 if (view.reference_name.empty()) {
                     view.reference_name = name;
-                    view.reference =
-                        view.view == BenchView::Shadow
-                            ? answer_view(*built.accel, {BenchView::Diffuse, view.rays, {}, {}}, camera).hits
-                            : answers.hits;
+                    view.reference = answers.hits;  // a shadow view's: the closest hits, made just below
+                    if (view.view == BenchView::Shadow) built.accel->intersect(view.rays, view.reference);
                 }
                 const Agreement agreement =
                     view.view == BenchView::Shadow
@@ -505,9 +482,10 @@ void run(const BenchOptions& options) {
                         Stopwatch watch;
                         if (view.view == BenchView::Primary)
                             trace_frame(*built.accel, camera, answers.hits, arena);
+                        else if (view.view == BenchView::Shadow)
+                            occluded_parallel(*built.accel, view.rays, answers.occluded, arena);
                         else
-                            trace_array(*built.accel, view.view, view.rays, answers.hits, answers.occluded,
-                                        arena);
+                            intersect_parallel(*built.accel, view.rays, answers.hits, arena);
                         if (frame >= 0) mrays.push_back(ray_count / (watch.elapsed_ms() * 1e3));
                     }
                     std::sort(mrays.begin(), mrays.end());

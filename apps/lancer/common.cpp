@@ -160,16 +160,40 @@ PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice
     return prepared;
 }
 
-void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads) {
-    // Chunks big enough to amortise the virtual call, small enough to balance two cores on uneven rays.
-    constexpr std::size_t chunk = 4096;
-    tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+namespace {
+
+// Calls trace(first, count) on chunks of kRayChunk consecutive rays of [0, ray_count), one task each, inside
+// `arena`: big enough to amortise the virtual call, small enough to balance two cores on uneven rays.
+// simple_partitioner keeps the chunks at that size, which bench/embree_reference's arrays copy.
+constexpr std::size_t kRayChunk = 4096;
+template <class Trace>
+void for_each_ray_chunk(tbb::task_arena& arena, std::size_t ray_count, Trace&& trace) {
     arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), chunk),
-                          [&](const tbb::blocked_range<std::size_t>& range) {
-                              accel.intersect(rays.subspan(range.begin(), range.size()),
-                                              hits.subspan(range.begin(), range.size()));
-                          });
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(0, ray_count, kRayChunk),
+            [&](const tbb::blocked_range<std::size_t>& range) { trace(range.begin(), range.size()); },
+            tbb::simple_partitioner());
+    });
+}
+
+}  // namespace
+
+void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits,
+                        tbb::task_arena& arena) {
+    for_each_ray_chunk(arena, rays.size(), [&](std::size_t first, std::size_t count) {
+        accel.intersect(rays.subspan(first, count), hits.subspan(first, count));
+    });
+}
+
+void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads) {
+    tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+    intersect_parallel(accel, rays, hits, arena);
+}
+
+void occluded_parallel(const Accel& accel, std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                       tbb::task_arena& arena) {
+    for_each_ray_chunk(arena, rays.size(), [&](std::size_t first, std::size_t count) {
+        accel.occluded(rays.subspan(first, count), occluded.subspan(first, count));
     });
 }
 

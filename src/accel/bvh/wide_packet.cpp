@@ -756,10 +756,9 @@ class PacketTracer {
                             prim, first, lanes, active, best, answers);
                     }
                 } else {
-                    constexpr std::array<int, 3> kXyz = {0, 1, 2};
                     const BlockEdges& block_edges = edges[b - first_block];
                     const block_detail::MollerTrumboreEdges<Ops> triangle{
-                        vertex(block, 0, lane, kXyz), broadcast_vec(block_edges.e1, lane),
+                        broadcast_vec(block.vertex[0], lane), broadcast_vec(block_edges.e1, lane),
                         broadcast_vec(block_edges.e2, lane), Ops::broadcast(block_edges.e1_scale[lane]),
                         Ops::broadcast(block_edges.e2_scale[lane])};
                     found |= take<kAnyHit>(kernel.test(triangle, tnear, best.t), prim, first, active, active,
