@@ -27,6 +27,7 @@
 #include "lancer/camera.hpp"
 #include "lancer/denormals.hpp"
 #include "lancer/generate.hpp"
+#include "lancer/isa.hpp"
 #include "lancer/views.hpp"
 
 namespace lancer::cli {
@@ -425,10 +426,14 @@ void run(const BenchOptions& options) {
     }
 
     const std::vector<BenchView> views = parse_views(options.view_list);
+    std::string isas;
+    for (SimdIsa isa : available_isas())
+        isas += (isas.empty() ? "" : ", ") + std::string(isa_name(isa));
     fmt::print(
-        "lancer bench: {}, {} hardware threads; {} {}; {}x{} canonical view, {} frames after 1 warm-up\n",
-        cpu_name(), std::thread::hardware_concurrency(), LANCER_COMPILER, LANCER_BUILD_FLAGS, options.size,
-        options.size, options.frames);
+        "lancer bench: {}, {} hardware threads; {} {}; SIMD kernels: {}; {}x{} canonical view, {} frames "
+        "after 1 warm-up\n",
+        cpu_name(), std::thread::hardware_concurrency(), LANCER_COMPILER, LANCER_BUILD_FLAGS,
+        isas.empty() ? "none" : isas, options.size, options.size, options.frames);
     fmt::print(
         "{:<16} {:<7} {:>9} {:<8} {:>3} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6} {:>8} {:>8}\n",
         "mesh", "view", "triangles", "accel", "thr", "build ms", "Mtris/s", "accel MB", "tris MB", "Mrays/s",

@@ -18,12 +18,20 @@
 namespace lancer::cli {
 namespace {
 
+AccelChoice packet_choice() {
+    AccelChoice choice;
+    choice.name = "bvh8_packet";
+    return choice;
+}
+
 struct RenderCommandOptions {
     std::string scene_file = LANCER_DEFAULT_SCENE;
     std::string output = "render.png";
     std::string size;
     ShadingMode mode = ShadingMode::Whitted;
-    AccelChoice accel;
+    // bvh8_packet: its packets take the primary rays (16 per instruction with AVX-512), and the secondary
+    // rays go through bvh8, the fastest single-ray walk (docs/results.md).
+    AccelChoice accel = packet_choice();
     std::string beside;  // a second structure that renders the same frame, for its Mrays/s
     DeviceChoice device;
     int threads = 0;
@@ -90,9 +98,11 @@ void render_beside(const RenderCommandOptions& options, const SceneGeometry& geo
                    other_stats.total_rays(), built.accel->name(), stats.total_rays());
 }
 
-void run(const RenderCommandOptions& options) {
+void run(RenderCommandOptions options) {
     if (options.device.cuda() && options.mode != ShadingMode::Flat && options.mode != ShadingMode::Heatmap)
         throw InputError("--device cuda renders --mode flat or heatmap only");
+    // The GPU's kernels walk bvh and plucker.
+    if (options.device.cuda() && options.accel.name_option->count() == 0) options.accel.name = "bvh";
     options.device.require_available();
     if (!options.beside.empty()) {
         if (options.device.cuda())

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "lancer/box.hpp"
+#include "lancer/isa.hpp"
 #include "lancer/packet.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
@@ -95,13 +96,16 @@ struct BuildOptions {
     KdTreeOptions kdtree;
     BvhOptions bvh;
     EmbreeQuality embree_quality = EmbreeQuality::High;
+    // The instruction set of the kernels built for more than one (lancer/isa.hpp): today bvh8_packet's.
+    SimdIsa isa = SimdIsa::Auto;
 };
 
 // Sets one option from "KEY=VALUE", as `--set` gives it: grid.density, octree.max_depth, octree.leaf_size,
 // plucker.max_depth, plucker.leaf_size, plucker.balanced, plucker.stored_boxes, plucker.morton (true |
 // false), kdtree.cost (wald-havran | seed003), kdtree.traversal_cost, kdtree.intersection_cost,
 // kdtree.empty_bonus, kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins,
-// bvh.spatial_splits (true | false), embree.quality (high | medium). Throws std::invalid_argument naming the
+// bvh.spatial_splits (true | false), embree.quality (high | medium), simd.isa (auto | avx2 | avx512, of
+// those available). Throws std::invalid_argument naming the
 // key and the values it accepts.
 void set_build_option(BuildOptions& options, std::string_view assignment);
 

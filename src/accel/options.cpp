@@ -96,6 +96,20 @@ const std::map<std::string, Setter, std::less<>>& setters() {
         {"bvh.bins", [](BuildOptions& o, auto k, auto v) { o.bvh.bins = parse_number(k, v, 2, 256); }},
         {"bvh.spatial_splits",
          [](BuildOptions& o, auto k, auto v) { o.bvh.spatial_splits = parse_bool(k, v); }},
+        {"simd.isa",
+         [](BuildOptions& o, auto k, auto v) {
+             // Only what this build and CPU run: a request for more fails here, not at the build.
+             std::string accepted = "auto";
+             for (SimdIsa isa : {SimdIsa::Auto, SimdIsa::Avx2, SimdIsa::Avx512}) {
+                 if (isa != SimdIsa::Auto && isa_available(isa))
+                     accepted += " or " + std::string(isa_name(isa));
+                 if (v == isa_name(isa) && isa_available(isa)) {
+                     o.isa = isa;
+                     return;
+                 }
+             }
+             fail(k, v, accepted + " (the instruction sets this build and CPU run)");
+         }},
     };
     return table;
 }

@@ -15,7 +15,12 @@
 #include <immintrin.h>
 #endif
 
+#include "core/isa_namespace.hpp"
+
+// An inline namespace per instruction set (core/isa_namespace.hpp): every template on these types, the
+// triangle block and box tests among them, then differs by name between an AVX2 and an AVX-512 compilation.
 namespace lancer::simd {
+inline namespace LANCER_ISA_NAMESPACE {
 
 #if defined(__SSE4_1__)
 struct Sse4 {
@@ -160,6 +165,12 @@ struct Avx2 {
 #endif
 
 #if defined(__AVX512F__) && defined(__AVX512DQ__)
+inline constexpr bool kHasAvx512 = true;
+#else
+inline constexpr bool kHasAvx512 = false;
+#endif
+
+#if defined(__AVX512F__) && defined(__AVX512DQ__)
 struct Avx512 {
     using Float = __m512;
     using Mask = __mmask16;
@@ -276,4 +287,5 @@ struct Avx512 {
 };
 #endif
 
+}  // namespace LANCER_ISA_NAMESPACE
 }  // namespace lancer::simd

@@ -9,12 +9,15 @@
 #include <limits>
 #include <numbers>
 
+#include "core/isa_namespace.hpp"
 #include "core/vec3d.hpp"
 #include "lancer/box.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
 
 namespace lancer {
+// Per instruction set (core/isa_namespace.hpp): the kernels compiled for AVX-512 call these too.
+inline namespace LANCER_ISA_NAMESPACE {
 
 // Bound on the relative rounding error of n chained fp32 operations (pbrt-v4, section 6.8.1).
 [[nodiscard]] constexpr float gamma_bound(int n) {
@@ -327,4 +330,5 @@ enum class PlaneCase {
     return classify_plane(ray, plane, tnear, t) == PlaneCase::Ahead && t <= tfar;
 }
 
+}  // namespace LANCER_ISA_NAMESPACE
 }  // namespace lancer

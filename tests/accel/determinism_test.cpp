@@ -111,7 +111,7 @@ TEST_P(Determinism, HitsAreBitIdenticalWhateverTheThreadsAndTheRun) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Structures, Determinism,
-                         ::testing::ValuesIn(testing::with_spatial_splits(accel_names())),
+                         ::testing::ValuesIn(testing::agreement_configurations(accel_names())),
                          [](const auto& param_info) { return param_info.param.label(); });
 
 }  // namespace

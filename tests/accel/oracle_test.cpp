@@ -184,7 +184,7 @@ std::vector<testing::Configuration> structures_under_test() {
     std::vector<std::string_view> names = accel_names();
     std::erase(names, std::string_view("brute"));
     std::erase_if(names, [](std::string_view name) { return name.starts_with("embree"); });
-    return testing::with_spatial_splits(names);
+    return testing::agreement_configurations(names);
 }
 
 INSTANTIATE_TEST_SUITE_P(Structures, OracleTest, ::testing::ValuesIn(structures_under_test()),

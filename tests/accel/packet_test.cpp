@@ -1,10 +1,10 @@
 // The packet structures against their single-ray siblings, bit for bit (bvh_packet / bvh, bvh8_packet / bvh8
-// with each of its vector widths, plucker_packet / plucker; the BVH pairs again built with spatial splits),
-// and against brute force, on the batches that reach the packet code: tiles of a pinhole camera (coherent),
-// rays of mixed direction signs (bvh_packet's fallback), batches that end in a partial packet, rays clipped
-// by tnear and tfar, zero direction components and invalid rays inside coherent packets. The oracle test's
-// ray sets have random directions, so most of their packets are incoherent: here the same adversarial sets
-// are sorted by direction octant, which makes their packets coherent.
+// with the kernels of each instruction set, plucker_packet / plucker; the BVH pairs again built with spatial
+// splits), and against brute force, on the batches that reach the packet code: tiles of a pinhole camera
+// (coherent), rays of mixed direction signs (bvh_packet's fallback), batches that end in a partial packet,
+// rays clipped by tnear and tfar, zero direction components and invalid rays inside coherent packets. The
+// oracle test's ray sets have random directions, so most of their packets are incoherent: here the same
+// adversarial sets are sorted by direction octant, which makes their packets coherent.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -25,37 +25,36 @@ namespace {
 
 using testing::TestScene;
 
-// `lanes`: for bvh8_packet, the vector width its kernels run at (0: the registry's, the widest).
+// `isa`: the instruction set of bvh8_packet's kernels (Auto: the widest available).
 // `spatial_splits`: both structures built with bvh.spatial_splits.
 struct Pair {
     std::string_view packet, single;
-    int lanes = 0;
+    SimdIsa isa = SimdIsa::Auto;
     bool spatial_splits = false;
 
     [[nodiscard]] std::string label() const {
         std::string label(packet);
-        if (lanes != 0) label.append("_").append(std::to_string(lanes)).append("_lanes");
+        if (isa != SimdIsa::Auto) label.append("_").append(isa_name(isa));
         if (spatial_splits) label.append("_spatial_splits");
         return label;
     }
     [[nodiscard]] BuildOptions options(TriangleTest test) const {
         BuildOptions options = build_options(test);
         options.bvh.spatial_splits = spatial_splits;
+        options.isa = isa;
         return options;
     }
-    [[nodiscard]] std::unique_ptr<Accel> make_packet() const {
-        return lanes == 0 ? make_accel(packet) : std::make_unique<WidePacketAccel>(lanes);
-    }
+    [[nodiscard]] std::unique_ptr<Accel> make_packet() const { return make_accel(packet); }
 };
 
 std::vector<Pair> pairs() {
     std::vector<Pair> all = {{"bvh_packet", "bvh"},
                              {"bvh8_packet", "bvh8"},
                              {"plucker_packet", "plucker"},
-                             {"bvh_packet", "bvh", 0, true},
-                             {"bvh8_packet", "bvh8", 0, true}};
-    // The AVX2 kernels where the registry's row runs the AVX-512 ones: both paths are tested.
-    if (WidePacketAccel::widest_lane_count() > 8) all.push_back({"bvh8_packet", "bvh8", 8});
+                             {"bvh_packet", "bvh", SimdIsa::Auto, true},
+                             {"bvh8_packet", "bvh8", SimdIsa::Auto, true}};
+    // The AVX2 kernels where the widest are AVX-512: both paths are tested.
+    if (isa_available(SimdIsa::Avx512)) all.push_back({"bvh8_packet", "bvh8", SimdIsa::Avx2});
     return all;
 }
 
@@ -334,17 +333,24 @@ TEST(PacketCall, RefusesASizeOutsideThePacket) {
     }
 }
 
-// bvh8_packet runs the widest kernels this build has, or the AVX2 ones beside AVX-512: nothing else.
-TEST(WidePacket, LaneCountsOtherThanTheBuildsAreRefused) {
-    const int widest = WidePacketAccel::widest_lane_count();
-    EXPECT_EQ(WidePacketAccel().lane_count(), widest);
-    EXPECT_NO_THROW(WidePacketAccel{widest});
-    for (int lanes : {0, 2, 4, 32, widest * 2})
-        EXPECT_THROW(WidePacketAccel{lanes}, std::invalid_argument) << lanes;
-    if (widest == 16) {
-        EXPECT_NO_THROW(WidePacketAccel{8});
-    } else {
-        EXPECT_THROW(WidePacketAccel{16}, std::invalid_argument);
+// bvh8_packet runs the widest kernels by default, and those asked for: 16 lanes with AVX-512, 8 with AVX2.
+TEST(WidePacket, RunsTheKernelsOfTheInstructionSetAskedFor) {
+    const TestScene scene = scenes()[0];
+    WidePacketAccel widest;
+    widest.build(scene.geometry(), build_options(TriangleTest::MollerTrumbore));
+    EXPECT_EQ(widest.lane_count(), isa_available(SimdIsa::Avx512) ? 16 : 8);
+    for (SimdIsa isa : available_isas()) {
+        BuildOptions options = build_options(TriangleTest::MollerTrumbore);
+        options.isa = isa;
+        WidePacketAccel accel;
+        accel.build(scene.geometry(), options);
+        EXPECT_EQ(accel.lane_count(), isa == SimdIsa::Avx512 ? 16 : 8) << isa_name(isa);
+    }
+    if (!isa_available(SimdIsa::Avx512)) {
+        BuildOptions options = build_options(TriangleTest::MollerTrumbore);
+        options.isa = SimdIsa::Avx512;
+        WidePacketAccel accel;
+        EXPECT_THROW(accel.build(scene.geometry(), options), std::invalid_argument);
     }
 }
 

@@ -1,0 +1,41 @@
+// The entry points of bvh8_packet's kernel (wide_packet_kernel.cpp), one table per instruction set it is
+// compiled for, so that WidePacketAccel chooses at run time (lancer/isa.hpp) and the library's baseline
+// stays AVX2.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "accel/bvh/wide.hpp"
+#include "core/isa_namespace.hpp"
+#include "lancer/accel.hpp"
+
+namespace lancer {
+
+// Rays traced together: one 8x8 tile of `lancer bench`, and the 64 bits of a lane mask.
+inline constexpr int kWidePacketSize = 64;
+static_assert(kWidePacketSize == RayPacket::kMaxSize, "a RayPacket is traced as one packet");
+
+struct WidePacketKernels {
+    int lane_count;  // rays per instruction of the box and triangle tests
+    void (*intersect)(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
+                      std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters);
+    void (*occluded)(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
+                     std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                     TraversalCounters* counters);
+    void (*intersect_packet)(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
+                             const RayPacket& rays, HitPacket& hits, TraversalCounters* counters);
+};
+
+#if defined(__AVX2__)
+namespace avx2 {
+[[nodiscard]] const WidePacketKernels& wide_packet_kernels();
+}
+#endif
+#if LANCER_HAS_AVX512_KERNELS
+namespace avx512 {
+[[nodiscard]] const WidePacketKernels& wide_packet_kernels();
+}
+#endif
+
+}  // namespace lancer
