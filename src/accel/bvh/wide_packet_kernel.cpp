@@ -1,6 +1,6 @@
 // The kernel of bvh8_packet (wide_packet.hpp): this one source is compiled once per instruction set, by
 // lancer_core for AVX2 (8 rays per instruction) and by lancer_kernels_avx512 for AVX-512 (16), each into its
-// own namespace (core/isa.hpp), and WidePacketAccel picks one at build time (lancer/isa.hpp).
+// own namespace (core/isa_namespace.hpp), and WidePacketAccel picks one when it is built (lancer/isa.hpp).
 #include "accel/bvh/wide_packet_kernel.hpp"
 
 #include <algorithm>
