@@ -3,7 +3,6 @@
 // rendered again with structure NAME (Embree's, typically) and its Mrays/s beside the first.
 #include <fmt/core.h>
 
-#include <algorithm>
 #include <cctype>
 #include <filesystem>
 #include <map>
@@ -18,20 +17,12 @@
 namespace lancer::cli {
 namespace {
 
-AccelChoice packet_choice() {
-    AccelChoice choice;
-    choice.name = "bvh8_packet";
-    return choice;
-}
-
 struct RenderCommandOptions {
     std::string scene_file = LANCER_DEFAULT_SCENE;
     std::string output = "render.png";
     std::string size;
     ShadingMode mode = ShadingMode::Whitted;
-    // bvh8_packet: its packets take the primary rays (16 per instruction with AVX-512), and the secondary
-    // rays go through bvh8, the fastest single-ray walk (docs/results.md).
-    AccelChoice accel = packet_choice();
+    AccelChoice accel;
     std::string beside;  // a second structure that renders the same frame, for its Mrays/s
     DeviceChoice device;
     int threads = 0;
@@ -107,9 +98,12 @@ void run(RenderCommandOptions options) {
     if (!options.beside.empty()) {
         if (options.device.cuda())
             throw InputError("--beside compares structures on the CPU: leave out --device cuda");
-        const auto names = accel_names();
-        if (std::find(names.begin(), names.end(), options.beside) == names.end())
-            throw InputError("--beside: unknown structure '" + options.beside + "'");
+        // Before the first render, not after it.
+        try {
+            static_cast<void>(make_accel(options.beside));
+        } catch (const std::invalid_argument& error) {
+            throw InputError(std::string("--beside: ") + error.what());
+        }
     }
     const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
     const LoadedScene& loaded = prepared.loaded;
@@ -185,6 +179,9 @@ void add_render_command(CLI::App& app) {
     command->add_flag("--fresnel", options->fresnel,
                       "Whitted mode: split transmission between reflection and refraction by Fresnel's "
                       "equations");
+    // bvh8_packet by default: its packets take the primary rays (16 per instruction with AVX-512), and the
+    // secondary rays go through bvh8, the fastest single-ray walk (docs/results.md).
+    options->accel.name = "bvh8_packet";
     options->accel.add_options(*command);
     command->add_option("--beside", options->beside,
                         "Render the frame again with this structure (e.g. embree, embree16) and print its "

@@ -99,15 +99,15 @@ const std::map<std::string, Setter, std::less<>>& setters() {
         {"simd.isa",
          [](BuildOptions& o, auto k, auto v) {
              // Only what this build and CPU run: a request for more fails here, not at the build.
-             std::string accepted = "auto";
              for (SimdIsa isa : {SimdIsa::Auto, SimdIsa::Avx2, SimdIsa::Avx512}) {
-                 if (isa != SimdIsa::Auto && isa_available(isa))
-                     accepted += " or " + std::string(isa_name(isa));
                  if (v == isa_name(isa) && isa_available(isa)) {
                      o.isa = isa;
                      return;
                  }
              }
+             std::string accepted = "auto";
+             for (SimdIsa isa : available_isas())
+                 accepted += " or " + std::string(isa_name(isa));
              fail(k, v, accepted + " (the instruction sets this build and CPU run)");
          }},
     };

@@ -165,12 +165,6 @@ struct Avx2 {
 #endif
 
 #if defined(__AVX512F__) && defined(__AVX512DQ__)
-inline constexpr bool kHasAvx512 = true;
-#else
-inline constexpr bool kHasAvx512 = false;
-#endif
-
-#if defined(__AVX512F__) && defined(__AVX512DQ__)
 struct Avx512 {
     using Float = __m512;
     using Mask = __mmask16;

@@ -22,8 +22,7 @@ namespace {
     const auto prim = static_cast<std::size_t>(hit.prim);
     Vec3f normal;
     if (prim < geometry.triangles.size()) {
-        const Triangle& tri = geometry.triangles[prim];
-        normal = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+        normal = normalize(geometry.triangles[prim].geometric_normal());
     } else {
         normal = normalize(point - geometry.spheres[prim - geometry.triangles.size()].center);
     }

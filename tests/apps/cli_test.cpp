@@ -265,7 +265,8 @@ TEST_F(Cli, RenderBesideASecondStructure) {
     EXPECT_EQ(result.output.find("traced"), std::string::npos) << result.output;
     result = run("render " + scene.string() + " --beside nope -o " + png.string());
     EXPECT_EQ(result.exit_code, 2) << result.output;
-    EXPECT_NE(result.output.find("--beside: unknown structure 'nope'"), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find("--beside: unknown acceleration structure 'nope'"), std::string::npos)
+        << result.output;
 }
 
 TEST_F(Cli, RenderDefaultsToWhittedAndWritesExr) {

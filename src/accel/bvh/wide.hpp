@@ -142,8 +142,8 @@ template <class Ops, bool kForward>
 #endif
 
 // The wide box test the traversal uses: SSE for 4 children and AVX2 for 8 where the compiler targets them
-// (-march=native), intersect_children_scalar otherwise. Same hits and entry distances either way (kForward,
-// for tnear >= 0 only: clip_slab).
+// (the AVX2 baseline, docs/isa.md), intersect_children_scalar otherwise. Same hits and entry distances either
+// way (kForward, for tnear >= 0 only: clip_slab).
 template <int W, bool kForward = false>
 [[nodiscard, gnu::always_inline]] inline unsigned intersect_children(const WideBvhNode<W>& node,
                                                                      const WideRay& ray, float tnear,

@@ -6,16 +6,21 @@
 namespace lancer {
 namespace {
 
-// The kernels of `isa` (resolved), or none in a build without AVX2.
-const WidePacketKernels* kernels_for([[maybe_unused]] SimdIsa isa) {
-    if (available_isas().empty()) return nullptr;
+// The kernels of `isa`, or none where a build without AVX2 has none (bvh8 then traces every ray).
+const WidePacketKernels* kernels_for(SimdIsa isa) {
+    if (isa == SimdIsa::Auto && available_isas().empty()) return nullptr;
+    switch (resolve_isa(isa)) {
 #if LANCER_HAS_AVX512_KERNELS
-    if (resolve_isa(isa) == SimdIsa::Avx512) return &avx512::wide_packet_kernels();
+        case SimdIsa::Avx512:
+            return &avx512::wide_packet_kernels();
 #endif
 #if defined(__AVX2__)
-    if (resolve_isa(isa) == SimdIsa::Avx2) return &avx2::wide_packet_kernels();
+        case SimdIsa::Avx2:
+            return &avx2::wide_packet_kernels();
 #endif
-    return nullptr;
+        default:
+            return nullptr;
+    }
 }
 
 }  // namespace

@@ -922,7 +922,6 @@ void trace_soa_packet(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTe
 }
 
 #if defined(LANCER_KERNEL_AVX512)
-static_assert(simd::kHasAvx512, "lancer_kernels_avx512 is compiled without AVX-512F and AVX-512DQ");
 using KernelOps = simd::Avx512;
 #else
 using KernelOps = simd::Avx2;
