@@ -418,7 +418,7 @@ void EmbreeAccel::intersect_with_flags(std::span<const Ray> rays, std::span<Hit>
 // not taken as it is, or the scene is scaled, the packet takes the batch path, which maps rays one by one.
 void EmbreeAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                                         TraversalCounters* counters) const {
-    if (packet_width_ == 1 || scene_scale_ != 1.0f) {
+    if (scene_scale_ != 1.0f) {
         Accel::intersect_packet_rays(rays, hits, counters);
         return;
     }
