@@ -294,17 +294,14 @@ class BinnedBuilder {
     static constexpr int kMaxBins = 256;
     static constexpr std::size_t kParallelSubtree = 4096;
     static constexpr std::size_t kParallelBinning = 65536;
-    // Below this many references, the exact sweep over the node's own sorted centroids is both better and
-    // cheaper than clearing and scanning the bins.
+    // Subtrees of at most this many references are built by SmallSubtree: the exact sweep over their sorted
+    // centroids is both better and cheaper than clearing and scanning the bins.
     static constexpr std::size_t kExactSplitBelow = 32;
     // Stich et al.'s alpha ("restricting spatial split attempts"): a spatial split is tried only where the
     // object split's children overlap by more than this share of the root's area.
     static constexpr float kMinOverlap = 1e-5f;
     // Planes tried per axis by a spatial split, as Embree's SBVH builder (HeuristicArraySpatialSAH).
     static constexpr int kSpatialBins = 16;
-
-    // Offsets from a node's first reference, for the exact split's orders.
-    using ExactOrder = std::array<std::uint8_t, kExactSplitBelow>;
 
     // An object split and its children's boxes, whose overlap decides whether a spatial split is tried.
     struct ObjectSplit {
@@ -327,64 +324,16 @@ class BinnedBuilder {
         NodeBounds left_bounds, right_bounds;
     };
 
-    // Every boundary between consecutive centroids on each axis, in centroid order (ties by primitive
-    // index), for a node of at most kExactSplitBelow references; `best_order` receives the order of the
-    // chosen axis, which the caller applies (no second sort to partition), and the boxes are swept four
-    // floats at a time.
-    Split exact_split(std::size_t begin, std::size_t end, ExactOrder& best_order) const {
-        const std::size_t count = end - begin;
-        std::array<BinBox, kExactSplitBelow> boxes;
-        // Padding past `count` sorts after every reference: its key is +inf, above every centroid.
-        std::array<float, kExactSplitBelow> keys;
-        std::array<std::uint32_t, kExactSplitBelow> prims;
-        keys.fill(kInfinity);
-        prims.fill(std::numeric_limits<std::uint32_t>::max());
-        for (std::size_t i = 0; i < count; ++i) {
-            const BuildRef& ref = refs_[begin + i];
-            boxes[i] = BinBox::of(ref);
-            prims[i] = ref.prim;
-        }
-        ExactOrder order;
-        std::array<float, kExactSplitBelow> right_areas{};
-        Split best;
-        for (int axis = 0; axis < 3; ++axis) {
-            for (std::size_t i = 0; i < count; ++i)
-                keys[i] = refs_[begin + i].centroid[axis];
-            // centroid_less's order by ranks: reference i goes where the count of references before it says.
-            // Branch-free compares over fixed-size arrays, where an insertion sort mispredicts half of its.
-            for (std::size_t i = 0; i < count; ++i) {
-                std::uint32_t rank = 0;
-                for (std::size_t j = 0; j < kExactSplitBelow; ++j) {
-                    rank += static_cast<std::uint32_t>((keys[j] < keys[i]) |
-                                                       ((keys[j] == keys[i]) & (prims[j] < prims[i])));
-                }
-                order[rank] = static_cast<std::uint8_t>(i);
-            }
-            BinBox right;
-            for (std::size_t i = count - 1; i > 0; --i) {
-                right.extend(boxes[order[i]]);
-                right_areas[i] = right.box().surface_area();
-            }
-            BinBox left;
-            bool improved = false;
-            for (std::size_t i = 0; i + 1 < count; ++i) {
-                left.extend(boxes[order[i]]);
-                if (keys[order[i]] == keys[order[i + 1]]) continue;
-                const float cost = left.box().surface_area() * static_cast<float>(i + 1) +
-                                   right_areas[i + 1] * static_cast<float>(count - i - 1);
-                if (cost < best.cost) best = {axis, cost, i + 1, 0}, improved = true;
-            }
-            if (improved) best_order = order;
-        }
-        return best;
-    }
-
     // A box as two 4-float rows (the fourth lane unused), so that extending one is one vector min and one
-    // vector max: binning extends a bin's box three times per reference.
+    // vector max: binning extends a bin's box three times per reference. Default construction leaves it
+    // uninitialised, so that a node's Bins clear only the bins it uses; `none()` is the empty box.
     struct BinBox {
 #if defined(__SSE2__)
-        __m128 lo = _mm_set1_ps(kInfinity);
-        __m128 hi = _mm_set1_ps(-kInfinity);
+        __m128 lo, hi;
+
+        [[nodiscard]] static BinBox none() {
+            return {_mm_set1_ps(kInfinity), _mm_set1_ps(-kInfinity)};
+        }
 
         // A reference's box: the loads read lo.xyz and hi.x, then hi.xyz and centroid.x, all inside the
         // BuildRef; the fourth lane is never read back.
@@ -424,6 +373,9 @@ class BinnedBuilder {
 #else
         Box3f bounds;
 
+        [[nodiscard]] static BinBox none() {
+            return {};
+        }
         [[nodiscard]] static BinBox of(const BuildRef& ref) {
             return {ref.bounds};
         }
@@ -458,7 +410,7 @@ class BinnedBuilder {
 
         explicit Bins(int bin_count) {
             for (std::size_t axis = 0; axis < 3; ++axis) {
-                std::fill_n(boxes[axis].begin(), bin_count, BinBox{});
+                std::fill_n(boxes[axis].begin(), bin_count, BinBox::none());
                 std::fill_n(counts[axis].begin(), bin_count, 0u);
             }
         }
@@ -494,7 +446,8 @@ class BinnedBuilder {
     // the way: the children's NodeBounds without another pass over their references.
     std::tuple<std::size_t, NodeBounds, NodeBounds> partition(std::size_t begin, std::size_t end,
                                                               const BinMap& map, const Split& split) {
-        BinBox left_boxes, right_boxes, left_centroids, right_centroids;
+        BinBox left_boxes = BinBox::none(), right_boxes = BinBox::none();
+        BinBox left_centroids = BinBox::none(), right_centroids = BinBox::none();
         auto goes_left = [&](const BuildRef& ref) { return map.bin(ref.centroid, split.axis) < split.bin; };
         auto add = [](BinBox& boxes, BinBox& centroids, const BuildRef& ref) {
             boxes.extend(BinBox::of(ref));
@@ -604,7 +557,7 @@ class BinnedBuilder {
         }
         ObjectSplit object{best, {}, {}};
         if (spatial_splits_ && best.axis >= 0) {
-            BinBox left, right;
+            BinBox left = BinBox::none(), right = BinBox::none();
             for (int b = 0; b < bins_; ++b)
                 (b < best.bin ? left : right).extend(bins.boxes[static_cast<std::size_t>(best.axis)][b]);
             object.left_bounds = left.box(), object.right_bounds = right.box();
@@ -616,17 +569,17 @@ class BinnedBuilder {
     void build(NodeSlots& slots, std::size_t slot, const RefRange& range, int depth, const NodeBounds& node) {
         const auto& [bounds, centroids] = node;
         const std::size_t count = range.size();
-        const bool exact = count <= kExactSplitBelow;
-        const BinMap map(centroids, bins_);
-        ObjectSplit object;
-        ExactOrder exact_order;
-        SpatialSplit spatial;
-        if (depth < kMedianSplitDepth && exact) {
+        if (count <= kExactSplitBelow) {
             // No spatial split here: the references are large beside the node and cross most of its bins, so
             // chopped binning would cost the most per reference, for the least gain (docs/accel/bvh.md,
             // "Spatial splits": half the bunny's build time, for at most 0.5% of the SAH cost).
-            object.split = exact_split(range.begin, range.end, exact_order);
-        } else if (depth < kMedianSplitDepth) {
+            SmallSubtree(*this, slots, range).build(slot, range, depth, bounds);
+            return;
+        }
+        const BinMap map(centroids, bins_);
+        ObjectSplit object;
+        SpatialSplit spatial;
+        if (depth < kMedianSplitDepth) {
             object = best_split(range.begin, range.end, map, centroids);
             if (worth_a_spatial_split(range, object)) spatial = best_spatial_split(range, bounds);
         }
@@ -638,7 +591,7 @@ class BinnedBuilder {
         }
         std::optional<Children> children;
         if (spatial_is_better) children = spatial_partition(range, bounds, spatial);
-        if (!children) children = object_partition(range, object.split, map, exact_order, centroids);
+        if (!children) children = object_partition(range, object.split, map, centroids);
         const auto [first, second] = slots.set_inner(slot, bounds, children->axis, children->left.capacity());
 #if LANCER_HAS_TBB
         if (count > kParallelSubtree) {
@@ -657,34 +610,23 @@ class BinnedBuilder {
         build(slots, second, children->right, depth + 1, children->right_bounds);
     }
 
-    // The object split's children: the binned partition, the exact split's order, or an object median when
-    // nothing separates the centroids.
-    Children object_partition(const RefRange& range, Split split, const BinMap& map,
-                              const ExactOrder& exact_order, const Box3f& centroids) {
+    // The object split's children: the binned partition, or an object median when nothing separates the
+    // centroids.
+    Children object_partition(const RefRange& range, Split split, const BinMap& map, const Box3f& centroids) {
         const std::size_t begin = range.begin, end = range.end, count = range.size();
         Children children;
         std::size_t middle;
-        if (split.axis >= 0 && count > kExactSplitBelow) {
+        if (split.axis >= 0) {
             std::tie(middle, children.left_bounds, children.right_bounds) = partition(begin, end, map, split);
         } else {
-            if (split.axis >= 0) {
-                // The exact split's order on its axis.
-                std::array<BuildRef, kExactSplitBelow> node_refs;
-                std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                          refs_.begin() + static_cast<std::ptrdiff_t>(end), node_refs.begin());
-                for (std::size_t i = 0; i < count; ++i)
-                    refs_[begin + i] = node_refs[exact_order[i]];
-            } else {
-                // An object median when nothing separates the centroids.
-                split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
-                const int median_axis = split.axis;
-                std::nth_element(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
-                                 refs_.begin() + static_cast<std::ptrdiff_t>(begin + split.left_count),
-                                 refs_.begin() + static_cast<std::ptrdiff_t>(end),
-                                 [median_axis](const BuildRef& a, const BuildRef& b) {
-                                     return centroid_less(a, b, median_axis);
-                                 });
-            }
+            split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
+            const int median_axis = split.axis;
+            std::nth_element(refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+                             refs_.begin() + static_cast<std::ptrdiff_t>(begin + split.left_count),
+                             refs_.begin() + static_cast<std::ptrdiff_t>(end),
+                             [median_axis](const BuildRef& a, const BuildRef& b) {
+                                 return centroid_less(a, b, median_axis);
+                             });
             middle = begin + split.left_count;
             children.left_bounds = bounds_of(begin, middle), children.right_bounds = bounds_of(middle, end);
         }
@@ -714,6 +656,147 @@ class BinnedBuilder {
         return {{range.begin, range.begin + left_count, right_begin},
                 {right_begin, right_begin + right_count, range.capacity_end}};
     }
+
+    // ---------------------------------------------------------------------------------------------------
+    // A subtree of at most kExactSplitBelow references: every boundary between consecutive centroids on
+    // each axis is a candidate. The three centroid orders (centroid_less) are ranked once, at the
+    // subtree's root, and each split hands its children their orders by a stable partition (seed 002's
+    // "trier une seule fois par axe"): ranking them again at every node took over half of the dragon's
+    // build. The tree is the one that ranking at every node gives.
+    class SmallSubtree {
+      public:
+        SmallSubtree(BinnedBuilder& builder, NodeSlots& slots, const RefRange& range)
+            : builder_(builder), slots_(slots) {
+            const std::size_t count = range.size();
+            // Padding sorts after every reference: its key is +inf, above every centroid.
+            std::array<std::uint32_t, kExactSplitBelow> prims;
+            prims.fill(std::numeric_limits<std::uint32_t>::max());
+            for (auto& axis_keys : keys_)
+                axis_keys.fill(kInfinity);
+            for (std::size_t i = 0; i < count; ++i) {
+                const BuildRef& ref = builder.refs_[range.begin + i];
+                refs_[i] = ref, boxes_[i] = BinBox::of(ref), prims[i] = ref.prim;
+                for (std::size_t axis = 0; axis < 3; ++axis)
+                    keys_[axis][i] = ref.centroid[static_cast<int>(axis)];
+            }
+            // Reference i goes where the count of references before it says: branch-free compares over
+            // fixed-size arrays, which GCC vectorizes, where an insertion sort mispredicts half of its.
+            for (std::size_t axis = 0; axis < 3; ++axis) {
+                const auto& keys = keys_[axis];
+                for (std::size_t i = 0; i < count; ++i) {
+                    std::uint32_t rank = 0;
+                    for (std::size_t j = 0; j < kExactSplitBelow; ++j) {
+                        rank += static_cast<std::uint32_t>((keys[j] < keys[i]) |
+                                                           ((keys[j] == keys[i]) & (prims[j] < prims[i])));
+                    }
+                    orders_[axis][rank] = static_cast<std::uint8_t>(i);
+                }
+            }
+        }
+
+        // The node whose references are at positions [first, first + range.size()) of every order, and whose
+        // references' array order is that of `arrival_axis`'s order there (its parent's split axis; -1: the
+        // order they came in, for the subtree's root).
+        void build(std::size_t slot, const RefRange& range, int depth, const Box3f& bounds,
+                   std::size_t first = 0, int arrival_axis = -1) {
+            const std::size_t count = range.size();
+            Split split = depth < kMedianSplitDepth ? best_split(first, count) : Split{};
+            if (stays_leaf(count, bounds.surface_area(), split, builder_.max_leaf_)) {
+                slots_.set_leaf(slot, bounds, range.begin, count);
+                for (std::size_t i = 0; i < count; ++i) {
+                    const std::size_t local =
+                        arrival_axis < 0 ? i : orders_[static_cast<std::size_t>(arrival_axis)][first + i];
+                    builder_.refs_[range.begin + i] = refs_[local];
+                }
+                return;
+            }
+            // An object median when nothing separates the centroids, or past kMedianSplitDepth.
+            if (split.axis < 0)
+                split = {max_axis(centroid_bounds(first, count).extent()), 0.0f, count / 2, 0};
+            partition(first, count, split);
+            const std::size_t left_count = split.left_count, right_count = count - left_count;
+            const auto [left, right] = share_free_positions(range, left_count, right_count);
+            const Box3f left_bounds = bounds_of(split.axis, first, left_count);
+            const Box3f right_bounds = bounds_of(split.axis, first + left_count, right_count);
+            const auto [first_slot, second_slot] =
+                slots_.set_inner(slot, bounds, split.axis, left.capacity());
+            build(first_slot, left, depth + 1, left_bounds, first, split.axis);
+            build(second_slot, right, depth + 1, right_bounds, first + left_count, split.axis);
+        }
+
+      private:
+        // The node's cheapest boundary on each axis, its boxes swept four floats at a time.
+        [[nodiscard]] Split best_split(std::size_t first, std::size_t count) const {
+            Split best;
+            std::array<float, kExactSplitBelow> right_areas{};
+            for (std::size_t axis = 0; axis < 3; ++axis) {
+                const std::uint8_t* order = orders_[axis].data() + first;
+                const auto& keys = keys_[axis];
+                BinBox right = BinBox::none();
+                for (std::size_t i = count - 1; i > 0; --i) {
+                    right.extend(boxes_[order[i]]);
+                    right_areas[i] = right.box().surface_area();
+                }
+                BinBox left = BinBox::none();
+                for (std::size_t i = 0; i + 1 < count; ++i) {
+                    left.extend(boxes_[order[i]]);
+                    // A boundary between equal centroids would not separate anything a ray could tell apart.
+                    if (keys[order[i]] == keys[order[i + 1]]) continue;
+                    const float cost = left.box().surface_area() * static_cast<float>(i + 1) +
+                                       right_areas[i + 1] * static_cast<float>(count - i - 1);
+                    if (cost < best.cost) best = {static_cast<int>(axis), cost, i + 1, 0};
+                }
+            }
+            return best;
+        }
+
+        // The first split.left_count references of the split axis's order go left; every order keeps its
+        // sequence on both sides.
+        void partition(std::size_t first, std::size_t count, const Split& split) {
+            const auto split_axis = static_cast<std::size_t>(split.axis);
+            std::array<bool, kExactSplitBelow> on_left{};
+            for (std::size_t i = 0; i < split.left_count; ++i)
+                on_left[orders_[split_axis][first + i]] = true;
+            for (std::size_t axis = 0; axis < 3; ++axis) {
+                if (axis == split_axis) continue;
+                std::uint8_t* order = orders_[axis].data() + first;
+                std::array<std::uint8_t, kExactSplitBelow> right;
+                std::size_t left_end = 0, right_end = 0;
+                for (std::size_t i = 0; i < count; ++i) {
+                    if (on_left[order[i]]) {
+                        order[left_end++] = order[i];
+                    } else {
+                        right[right_end++] = order[i];
+                    }
+                }
+                std::copy_n(right.begin(), right_end, order + left_end);
+            }
+        }
+
+        // The boxes of the references at [first, first + count) of `axis`'s order, in that order: the bits
+        // the binned builder's bounds_of gives over the same array.
+        [[nodiscard]] Box3f bounds_of(int axis, std::size_t first, std::size_t count) const {
+            Box3f bounds;
+            for (std::size_t i = first; i < first + count; ++i)
+                bounds.extend(refs_[orders_[static_cast<std::size_t>(axis)][i]].bounds);
+            return bounds;
+        }
+        [[nodiscard]] Box3f centroid_bounds(std::size_t first, std::size_t count) const {
+            Box3f bounds;
+            for (std::size_t i = first; i < first + count; ++i)
+                bounds.extend(refs_[orders_[0][i]].centroid);
+            return bounds;
+        }
+
+        BinnedBuilder& builder_;
+        NodeSlots& slots_;
+        std::array<BuildRef, kExactSplitBelow> refs_;
+        std::array<BinBox, kExactSplitBelow> boxes_;
+        std::array<std::array<float, kExactSplitBelow>, 3> keys_;
+        // Per axis, the subtree's references (indices into refs_) in centroid order, each node's at its own
+        // positions.
+        std::array<std::array<std::uint8_t, kExactSplitBelow>, 3> orders_;
+    };
 
     // ---------------------------------------------------------------------------------------------------
     // Spatial splits (Stich et al. 2009).
@@ -758,6 +841,11 @@ class BinnedBuilder {
         std::array<std::array<BinBox, kSpatialBins>, 3> boxes;
         std::array<std::array<std::uint32_t, kSpatialBins>, 3> entries{}, exits{};
 
+        SpatialBins() {
+            for (auto& row : boxes)
+                row.fill(BinBox::none());
+        }
+
         void merge(const SpatialBins& other) {
             for (std::size_t axis = 0; axis < 3; ++axis) {
                 for (std::size_t b = 0; b < kSpatialBins; ++b) {
@@ -790,7 +878,7 @@ class BinnedBuilder {
         // The points where the triangle's edges cross the plane; a vertex on the plane is not a crossing but
         // a corner of the parts on both sides.
         [[nodiscard]] BinBox crossings(int axis, float plane) const {
-            BinBox points;
+            BinBox points = BinBox::none();
             if (!is_triangle_) return points;
             for (std::size_t i = 0; i < 3; ++i) {
                 const Vec3f& a = vertices_[i];
@@ -846,11 +934,11 @@ class BinnedBuilder {
             // Chopped binning: the part of the primitive in each bin it crosses, each plane's crossings
             // shared by the two bins it bounds.
             if (!chopped) chopped.emplace(geometry_, ref);
-            BinBox lo_crossings;
+            BinBox lo_crossings = BinBox::none();
             for (int b = first; b <= last; ++b) {
                 const float lo = b == first ? -kInfinity : map.plane(b, axis);
                 const float hi = b == last ? kInfinity : map.plane(b + 1, axis);
-                const BinBox hi_crossings = b == last ? BinBox{} : chopped->crossings(axis, hi);
+                const BinBox hi_crossings = b == last ? BinBox::none() : chopped->crossings(axis, hi);
                 const BinBox part = chopped->part(axis, lo, hi, lo_crossings, hi_crossings);
                 if (!part.empty()) bins.boxes[a][static_cast<std::size_t>(b)].extend(part);
                 lo_crossings = hi_crossings;
@@ -951,8 +1039,10 @@ class BinnedBuilder {
             }
             const ChoppedReference chopped(geometry_, ref);
             const BinBox crossings = chopped.crossings(axis, spatial.plane);
-            const Box3f left_part = chopped.part(axis, -kInfinity, spatial.plane, {}, crossings).box();
-            const Box3f right_part = chopped.part(axis, spatial.plane, kInfinity, crossings, {}).box();
+            const Box3f left_part =
+                chopped.part(axis, -kInfinity, spatial.plane, BinBox::none(), crossings).box();
+            const Box3f right_part =
+                chopped.part(axis, spatial.plane, kInfinity, crossings, BinBox::none()).box();
             if (left_part.empty() || right_part.empty()) {
                 // The plane does not cut the primitive itself: its part on the one side is all of it.
                 (left_part.empty() ? right : left)
