@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <optional>
 #include <tuple>
@@ -17,6 +18,7 @@
 
 #if LANCER_HAS_TBB
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_reduce.h>
 #endif
@@ -57,10 +59,12 @@ struct Split {
 // depth first: the layout does not depend on which task finished first.
 class NodeSlots {
   public:
-    explicit NodeSlots(std::size_t capacity) : slots_(2 * capacity - 1), used_(2 * capacity - 1, 0) {}
+    explicit NodeSlots(std::size_t capacity)
+        : slots_(std::allocator<BvhNode>().allocate(2 * capacity - 1), StorageDeleter{2 * capacity - 1}),
+          used_(2 * capacity - 1, 0) {}
 
     void set_leaf(std::size_t slot, const Box3f& bounds, std::size_t first, std::size_t count) {
-        BvhNode& node = slots_[slot];
+        BvhNode& node = *std::construct_at(&slots_[slot]);
         node.lo = bounds.lo, node.hi = bounds.hi;
         node.offset = static_cast<std::uint32_t>(first);
         node.prim_count = static_cast<std::uint16_t>(count);
@@ -69,7 +73,7 @@ class NodeSlots {
     // Returns the slots of the two children.
     std::pair<std::size_t, std::size_t> set_inner(std::size_t slot, const Box3f& bounds, int axis,
                                                   std::size_t first_child_capacity) {
-        BvhNode& node = slots_[slot];
+        BvhNode& node = *std::construct_at(&slots_[slot]);
         node.lo = bounds.lo, node.hi = bounds.hi;
         node.axis = static_cast<std::uint8_t>(axis);
         node.offset = static_cast<std::uint32_t>(slot + 2 * first_child_capacity);
@@ -77,14 +81,17 @@ class NodeSlots {
         return {slot + 1, node.offset};
     }
 
-    // The nodes depth first, and the leaves' primitives in the same order: `prim_at(i)` is the primitive
-    // of the reference at position i, which the leaves' offsets index until they are renumbered here (a
-    // spatial split build leaves unused positions between its leaves).
+    // The nodes depth first, each box grown by the scene's geometric tolerance (docs/numerical-contract.md,
+    // "Boxes"), and the leaves' primitives in the same order: `prim_at(i)` is the primitive of the reference
+    // at position i, which the leaves' offsets index until they are renumbered here (a spatial split build
+    // leaves unused positions between its leaves); there are at most `references` of them.
     template <class PrimAt>
-    [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at) const {
+    [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at, std::size_t references) const {
         BvhBuildResult result;
         std::vector<BvhNode>& nodes = result.nodes;
         nodes.reserve(static_cast<std::size_t>(std::count(used_.begin(), used_.end(), 1)));
+        result.prim_indices.reserve(references);
+        const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
         // Depth first from the root: (slot, index of the parent whose second-child offset awaits it).
         std::vector<std::pair<std::size_t, std::size_t>> pending = {{0, SIZE_MAX}};
         while (!pending.empty()) {
@@ -92,6 +99,7 @@ class NodeSlots {
             pending.pop_back();
             if (parent != SIZE_MAX) nodes[parent].offset = static_cast<std::uint32_t>(nodes.size());
             BvhNode node = slots_[slot];
+            node.lo -= margin, node.hi += margin;
             if (node.is_leaf()) {
                 const std::uint32_t first = node.offset;
                 node.offset = static_cast<std::uint32_t>(result.prim_indices.size());
@@ -109,7 +117,13 @@ class NodeSlots {
     }
 
   private:
-    std::vector<BvhNode> slots_;
+    // The slots are allocated, not initialised (2n - 1 of them, about twice the nodes a tree uses): a node is
+    // constructed in its slot when set, and compact() reads only the nodes reached from the root.
+    struct StorageDeleter {
+        std::size_t count;
+        void operator()(BvhNode* nodes) const { std::allocator<BvhNode>().deallocate(nodes, count); }
+    };
+    std::unique_ptr<BvhNode[], StorageDeleter> slots_;
     std::vector<std::uint8_t> used_;
 };
 
@@ -125,10 +139,18 @@ std::size_t reference_capacity(std::size_t primitives) {
 
 std::vector<BuildRef> make_refs(const Geometry& geometry) {
     std::vector<BuildRef> refs(geometry.size());
-    for (std::uint32_t prim = 0; prim < refs.size(); ++prim) {
-        const Box3f bounds = primitive_bounds(geometry, prim);
-        refs[prim] = {bounds, bounds.center(), prim};
-    }
+    auto make = [&](std::size_t from, std::size_t to) {
+        for (auto prim = static_cast<std::uint32_t>(from); prim < to; ++prim) {
+            const Box3f bounds = primitive_bounds(geometry, prim);
+            refs[prim] = {bounds, bounds.center(), prim};
+        }
+    };
+#if LANCER_HAS_TBB
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, refs.size(), 16384),
+                      [&](const tbb::blocked_range<std::size_t>& r) { make(r.begin(), r.end()); });
+#else
+    make(0, refs.size());
+#endif
     return refs;
 }
 
@@ -365,6 +387,15 @@ class BinnedBuilder {
         [[nodiscard]] bool empty() const {
             return (_mm_movemask_ps(_mm_cmpnle_ps(lo, hi)) & 0b111) != 0;
         }
+        // Box3f::surface_area in the same fp32 operations, (xy + yz) + zx, without leaving the registers.
+        [[nodiscard]] float area() const {
+            if (empty()) return 0.0f;
+            const __m128 e = _mm_sub_ps(hi, lo);
+            const __m128 products = _mm_mul_ps(e, _mm_shuffle_ps(e, e, _MM_SHUFFLE(3, 0, 2, 1)));
+            const __m128 sum = _mm_add_ss(_mm_add_ss(products, _mm_shuffle_ps(products, products, 1)),
+                                          _mm_movehl_ps(products, products));
+            return 2.0f * _mm_cvtss_f32(sum);
+        }
         [[nodiscard]] Box3f box() const {
             alignas(16) float low[4], high[4];
             _mm_store_ps(low, lo), _mm_store_ps(high, hi);
@@ -396,6 +427,9 @@ class BinnedBuilder {
         }
         [[nodiscard]] bool empty() const {
             return bounds.empty();
+        }
+        [[nodiscard]] float area() const {
+            return bounds.surface_area();
         }
         [[nodiscard]] Box3f box() const {
             return bounds;
@@ -536,21 +570,20 @@ class BinnedBuilder {
             if (!(centroids.hi[axis] > centroids.lo[axis])) continue;
             const auto& boxes = bins.boxes[static_cast<std::size_t>(axis)];
             const auto& counts = bins.counts[static_cast<std::size_t>(axis)];
-            Box3f right;
+            BinBox right = BinBox::none();
             std::uint32_t right_count = 0;
             for (int b = bins_ - 1; b > 0; --b) {
-                right.extend(boxes[static_cast<std::size_t>(b)].box());
+                right.extend(boxes[static_cast<std::size_t>(b)]);
                 right_count += counts[static_cast<std::size_t>(b)];
-                right_costs[static_cast<std::size_t>(b)] =
-                    right.surface_area() * static_cast<float>(right_count);
+                right_costs[static_cast<std::size_t>(b)] = right.area() * static_cast<float>(right_count);
             }
-            Box3f left;
+            BinBox left = BinBox::none();
             std::uint32_t left_count = 0;
             for (int b = 1; b < bins_; ++b) {
-                left.extend(boxes[static_cast<std::size_t>(b - 1)].box());
+                left.extend(boxes[static_cast<std::size_t>(b - 1)]);
                 left_count += counts[static_cast<std::size_t>(b - 1)];
                 if (left_count == 0 || left_count == end - begin) continue;
-                const float cost = left.surface_area() * static_cast<float>(left_count) +
+                const float cost = left.area() * static_cast<float>(left_count) +
                                    right_costs[static_cast<std::size_t>(b)];
                 if (cost < best.cost) best = {axis, cost, left_count, b};
             }
@@ -735,14 +768,14 @@ class BinnedBuilder {
                 BinBox right = BinBox::none();
                 for (std::size_t i = count - 1; i > 0; --i) {
                     right.extend(boxes_[order[i]]);
-                    right_areas[i] = right.box().surface_area();
+                    right_areas[i] = right.area();
                 }
                 BinBox left = BinBox::none();
                 for (std::size_t i = 0; i + 1 < count; ++i) {
                     left.extend(boxes_[order[i]]);
                     // A boundary between equal centroids would not separate anything a ray could tell apart.
                     if (keys[order[i]] == keys[order[i + 1]]) continue;
-                    const float cost = left.box().surface_area() * static_cast<float>(i + 1) +
+                    const float cost = left.area() * static_cast<float>(i + 1) +
                                        right_areas[i + 1] * static_cast<float>(count - i - 1);
                     if (cost < best.cost) best = {static_cast<int>(axis), cost, i + 1, 0};
                 }
@@ -1098,17 +1131,14 @@ BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
         NodeSlots slots(primitives);
         SweepBuilder builder(refs, options);
         builder.build(slots, 0, 0, primitives, 0);
-        result = slots.compact([&](std::size_t i) { return builder.prim_at(i); });
+        result = slots.compact([&](std::size_t i) { return builder.prim_at(i); }, primitives);
     } else {
         if (options.spatial_splits) refs.resize(reference_capacity(primitives));
         NodeSlots slots(refs.size());
         BinnedBuilder builder(refs, geometry, options);
         builder.build(slots, primitives);
-        result = slots.compact([&](std::size_t i) { return refs[i].prim; });
+        result = slots.compact([&](std::size_t i) { return refs[i].prim; }, refs.size());
     }
-    const Vec3f margin(geometric_tolerance(result.nodes[0].bounds()));
-    for (BvhNode& node : result.nodes)
-        node.lo -= margin, node.hi += margin;
     return result;
 }
 
