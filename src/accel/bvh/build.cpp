@@ -320,8 +320,10 @@ class BinnedBuilder {
     // centroids is both better and cheaper than clearing and scanning the bins.
     static constexpr std::size_t kExactSplitBelow = 32;
     // Stich et al.'s alpha ("restricting spatial split attempts"): a spatial split is tried only where the
-    // object split's children overlap by more than this share of the root's area.
+    // object split's children overlap by more than this share of the root's area, and by at least this share
+    // of the node's own area (Embree's HIGH builder asks for both).
     static constexpr float kMinOverlap = 1e-5f;
+    static constexpr float kMinNodeOverlap = 0.1f;
     // Planes tried per axis by a spatial split, as Embree's SBVH builder (HeuristicArraySpatialSAH).
     static constexpr int kSpatialBins = 16;
 
@@ -583,8 +585,8 @@ class BinnedBuilder {
                 left.extend(boxes[static_cast<std::size_t>(b - 1)]);
                 left_count += counts[static_cast<std::size_t>(b - 1)];
                 if (left_count == 0 || left_count == end - begin) continue;
-                const float cost = left.area() * static_cast<float>(left_count) +
-                                   right_costs[static_cast<std::size_t>(b)];
+                const float cost =
+                    left.area() * static_cast<float>(left_count) + right_costs[static_cast<std::size_t>(b)];
                 if (cost < best.cost) best = {axis, cost, left_count, b};
             }
         }
@@ -614,7 +616,7 @@ class BinnedBuilder {
         SpatialSplit spatial;
         if (depth < kMedianSplitDepth) {
             object = best_split(range.begin, range.end, map, centroids);
-            if (worth_a_spatial_split(range, object)) spatial = best_spatial_split(range, bounds);
+            if (worth_a_spatial_split(range, bounds, object)) spatial = best_spatial_split(range, bounds);
         }
         const bool spatial_is_better = spatial.split.cost < object.split.cost;
         if (stays_leaf(count, bounds.surface_area(), spatial_is_better ? spatial.split : object.split,
@@ -836,10 +838,13 @@ class BinnedBuilder {
 
     // Tried only where the node has free positions for the parts of the references it would cut, and where
     // the best object split's children overlap by more than alpha times the root's area (Stich et al.,
-    // "restricting spatial split attempts": below that, a spatial split can gain little).
-    [[nodiscard]] bool worth_a_spatial_split(const RefRange& range, const ObjectSplit& object) const {
-        return spatial_splits_ && range.free() > 0 && object.split.axis >= 0 &&
-               intersection(object.left_bounds, object.right_bounds).surface_area() > min_overlap_area_;
+    // "restricting spatial split attempts": below that, a spatial split can gain little) and by a tenth of
+    // the node's area.
+    [[nodiscard]] bool worth_a_spatial_split(const RefRange& range, const Box3f& bounds,
+                                             const ObjectSplit& object) const {
+        if (!spatial_splits_ || range.free() == 0 || object.split.axis < 0) return false;
+        const float overlap = intersection(object.left_bounds, object.right_bounds).surface_area();
+        return overlap > min_overlap_area_ && overlap >= kMinNodeOverlap * bounds.surface_area();
     }
 
     // kSpatialBins bins of equal width over the node's box on each axis (not over its centroids: the planes
