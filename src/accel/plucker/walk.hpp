@@ -71,6 +71,9 @@ struct StoredBoxes {
         const PluckerBox* box;
     };
     [[nodiscard]] Cell read(const std::uint32_t* words) const { return {boxes + words[0]}; }
+    // Asks for the cell's box while its triangles are tested: the exit face needs it next, and it lives in
+    // another array than the record.
+    void prefetch(const std::uint32_t* words) const { __builtin_prefetch(boxes + words[0]); }
     [[nodiscard]] static float exit_plane(const Cell& cell, int axis, std::uint32_t up) {
         return cell.box->planes[static_cast<std::size_t>(axis) + 6 * up];
     }
@@ -89,6 +92,8 @@ struct ComputedBoxes {
     [[nodiscard]] static Cell read(const std::uint32_t* words) {
         return {{words[0] & 0xFFFFu, words[0] >> 16, words[1] & 0xFFFFu}, static_cast<int>(words[1] >> 16)};
     }
+    // The planes come from the record itself: nothing to ask for.
+    static void prefetch(const std::uint32_t*) {}
     [[nodiscard]] float exit_plane(const Cell& cell, int axis, std::uint32_t up) const {
         return exit_plane_of(cube, tolerance, axis, cell.level,
                              cell.coordinates[static_cast<std::size_t>(axis)] + up);
@@ -238,7 +243,9 @@ class Walker {
     }
 
     [[nodiscard]] const std::uint32_t* record(const State& state) const {
-        return layout_.cells.data() + state.address;
+        const std::uint32_t* leaf = layout_.cells.data() + state.address;
+        boxes_.prefetch(leaf + kBoxWord);
+        return leaf;
     }
 
     // After the current leaf was tested and the search interval ends at `limit`: EXIT-FACE and NEIGHBOR.
