@@ -98,9 +98,13 @@ struct Avx2 {
         __m256 row[8];
         for (int i = 0; i < 8; ++i)
             row[i] = _mm256_loadu_ps(p + 8 * i);
+        transpose8(row, field);
+    }
+    // field[f] lane i = row[i] lane f.
+    static void transpose8(const Float (&row)[8], Float (&field)[8]) {
         __m256 quad[8];
         for (int half = 0; half < 2; ++half) {  // records 0-3, then 4-7
-            __m256* r = row + 4 * half;
+            const __m256* r = row + 4 * half;
             const __m256 t0 = _mm256_unpacklo_ps(r[0], r[1]), t1 = _mm256_unpackhi_ps(r[0], r[1]);
             const __m256 t2 = _mm256_unpacklo_ps(r[2], r[3]), t3 = _mm256_unpackhi_ps(r[2], r[3]);
             // quad[4 half + k]: field k of the four records in the low half, field k + 4 in the high one.

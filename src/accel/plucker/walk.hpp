@@ -71,9 +71,6 @@ struct StoredBoxes {
         const PluckerBox* box;
     };
     [[nodiscard]] Cell read(const std::uint32_t* words) const { return {boxes + words[0]}; }
-    // Asks for the cell's box while its triangles are tested: the exit face needs it next, and it lives in
-    // another array than the record.
-    void prefetch(const std::uint32_t* words) const { __builtin_prefetch(boxes + words[0]); }
     [[nodiscard]] static float exit_plane(const Cell& cell, int axis, std::uint32_t up) {
         return cell.box->planes[static_cast<std::size_t>(axis) + 6 * up];
     }
@@ -92,8 +89,6 @@ struct ComputedBoxes {
     [[nodiscard]] static Cell read(const std::uint32_t* words) {
         return {{words[0] & 0xFFFFu, words[0] >> 16, words[1] & 0xFFFFu}, static_cast<int>(words[1] >> 16)};
     }
-    // The planes come from the record itself: nothing to ask for.
-    static void prefetch(const std::uint32_t*) {}
     [[nodiscard]] float exit_plane(const Cell& cell, int axis, std::uint32_t up) const {
         return exit_plane_of(cube, tolerance, axis, cell.level,
                              cell.coordinates[static_cast<std::size_t>(axis)] + up);
@@ -243,61 +238,85 @@ class Walker {
     }
 
     [[nodiscard]] const std::uint32_t* record(const State& state) const {
-        const std::uint32_t* leaf = layout_.cells.data() + state.address;
-        boxes_.prefetch(leaf + kBoxWord);
-        return leaf;
+        return layout_.cells.data() + state.address;
     }
 
-    // After the current leaf was tested and the search interval ends at `limit`: EXIT-FACE and NEIGHBOR.
-    // Moves to the next leaf, or returns false when the walk is over (the interval ends within this leaf, or
-    // the ray leaves the root).
-    template <bool kCount>
-    [[nodiscard]] bool advance(State& state, float limit, TraversalCounters* counters) const {
+    // EXIT-FACE and NEIGHBOR of the current leaf, which depend on the ray and the cell alone: taken before
+    // the leaf's triangles are tested, so that the next record, asked for here, arrives while they are.
+    struct Exit {
+        Vec3f to_exit_vertex;  // V - o
+        int face = 0;
+        float ahead = 0.0f;        // how far the exit plane lies ahead of the origin along its axis
+        std::uint32_t link = 0;    // the neighbour across the exit, when there is one
+        bool leaves_root = false;  // the exit face lies on the root's boundary
+    };
+
+    [[nodiscard]] Exit exit(const State& state) const {
         constexpr std::uint32_t kHeader = header_words(Boxes::kStored);
-        const std::uint32_t* cells = layout_.cells.data();
-        const std::uint32_t* leaf = cells + state.address;
+        const std::uint32_t* leaf = layout_.cells.data() + state.address;
         const WalkRay& ray = state.ray;
         const Vec3f& o = ray.origin;
-
+        Exit exit;
         // EXIT-FACE
         const auto cell = boxes_.read(leaf + kBoxWord);
-        const Vec3f w(boxes_.exit_plane(cell, 0, ray.up[0]) - o.x,
-                      boxes_.exit_plane(cell, 1, ray.up[1]) - o.y,
-                      boxes_.exit_plane(cell, 2, ray.up[2]) - o.z);
-        const int face = exit_face(ray, w);
-        const int axis = face_axis(face);
-        // Done once the search interval ends before this leaf's exit: limit <= (V_a - o_a) / d_a, written
-        // without a division (w_a has the sign of the direction when the exit lies ahead), the product exact
-        // in double (in float, a denormal |d_a| made it 0 for a limit beyond an exit at t = 0).
-        const float ahead = ray.up[static_cast<std::size_t>(axis)] ? w[axis] : -w[axis];
-        if (static_cast<double>(limit) * ray.abs_direction[axis] <= exit_lower_bound(ahead)) return false;
-
+        exit.to_exit_vertex = {boxes_.exit_plane(cell, 0, ray.up[0]) - o.x,
+                               boxes_.exit_plane(cell, 1, ray.up[1]) - o.y,
+                               boxes_.exit_plane(cell, 2, ray.up[2]) - o.z};
+        const Vec3f& w = exit.to_exit_vertex;
+        exit.face = exit_face(ray, w);
+        const int axis = face_axis(exit.face);
+        exit.ahead = ray.up[static_cast<std::size_t>(axis)] ? w[axis] : -w[axis];
         // NEIGHBOR: the sub-face test only for four neighbours. The seed computes it for one neighbour too
         // and multiplies the index by count / 4 to save a branch (equation 10 and 5.3.2), which suits a GPU;
         // on the CPU the predicted branch is 15% faster over the canonical view (docs/plucker-octree.md).
         const std::uint32_t ends = leaf[kHeader - 1];
-        const std::uint32_t start = neighbour_start(ends, face);
-        const std::uint32_t count = neighbour_end(ends, face) - start;
-        if (count == 0) return false;  // the root's boundary
-        std::uint32_t link = leaf[kHeader + start];
-        if (count == 4) {
-            link = leaf[kHeader + start +
-                        sub_face(ray, face,
-                                 {axis == 0 ? w.x : boxes_.mid(cell, 0) - o.x,
-                                  axis == 1 ? w.y : boxes_.mid(cell, 1) - o.y,
-                                  axis == 2 ? w.z : boxes_.mid(cell, 2) - o.z})];
+        const std::uint32_t start = neighbour_start(ends, exit.face);
+        const std::uint32_t count = neighbour_end(ends, exit.face) - start;
+        if (count == 0) {
+            exit.leaves_root = true;
+            return exit;
         }
+        exit.link = leaf[kHeader + start];
+        if (count == 4) {
+            exit.link = leaf[kHeader + start +
+                             sub_face(ray, exit.face,
+                                      {axis == 0 ? w.x : boxes_.mid(cell, 0) - o.x,
+                                       axis == 1 ? w.y : boxes_.mid(cell, 1) - o.y,
+                                       axis == 2 ? w.z : boxes_.mid(cell, 2) - o.z})];
+        }
+        __builtin_prefetch(layout_.cells.data() + (exit.link & kAddressMask));
+        return exit;
+    }
+
+    // After the current leaf was tested and the search interval ends at `limit`: moves across `exit` to
+    // the next leaf, or returns false when the walk is over (the interval ends within this leaf, or the ray
+    // leaves the root).
+    template <bool kCount>
+    [[nodiscard]] bool advance(State& state, const Exit& exit, float limit,
+                               TraversalCounters* counters) const {
+        const WalkRay& ray = state.ray;
+        const int axis = face_axis(exit.face);
+        // Done once the search interval ends before this leaf's exit: limit <= (V_a - o_a) / d_a, written
+        // without a division (w_a has the sign of the direction when the exit lies ahead), the product exact
+        // in double (in float, a denormal |d_a| made it 0 for a limit beyond an exit at t = 0).
+        if (static_cast<double>(limit) * ray.abs_direction[axis] <= exit_lower_bound(exit.ahead))
+            return false;
+        if (exit.leaves_root) return false;
+        std::uint32_t link = exit.link;
         if constexpr (!kBalanced) {
             // A same-level inner cell: descend it, each level by the sub-face test on its face (the exit
             // plane is the same), to the child on the near side of the face.
             if (--state.steps_left == 0) return false;
+            const std::uint32_t* cells = layout_.cells.data();
+            const Vec3f& w = exit.to_exit_vertex;
+            const Vec3f& o = ray.origin;
             const std::uint32_t near_bit = ray.up[static_cast<std::size_t>(axis)] ? 0u : 1u;
             const int u = lower_in_face_axis(axis), v = upper_in_face_axis(axis);
             while (link & kInnerBit) {
                 const std::uint32_t* inner = cells + (link & kAddressMask);
                 if constexpr (kCount) ++counters->nodes_visited;
                 const auto inner_cell = boxes_.read(inner);
-                const std::uint32_t inner_q = sub_face(ray, face,
+                const std::uint32_t inner_q = sub_face(ray, exit.face,
                                                        {axis == 0 ? w.x : boxes_.mid(inner_cell, 0) - o.x,
                                                         axis == 1 ? w.y : boxes_.mid(inner_cell, 1) - o.y,
                                                         axis == 2 ? w.z : boxes_.mid(inner_cell, 2) - o.z});
@@ -307,6 +326,12 @@ class Walker {
         }
         state.address = link;
         return true;
+    }
+
+    // Both steps after the leaf's test, for a caller that has no work to overlap with them.
+    template <bool kCount>
+    [[nodiscard]] bool advance(State& state, float limit, TraversalCounters* counters) const {
+        return advance<kCount>(state, exit(state), limit, counters);
     }
 
   private:
@@ -325,11 +350,12 @@ void walk(const PluckerLayout& layout, const Boxes& boxes, const Ray& ray, LeafV
     if (!walker.enter(ray, state)) return;
     float limit = ray.tfar;
     while (true) {
+        const auto exit = walker.exit(state);
         // LEAF
         if constexpr (kCount) ++counters->nodes_visited;
         limit = visit_leaf(walker.record(state), limit);
         if (limit < ray.tnear) return;
-        if (!walker.template advance<kCount>(state, limit, counters)) return;
+        if (!walker.template advance<kCount>(state, exit, limit, counters)) return;
     }
 }
 
