@@ -5,6 +5,7 @@
 #include <bit>
 #include <vector>
 
+#include "accel/plucker/leaf_block.hpp"
 #include "accel/plucker/walk.hpp"
 #include "accel/primitive_test.hpp"
 
@@ -17,20 +18,6 @@ using plucker::PluckerPrimitive;
 constexpr int kPacketSize = PluckerPacketAccel::kPacketSize;
 using LaneMask = std::uint64_t;  // bit i: ray i of the packet
 static_assert(kPacketSize <= 64);
-
-// A primitive of a leaf record against one ray within [tnear, tfar]: the test of `plucker`'s leaf loop.
-template <class TriangleTestT>
-[[nodiscard]] bool intersect_leaf_primitive(const PluckerLayout& layout, const Geometry& geometry,
-                                            const PluckerPrimitive& primitive,
-                                            const PreparedRay<TriangleTestT>& prepared, float tfar,
-                                            TriangleHit& candidate) {
-    const Ray& ray = prepared.ray;
-    return primitive.prim < layout.triangle_count
-               ? TriangleTestT::intersect(prepared.triangle_data, primitive.triangle, ray.tnear, tfar,
-                                          candidate)
-               : intersect_sphere(ray, geometry.spheres[primitive.prim - layout.triangle_count], ray.tnear,
-                                  tfar, candidate);
-}
 
 // The walk of `plucker` (walk.hpp, section 4.2.3) for the rays of `valid`, grouped by leaf. Each group is
 // the rays whose current leaf is the first walking ray's; visit_leaf(record, group, limits) tests them and
@@ -129,18 +116,17 @@ void PluckerPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hi
                     if constexpr (kCount)
                         counts.prims_tested += static_cast<std::uint64_t>(primitive_count) *
                                                static_cast<std::uint64_t>(std::popcount(group));
-                    // Each primitive loaded once for the whole group.
-                    for (std::uint32_t r = 0; r < primitive_count; ++r) {
-                        const auto prim = static_cast<std::int32_t>(leaf[r].prim);
+                    // Each block gathered once for the whole group, then tested against each of its rays.
+                    for (std::uint32_t block_first = 0; block_first < primitive_count;
+                         block_first += plucker::kLeafLanes) {
+                        plucker::LeafBlock block;
+                        plucker::gather_block(leaf + block_first, primitive_count - block_first,
+                                              layout.triangle_count, block);
                         for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
                             const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
-                            TriangleHit candidate;
-                            if (intersect_leaf_primitive(layout, geometry_, leaf[r], prepared[lane],
-                                                         limits[lane], candidate) &&
-                                closer(candidate.t, prim, best[lane])) {
-                                best[lane] = {candidate.t, prim, candidate.u, candidate.v};
-                                limits[lane] = candidate.t;
-                            }
+                            const auto block_ray = plucker::leaf_block_ray(prepared[lane], geometry_);
+                            intersect_block(geometry_, block, block_ray, best[lane]);
+                            if (best[lane].hit()) limits[lane] = best[lane].t;
                         }
                     }
                 },
@@ -163,16 +149,20 @@ void PluckerPacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std
                     const std::uint32_t primitive_count = record[plucker::kTriangleCount];
                     const PluckerPrimitive* leaf =
                         layout.primitives.data() + record[plucker::kTriangleOffset];
-                    for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
-                        const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
-                        for (std::uint32_t r = 0; r < primitive_count; ++r) {
-                            if constexpr (kCount) ++counts.prims_tested;
-                            TriangleHit candidate;
-                            if (intersect_leaf_primitive(layout, geometry_, leaf[r], prepared[lane],
-                                                         prepared[lane].ray.tfar, candidate)) {
+                    if constexpr (kCount)
+                        counts.prims_tested += static_cast<std::uint64_t>(primitive_count) *
+                                               static_cast<std::uint64_t>(std::popcount(group));
+                    for (std::uint32_t block_first = 0; block_first < primitive_count;
+                         block_first += plucker::kLeafLanes) {
+                        plucker::LeafBlock block;
+                        plucker::gather_block(leaf + block_first, primitive_count - block_first,
+                                              layout.triangle_count, block);
+                        for (LaneMask lanes = group & ~hit; lanes != 0; lanes &= lanes - 1) {
+                            const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
+                            const auto block_ray = plucker::leaf_block_ray(prepared[lane], geometry_);
+                            if (occludes_block(geometry_, block, block_ray)) {
                                 hit |= LaneMask{1} << lane;
                                 limits[lane] = -kInfinity;  // any hit ends the ray's walk
-                                break;
                             }
                         }
                     }

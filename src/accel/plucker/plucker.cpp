@@ -3,63 +3,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstddef>
-#include <limits>
 
-#include "accel/bvh/triangle_block.hpp"
 #include "accel/plucker/balance.hpp"
+#include "accel/plucker/leaf_block.hpp"
 #include "accel/plucker/walk.hpp"
 #include "accel/primitive_test.hpp"
 
 namespace lancer {
 
 using plucker::PluckerLayout;
-
-namespace {
-
-// A leaf's primitives are tested kLeafLanes at a time by the wide BVH's block kernel (bit for bit the scalar
-// test's answers, docs/accel/bvh_wide.md): copied from the leaf's array into one block, a sphere's lane and
-// the padding with NaN vertices, which the kernel rejects, the sphere then going through the scalar path.
-constexpr int kLeafLanes = 8;
-using LeafBlock = TriangleBlock<kLeafLanes>;
-
-void gather_block(const plucker::PluckerPrimitive* primitives, std::uint32_t count,
-                  std::uint32_t triangle_count, LeafBlock& block) {
-    const float nan = std::numeric_limits<float>::quiet_NaN();
-#if defined(__AVX2__)
-    // Each present triangle's first 8 floats (v0, v1, v2.x, v2.y) as one row, transposed in registers into
-    // the block's first 8 coordinate rows; v2.z and the indices lane by lane.
-    static_assert(offsetof(plucker::PluckerPrimitive, triangle) == 0 && sizeof(Triangle) == 36);
-    using Ops = simd::Avx2;
-    Ops::Float rows[kLeafLanes], fields[kLeafLanes];
-    alignas(32) float last[kLeafLanes];
-    for (std::uint32_t lane = 0; lane < static_cast<std::uint32_t>(kLeafLanes); ++lane) {
-        const bool present = lane < count;
-        block.prim[lane] = present ? primitives[lane].prim : LeafBlock::kNoPrimitive;
-        const bool is_triangle = present && primitives[lane].prim < triangle_count;
-        rows[lane] = is_triangle ? _mm256_loadu_ps(&primitives[lane].triangle.v0.x) : Ops::broadcast(nan);
-        last[lane] = is_triangle ? primitives[lane].triangle.v2.z : nan;
-    }
-    Ops::transpose8(rows, fields);
-    for (int field = 0; field < 8; ++field)
-        Ops::store(block.vertex[field / 3][field % 3], fields[field]);
-    Ops::store(block.vertex[2][2], Ops::load(last));
-#else
-    for (std::uint32_t lane = 0; lane < static_cast<std::uint32_t>(kLeafLanes); ++lane) {
-        const bool present = lane < count;
-        block.prim[lane] = present ? primitives[lane].prim : LeafBlock::kNoPrimitive;
-        const bool is_triangle = present && primitives[lane].prim < triangle_count;
-        const Triangle& tri = primitives[is_triangle ? lane : 0].triangle;
-        const Vec3f* corners[3] = {&tri.v0, &tri.v1, &tri.v2};
-        for (int v = 0; v < 3; ++v) {
-            for (int axis = 0; axis < 3; ++axis)
-                block.vertex[v][axis][lane] = is_triangle ? (*corners[v])[axis] : nan;
-        }
-    }
-#endif
-}
-
-}  // namespace
 
 int PluckerAccel::automatic_depth(std::size_t primitive_count) {
     const double log_count = std::log2(static_cast<double>(std::max<std::size_t>(primitive_count, 1)));
@@ -154,7 +106,7 @@ void PluckerAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hit
                 Hit best;
                 if (is_valid(rays[i])) {
                     const PreparedRay<TriangleTestT> prepared(rays[i]);
-                    const BlockRay<TriangleTestT, kLeafLanes> block_ray(prepared, geometry_);
+                    const auto block_ray = plucker::leaf_block_ray(prepared, geometry_);
                     const Ray& ray = prepared.ray;
                     plucker::walk<kBalanced, kCount>(
                         layout_, boxes, ray,
@@ -162,9 +114,9 @@ void PluckerAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hit
                             const std::uint32_t count = record[plucker::kTriangleCount];
                             const plucker::PluckerPrimitive* leaf =
                                 primitives + record[plucker::kTriangleOffset];
-                            for (std::uint32_t first = 0; first < count; first += kLeafLanes) {
-                                LeafBlock block;
-                                gather_block(leaf + first, count - first, triangle_count, block);
+                            for (std::uint32_t first = 0; first < count; first += plucker::kLeafLanes) {
+                                plucker::LeafBlock block;
+                                plucker::gather_block(leaf + first, count - first, triangle_count, block);
                                 intersect_block(geometry_, block, block_ray, best);
                             }
                             if constexpr (kCount) local.prims_tested += count;
@@ -193,16 +145,16 @@ void PluckerAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint
                 occluded[i] = 0;
                 if (!is_valid(rays[i])) continue;
                 const PreparedRay<TriangleTestT> prepared(rays[i]);
-                const BlockRay<TriangleTestT, kLeafLanes> block_ray(prepared, geometry_);
+                const auto block_ray = plucker::leaf_block_ray(prepared, geometry_);
                 plucker::walk<kBalanced, kCount>(
                     layout_, boxes, prepared.ray,
                     [&](const std::uint32_t* record, float limit) {
                         const std::uint32_t count = record[plucker::kTriangleCount];
                         const plucker::PluckerPrimitive* leaf = primitives + record[plucker::kTriangleOffset];
                         if constexpr (kCount) local.prims_tested += count;
-                        for (std::uint32_t first = 0; first < count; first += kLeafLanes) {
-                            LeafBlock block;
-                            gather_block(leaf + first, count - first, triangle_count, block);
+                        for (std::uint32_t first = 0; first < count; first += plucker::kLeafLanes) {
+                            plucker::LeafBlock block;
+                            plucker::gather_block(leaf + first, count - first, triangle_count, block);
                             if (occludes_block(geometry_, block, block_ray)) {
                                 occluded[i] = 1;
                                 return -kInfinity;  // any hit ends the walk
