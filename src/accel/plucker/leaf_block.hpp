@@ -54,6 +54,21 @@ inline void gather_block(const PluckerPrimitive* primitives, std::uint32_t count
 #endif
 }
 
+// Calls test_block(block) for the blocks of the leaf whose record is `record`, in order, each gathered once,
+// until it returns true (an occlusion found); returns whether it did.
+template <class TestBlock>
+inline bool for_each_leaf_block(const PluckerLayout& layout, const std::uint32_t* record,
+                                TestBlock&& test_block) {
+    const std::uint32_t count = record[kTriangleCount];
+    const PluckerPrimitive* leaf = layout.primitives.data() + record[kTriangleOffset];
+    for (std::uint32_t first = 0; first < count; first += kLeafLanes) {
+        LeafBlock block;
+        gather_block(leaf + first, count - first, layout.triangle_count, block);
+        if (test_block(block)) return true;
+    }
+    return false;
+}
+
 // The ray as the block kernel takes it, made once per ray (or per ray and leaf in a packet's group).
 template <class TriangleTestT>
 [[nodiscard]] inline BlockRay<TriangleTestT, kLeafLanes> leaf_block_ray(

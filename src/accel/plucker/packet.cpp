@@ -13,11 +13,16 @@ namespace lancer {
 namespace {
 
 using plucker::PluckerLayout;
-using plucker::PluckerPrimitive;
 
 constexpr int kPacketSize = PluckerPacketAccel::kPacketSize;
 using LaneMask = std::uint64_t;  // bit i: ray i of the packet
 static_assert(kPacketSize <= 64);
+
+// The primitive tests a leaf costs a group: each of its primitives against each ray.
+[[nodiscard]] std::uint64_t group_tests(const std::uint32_t* record, LaneMask group) {
+    return static_cast<std::uint64_t>(record[plucker::kTriangleCount]) *
+           static_cast<std::uint64_t>(std::popcount(group));
+}
 
 // The walk of `plucker` (walk.hpp, section 4.2.3) for the rays of `valid`, grouped by leaf. Each group is
 // the rays whose current leaf is the first walking ray's; visit_leaf(record, group, limits) tests them and
@@ -110,25 +115,17 @@ void PluckerPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hi
             walk_packet<kBalanced, kCount>(
                 layout, boxes, prepared, valid,
                 [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
-                    const std::uint32_t primitive_count = record[plucker::kTriangleCount];
-                    const PluckerPrimitive* leaf =
-                        layout.primitives.data() + record[plucker::kTriangleOffset];
-                    if constexpr (kCount)
-                        counts.prims_tested += static_cast<std::uint64_t>(primitive_count) *
-                                               static_cast<std::uint64_t>(std::popcount(group));
+                    if constexpr (kCount) counts.prims_tested += group_tests(record, group);
                     // Each block gathered once for the whole group, then tested against each of its rays.
-                    for (std::uint32_t block_first = 0; block_first < primitive_count;
-                         block_first += plucker::kLeafLanes) {
-                        plucker::LeafBlock block;
-                        plucker::gather_block(leaf + block_first, primitive_count - block_first,
-                                              layout.triangle_count, block);
+                    plucker::for_each_leaf_block(layout, record, [&](const plucker::LeafBlock& block) {
                         for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
                             const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
-                            const auto block_ray = plucker::leaf_block_ray(prepared[lane], geometry_);
-                            intersect_block(geometry_, block, block_ray, best[lane]);
+                            intersect_block(geometry_, block,
+                                            plucker::leaf_block_ray(prepared[lane], geometry_), best[lane]);
                             if (best[lane].hit()) limits[lane] = best[lane].t;
                         }
-                    }
+                        return false;
+                    });
                 },
                 counts);
             std::copy_n(best.begin(), count, hits.begin() + static_cast<std::ptrdiff_t>(first));
@@ -146,26 +143,18 @@ void PluckerPacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std
             walk_packet<kBalanced, kCount>(
                 layout, boxes, prepared, valid,
                 [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
-                    const std::uint32_t primitive_count = record[plucker::kTriangleCount];
-                    const PluckerPrimitive* leaf =
-                        layout.primitives.data() + record[plucker::kTriangleOffset];
-                    if constexpr (kCount)
-                        counts.prims_tested += static_cast<std::uint64_t>(primitive_count) *
-                                               static_cast<std::uint64_t>(std::popcount(group));
-                    for (std::uint32_t block_first = 0; block_first < primitive_count;
-                         block_first += plucker::kLeafLanes) {
-                        plucker::LeafBlock block;
-                        plucker::gather_block(leaf + block_first, primitive_count - block_first,
-                                              layout.triangle_count, block);
+                    if constexpr (kCount) counts.prims_tested += group_tests(record, group);
+                    plucker::for_each_leaf_block(layout, record, [&](const plucker::LeafBlock& block) {
                         for (LaneMask lanes = group & ~hit; lanes != 0; lanes &= lanes - 1) {
                             const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
-                            const auto block_ray = plucker::leaf_block_ray(prepared[lane], geometry_);
-                            if (occludes_block(geometry_, block, block_ray)) {
+                            if (occludes_block(geometry_, block,
+                                               plucker::leaf_block_ray(prepared[lane], geometry_))) {
                                 hit |= LaneMask{1} << lane;
                                 limits[lane] = -kInfinity;  // any hit ends the ray's walk
                             }
                         }
-                    }
+                        return false;
+                    });
                 },
                 counts);
             for (std::size_t lane = 0; lane < count; ++lane)

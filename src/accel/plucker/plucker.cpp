@@ -100,8 +100,6 @@ void PluckerAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hit
     dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         plucker::dispatch_layout(layout_, [&]<bool kBalanced>(const auto& boxes) {
             TraversalCounters local;  // summed here, so that the hot loop does not write through the pointer
-            const plucker::PluckerPrimitive* primitives = layout_.primitives.data();
-            const std::uint32_t triangle_count = layout_.triangle_count;
             for (std::size_t i = 0; i < rays.size(); ++i) {
                 Hit best;
                 if (is_valid(rays[i])) {
@@ -111,15 +109,12 @@ void PluckerAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hit
                     plucker::walk<kBalanced, kCount>(
                         layout_, boxes, ray,
                         [&](const std::uint32_t* record, float) {
-                            const std::uint32_t count = record[plucker::kTriangleCount];
-                            const plucker::PluckerPrimitive* leaf =
-                                primitives + record[plucker::kTriangleOffset];
-                            for (std::uint32_t first = 0; first < count; first += plucker::kLeafLanes) {
-                                plucker::LeafBlock block;
-                                plucker::gather_block(leaf + first, count - first, triangle_count, block);
-                                intersect_block(geometry_, block, block_ray, best);
-                            }
-                            if constexpr (kCount) local.prims_tested += count;
+                            plucker::for_each_leaf_block(
+                                layout_, record, [&](const plucker::LeafBlock& block) {
+                                    intersect_block(geometry_, block, block_ray, best);
+                                    return false;
+                                });
+                            if constexpr (kCount) local.prims_tested += record[plucker::kTriangleCount];
                             return best.hit() ? best.t : ray.tfar;
                         },
                         &local);
@@ -139,8 +134,6 @@ void PluckerAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint
     dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         plucker::dispatch_layout(layout_, [&]<bool kBalanced>(const auto& boxes) {
             TraversalCounters local;
-            const plucker::PluckerPrimitive* primitives = layout_.primitives.data();
-            const std::uint32_t triangle_count = layout_.triangle_count;
             for (std::size_t i = 0; i < rays.size(); ++i) {
                 occluded[i] = 0;
                 if (!is_valid(rays[i])) continue;
@@ -149,16 +142,13 @@ void PluckerAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint
                 plucker::walk<kBalanced, kCount>(
                     layout_, boxes, prepared.ray,
                     [&](const std::uint32_t* record, float limit) {
-                        const std::uint32_t count = record[plucker::kTriangleCount];
-                        const plucker::PluckerPrimitive* leaf = primitives + record[plucker::kTriangleOffset];
-                        if constexpr (kCount) local.prims_tested += count;
-                        for (std::uint32_t first = 0; first < count; first += plucker::kLeafLanes) {
-                            plucker::LeafBlock block;
-                            plucker::gather_block(leaf + first, count - first, triangle_count, block);
-                            if (occludes_block(geometry_, block, block_ray)) {
-                                occluded[i] = 1;
-                                return -kInfinity;  // any hit ends the walk
-                            }
+                        if constexpr (kCount) local.prims_tested += record[plucker::kTriangleCount];
+                        if (plucker::for_each_leaf_block(
+                                layout_, record, [&](const plucker::LeafBlock& block) {
+                                    return occludes_block(geometry_, block, block_ray);
+                                })) {
+                            occluded[i] = 1;
+                            return -kInfinity;  // any hit ends the walk
                         }
                         return limit;
                     },
