@@ -74,24 +74,28 @@ std::uint32_t find_cell(const Octree& octree, int level, std::uint32_t x, std::u
     return index;
 }
 
-std::vector<std::uint32_t> face_neighbours(const Octree& octree, std::uint32_t cell_index, int face,
-                                           bool same_or_larger) {
+FaceNeighbours face_neighbours(const Octree& octree, std::uint32_t cell_index, int face,
+                               bool same_or_larger) {
+    FaceNeighbours neighbours;
     const OctreeCell& cell = octree.cells[cell_index];
     std::array<std::uint32_t, 3> position;
-    if (!neighbour_position(cell, face, position)) return {};
+    if (!neighbour_position(cell, face, position)) return neighbours;
     const std::uint32_t found = find_cell(octree, cell.level, position[0], position[1], position[2]);
     const OctreeCell& neighbour = octree.cells[found];
-    if (neighbour.is_leaf() || same_or_larger) return {found};
+    if (neighbour.is_leaf() || same_or_larger) {
+        neighbours.cells[0] = found, neighbours.count = 1;
+        return neighbours;
+    }
     // The same-level neighbour is subdivided: its children on the near side of the shared face.
     const int axis = face_axis(face);
     const std::uint32_t near_bit = face_side(face) == 1 ? 0u : 1u;
     const int u = lower_in_face_axis(axis), v = upper_in_face_axis(axis);
-    std::vector<std::uint32_t> children;
     for (std::uint32_t q = 0; q < 4; ++q) {
         const std::uint32_t child = near_bit << axis | (q & 1u) << u | ((q >> 1) & 1u) << v;
-        children.push_back(neighbour.first_child + child);
+        neighbours.cells[q] = neighbour.first_child + child;
     }
-    return children;
+    neighbours.count = 4;
+    return neighbours;
 }
 
 void balance_octree(const Geometry& geometry, Octree& octree) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -16,12 +17,22 @@ namespace lancer::plucker {
 [[nodiscard]] std::uint32_t find_cell(const Octree& octree, int level, std::uint32_t x, std::uint32_t y,
                                       std::uint32_t z);
 
+// The cells across one face of a cell: at most four, held in place (the layout asks for six lists a leaf).
+struct FaceNeighbours {
+    std::array<std::uint32_t, 4> cells{};
+    std::uint32_t count = 0;
+
+    [[nodiscard]] std::size_t size() const { return count; }
+    [[nodiscard]] const std::uint32_t* begin() const { return cells.data(); }
+    [[nodiscard]] const std::uint32_t* end() const { return cells.data() + count; }
+};
+
 // The cells across face `face` (conventions.hpp) of cell `cell`: none on the root's boundary; one when
 // the deepest cell holding the same-level neighbour position is a leaf (same level or coarser) or when
 // `same_or_larger` is set; else the four children of that same-level cell that touch the face, in
 // sub-face order (they are leaves in a balanced tree).
-[[nodiscard]] std::vector<std::uint32_t> face_neighbours(const Octree& octree, std::uint32_t cell, int face,
-                                                         bool same_or_larger);
+[[nodiscard]] FaceNeighbours face_neighbours(const Octree& octree, std::uint32_t cell, int face,
+                                             bool same_or_larger);
 
 // Splits leaves until no two face-adjacent leaves differ by more than one level. Leaves are visited from
 // the deepest level up: a leaf of level L forces the cell holding its face-neighbour position at level L - 1

@@ -115,7 +115,7 @@ PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
     const std::uint32_t geometry_words = box_words(options.stored_boxes);
 
     // Neighbour lists and record sizes (each record's own: in parallel with TBB), then addresses.
-    std::vector<std::array<std::vector<std::uint32_t>, 6>> neighbours(order.size());
+    std::vector<std::array<FaceNeighbours, 6>> neighbours(order.size());
     std::vector<std::uint32_t> record_words(order.size());
     auto find_neighbours = [&](std::size_t record) {
         const std::uint32_t index = order[record];
@@ -143,56 +143,70 @@ PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
     for (std::size_t record = 0; record < order.size(); ++record)
         find_neighbours(record);
 #endif
+    // Each record's first word and, for a leaf, its first primitive copy, in record order: the records are
+    // then written in parallel, each at its own place, so that the layout does not depend on the threads.
     std::vector<std::uint32_t> address(octree.cells.size(), 0);
-    std::size_t words = 0;
+    std::vector<std::size_t> first_primitive(order.size(), 0);
+    std::size_t words = 0, primitives = 0;
     for (std::size_t record = 0; record < order.size(); ++record) {
         address[order[record]] = static_cast<std::uint32_t>(std::min<std::size_t>(words, kAddressMask));
         words += record_words[record];
+        first_primitive[record] = primitives;
+        const OctreeCell& cell = octree.cells[order[record]];
+        if (cell.is_leaf()) primitives += cell.ref_count();
     }
     if (words > kAddressMask) throw std::length_error("plucker layout: more than 2^31 words of cells");
+    if (primitives > std::numeric_limits<std::uint32_t>::max())
+        throw std::length_error("plucker layout: more than 2^32 triangle references");
 
     auto link = [&](std::uint32_t index) {
         return octree.cells[index].is_leaf() ? address[index] : (address[index] | kInnerBit);
     };
-    layout.cells.reserve(words);
-    for (std::size_t record = 0; record < order.size(); ++record) {
+    layout.cells.resize(words);
+    layout.primitives.resize(primitives);
+    if (options.stored_boxes) layout.boxes.resize(order.size());
+    auto write_record = [&](std::size_t record) {
         const std::uint32_t index = order[record];
         const OctreeCell& cell = octree.cells[index];
+        std::uint32_t* out = layout.cells.data() + address[index];
         const std::uint32_t box_or_position[2] = {
             options.stored_boxes
-                ? static_cast<std::uint32_t>(layout.boxes.size())
+                ? static_cast<std::uint32_t>(record)
                 : static_cast<std::uint32_t>(cell.x) | static_cast<std::uint32_t>(cell.y) << 16,
             static_cast<std::uint32_t>(cell.z) | static_cast<std::uint32_t>(cell.level) << 16};
-        if (options.stored_boxes) layout.boxes.push_back(box_of(octree.cube, octree.tolerance, cell));
+        if (options.stored_boxes) layout.boxes[record] = box_of(octree.cube, octree.tolerance, cell);
         if (!cell.is_leaf()) {
-            layout.cells.insert(layout.cells.end(), box_or_position, box_or_position + geometry_words);
+            out = std::copy(box_or_position, box_or_position + geometry_words, out);
             for (std::uint32_t child = 0; child < 8; ++child)
-                layout.cells.push_back(link(cell.first_child + child));
-            continue;
+                *out++ = link(cell.first_child + child);
+            return;
         }
-        if (layout.primitives.size() + cell.ref_count() > std::numeric_limits<std::uint32_t>::max())
-            throw std::length_error("plucker layout: more than 2^32 triangle references");
-        layout.cells.push_back(cell.ref_count());
-        layout.cells.push_back(static_cast<std::uint32_t>(layout.primitives.size()));
-        layout.cells.insert(layout.cells.end(), box_or_position, box_or_position + geometry_words);
+        *out++ = cell.ref_count();
+        *out++ = static_cast<std::uint32_t>(first_primitive[record]);
+        out = std::copy(box_or_position, box_or_position + geometry_words, out);
         std::uint32_t ends = 0, end = 0;
         for (int face = 0; face < 6; ++face) {
             end += static_cast<std::uint32_t>(neighbours[record][static_cast<std::size_t>(face)].size());
             ends |= end << (5 * face);
         }
-        layout.cells.push_back(ends);
+        *out++ = ends;
         for (const auto& list : neighbours[record]) {
             for (const std::uint32_t neighbour : list)
-                layout.cells.push_back(link(neighbour));
+                *out++ = link(neighbour);
         }
-        for (std::uint32_t r = cell.ref_begin; r < cell.ref_end; ++r) {
+        PluckerPrimitive* primitive = layout.primitives.data() + first_primitive[record];
+        for (std::uint32_t r = cell.ref_begin; r < cell.ref_end; ++r, ++primitive) {
             const std::uint32_t prim = octree.references[r];
-            PluckerPrimitive primitive{};
-            if (prim < layout.triangle_count) primitive.triangle = geometry.triangles[prim];
-            primitive.prim = prim;
-            layout.primitives.push_back(primitive);
+            if (prim < layout.triangle_count) primitive->triangle = geometry.triangles[prim];
+            primitive->prim = prim;
         }
-    }
+    };
+#if LANCER_HAS_TBB
+    tbb::parallel_for(std::size_t{0}, order.size(), write_record);
+#else
+    for (std::size_t record = 0; record < order.size(); ++record)
+        write_record(record);
+#endif
 
     fill_cube_map(octree, address, layout);
     layout.locate.resize(octree.cells.size());
