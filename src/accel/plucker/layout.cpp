@@ -44,6 +44,17 @@ std::vector<std::uint32_t> record_order(const Octree& octree, const PluckerLayou
     return leaves;
 }
 
+// body(record) for every record: in parallel with oneTBB (each call writes only its record's places).
+template <class Body>
+void for_each_record(std::size_t records, Body&& body) {
+#if LANCER_HAS_TBB
+    tbb::parallel_for(std::size_t{0}, records, body);
+#else
+    for (std::size_t record = 0; record < records; ++record)
+        body(record);
+#endif
+}
+
 PluckerBox box_of(const OctreeCube& cube, float tolerance, const OctreeCell& cell) {
     PluckerBox box{};
     for (int axis = 0; axis < 3; ++axis) {
@@ -137,12 +148,7 @@ PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
         }
         record_words[record] = header + static_cast<std::uint32_t>(total);
     };
-#if LANCER_HAS_TBB
-    tbb::parallel_for(std::size_t{0}, order.size(), find_neighbours);
-#else
-    for (std::size_t record = 0; record < order.size(); ++record)
-        find_neighbours(record);
-#endif
+    for_each_record(order.size(), find_neighbours);
     // Each record's first word and, for a leaf, its first primitive copy, in record order: the records are
     // then written in parallel, each at its own place, so that the layout does not depend on the threads.
     std::vector<std::uint32_t> address(octree.cells.size(), 0);
@@ -201,12 +207,7 @@ PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
             primitive->prim = prim;
         }
     };
-#if LANCER_HAS_TBB
-    tbb::parallel_for(std::size_t{0}, order.size(), write_record);
-#else
-    for (std::size_t record = 0; record < order.size(); ++record)
-        write_record(record);
-#endif
+    for_each_record(order.size(), write_record);
 
     fill_cube_map(octree, address, layout);
     layout.locate.resize(octree.cells.size());
