@@ -4,6 +4,8 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <span>
 #include <vector>
 
 #include "lancer/accel.hpp"
@@ -68,6 +70,33 @@ struct RenderStats {
 // negative or NaN minimum weight, or a scene whose primitives name missing materials.
 [[nodiscard]] Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
                            const Camera& camera, const RenderOptions& options, RenderStats* stats = nullptr);
+
+// A frame rendered in parts, by several processes (`mpirun lancer render`: docs/distributed.md). The
+// frame's tiles are the squares of options.tile_size (clipped to the image) numbered row-major; every part
+// renders the tiles it is handed, and assemble_frame() makes from parts that hold each tile once the image
+// render() makes, bit for bit.
+[[nodiscard]] std::size_t frame_tile_count(const Camera& camera, const RenderOptions& options);
+
+// What a part rendered: its tiles in order, and for each tile its pixels row by row (the image's colour,
+// and the per-pixel value that Depth and Heatmap modes turn into the image once the whole frame is there).
+struct FramePart {
+    std::vector<std::size_t> tiles;
+    std::vector<Vec3f> pixels;
+    std::vector<float> depth;             // Depth mode: the hit distance, infinity on a miss
+    std::vector<TraversalCounters> heat;  // Heatmap mode: the primary ray's counts
+    RenderStats stats;                    // the rays it traced (trace_ms left to the caller)
+};
+
+// Renders the tiles `next_tiles` returns, call after call, until it returns none; each batch runs over
+// options.threads threads. Throws as render() does, and std::invalid_argument for a tile not in the frame.
+[[nodiscard]] FramePart render_part(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
+                                    const Camera& camera, const RenderOptions& options,
+                                    const std::function<std::vector<std::size_t>()>& next_tiles);
+
+// The image of the parts' tiles, with the rays they traced in `stats` (not trace_ms). Throws
+// std::invalid_argument when a tile is missing or comes twice, or a part's pixels do not match its tiles.
+[[nodiscard]] Image assemble_frame(const Camera& camera, const RenderOptions& options,
+                                   std::span<const FramePart> parts, RenderStats* stats = nullptr);
 
 // 8-bit sRGB PNG (libpng). Throws std::runtime_error with the path and the reason on failure.
 void write_png(const Image& image, const std::filesystem::path& file);

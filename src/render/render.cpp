@@ -11,6 +11,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -199,58 +200,187 @@ class TileRenderer {
     AtomicRayCounts& rays_;
 };
 
+// A frame's buffers and ray counts while its tiles are rendered: the image, and the per-pixel values of the
+// modes whose image is made from the whole frame at the end (Depth, Heatmap).
+struct FrameBuffers {
+    Image image;
+    std::vector<float> depth;
+    std::vector<TraversalCounters> heat;
+    AtomicRayCounts rays;
+
+    FrameBuffers(const Camera& camera, ShadingMode mode) : image(camera.width, camera.height) {
+        if (mode == ShadingMode::Depth) depth.resize(image.pixels.size());
+        if (mode == ShadingMode::Heatmap) heat.resize(image.pixels.size());
+    }
+};
+
+// A tile larger than the image is the image; the clamp also keeps the tile arithmetic within an int.
+int effective_tile_size(const Camera& camera, const RenderOptions& options) {
+    return std::min(options.tile_size, std::max(camera.width, camera.height));
+}
+
+// Renders the tiles each call of `next_batch` returns (a std::vector<std::size_t>; empty: done), each
+// batch over the threads of `options`.
+template <class NextBatch>
+void render_batches(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
+                    const Camera& camera, const RenderOptions& options, FrameBuffers& frame,
+                    NextBatch&& next_batch) {
+    const SceneIntersector intersector(scene, geometry, accel);
+    const PinholeCamera pinhole(camera);
+    const WhittedTracer whitted(scene, intersector, pinhole, options);
+    const TileRenderer tiles(scene, intersector, pinhole, whitted, options.mode,
+                             effective_tile_size(camera, options), frame.image, frame.depth, frame.heat,
+                             frame.rays);
+    ProgressReporter progress("render", tiles.tile_count(), "tiles", options.progress);
+    tbb::task_arena arena(options.threads == 0 ? tbb::task_arena::automatic : options.threads);
+    for (std::vector<std::size_t> batch = next_batch(); !batch.empty(); batch = next_batch()) {
+        for (const std::size_t tile : batch) {
+            if (tile >= tiles.tile_count()) {
+                throw std::invalid_argument("render: tile " + std::to_string(tile) + " of a frame of " +
+                                            std::to_string(tiles.tile_count()));
+            }
+        }
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, batch.size(), 1),
+                              [&](const tbb::blocked_range<std::size_t>& range) {
+                                  for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                                      tiles.render(batch[k]);
+                                      progress.advance();
+                                  }
+                              });
+        });
+    }
+    progress.finish();
+}
+
+// The image-wide passes and the counts: the image render() returns.
+Image finish_frame(FrameBuffers& frame, ShadingMode mode, RenderStats* stats) {
+    if (mode == ShadingMode::Depth) depth_to_image(frame.depth, frame.image);
+    if (mode == ShadingMode::Heatmap) {
+        std::vector<std::uint32_t> nodes(frame.heat.size());
+        for (std::size_t i = 0; i < frame.heat.size(); ++i)
+            nodes[i] = static_cast<std::uint32_t>(frame.heat[i].nodes_visited);
+        heat_to_image(nodes, frame.image);
+    }
+    if (stats != nullptr) {
+        stats->primary_rays = frame.rays.primary;
+        stats->shadow_rays = frame.rays.shadow;
+        stats->reflection_rays = frame.rays.reflection;
+        stats->refraction_rays = frame.rays.refraction;
+        stats->counters = {};
+        for (const TraversalCounters& pixel : frame.heat)
+            stats->counters += pixel;
+    }
+    return std::move(frame.image);
+}
+
+// The pixels of `tile`, clipped to the image: calls visit(pixel index) row by row.
+template <class Visit>
+void for_each_tile_pixel(const Camera& camera, int tile_size, std::size_t tile, Visit&& visit) {
+    const auto columns = static_cast<std::size_t>((camera.width + tile_size - 1) / tile_size);
+    const int x0 = static_cast<int>(tile % columns) * tile_size;
+    const int y0 = static_cast<int>(tile / columns) * tile_size;
+    const int x1 = std::min(x0 + tile_size, camera.width), y1 = std::min(y0 + tile_size, camera.height);
+    for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x)
+            visit(static_cast<std::size_t>(y) * static_cast<std::size_t>(camera.width) +
+                  static_cast<std::size_t>(x));
+    }
+}
+
 }  // namespace
 
 Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel, const Camera& camera,
              const RenderOptions& options, RenderStats* stats) {
     const auto start = std::chrono::steady_clock::now();
     check_options(camera, options);
-    const SceneIntersector intersector(scene, geometry, accel);
-    const PinholeCamera pinhole(camera);
-    const WhittedTracer whitted(scene, intersector, pinhole, options);
-
-    Image image(camera.width, camera.height);
-    std::vector<float> depth;
-    if (options.mode == ShadingMode::Depth) depth.resize(image.pixels.size());
-    std::vector<TraversalCounters> heat;
-    if (options.mode == ShadingMode::Heatmap) heat.resize(image.pixels.size());
-    // A tile larger than the image is the image; the clamp also keeps the tile arithmetic within an int.
-    const int tile_size = std::min(options.tile_size, std::max(image.width, image.height));
-    AtomicRayCounts rays;
-    const TileRenderer tiles(scene, intersector, pinhole, whitted, options.mode, tile_size, image, depth,
-                             heat, rays);
-
-    ProgressReporter progress("render", tiles.tile_count(), "tiles", options.progress);
-    tbb::task_arena arena(options.threads == 0 ? tbb::task_arena::automatic : options.threads);
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles.tile_count(), 1),
-                          [&](const tbb::blocked_range<std::size_t>& range) {
-                              for (std::size_t tile = range.begin(); tile != range.end(); ++tile) {
-                                  tiles.render(tile);
-                                  progress.advance();
-                              }
-                          });
+    FrameBuffers frame(camera, options.mode);
+    bool done = false;
+    render_batches(scene, geometry, accel, camera, options, frame, [&] {
+        std::vector<std::size_t> all;
+        if (!done) {
+            all.resize(frame_tile_count(camera, options));
+            for (std::size_t tile = 0; tile < all.size(); ++tile)
+                all[tile] = tile;
+            done = true;
+        }
+        return all;
     });
-    progress.finish();
-    if (options.mode == ShadingMode::Depth) depth_to_image(depth, image);
-    if (options.mode == ShadingMode::Heatmap) {
-        std::vector<std::uint32_t> nodes(heat.size());
-        for (std::size_t i = 0; i < heat.size(); ++i)
-            nodes[i] = static_cast<std::uint32_t>(heat[i].nodes_visited);
-        heat_to_image(nodes, image);
-    }
-
-    if (stats != nullptr) {
-        stats->primary_rays = rays.primary;
-        stats->shadow_rays = rays.shadow;
-        stats->reflection_rays = rays.reflection;
-        stats->refraction_rays = rays.refraction;
-        for (const TraversalCounters& pixel : heat)
-            stats->counters += pixel;
+    Image image = finish_frame(frame, options.mode, stats);
+    if (stats != nullptr)
         stats->trace_ms =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    }
     return image;
+}
+
+std::size_t frame_tile_count(const Camera& camera, const RenderOptions& options) {
+    check_options(camera, options);
+    const int tile_size = effective_tile_size(camera, options);
+    return static_cast<std::size_t>((camera.width + tile_size - 1) / tile_size) *
+           static_cast<std::size_t>((camera.height + tile_size - 1) / tile_size);
+}
+
+FramePart render_part(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
+                      const Camera& camera, const RenderOptions& options,
+                      const std::function<std::vector<std::size_t>()>& next_tiles) {
+    check_options(camera, options);
+    FrameBuffers frame(camera, options.mode);
+    FramePart part;
+    render_batches(scene, geometry, accel, camera, options, frame, [&] {
+        std::vector<std::size_t> batch = next_tiles();
+        part.tiles.insert(part.tiles.end(), batch.begin(), batch.end());
+        return batch;
+    });
+    const int tile_size = effective_tile_size(camera, options);
+    for (const std::size_t tile : part.tiles) {
+        for_each_tile_pixel(camera, tile_size, tile, [&](std::size_t pixel) {
+            part.pixels.push_back(frame.image.pixels[pixel]);
+            if (options.mode == ShadingMode::Depth) part.depth.push_back(frame.depth[pixel]);
+            if (options.mode == ShadingMode::Heatmap) part.heat.push_back(frame.heat[pixel]);
+        });
+    }
+    part.stats.primary_rays = frame.rays.primary;
+    part.stats.shadow_rays = frame.rays.shadow;
+    part.stats.reflection_rays = frame.rays.reflection;
+    part.stats.refraction_rays = frame.rays.refraction;
+    return part;
+}
+
+Image assemble_frame(const Camera& camera, const RenderOptions& options, std::span<const FramePart> parts,
+                     RenderStats* stats) {
+    check_options(camera, options);
+    const std::size_t tile_count = frame_tile_count(camera, options);
+    const int tile_size = effective_tile_size(camera, options);
+    std::vector<std::uint8_t> seen(tile_count, 0);
+    FrameBuffers frame(camera, options.mode);
+    for (const FramePart& part : parts) {
+        std::size_t value = 0;
+        for (const std::size_t tile : part.tiles) {
+            if (tile >= tile_count || seen[tile] != 0) {
+                throw std::invalid_argument("assemble_frame: tile " + std::to_string(tile) +
+                                            (tile >= tile_count ? " is not in the frame" : " comes twice"));
+            }
+            seen[tile] = 1;
+            for_each_tile_pixel(camera, tile_size, tile, [&](std::size_t pixel) {
+                if (value >= part.pixels.size())
+                    throw std::invalid_argument("assemble_frame: a part holds fewer pixels than its tiles");
+                frame.image.pixels[pixel] = part.pixels[value];
+                if (options.mode == ShadingMode::Depth) frame.depth[pixel] = part.depth.at(value);
+                if (options.mode == ShadingMode::Heatmap) frame.heat[pixel] = part.heat.at(value);
+                ++value;
+            });
+        }
+        if (value != part.pixels.size())
+            throw std::invalid_argument("assemble_frame: a part holds more pixels than its tiles");
+        frame.rays.add({part.stats.primary_rays, part.stats.shadow_rays, part.stats.reflection_rays,
+                        part.stats.refraction_rays});
+    }
+    const auto missing = std::find(seen.begin(), seen.end(), 0);
+    if (missing != seen.end()) {
+        throw std::invalid_argument("assemble_frame: tile " + std::to_string(missing - seen.begin()) +
+                                    " was rendered by no part");
+    }
+    return finish_frame(frame, options.mode, stats);
 }
 
 }  // namespace lancer

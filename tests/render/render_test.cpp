@@ -290,6 +290,87 @@ TEST(Render, PacketStructuresGiveTheBruteForceImage) {
     }
 }
 
+// Distributed rendering's contract (docs/distributed.md): parts that hold every tile once, in any split and
+// order, assemble into render()'s image bit for bit, in every mode (Whitted with its secondary rays; Depth
+// and Heatmap, whose image is made from the whole frame), with the same ray counts.
+TEST(RenderParts, AssembleIntoTheSingleProcessImage) {
+    Scene scene = tiny_scene();
+    scene.lights.push_back({{3.0f, 4.0f, 6.0f}, Vec3f(1.0f)});
+    scene.materials[1].ks = 0.5f;
+    const SceneGeometry geometry(scene);
+    const std::unique_ptr<Accel> accel = make_accel("bvh");
+    accel->build(geometry.view(), {});
+    for (ShadingMode mode :
+         {ShadingMode::Whitted, ShadingMode::Flat, ShadingMode::Depth, ShadingMode::Heatmap}) {
+        RenderOptions options = with_mode(mode);
+        options.tile_size = 7;
+        options.samples_per_pixel = mode == ShadingMode::Whitted ? 2 : 1;
+        RenderStats reference_stats;
+        const Image reference = render(scene, geometry, *accel, tiny_camera(), options, &reference_stats);
+        const std::size_t tiles = frame_tile_count(tiny_camera(), options);
+        ASSERT_EQ(tiles, 6u * 5u);
+        // Three parts: the odd tiles backwards in batches of 4, the even tiles below 12, the rest one by one.
+        std::vector<std::vector<std::size_t>> batches[3];
+        std::vector<std::size_t> odd;
+        for (std::size_t tile = tiles; tile-- > 0;)
+            if (tile % 2 == 1) odd.push_back(tile);
+        for (std::size_t k = 0; k < odd.size(); k += 4)
+            batches[0].emplace_back(odd.begin() + static_cast<std::ptrdiff_t>(k),
+                                    odd.begin() + static_cast<std::ptrdiff_t>(std::min(k + 4, odd.size())));
+        batches[1].emplace_back();
+        for (std::size_t tile = 0; tile < tiles; tile += 2) {
+            if (tile < 12)
+                batches[1][0].push_back(tile);
+            else
+                batches[2].push_back({tile});
+        }
+        std::vector<FramePart> parts;
+        for (auto& part_batches : batches) {
+            std::size_t next = 0;
+            parts.push_back(render_part(scene, geometry, *accel, tiny_camera(), options, [&] {
+                return next < part_batches.size() ? part_batches[next++] : std::vector<std::size_t>{};
+            }));
+        }
+        SCOPED_TRACE(testing::Message() << "mode " << static_cast<int>(mode));
+        RenderStats stats;
+        const Image image = assemble_frame(tiny_camera(), options, parts, &stats);
+        ASSERT_EQ(image.pixels.size(), reference.pixels.size());
+        EXPECT_EQ(
+            std::memcmp(image.pixels.data(), reference.pixels.data(), image.pixels.size() * sizeof(Vec3f)),
+            0);
+        EXPECT_EQ(stats.total_rays(), reference_stats.total_rays());
+        EXPECT_EQ(stats.counters.nodes_visited, reference_stats.counters.nodes_visited);
+        if (mode == ShadingMode::Whitted) {
+            EXPECT_GT(stats.shadow_rays, 0u);
+        }
+    }
+}
+
+TEST(RenderParts, AssemblyRefusesMissingOrRepeatedTiles) {
+    const Scene scene = tiny_scene();
+    const SceneGeometry geometry(scene);
+    const std::unique_ptr<Accel> accel = make_accel("bvh");
+    accel->build(geometry.view(), {});
+    RenderOptions options = with_mode(ShadingMode::Flat);
+    options.tile_size = 16;
+    auto part_of = [&](std::vector<std::size_t> tiles) {
+        bool given = false;
+        return render_part(scene, geometry, *accel, tiny_camera(), options, [&] {
+            std::vector<std::size_t> batch;
+            if (!given) batch = tiles, given = true;
+            return batch;
+        });
+    };
+    ASSERT_EQ(frame_tile_count(tiny_camera(), options), 6u);  // 40x30 in tiles of 16: 3 x 2
+    const std::vector<FramePart> missing = {part_of({0, 1, 2}), part_of({3, 4})};
+    EXPECT_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, missing)), std::invalid_argument);
+    const std::vector<FramePart> repeated = {part_of({0, 1, 2}), part_of({2, 3, 4, 5})};
+    EXPECT_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, repeated)), std::invalid_argument);
+    const std::vector<FramePart> whole = {part_of({5, 3, 1}), part_of({0, 2, 4})};
+    EXPECT_NO_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, whole)));
+    EXPECT_THROW(static_cast<void>(part_of({6})), std::invalid_argument);
+}
+
 TEST(Render, StatsCountOneRayPerPixel) {
     RenderStats stats;
     const Image image = render_with_brute(tiny_scene(), tiny_camera(), {}, &stats);
