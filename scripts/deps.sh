@@ -8,6 +8,7 @@ packages=(
   libassimp-dev libtbb-dev libpng-dev libcli11-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libembree-dev libopenexr-dev
+  libopenmpi-dev openmpi-bin
   clang-format
 )
 

@@ -11,6 +11,7 @@
 #include "commands.hpp"
 #include "common.hpp"
 #include "cuda_device.hpp"
+#include "distributed.hpp"
 
 namespace lancer::cli {
 namespace {
@@ -52,20 +53,31 @@ void write_hits(const std::string& path, const std::vector<Hit>& hits) {
 
 void run(const RaysOptions& options) {
     options.device.require_available();
-    const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
+    const Job& job = Job::get();
+    if (job.distributed() && options.device.cuda())
+        throw InputError("under mpirun, lancer rays runs on the CPU alone: leave out --device");
+    // Every rank loads the scene and builds its structure; rank 0 reads the rays and hands each rank its
+    // slice (docs/distributed.md).
+    PreparedScene prepared;
+    job.on_every_rank("loading the scene",
+                      [&] { prepared = prepare_scene(options.scene_file, options.accel); });
     const BuiltAccel& built = prepared.built;
-    const std::vector<Ray> rays = read_rays(options.rays_file);
+    std::vector<Ray> rays;
+    job.on_every_rank("reading the rays", [&] {
+        if (job.is_root()) rays = read_rays(options.rays_file);
+    });
 
-    std::vector<Hit> hits(rays.size());
+    std::vector<Hit> hits;
     Stopwatch watch;
     if (options.device.cuda()) {
         hits = make_cuda_tracer(options.device, options.accel, *built.accel, prepared.geometry->view())
                    ->trace(rays)
                    .hits;
     } else {
-        intersect_parallel(*built.accel, rays, hits, options.threads);
+        hits = job.intersect(*built.accel, rays, options.threads);
     }
     const double trace_ms = watch.elapsed_ms();
+    if (!job.is_root()) return;  // rank 0 writes the hits and the summary
     write_hits(options.hits_file, hits);
 
     std::size_t hit_count = 0;

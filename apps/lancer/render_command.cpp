@@ -12,6 +12,7 @@
 #include "commands.hpp"
 #include "common.hpp"
 #include "cuda_device.hpp"
+#include "distributed.hpp"
 #include "lancer/render.hpp"
 
 namespace lancer::cli {
@@ -105,7 +106,14 @@ void run(RenderCommandOptions options) {
             throw InputError(std::string("--beside: ") + error.what());
         }
     }
-    const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
+    const Job& job = Job::get();
+    if (job.distributed() && (options.device.cuda() || !options.beside.empty()))
+        throw InputError(
+            "under mpirun, lancer render runs on the CPU alone: leave out --device and --beside");
+    // Every rank loads the scene and builds its structure (docs/distributed.md).
+    PreparedScene prepared;
+    job.on_every_rank("loading the scene",
+                      [&] { prepared = prepare_scene(options.scene_file, options.accel); });
     const LoadedScene& loaded = prepared.loaded;
     const Scene& scene = loaded.scene;
     const SceneGeometry& geometry = *prepared.geometry;
@@ -126,7 +134,8 @@ void run(RenderCommandOptions options) {
     const Image image = options.device.cuda()
                             ? render_on_cuda(options.device, options.accel, scene, geometry, *built.accel,
                                              camera, options.mode, stats)
-                            : render(scene, geometry, *built.accel, camera, render_options, &stats);
+                            : job.render(scene, geometry, *built.accel, camera, render_options, stats);
+    if (!job.is_root()) return;  // rank 0 writes the picture and the summary
     try {
         if (is_exr(options.output))
             write_exr(image, options.output);
