@@ -24,6 +24,7 @@
 #include "commands.hpp"
 #include "common.hpp"
 #include "cuda_device.hpp"
+#include "distributed.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/denormals.hpp"
 #include "lancer/generate.hpp"
@@ -46,6 +47,7 @@ struct BenchOptions {
     std::vector<std::string> settings;
     std::string json_file;
     std::string svg_file;
+    bool mpi = false;
     DeviceChoice device;
 };
 
@@ -550,6 +552,106 @@ void run(const BenchOptions& options) {
         throw CheckFailure("bench: structures disagree (see above); figures not trustworthy");
 }
 
+// One structure's strong scaling over the ranks of an mpirun job (lancer bench --mpi).
+struct ScalingRecord {
+    std::string mesh;
+    std::string accel;
+    int threads = 0;
+    int ranks = 0;
+    double mrays_one_rank = 0.0, mrays_all_ranks = 0.0;
+};
+
+double median_of(std::vector<double> values) {
+    std::sort(values.begin(), values.end());
+    return values[values.size() / 2];
+}
+
+// lancer bench --mpi, under mpirun: the canonical view rendered with flat shading (its primary rays, through
+// the renderer's tiles and packets) by rank 0 alone while the others wait, then by every rank from the shared
+// tile counter (Job::render), frame after frame; Mrays/s of each, and the parallel efficiency t_1 / (N t_N)
+// (docs/distributed.md). Every rank loads the meshes and builds the structures.
+void run_mpi(const BenchOptions& options) {
+    const Job& job = Job::get();
+    if (!job.distributed())
+        throw InputError("--mpi: run it under mpirun with 2 or more ranks (mpirun -np 2 lancer bench --mpi)");
+    if (options.view_list != "primary" || options.device.cuda())
+        throw InputError("--mpi measures the primary view on the CPU: leave out --view and --device");
+    const std::vector<int> thread_counts = parse_int_list(options.thread_list, "--threads");
+    const std::vector<std::string> accels = parse_accels(options.accel_list);
+    std::vector<BenchMesh> meshes;
+    job.on_every_rank("loading the meshes", [&] { meshes = load_meshes(options); });
+    if (job.is_root()) {
+        fmt::print(
+            "lancer bench --mpi: {} ranks; rank 0 on {}, {} hardware threads; {}x{} canonical view, flat "
+            "shading, {} frames after 1 warm-up\n",
+            job.size(), cpu_name(), std::thread::hardware_concurrency(), options.size, options.size,
+            options.frames);
+        fmt::print("{:<16} {:<14} {:>3} {:>5} {:>14} {:>14} {:>10}\n", "mesh", "accel", "thr", "ranks",
+                   "1 rank Mrays/s", "all Mrays/s", "efficiency");
+    }
+    std::vector<ScalingRecord> records;
+    for (const BenchMesh& mesh : meshes) {
+        const SceneGeometry geometry(mesh.scene);
+        const Camera camera = canonical_view(geometry.view().bounds(), options.size, options.size);
+        const double rays = static_cast<double>(options.size) * static_cast<double>(options.size);
+        for (const std::string& name : accels) {
+            BuiltAccel built;
+            job.on_every_rank("building " + name, [&] {
+                built = build_timed({name, !options.moller_trumbore, options.settings}, geometry.view());
+            });
+            for (const int threads : thread_counts) {
+                RenderOptions render_options;
+                render_options.mode = ShadingMode::Flat;
+                render_options.threads = threads;
+                std::vector<double> alone_ms, all_ms;
+                for (int frame = -1; frame < options.frames; ++frame) {  // frame -1: the warm-up
+                    job.barrier();
+                    Stopwatch alone;
+                    if (job.is_root())
+                        static_cast<void>(render(mesh.scene, geometry, *built.accel, camera, render_options));
+                    job.barrier();
+                    const double alone_elapsed = alone.elapsed_ms();
+                    RenderStats stats;
+                    Stopwatch all;
+                    static_cast<void>(
+                        job.render(mesh.scene, geometry, *built.accel, camera, render_options, stats));
+                    const double all_elapsed = job.max_over_ranks(all.elapsed_ms());
+                    if (frame >= 0) alone_ms.push_back(alone_elapsed), all_ms.push_back(all_elapsed);
+                }
+                ScalingRecord record{mesh.name,
+                                     name,
+                                     threads,
+                                     job.size(),
+                                     rays / (median_of(alone_ms) * 1e3),
+                                     rays / (median_of(all_ms) * 1e3)};
+                if (job.is_root()) {
+                    fmt::print("{:<16} {:<14} {:>3} {:>5} {:>14.2f} {:>14.2f} {:>10.2f}\n", record.mesh,
+                               record.accel, threads, record.ranks, record.mrays_one_rank,
+                               record.mrays_all_ranks,
+                               record.mrays_all_ranks / (record.mrays_one_rank * record.ranks));
+                }
+                records.push_back(record);
+            }
+        }
+    }
+    if (!job.is_root() || options.json_file.empty()) return;
+    std::string json = "[\n";
+    for (std::size_t i = 0; i < records.size(); ++i) {
+        const ScalingRecord& r = records[i];
+        json += fmt::format(
+            "  {{\"mesh\": \"{}\", \"view\": \"primary\", \"accel\": \"{}\", \"threads\": {}, \"ranks\": {}, "
+            "\"mrays_one_rank\": {:.4f}, \"mrays_all_ranks\": {:.4f}, \"parallel_efficiency\": {:.4f}}}{}\n",
+            r.mesh, r.accel, r.threads, r.ranks, r.mrays_one_rank, r.mrays_all_ranks,
+            r.mrays_all_ranks / (r.mrays_one_rank * r.ranks), i + 1 < records.size() ? "," : "");
+    }
+    json += "]\n";
+    try {
+        fmt::output_file(options.json_file).print("{}", json);
+    } catch (const std::system_error& error) {
+        throw InputError(options.json_file + ": " + error.what());
+    }
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
@@ -583,8 +685,11 @@ void add_bench_command(CLI::App& app) {
     command->add_option("--json", options->json_file,
                         "Write one record per mesh, structure and thread count");
     command->add_option("--svg", options->svg_file, "Draw the Mrays/s bars");
+    command->add_flag("--mpi", options->mpi,
+                      "Under mpirun: the canonical view by rank 0 alone and by every rank, with the parallel "
+                      "efficiency (docs/distributed.md)");
     options->device.add_options(*command);
-    command->callback([options] { run(*options); });
+    command->callback([options] { options->mpi ? run_mpi(*options) : run(*options); });
 }
 
 }  // namespace lancer::cli

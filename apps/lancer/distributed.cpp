@@ -135,35 +135,41 @@ std::vector<std::byte> serialise(const FramePart* part, const std::string& failu
     return std::move(writer.bytes());
 }
 
-// Gathers every rank's bytes on rank 0 (elsewhere: nothing).
-std::vector<std::vector<std::byte>> gather_bytes(const std::vector<std::byte>& mine, int rank, int size) {
+// Every rank's bytes, on rank 0 (elsewhere: nothing): one buffer, rank r's bytes at [offsets[r],
+// offsets[r] + counts[r]).
+struct Gathered {
+    std::vector<std::byte> bytes;
+    std::vector<int> counts, offsets;
+
+    [[nodiscard]] std::span<const std::byte> of(std::size_t rank) const {
+        return std::span(bytes).subspan(static_cast<std::size_t>(offsets[rank]),
+                                        static_cast<std::size_t>(counts[rank]));
+    }
+};
+
+Gathered gather_bytes(const std::vector<std::byte>& mine, int rank, int size) {
     if (mine.size() > static_cast<std::size_t>(INT_MAX))
         throw std::runtime_error("MPI: a rank's part of the frame is over 2 GiB; use more ranks");
     const int my_count = static_cast<int>(mine.size());
-    std::vector<int> counts(static_cast<std::size_t>(size)), offsets(static_cast<std::size_t>(size));
-    check(MPI_Gather(&my_count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD), "MPI_Gather");
-    std::vector<std::byte> all;
+    Gathered gathered;
+    gathered.counts.resize(static_cast<std::size_t>(size));
+    gathered.offsets.resize(static_cast<std::size_t>(size));
+    check(MPI_Gather(&my_count, 1, MPI_INT, gathered.counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD),
+          "MPI_Gather");
     if (rank == 0) {
         std::size_t total = 0;
-        for (std::size_t r = 0; r < counts.size(); ++r) {
+        for (std::size_t r = 0; r < gathered.counts.size(); ++r) {
             if (total > static_cast<std::size_t>(INT_MAX))
                 throw std::runtime_error("MPI: the frame's parts are over 2 GiB in all");
-            offsets[r] = static_cast<int>(total);
-            total += static_cast<std::size_t>(counts[r]);
+            gathered.offsets[r] = static_cast<int>(total);
+            total += static_cast<std::size_t>(gathered.counts[r]);
         }
-        all.resize(total);
+        gathered.bytes.resize(total);
     }
-    check(MPI_Gatherv(mine.data(), my_count, MPI_BYTE, all.data(), counts.data(), offsets.data(), MPI_BYTE, 0,
-                      MPI_COMM_WORLD),
+    check(MPI_Gatherv(mine.data(), my_count, MPI_BYTE, gathered.bytes.data(), gathered.counts.data(),
+                      gathered.offsets.data(), MPI_BYTE, 0, MPI_COMM_WORLD),
           "MPI_Gatherv");
-    std::vector<std::vector<std::byte>> parts;
-    if (rank == 0) {
-        for (std::size_t r = 0; r < counts.size(); ++r) {
-            const auto first = all.begin() + offsets[r];
-            parts.emplace_back(first, first + counts[r]);
-        }
-    }
-    return parts;
+    return gathered;
 }
 
 // The tiles of a frame handed out in batches: a counter in an MPI window on rank 0, which every rank
@@ -319,11 +325,13 @@ Image Job::render(const Scene& scene, const SceneGeometry& geometry, const Accel
 #if LANCER_HAS_MPI
     const Stopwatch watch;
     const std::size_t tile_count = frame_tile_count(camera, options);
-    // Batches of a few tiles per thread: small enough to even out the ranks' ends, large enough that the
-    // fetch-and-add is rare beside the tiles' work.
     const int threads =
         options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
-    TileCounter counter(rank_, tile_count, static_cast<std::size_t>(std::max(1, 2 * threads)));
+    // Batches of at least two tiles a thread, and few enough that a rank fetches about 32 of them a frame:
+    // each fetch-and-add is a round trip to rank 0.
+    const std::size_t batch_size = std::max<std::size_t>(static_cast<std::size_t>(std::max(1, 2 * threads)),
+                                                         tile_count / (32 * static_cast<std::size_t>(size_)));
+    TileCounter counter(rank_, tile_count, batch_size);
     RenderOptions part_options = options;
     part_options.progress = false;  // rank 0 reports the tiles handed out to every rank instead
     std::exception_ptr failure;
@@ -342,15 +350,15 @@ Image Job::render(const Scene& scene, const SceneGeometry& geometry, const Accel
     if (options.progress && rank_ == 0) fmt::print(stderr, "\n");
     const std::vector<std::byte> bytes =
         failure ? serialise(nullptr, message_of(failure), exit_code_of(failure)) : serialise(&part, {}, 0);
-    const std::vector<std::vector<std::byte>> messages = gather_bytes(bytes, rank_, size_);
+    const Gathered messages = gather_bytes(bytes, rank_, size_);
     // Rank 0 learns of every failure; it tells the others whether to go on.
     int code = 0;
     std::string message;
     std::vector<FramePart> parts;
     if (rank_ == 0) {
         std::string failed_ranks;
-        for (std::size_t r = 0; r < messages.size(); ++r) {
-            Reader reader(messages[r]);
+        for (std::size_t r = 0; r < static_cast<std::size_t>(size_); ++r) {
+            Reader reader(messages.of(r));
             if (reader.get<std::uint8_t>() == 0) {
                 const auto rank_code = reader.get<std::int32_t>();
                 const std::vector<char> text = reader.get_all<char>();
@@ -410,6 +418,12 @@ std::vector<Hit> Job::intersect(const Accel& accel, const std::vector<Ray>& rays
     return hits;
 #else
     return {};
+#endif
+}
+
+void Job::barrier() const {
+#if LANCER_HAS_MPI
+    if (distributed()) check(MPI_Barrier(MPI_COMM_WORLD), "MPI_Barrier");
 #endif
 }
 

@@ -58,6 +58,9 @@ class Job {
     [[nodiscard]] std::vector<Hit> intersect(const Accel& accel, const std::vector<Ray>& rays,
                                              int threads) const;
 
+    // Waits for every rank.
+    void barrier() const;
+
     // The largest of every rank's `value` (rank 0's view of the slowest rank's time, for instance).
     [[nodiscard]] double max_over_ranks(double value) const;
 

@@ -332,6 +332,9 @@ FramePart render_part(const Scene& scene, const SceneGeometry& geometry, const A
         return batch;
     });
     const int tile_size = effective_tile_size(camera, options);
+    const std::size_t most_pixels = part.tiles.size() * static_cast<std::size_t>(tile_size) *
+                                    static_cast<std::size_t>(tile_size);
+    part.pixels.reserve(std::min(most_pixels, frame.image.pixels.size()));
     for (const std::size_t tile : part.tiles) {
         for_each_tile_pixel(camera, tile_size, tile, [&](std::size_t pixel) {
             part.pixels.push_back(frame.image.pixels[pixel]);
