@@ -356,30 +356,42 @@ Image Job::render(const Scene& scene, const SceneGeometry& geometry, const Accel
     std::string message;
     std::vector<FramePart> parts;
     if (rank_ == 0) {
-        std::string failed_ranks;
-        for (std::size_t r = 0; r < static_cast<std::size_t>(size_); ++r) {
-            Reader reader(messages.of(r));
-            if (reader.get<std::uint8_t>() == 0) {
-                const auto rank_code = reader.get<std::int32_t>();
-                const std::vector<char> text = reader.get_all<char>();
-                if (code == 0)
-                    code = rank_code,
-                    message = fmt::format("rank {}: {}", r, std::string(text.begin(), text.end()));
-                failed_ranks += (failed_ranks.empty() ? "" : ", ") + std::to_string(r);
-                continue;
+        // Rank 0 must reach the broadcast below whatever it finds here, or the others would wait for it.
+        std::vector<std::size_t> failed;
+        try {
+            for (std::size_t r = 0; r < static_cast<std::size_t>(size_); ++r) {
+                Reader reader(messages.of(r));
+                if (reader.get<std::uint8_t>() == 0) {
+                    const auto rank_code = reader.get<std::int32_t>();
+                    const std::vector<char> text = reader.get_all<char>();
+                    if (failed.empty())
+                        code = rank_code,
+                        message = fmt::format("rank {}: {}", r, std::string(text.begin(), text.end()));
+                    failed.push_back(r);
+                    continue;
+                }
+                FramePart& received = parts.emplace_back();
+                received.tiles = reader.get_all<std::size_t>();
+                received.pixels = reader.get_all<Vec3f>();
+                received.depth = reader.get_all<float>();
+                received.heat = reader.get_all<TraversalCounters>();
+                received.stats.primary_rays = reader.get<std::uint64_t>();
+                received.stats.shadow_rays = reader.get<std::uint64_t>();
+                received.stats.reflection_rays = reader.get<std::uint64_t>();
+                received.stats.refraction_rays = reader.get<std::uint64_t>();
             }
-            FramePart& received = parts.emplace_back();
-            received.tiles = reader.get_all<std::size_t>();
-            received.pixels = reader.get_all<Vec3f>();
-            received.depth = reader.get_all<float>();
-            received.heat = reader.get_all<TraversalCounters>();
-            received.stats.primary_rays = reader.get<std::uint64_t>();
-            received.stats.shadow_rays = reader.get<std::uint64_t>();
-            received.stats.reflection_rays = reader.get<std::uint64_t>();
-            received.stats.refraction_rays = reader.get<std::uint64_t>();
+        } catch (...) {
+            code = exit_code_of(std::current_exception());
+            message = "rank 0: " + message_of(std::current_exception());
+            failed = {0};
         }
-        if (code != 0)
-            message = fmt::format("rendering failed on ranks {} of {} ({})", failed_ranks, size_, message);
+        if (code != 0) {
+            std::string ranks;
+            for (const std::size_t r : failed)
+                ranks += (ranks.empty() ? "" : ", ") + std::to_string(r);
+            message = fmt::format("rendering failed on {} {} of {} ({})",
+                                  failed.size() == 1 ? "rank" : "ranks", ranks, size_, message);
+        }
     }
     check(MPI_Bcast(&code, 1, MPI_INT, 0, MPI_COMM_WORLD), "MPI_Bcast");
     if (code != 0) throw JobError(rank_ == 0 ? message : "rendering failed on another rank", code);
