@@ -278,6 +278,13 @@ Job::~Job() {
 #endif
 }
 
+void Job::abort(int exit_code) const {
+#if LANCER_HAS_MPI
+    if (mpi_) MPI_Abort(MPI_COMM_WORLD, exit_code);
+#endif
+    std::exit(exit_code);
+}
+
 Job& Job::get() {
     static Job job;
     return job;

@@ -46,6 +46,10 @@ class Job {
     // rank's exit code (2 for bad input or memory, 1 otherwise). No rank is left waiting for another.
     void on_every_rank(std::string_view what, const std::function<void()>& step) const;
 
+    // Ends this process with `exit_code`, and under mpirun the whole job with it (MPI_Abort): for a
+    // failure the other ranks cannot learn of, while they may be waiting for this one.
+    [[noreturn]] void abort(int exit_code) const;
+
     // The frame rendered over the ranks: tiles handed out in batches from a counter that rank 0 keeps,
     // every part gathered and assembled on rank 0. Returns the image on rank 0 (an empty one elsewhere),
     // and there the rays of all ranks in `stats`. A rank that fails while rendering makes every rank throw

@@ -14,17 +14,27 @@
 
 namespace {
 
-// Under mpirun every rank meets the same errors (each parses the same arguments; the failures of loading,
-// building and rendering are agreed on by every rank, lancer::cli::Job), so rank 0 alone says why.
+// The exit of a failed command. Under mpirun a failure that every rank agreed on (a JobError: loading,
+// building, rendering, tracing; lancer::cli::Job) is printed by rank 0 alone, and every rank returns its
+// code. Any other failure may be this rank's alone (an option only it was given, in mpirun's MPMD form),
+// while the others wait for it in a collective call: it is printed with the rank, and the whole job ends at
+// once (MPI_Abort) so that none of them hangs.
 template <class... Args>
-void report(fmt::format_string<Args...> format, Args&&... args) {
-    if (lancer::cli::Job::get().is_root()) fmt::print(stderr, format, std::forward<Args>(args)...);
+int fail(int code, fmt::format_string<Args...> format, Args&&... args) {
+    const lancer::cli::Job& job = lancer::cli::Job::get();
+    if (!job.distributed()) {
+        fmt::print(stderr, "lancer: {}\n", fmt::format(format, std::forward<Args>(args)...));
+        return code;
+    }
+    fmt::print(stderr, "lancer (rank {}): {}\n", job.rank(),
+               fmt::format(format, std::forward<Args>(args)...));
+    job.abort(code);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-    static_cast<void>(lancer::cli::Job::get());  // MPI starts here under mpirun
+    const lancer::cli::Job& job = lancer::cli::Job::get();  // MPI starts here under mpirun
     CLI::App app{
         "lancer: ray-tracing kernels (Pluecker-connected octree, BVH, kd-tree, grid) and a renderer"};
     app.require_subcommand(1);
@@ -37,31 +47,23 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& error) {
-        if (!lancer::cli::Job::get().is_root()) return error.get_exit_code() == 0 ? 0 : 2;
-        const int code = app.exit(error);
-        return code == 0 ? 0 : 2;
+        if (error.get_exit_code() == 0) return job.is_root() ? app.exit(error) : 0;  // --help, on rank 0
+        if (!job.distributed()) return app.exit(error) == 0 ? 0 : 2;
+        return fail(2, "{}", error.what());
     } catch (const lancer::cli::JobError& error) {
-        report("lancer: {}\n", error.what());
+        if (job.is_root()) fmt::print(stderr, "lancer: {}\n", error.what());
         return error.exit_code();
     } catch (const lancer::LoadError& error) {
-        report("lancer: {}\n", error.what());
-        return 2;
+        return fail(2, "{}", error.what());
     } catch (const lancer::cli::InputError& error) {
-        report("lancer: {}\n", error.what());
-        return 2;
+        return fail(2, "{}", error.what());
     } catch (const std::bad_alloc&) {
         // Past loading and building (which say which phase failed): rays, images, the bench's records.
-        report("lancer: {}\n", lancer::cli::out_of_memory("the command", "running").what());
-        return 2;
+        return fail(2, "{}", lancer::cli::out_of_memory("the command", "running").what());
     } catch (const lancer::cli::CheckFailure& error) {
-        report("lancer: {}\n", error.what());
-        return 1;
+        return fail(1, "{}", error.what());
     } catch (const std::exception& error) {
-        // Not agreed on by the ranks: each says it, with its rank under mpirun.
-        const lancer::cli::Job& job = lancer::cli::Job::get();
-        fmt::print(stderr, "lancer{}: internal error: {}\n",
-                   job.distributed() ? fmt::format(" (rank {})", job.rank()) : std::string(), error.what());
-        return 1;
+        return fail(1, "internal error: {}", error.what());
     }
     return 0;
 }

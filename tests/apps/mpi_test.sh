@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # lancer under mpirun (docs/distributed.md): 2 ranks give the single process's picture and hits file byte
-# for byte, and a scene that one rank cannot read ends the job with one message naming that rank.
+# for byte, and a scene that one rank cannot read, or runs out of memory on, ends the job with one message
+# naming that rank.
 # Usage: mpi_test.sh LANCER BUILT_WITH_MPI(ON|OFF) SCENE MESH WORKDIR. Exit 77 (skipped) without MPI.
 set -uo pipefail
 lancer=$1 built_with_mpi=$2 scene=$3 mesh=$4 work=$5
@@ -15,7 +16,7 @@ if ! command -v mpirun > /dev/null; then
 fi
 # Open MPI refuses root unless told; CI containers run as root.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-mpi=(timeout 300 mpirun --oversubscribe)
+mpi=(timeout 120 mpirun --oversubscribe)
 mkdir -p "$work"
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
@@ -60,6 +61,23 @@ code=$?
 grep -q "loading the scene failed on rank 1 of 2" "$work/failure.txt" || fail "no message naming rank 1: $(cat "$work/failure.txt")"
 [ "$(grep -c '^lancer:' "$work/failure.txt")" -eq 1 ] || fail "not one message: $(cat "$work/failure.txt")"
 [ ! -e "$work/never.png" ] || fail "a picture was written"
+
+# 4. Rank 1 runs out of memory loading the mesh (its --max-memory too small): the same, with exit code 2.
+"${mpi[@]}" -np 1 "$lancer" render "$mesh" --size 32x32 -o "$work/never.png" : \
+  -np 1 "$lancer" render "$mesh" --size 32x32 --max-memory 2M -o "$work/never.png" > "$work/memory.txt" 2>&1
+code=$?
+[ $code -eq 2 ] || fail "out of memory on rank 1: exit code $code, expected 2"
+grep -q "loading the scene failed on rank 1 of 2" "$work/memory.txt" || fail "no message naming rank 1: $(cat "$work/memory.txt")"
+[ "$(grep -c '^lancer:' "$work/memory.txt")" -eq 1 ] || fail "not one message: $(cat "$work/memory.txt")"
+
+# 5. Rank 1 alone is given an option it refuses, while rank 0 goes on to load the scene and waits for it:
+# the job still ends (MPI_Abort), with rank 1's message.
+"${mpi[@]}" -np 1 "$lancer" render "$scene" -o "$work/never.png" : \
+  -np 1 "$lancer" render "$scene" --mode nonsense -o "$work/never.png" > "$work/option.txt" 2>&1
+code=$?
+[ $code -ne 124 ] || fail "the job with an option refused on rank 1 hung"
+[ $code -ne 0 ] || fail "the job with an option refused on rank 1 succeeded"
+grep -q "lancer (rank 1): .*nonsense" "$work/option.txt" || fail "no message from rank 1: $(cat "$work/option.txt")"
 
 if [ $failures -ne 0 ]; then
   echo "$failures failure(s)"
