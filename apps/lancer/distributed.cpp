@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <chrono>
 #include <climits>
 #include <cstdint>
 #include <cstdlib>
@@ -442,7 +443,17 @@ std::vector<Hit> Job::intersect(const Accel& accel, const std::vector<Ray>& rays
 
 void Job::barrier() const {
 #if LANCER_HAS_MPI
-    if (distributed()) check(MPI_Barrier(MPI_COMM_WORLD), "MPI_Barrier");
+    if (!distributed()) return;
+    // Polled with short sleeps, not MPI_Barrier: Open MPI spins a core in a blocking call, which would take
+    // it from a rank still working on the same machine (bench --mpi times rank 0 alone while the others
+    // wait here).
+    MPI_Request request = MPI_REQUEST_NULL;
+    check(MPI_Ibarrier(MPI_COMM_WORLD, &request), "MPI_Ibarrier");
+    for (int done = 0;;) {
+        check(MPI_Test(&request, &done, MPI_STATUS_IGNORE), "MPI_Test");
+        if (done != 0) return;
+        std::this_thread::sleep_for(std::chrono::microseconds(100));
+    }
 #endif
 }
 

@@ -62,7 +62,7 @@ class Job {
     [[nodiscard]] std::vector<Hit> intersect(const Accel& accel, const std::vector<Ray>& rays,
                                              int threads) const;
 
-    // Waits for every rank.
+    // Waits for every rank, without spinning a core meanwhile.
     void barrier() const;
 
     // The largest of every rank's `value` (rank 0's view of the slowest rank's time, for instance).
