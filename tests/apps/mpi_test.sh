@@ -18,6 +18,12 @@ fi
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 mpi=(timeout 120 mpirun --oversubscribe)
 mkdir -p "$work"
+# A machine where Open MPI itself cannot start two processes (no shared memory, no usable network) says so
+# and skips: that is no fault of lancer's.
+if ! "${mpi[@]}" -np 2 true > "$work/preflight.txt" 2>&1; then
+  echo "skipped: mpirun cannot start 2 processes here: $(head -c 400 "$work/preflight.txt")"
+  exit 77
+fi
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
