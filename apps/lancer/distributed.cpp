@@ -356,8 +356,11 @@ Image Job::render(const Scene& scene, const SceneGeometry& geometry, const Accel
         failure = std::current_exception();
     }
     if (options.progress && rank_ == 0) fmt::print(stderr, "\n");
-    const std::vector<std::byte> bytes =
-        failure ? serialise(nullptr, message_of(failure), exit_code_of(failure)) : serialise(&part, {}, 0);
+    // Rank 0 keeps its own part where it is and sends nothing, unless it failed.
+    const std::vector<std::byte> bytes = failure
+                                             ? serialise(nullptr, message_of(failure), exit_code_of(failure))
+                                         : rank_ == 0 ? std::vector<std::byte>()
+                                                      : serialise(&part, {}, 0);
     const Gathered messages = gather_bytes(bytes, rank_, size_);
     // Rank 0 learns of every failure; it tells the others whether to go on.
     int code = 0;
@@ -367,7 +370,9 @@ Image Job::render(const Scene& scene, const SceneGeometry& geometry, const Accel
         // Rank 0 must reach the broadcast below whatever it finds here, or the others would wait for it.
         std::vector<std::size_t> failed;
         try {
+            if (!failure) parts.push_back(std::move(part));
             for (std::size_t r = 0; r < static_cast<std::size_t>(size_); ++r) {
+                if (r == 0 && !failure) continue;
                 Reader reader(messages.of(r));
                 if (reader.get<std::uint8_t>() == 0) {
                     const auto rank_code = reader.get<std::int32_t>();

@@ -274,18 +274,17 @@ Image finish_frame(FrameBuffers& frame, ShadingMode mode, RenderStats* stats) {
     return std::move(frame.image);
 }
 
-// The pixels of `tile`, clipped to the image: calls visit(pixel index) row by row.
+// The rows of `tile`, clipped to the image: calls visit(first pixel index, pixel count) for each, top down.
 template <class Visit>
-void for_each_tile_pixel(const Camera& camera, int tile_size, std::size_t tile, Visit&& visit) {
+void for_each_tile_row(const Camera& camera, int tile_size, std::size_t tile, Visit&& visit) {
     const auto columns = static_cast<std::size_t>((camera.width + tile_size - 1) / tile_size);
     const int x0 = static_cast<int>(tile % columns) * tile_size;
     const int y0 = static_cast<int>(tile / columns) * tile_size;
     const int x1 = std::min(x0 + tile_size, camera.width), y1 = std::min(y0 + tile_size, camera.height);
-    for (int y = y0; y < y1; ++y) {
-        for (int x = x0; x < x1; ++x)
-            visit(static_cast<std::size_t>(y) * static_cast<std::size_t>(camera.width) +
-                  static_cast<std::size_t>(x));
-    }
+    for (int y = y0; y < y1; ++y)
+        visit(static_cast<std::size_t>(y) * static_cast<std::size_t>(camera.width) +
+                  static_cast<std::size_t>(x0),
+              static_cast<std::size_t>(x1 - x0));
 }
 
 }  // namespace
@@ -332,14 +331,18 @@ FramePart render_part(const Scene& scene, const SceneGeometry& geometry, const A
         return batch;
     });
     const int tile_size = effective_tile_size(camera, options);
-    const std::size_t most_pixels = part.tiles.size() * static_cast<std::size_t>(tile_size) *
-                                    static_cast<std::size_t>(tile_size);
+    const std::size_t most_pixels =
+        part.tiles.size() * static_cast<std::size_t>(tile_size) * static_cast<std::size_t>(tile_size);
     part.pixels.reserve(std::min(most_pixels, frame.image.pixels.size()));
+    auto append = [](auto& to, const auto& from, std::size_t first, std::size_t count) {
+        const auto begin = from.begin() + static_cast<std::ptrdiff_t>(first);
+        to.insert(to.end(), begin, begin + static_cast<std::ptrdiff_t>(count));
+    };
     for (const std::size_t tile : part.tiles) {
-        for_each_tile_pixel(camera, tile_size, tile, [&](std::size_t pixel) {
-            part.pixels.push_back(frame.image.pixels[pixel]);
-            if (options.mode == ShadingMode::Depth) part.depth.push_back(frame.depth[pixel]);
-            if (options.mode == ShadingMode::Heatmap) part.heat.push_back(frame.heat[pixel]);
+        for_each_tile_row(camera, tile_size, tile, [&](std::size_t first, std::size_t count) {
+            append(part.pixels, frame.image.pixels, first, count);
+            if (options.mode == ShadingMode::Depth) append(part.depth, frame.depth, first, count);
+            if (options.mode == ShadingMode::Heatmap) append(part.heat, frame.heat, first, count);
         });
     }
     part.stats.primary_rays = frame.rays.primary;
@@ -364,13 +367,21 @@ Image assemble_frame(const Camera& camera, const RenderOptions& options, std::sp
                                             (tile >= tile_count ? " is not in the frame" : " comes twice"));
             }
             seen[tile] = 1;
-            for_each_tile_pixel(camera, tile_size, tile, [&](std::size_t pixel) {
-                if (value >= part.pixels.size())
+            for_each_tile_row(camera, tile_size, tile, [&](std::size_t first, std::size_t count) {
+                const bool short_of_values =
+                    part.pixels.size() - value < count ||
+                    (options.mode == ShadingMode::Depth && part.depth.size() < value + count) ||
+                    (options.mode == ShadingMode::Heatmap && part.heat.size() < value + count);
+                if (value > part.pixels.size() || short_of_values)
                     throw std::invalid_argument("assemble_frame: a part holds fewer pixels than its tiles");
-                frame.image.pixels[pixel] = part.pixels[value];
-                if (options.mode == ShadingMode::Depth) frame.depth[pixel] = part.depth.at(value);
-                if (options.mode == ShadingMode::Heatmap) frame.heat[pixel] = part.heat.at(value);
-                ++value;
+                auto copy = [&](const auto& from, auto& to) {
+                    std::copy_n(from.begin() + static_cast<std::ptrdiff_t>(value), count,
+                                to.begin() + static_cast<std::ptrdiff_t>(first));
+                };
+                copy(part.pixels, frame.image.pixels);
+                if (options.mode == ShadingMode::Depth) copy(part.depth, frame.depth);
+                if (options.mode == ShadingMode::Heatmap) copy(part.heat, frame.heat);
+                value += count;
             });
         }
         if (value != part.pixels.size())
