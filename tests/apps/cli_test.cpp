@@ -129,6 +129,11 @@ TEST_F(Cli, BadInputExitsWithTwoAndSaysWhere) {
 
     result = run("render " + good.string() + " --mode sepia");
     EXPECT_EQ(result.exit_code, 2);
+
+    // The scaling bench needs the ranks of an mpirun job (docs/distributed.md).
+    result = run("bench --mpi --mesh " + good.string() + " --accel bvh --frames 1 --size 8");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("under mpirun"), std::string::npos) << result.output;
 }
 
 // --device cuda (issue 7): render takes --mode flat or heatmap only, on any machine; without a usable GPU
