@@ -559,6 +559,9 @@ struct ScalingRecord {
     int threads = 0;
     int ranks = 0;
     double mrays_one_rank = 0.0, mrays_all_ranks = 0.0;
+
+    // t_1 / (N t_N): 1 when N ranks trace N times as fast as one.
+    [[nodiscard]] double efficiency() const { return mrays_all_ranks / (mrays_one_rank * ranks); }
 };
 
 double median_of(std::vector<double> values) {
@@ -627,8 +630,7 @@ void run_mpi(const BenchOptions& options) {
                 if (job.is_root()) {
                     fmt::print("{:<16} {:<14} {:>3} {:>5} {:>14.2f} {:>14.2f} {:>10.2f}\n", record.mesh,
                                record.accel, threads, record.ranks, record.mrays_one_rank,
-                               record.mrays_all_ranks,
-                               record.mrays_all_ranks / (record.mrays_one_rank * record.ranks));
+                               record.mrays_all_ranks, record.efficiency());
                 }
                 records.push_back(record);
             }
@@ -641,8 +643,8 @@ void run_mpi(const BenchOptions& options) {
         json += fmt::format(
             "  {{\"mesh\": \"{}\", \"view\": \"primary\", \"accel\": \"{}\", \"threads\": {}, \"ranks\": {}, "
             "\"mrays_one_rank\": {:.4f}, \"mrays_all_ranks\": {:.4f}, \"parallel_efficiency\": {:.4f}}}{}\n",
-            r.mesh, r.accel, r.threads, r.ranks, r.mrays_one_rank, r.mrays_all_ranks,
-            r.mrays_all_ranks / (r.mrays_one_rank * r.ranks), i + 1 < records.size() ? "," : "");
+            r.mesh, r.accel, r.threads, r.ranks, r.mrays_one_rank, r.mrays_all_ranks, r.efficiency(),
+            i + 1 < records.size() ? "," : "");
     }
     json += "]\n";
     try {
