@@ -136,6 +136,20 @@ std::vector<std::byte> serialise(const FramePart* part, const std::string& failu
     return std::move(writer.bytes());
 }
 
+// serialise's inverse for a part (the leading 1 already read).
+FramePart deserialise_part(Reader& reader) {
+    FramePart part;
+    part.tiles = reader.get_all<std::size_t>();
+    part.pixels = reader.get_all<Vec3f>();
+    part.depth = reader.get_all<float>();
+    part.heat = reader.get_all<TraversalCounters>();
+    part.stats.primary_rays = reader.get<std::uint64_t>();
+    part.stats.shadow_rays = reader.get<std::uint64_t>();
+    part.stats.reflection_rays = reader.get<std::uint64_t>();
+    part.stats.refraction_rays = reader.get<std::uint64_t>();
+    return part;
+}
+
 // Every rank's bytes, on rank 0 (elsewhere: nothing): one buffer, rank r's bytes at [offsets[r],
 // offsets[r] + counts[r]).
 struct Gathered {
@@ -383,15 +397,7 @@ Image Job::render(const Scene& scene, const SceneGeometry& geometry, const Accel
                     failed.push_back(r);
                     continue;
                 }
-                FramePart& received = parts.emplace_back();
-                received.tiles = reader.get_all<std::size_t>();
-                received.pixels = reader.get_all<Vec3f>();
-                received.depth = reader.get_all<float>();
-                received.heat = reader.get_all<TraversalCounters>();
-                received.stats.primary_rays = reader.get<std::uint64_t>();
-                received.stats.shadow_rays = reader.get<std::uint64_t>();
-                received.stats.reflection_rays = reader.get<std::uint64_t>();
-                received.stats.refraction_rays = reader.get<std::uint64_t>();
+                parts.push_back(deserialise_part(reader));
             }
         } catch (...) {
             code = exit_code_of(std::current_exception());

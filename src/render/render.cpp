@@ -100,35 +100,65 @@ void depth_to_image(const std::vector<float>& depth, Image& image) {
     }
 }
 
+// A frame's tiles: squares of options.tile_size numbered row-major, the last column and row clipped to the
+// image. The renderer, the parts of a distributed frame and their assembly all index tiles through it.
+class TileGrid {
+  public:
+    struct Rect {
+        int x0, y0, x1, y1;  // pixels [x0, x1) x [y0, y1)
+    };
+
+    TileGrid(const Camera& camera, const RenderOptions& options)
+        : width_(camera.width),
+          height_(camera.height),
+          // A tile larger than the image is the image; the clamp also keeps the tile arithmetic within an
+          // int.
+          tile_size_(std::min(options.tile_size, std::max(camera.width, camera.height))),
+          columns_((width_ + tile_size_ - 1) / tile_size_),
+          rows_((height_ + tile_size_ - 1) / tile_size_) {}
+
+    [[nodiscard]] std::size_t count() const {
+        return static_cast<std::size_t>(columns_) * static_cast<std::size_t>(rows_);
+    }
+    [[nodiscard]] Rect rect(std::size_t tile) const {
+        const int x0 = static_cast<int>(tile % static_cast<std::size_t>(columns_)) * tile_size_;
+        const int y0 = static_cast<int>(tile / static_cast<std::size_t>(columns_)) * tile_size_;
+        return {x0, y0, std::min(x0 + tile_size_, width_), std::min(y0 + tile_size_, height_)};
+    }
+    // Calls visit(first pixel index, pixel count) for each row of `tile`, top down.
+    template <class Visit>
+    void for_each_row(std::size_t tile, Visit&& visit) const {
+        const Rect r = rect(tile);
+        for (int y = r.y0; y < r.y1; ++y)
+            visit(static_cast<std::size_t>(y) * static_cast<std::size_t>(width_) +
+                      static_cast<std::size_t>(r.x0),
+                  static_cast<std::size_t>(r.x1 - r.x0));
+    }
+
+  private:
+    int width_, height_, tile_size_, columns_, rows_;
+};
+
 class TileRenderer {
   public:
     TileRenderer(const Scene& scene, const SceneIntersector& intersector, const PinholeCamera& camera,
-                 const WhittedTracer& whitted, ShadingMode mode, int tile_size, Image& image,
+                 const WhittedTracer& whitted, ShadingMode mode, const TileGrid& grid, Image& image,
                  std::vector<float>& depth, std::vector<TraversalCounters>& heat, AtomicRayCounts& rays)
         : scene_(scene),
           intersector_(intersector),
           camera_(camera),
           whitted_(whitted),
           mode_(mode),
-          tile_size_(tile_size),
-          tile_columns_((image.width + tile_size - 1) / tile_size),
-          tile_rows_((image.height + tile_size - 1) / tile_size),
+          grid_(grid),
           image_(image),
           depth_(depth),
           heat_(heat),
           rays_(rays) {}
 
-    [[nodiscard]] std::size_t tile_count() const {
-        return static_cast<std::size_t>(tile_columns_) * static_cast<std::size_t>(tile_rows_);
-    }
-
-    // Tile `tile` (row-major over the tile grid): the Whitted ray tree of its samples, or the primary rays
-    // through its pixel centres.
+    // Tile `tile` (TileGrid): the Whitted ray tree of its samples, or the primary rays through its pixel
+    // centres.
     void render(std::size_t tile) const {
-        const int x0 = static_cast<int>(tile % static_cast<std::size_t>(tile_columns_)) * tile_size_;
-        const int y0 = static_cast<int>(tile / static_cast<std::size_t>(tile_columns_)) * tile_size_;
-        const int x1 = std::min(x0 + tile_size_, image_.width);
-        const int y1 = std::min(y0 + tile_size_, image_.height);
+        const auto [x0, y0, x1, y1] = grid_.rect(tile);
         if (mode_ == ShadingMode::Whitted) {
             rays_.add(whitted_.render_tile(x0, y0, x1, y1, image_));
             return;
@@ -191,9 +221,7 @@ class TileRenderer {
     const PinholeCamera& camera_;
     const WhittedTracer& whitted_;
     ShadingMode mode_;
-    int tile_size_;
-    int tile_columns_;
-    int tile_rows_;
+    const TileGrid& grid_;
     Image& image_;
     std::vector<float>& depth_;             // hit distance per pixel, infinity on a miss; Depth mode only
     std::vector<TraversalCounters>& heat_;  // traversal counts per pixel; Heatmap mode only
@@ -214,11 +242,6 @@ struct FrameBuffers {
     }
 };
 
-// A tile larger than the image is the image; the clamp also keeps the tile arithmetic within an int.
-int effective_tile_size(const Camera& camera, const RenderOptions& options) {
-    return std::min(options.tile_size, std::max(camera.width, camera.height));
-}
-
 // Renders the tiles each call of `next_batch` returns (a std::vector<std::size_t>; empty: done), each
 // batch over the threads of `options`.
 template <class NextBatch>
@@ -228,16 +251,16 @@ void render_batches(const Scene& scene, const SceneGeometry& geometry, const Acc
     const SceneIntersector intersector(scene, geometry, accel);
     const PinholeCamera pinhole(camera);
     const WhittedTracer whitted(scene, intersector, pinhole, options);
-    const TileRenderer tiles(scene, intersector, pinhole, whitted, options.mode,
-                             effective_tile_size(camera, options), frame.image, frame.depth, frame.heat,
-                             frame.rays);
-    ProgressReporter progress("render", tiles.tile_count(), "tiles", options.progress);
+    const TileGrid grid(camera, options);
+    const TileRenderer tiles(scene, intersector, pinhole, whitted, options.mode, grid, frame.image,
+                             frame.depth, frame.heat, frame.rays);
+    ProgressReporter progress("render", grid.count(), "tiles", options.progress);
     tbb::task_arena arena(options.threads == 0 ? tbb::task_arena::automatic : options.threads);
     for (std::vector<std::size_t> batch = next_batch(); !batch.empty(); batch = next_batch()) {
         for (const std::size_t tile : batch) {
-            if (tile >= tiles.tile_count()) {
+            if (tile >= grid.count()) {
                 throw std::invalid_argument("render: tile " + std::to_string(tile) + " of a frame of " +
-                                            std::to_string(tiles.tile_count()));
+                                            std::to_string(grid.count()));
             }
         }
         arena.execute([&] {
@@ -274,19 +297,6 @@ Image finish_frame(FrameBuffers& frame, ShadingMode mode, RenderStats* stats) {
     return std::move(frame.image);
 }
 
-// The rows of `tile`, clipped to the image: calls visit(first pixel index, pixel count) for each, top down.
-template <class Visit>
-void for_each_tile_row(const Camera& camera, int tile_size, std::size_t tile, Visit&& visit) {
-    const auto columns = static_cast<std::size_t>((camera.width + tile_size - 1) / tile_size);
-    const int x0 = static_cast<int>(tile % columns) * tile_size;
-    const int y0 = static_cast<int>(tile / columns) * tile_size;
-    const int x1 = std::min(x0 + tile_size, camera.width), y1 = std::min(y0 + tile_size, camera.height);
-    for (int y = y0; y < y1; ++y)
-        visit(static_cast<std::size_t>(y) * static_cast<std::size_t>(camera.width) +
-                  static_cast<std::size_t>(x0),
-              static_cast<std::size_t>(x1 - x0));
-}
-
 }  // namespace
 
 Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel, const Camera& camera,
@@ -314,9 +324,7 @@ Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& acc
 
 std::size_t frame_tile_count(const Camera& camera, const RenderOptions& options) {
     check_options(camera, options);
-    const int tile_size = effective_tile_size(camera, options);
-    return static_cast<std::size_t>((camera.width + tile_size - 1) / tile_size) *
-           static_cast<std::size_t>((camera.height + tile_size - 1) / tile_size);
+    return TileGrid(camera, options).count();
 }
 
 FramePart render_part(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
@@ -330,16 +338,19 @@ FramePart render_part(const Scene& scene, const SceneGeometry& geometry, const A
         part.tiles.insert(part.tiles.end(), batch.begin(), batch.end());
         return batch;
     });
-    const int tile_size = effective_tile_size(camera, options);
-    const std::size_t most_pixels =
-        part.tiles.size() * static_cast<std::size_t>(tile_size) * static_cast<std::size_t>(tile_size);
-    part.pixels.reserve(std::min(most_pixels, frame.image.pixels.size()));
+    const TileGrid grid(camera, options);
+    std::size_t pixel_count = 0;
+    for (const std::size_t tile : part.tiles) {
+        const TileGrid::Rect r = grid.rect(tile);
+        pixel_count += static_cast<std::size_t>(r.x1 - r.x0) * static_cast<std::size_t>(r.y1 - r.y0);
+    }
+    part.pixels.reserve(pixel_count);
     auto append = [](auto& to, const auto& from, std::size_t first, std::size_t count) {
         const auto begin = from.begin() + static_cast<std::ptrdiff_t>(first);
         to.insert(to.end(), begin, begin + static_cast<std::ptrdiff_t>(count));
     };
     for (const std::size_t tile : part.tiles) {
-        for_each_tile_row(camera, tile_size, tile, [&](std::size_t first, std::size_t count) {
+        grid.for_each_row(tile, [&](std::size_t first, std::size_t count) {
             append(part.pixels, frame.image.pixels, first, count);
             if (options.mode == ShadingMode::Depth) append(part.depth, frame.depth, first, count);
             if (options.mode == ShadingMode::Heatmap) append(part.heat, frame.heat, first, count);
@@ -355,24 +366,22 @@ FramePart render_part(const Scene& scene, const SceneGeometry& geometry, const A
 Image assemble_frame(const Camera& camera, const RenderOptions& options, std::span<const FramePart> parts,
                      RenderStats* stats) {
     check_options(camera, options);
-    const std::size_t tile_count = frame_tile_count(camera, options);
-    const int tile_size = effective_tile_size(camera, options);
-    std::vector<std::uint8_t> seen(tile_count, 0);
+    const TileGrid grid(camera, options);
+    std::vector<std::uint8_t> seen(grid.count(), 0);
     FrameBuffers frame(camera, options.mode);
     for (const FramePart& part : parts) {
+        if ((options.mode == ShadingMode::Depth && part.depth.size() != part.pixels.size()) ||
+            (options.mode == ShadingMode::Heatmap && part.heat.size() != part.pixels.size()))
+            throw std::invalid_argument("assemble_frame: a part's per-pixel values do not match its pixels");
         std::size_t value = 0;
         for (const std::size_t tile : part.tiles) {
-            if (tile >= tile_count || seen[tile] != 0) {
+            if (tile >= seen.size() || seen[tile] != 0) {
                 throw std::invalid_argument("assemble_frame: tile " + std::to_string(tile) +
-                                            (tile >= tile_count ? " is not in the frame" : " comes twice"));
+                                            (tile >= seen.size() ? " is not in the frame" : " comes twice"));
             }
             seen[tile] = 1;
-            for_each_tile_row(camera, tile_size, tile, [&](std::size_t first, std::size_t count) {
-                const bool short_of_values =
-                    part.pixels.size() - value < count ||
-                    (options.mode == ShadingMode::Depth && part.depth.size() < value + count) ||
-                    (options.mode == ShadingMode::Heatmap && part.heat.size() < value + count);
-                if (value > part.pixels.size() || short_of_values)
+            grid.for_each_row(tile, [&](std::size_t first, std::size_t count) {
+                if (part.pixels.size() - value < count)
                     throw std::invalid_argument("assemble_frame: a part holds fewer pixels than its tiles");
                 auto copy = [&](const auto& from, auto& to) {
                     std::copy_n(from.begin() + static_cast<std::ptrdiff_t>(value), count,

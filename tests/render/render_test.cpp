@@ -346,7 +346,7 @@ TEST(RenderParts, AssembleIntoTheSingleProcessImage) {
     }
 }
 
-TEST(RenderParts, AssemblyRefusesMissingOrRepeatedTiles) {
+TEST(RenderParts, AssemblyRefusesPartsThatDoNotTileTheFrame) {
     const Scene scene = tiny_scene();
     const SceneGeometry geometry(scene);
     const std::unique_ptr<Accel> accel = make_accel("bvh");
@@ -368,6 +368,11 @@ TEST(RenderParts, AssemblyRefusesMissingOrRepeatedTiles) {
     EXPECT_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, repeated)), std::invalid_argument);
     const std::vector<FramePart> whole = {part_of({5, 3, 1}), part_of({0, 2, 4})};
     EXPECT_NO_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, whole)));
+    std::vector<FramePart> cut_short = whole, padded = whole;
+    cut_short[1].pixels.pop_back();
+    EXPECT_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, cut_short)), std::invalid_argument);
+    padded[1].pixels.push_back(Vec3f(0.0f));
+    EXPECT_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, padded)), std::invalid_argument);
     EXPECT_THROW(static_cast<void>(part_of({6})), std::invalid_argument);
 }
 
