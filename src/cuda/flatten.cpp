@@ -79,6 +79,8 @@ PluckerView plucker_view(const plucker::PluckerLayout& layout) {
     view.cube_lo = layout.cube.lo;
     view.cube_size = layout.cube.size;
     view.tolerance = layout.tolerance;
+    view.bounds_lo = layout.bounds.lo;
+    view.bounds_hi = layout.bounds.hi;
     view.balanced = layout.options.balanced;
     view.stored_boxes = layout.options.stored_boxes;
     view.cell_words = static_cast<std::uint32_t>(layout.cells.size());  // cell addresses are 31-bit words

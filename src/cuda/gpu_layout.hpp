@@ -68,9 +68,10 @@ struct PluckerView {
     Vec3f cube_lo;
     float cube_size = 0.0f;
     float tolerance = 0.0f;
-    bool balanced = true;      // plucker.balanced: every link names a leaf, else it may name an inner cell
-    bool stored_boxes = true;  // plucker.stored_boxes: a cell's box word indexes `boxes`, else it holds the
-                               // cell's integer coordinates and level
+    Vec3f bounds_lo, bounds_hi;  // PluckerLayout::bounds
+    bool balanced = true;        // plucker.balanced: every link names a leaf, else it may name an inner cell
+    bool stored_boxes = true;    // plucker.stored_boxes: a cell's box word indexes `boxes`, else it holds the
+                                 // cell's integer coordinates and level
     std::uint32_t cell_words = 0;  // the size of `cells`, which bounds a walk without the 2:1 rule
     std::uint32_t cube_map_level[6] = {};
     std::uint32_t cube_map_offset[6] = {};

@@ -113,7 +113,7 @@ LANCER_HOST_DEVICE inline std::uint32_t plucker_cell_index(const PluckerView& oc
     const std::uint32_t last = (1u << level) - 1u;
     const float scaled = (p - octree.cube_lo[axis]) / octree.cube_size * static_cast<float>(1u << level);
     std::uint32_t i =
-        scaled <= 0.0f ? 0u : min_of(last, static_cast<std::uint32_t>(min_of(scaled, 65536.0f)));
+        !(scaled > 0.0f) ? 0u : min_of(last, static_cast<std::uint32_t>(min_of(scaled, 65536.0f)));
     const int l = static_cast<int>(level);
     while (i > 0 && (up ? p < cube_plane(octree, axis, l, i) : p <= cube_plane(octree, axis, l, i)))
         --i;
@@ -145,22 +145,30 @@ LANCER_HOST_DEVICE inline std::uint32_t plucker_descend(const PluckerView& octre
     return word >> 1;
 }
 
-// ENTRY (section 4.1): walk.hpp's entry_leaf.
+// walk.hpp's slab_interval.
+struct SlabInterval {
+    float near_t, far_t;
+};
+LANCER_HOST_DEVICE inline SlabInterval slab_interval(float lo, float hi, float origin, float inverse) {
+    const float t_lo = (lo - origin) * inverse, t_hi = (hi - origin) * inverse;
+    if (is_nan(t_lo) || is_nan(t_hi)) return {-kInfinity, kInfinity};
+    return {min_of(t_lo, t_hi), widened_exit(max_of(t_lo, t_hi))};
+}
+
+// ENTRY (section 4.1): walk.hpp's entry_leaf, by the faces of the geometry's bounds.
 LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, const Ray& ray,
-                                                  const PluckerWalkRay& walk_ray, std::uint32_t& address) {
+                                                  const PluckerWalkRay& walk_ray, std::uint32_t& address,
+                                                  float& walk_end) {
     float t_entry = -kInfinity, t_exit = kInfinity;
     int entry_axis = 0;
     for (int axis = 0; axis < 3; ++axis) {
-        const float inverse = 1.0f / ray.direction[axis];
-        const float lo = cube_plane(octree, axis, 0, 0) - octree.tolerance,
-                    hi = cube_plane(octree, axis, 0, 1) + octree.tolerance;
-        const float t_lo = (lo - ray.origin[axis]) * inverse, t_hi = (hi - ray.origin[axis]) * inverse;
-        float slab_near = min_of(t_lo, t_hi), slab_far = widened_exit(max_of(t_lo, t_hi));
-        if (is_nan(t_lo) || is_nan(t_hi)) slab_near = -kInfinity, slab_far = kInfinity;
-        if (slab_near > t_entry) t_entry = slab_near, entry_axis = axis;
-        t_exit = min_of(t_exit, slab_far);
+        const SlabInterval slab = slab_interval(octree.bounds_lo[axis], octree.bounds_hi[axis],
+                                                ray.origin[axis], 1.0f / ray.direction[axis]);
+        if (slab.near_t > t_entry) t_entry = slab.near_t, entry_axis = axis;
+        t_exit = min_of(t_exit, slab.far_t);
     }
     if (!(max_of(t_entry, ray.tnear) <= min_of(t_exit, ray.tfar))) return false;
+    walk_end = t_exit;
     if (t_entry <= ray.tnear) {
         const Vec3f p = ray.origin + ray.tnear * ray.direction;
         address = plucker_descend(octree, 0, 0, 0, 0, 0, p, walk_ray);
@@ -171,7 +179,7 @@ LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, con
     const std::uint32_t level = octree.cube_map_level[face];
     const int u = entry_axis == 0 ? 1 : 0, v = entry_axis == 2 ? 1 : 2;  // the in-face axes, increasing
     Vec3f p = ray.origin + t_entry * ray.direction;
-    p[entry_axis] = entry_up ? cube_plane(octree, entry_axis, 0, 0) : cube_plane(octree, entry_axis, 0, 1);
+    p[entry_axis] = entry_up ? octree.bounds_lo[entry_axis] : octree.bounds_hi[entry_axis];
     const std::uint32_t i = plucker_cell_index(octree, u, level, p[u], walk_ray.up(u));
     const std::uint32_t j = plucker_cell_index(octree, v, level, p[v], walk_ray.up(v));
     const std::uint32_t texel = read_only(octree.texels + octree.cube_map_offset[face] + i + (j << level));
@@ -179,11 +187,11 @@ LANCER_HOST_DEVICE inline bool plucker_entry_leaf(const PluckerView& octree, con
         address = texel;
         return true;
     }
-    // The cell's coordinates: the boundary layer on entry_axis, (i, j) on (u, v).
-    const std::uint32_t boundary = entry_up ? 0u : (1u << level) - 1u;
-    const std::uint32_t x = entry_axis == 0 ? boundary : i;
-    const std::uint32_t y = entry_axis == 1 ? boundary : (entry_axis == 0 ? i : j);
-    const std::uint32_t z = entry_axis == 2 ? boundary : j;
+    // The cell's coordinates: the face's layer on entry_axis, (i, j) on (u, v).
+    const std::uint32_t layer = plucker_cell_index(octree, entry_axis, level, p[entry_axis], entry_up);
+    const std::uint32_t x = entry_axis == 0 ? layer : i;
+    const std::uint32_t y = entry_axis == 1 ? layer : (entry_axis == 0 ? i : j);
+    const std::uint32_t z = entry_axis == 2 ? layer : j;
     address =
         plucker_descend(octree, texel & plucker::kAddressMask, static_cast<int>(level), x, y, z, p, walk_ray);
     return true;
@@ -221,7 +229,8 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
     if (!is_valid_ray(ray)) return best;
     const PluckerWalkRay walk_ray = make_walk_ray(octree, tables, ray);
     std::uint32_t address;
-    if (!plucker_entry_leaf(octree, ray, walk_ray, address)) return best;
+    float walk_end;
+    if (!plucker_entry_leaf(octree, ray, walk_ray, address, walk_end)) return best;
     const typename TriangleTestT::RayData triangle_ray(ray);
     constexpr std::uint32_t kHeader = plucker::header_words(Layout::kStoredBoxes);
     const Vec3f& o = walk_ray.origin;
@@ -258,8 +267,9 @@ LANCER_HOST_DEVICE Hit trace_plucker(const PluckerView& octree, const PluckerTab
             next = read_only(leaf + kHeader + link_index);
         }
         intersect_leaf<TriangleTestT>(triangles, triangle_count, triangle_ray, ray, best);
-        // The walk ends at a hit before the exit face, or at the root's boundary.
-        const float limit = best.prim >= 0 ? best.t : ray.tfar;
+        // The walk ends at a hit before the exit face, where the ray leaves the bounds, or at the root's
+        // boundary.
+        const float limit = min_of(best.prim >= 0 ? best.t : ray.tfar, walk_end);
         const float ahead = walk_ray.up(axis) ? w[axis] : -w[axis];
         if (static_cast<double>(limit) * walk_ray.abs_direction[axis] <= plucker_exit_lower_bound(ahead) ||
             neighbours == 0)

@@ -236,6 +236,7 @@ TEST(PluckerBuild, NeighbourLinksAreSymmetricAndPointAtTheCellsAcrossEachSubFace
     }
 }
 
+// The cube map covers the faces of the geometry's bounds (walk.hpp's entry_leaf).
 TEST(PluckerBuild, TheCubeMapAndThePointLocationFindTheCellsHoldingTheirPoints) {
     for (const TestScene& scene : scenes()) {
         PluckerAccel accel;
@@ -247,15 +248,23 @@ TEST(PluckerBuild, TheCubeMapAndThePointLocationFindTheCellsHoldingTheirPoints) 
             const int axis = plucker::face_axis(face);
             const std::uint32_t level = layout.cube_map.level[static_cast<std::size_t>(face)];
             const std::uint32_t size = 1u << level;
+            // The face's layer: the cells of `level` that hold the bounds' face, ties to the side of the rays
+            // entering through it.
+            const bool upper = plucker::face_side(face) != 0;
+            const float plane = upper ? layout.bounds.hi[axis] : layout.bounds.lo[axis];
+            const std::uint32_t layer = plucker::cell_index(layout.cube, axis, level, plane, upper ? 0u : 1u);
+            const float below = octree.cube.plane(axis, static_cast<int>(level), layer),
+                        above = octree.cube.plane(axis, static_cast<int>(level), layer + 1);
+            ASSERT_TRUE(layer == 0 || (upper ? below < plane : below <= plane)) << "face " << face;
+            ASSERT_TRUE(layer == size - 1 || (upper ? plane <= above : plane < above)) << "face " << face;
             for (std::uint32_t j = 0; j < size; ++j) {
                 for (std::uint32_t i = 0; i < size; ++i) {
                     const std::uint32_t texel =
                         layout.cube_map.texels[layout.cube_map.offset[static_cast<std::size_t>(face)] + i +
                                                (j << level)];
-                    // The texel's centre, at level + 1, on the root's face.
+                    // The texel's centre, at level + 1, in the face's layer.
                     std::array<std::uint32_t, 3> centre{};
-                    centre[static_cast<std::size_t>(axis)] =
-                        plucker::face_side(face) ? (2u << level) - 1u : 0u;
+                    centre[static_cast<std::size_t>(axis)] = 2u * layer + 1u;
                     centre[static_cast<std::size_t>(plucker::lower_in_face_axis(axis))] = 2 * i + 1;
                     centre[static_cast<std::size_t>(plucker::upper_in_face_axis(axis))] = 2 * j + 1;
                     const std::uint32_t cell = plucker::find_cell(octree, static_cast<int>(level) + 1,
@@ -357,12 +366,15 @@ std::vector<LeafBoxes> leaf_boxes(const std::map<std::uint32_t, Leaf>& leaves, c
     return boxes;
 }
 
-// The leaves whose slab interval meets [tnear, tfar] with positive length, ordered by entry; `touched`: the
-// leaves whose box grown by the scene's tolerance the ray meets at all (docs/numerical-contract.md).
+// The leaves whose slab interval meets [tnear, tfar] within `walked` (the layout's bounds, where the walk
+// goes) with positive length, ordered by entry; `touched`: the leaves whose box grown by the scene's
+// tolerance the ray meets at all (docs/numerical-contract.md).
 std::vector<std::uint32_t> leaves_by_slabs(std::span<const LeafBoxes> leaves, const Ray& ray,
-                                           std::vector<std::uint32_t>& touched) {
+                                           const Box3f& walked, std::vector<std::uint32_t>& touched) {
     std::vector<std::tuple<float, float, std::uint32_t>> crossed;
     touched.clear();
+    const auto [walked_entry, walked_exit] = slab_interval(walked, ray);
+    const float from = std::max(ray.tnear, walked_entry), to = std::min(ray.tfar, walked_exit);
     for (const LeafBoxes& leaf : leaves) {
         const auto [grown_entry, grown_exit] = slab_interval(leaf.grown, ray);
         const float grown_slack = 1e-5f * (std::fabs(grown_entry) + std::fabs(grown_exit) + 1.0f);
@@ -373,7 +385,7 @@ std::vector<std::uint32_t> leaves_by_slabs(std::span<const LeafBoxes> leaves, co
         touched.push_back(leaf.address);
         const auto [entry, exit] = slab_interval(leaf.box, ray);
         const float slack = 1e-5f * (std::fabs(entry) + std::fabs(exit) + 1.0f);
-        if (entry + slack < exit && entry + slack < ray.tfar && exit > ray.tnear + slack)
+        if (entry + slack < exit && from + slack < to && entry + slack < to && exit > from + slack)
             crossed.emplace_back(entry, exit, leaf.address);
     }
     std::sort(crossed.begin(), crossed.end());
@@ -400,7 +412,8 @@ TEST(PluckerWalk, VisitsTheLeavesTheRayCrossesInOrder) {
                 rays.insert(rays.end(), extra.rays.begin(), extra.rays.end());
             std::vector<std::uint32_t> touched;
             for (std::size_t i = 0; i < rays.size(); ++i) {
-                const std::vector<std::uint32_t> crossed = leaves_by_slabs(leaves, rays[i], touched);
+                const std::vector<std::uint32_t> crossed =
+                    leaves_by_slabs(leaves, rays[i], accel.layout().bounds, touched);
                 const std::vector<std::uint32_t> visited = accel.leaves_along(rays[i]);
                 // Every leaf crossed is visited, in the order of entry; a leaf visited beyond them is one the
                 // ray touches at an edge or corner.
@@ -421,7 +434,8 @@ TEST(PluckerWalk, VisitsTheLeavesTheRayCrossesInOrder) {
 }
 
 // Rays lying in cell planes (zero components, origins exactly on the planes of every level, along faces and
-// edges): every point of the ray inside the root lies in a visited leaf, and answers agree with brute force.
+// edges): every point of the ray inside the root and the geometry's bounds lies in a visited leaf, and
+// answers agree with brute force.
 TEST(PluckerWalk, RaysInCellPlanesAndAlongEdges) {
     const TestScene& scene = scenes()[0];
     const Geometry geometry = scene.geometry();
@@ -472,7 +486,7 @@ TEST(PluckerWalk, RaysInCellPlanesAndAlongEdges) {
             const std::vector<std::uint32_t> visited = accel.leaves_along(rays[i]);
             for (float t = 0.0f; t < 3.0f * root.extent().x; t += 0.02f * root.extent().x) {
                 const Vec3f p = rays[i].origin + t * rays[i].direction;
-                if (!root.contains(p)) continue;
+                if (!root.contains(p) || !accel.layout().bounds.contains(p)) continue;
                 ASSERT_TRUE(std::any_of(visited.begin(), visited.end(),
                                         [&](std::uint32_t leaf) {
                                             return octree.cell_box(leaves.at(leaf).geometry).contains(p);
@@ -514,6 +528,29 @@ TEST(PluckerWalk, StopsOnceTheClosestHitLiesBeforeTheNextLeaf) {
     const std::size_t leaves = accel.leaves_along(ray).size();
     EXPECT_GT(leaves, 10u);
     EXPECT_LT(counters.nodes_visited, leaves / 2);
+}
+
+// The root is a cube anchored at the bounds' lower corner; over a flat scene most of it is empty. A ray
+// through that empty part and outside the bounds enters no leaf, and one that reaches the bounds from it
+// starts at them: straight down onto the plane, its first leaf holds the hit.
+TEST(PluckerWalk, WalksOnlyInsideTheGeometrysBounds) {
+    const TestScene& scene = scenes()[3];  // triangles in the plane z = 0, over [0, 24]^2
+    for (const bool balanced : {true, false}) {
+        PluckerAccel accel;
+        accel.build(scene.geometry(), plucker_options(7, 2, balanced));
+        ASSERT_GT(accel.layout().cube.size, 20.0f);
+        const std::vector<Ray> rays = {{{-1.0f, 3.3f, 5.0f}, {1.0f, 0.1f, 0.0f}, 0.0f, kInfinity},
+                                       {{7.3f, 5.1f, 23.0f}, {0.0f, 0.0f, -1.0f}, 0.0f, kInfinity}};
+        std::vector<Hit> hits(rays.size());
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            TraversalCounters counters;
+            accel.intersect({&rays[i], 1}, {&hits[i], 1}, &counters);
+            EXPECT_EQ(counters.nodes_visited, i) << "ray " << i;
+        }
+        EXPECT_FALSE(hits[0].hit());
+        ASSERT_TRUE(hits[1].hit());
+        EXPECT_EQ(hits[1].t, 23.0f);
+    }
 }
 
 // ---------------------------------------------------------------------------------------------------------

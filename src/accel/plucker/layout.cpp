@@ -67,18 +67,37 @@ PluckerBox box_of(const OctreeCube& cube, float tolerance, const OctreeCell& cel
     return box;
 }
 
+// The layer of cells of each level that holds a face of the bounds: the cells containing its plane, ties
+// to the side of the rays that enter through it (walk.hpp's entry_leaf locates them the same way).
+using FaceLayers = std::array<std::array<std::uint32_t, kOctreeMaxLevel + 1>, 6>;
+
+FaceLayers face_layers(const PluckerLayout& layout) {
+    FaceLayers layers{};
+    for (int face = 0; face < 6; ++face) {
+        const int axis = face_axis(face);
+        const bool upper = face_side(face) != 0;
+        const float plane = upper ? layout.bounds.hi[axis] : layout.bounds.lo[axis];
+        for (std::uint32_t level = 0; level <= static_cast<std::uint32_t>(kOctreeMaxLevel); ++level)
+            layers[static_cast<std::size_t>(face)][level] =
+                cell_index(layout.cube, axis, level, plane, upper ? 0u : 1u);
+    }
+    return layers;
+}
+
 void fill_cube_map(const Octree& octree, const std::vector<std::uint32_t>& address, PluckerLayout& layout) {
+    const FaceLayers layers = face_layers(layout);
+    auto in_layer = [&](const OctreeCell& cell, int face) {
+        return cell.coordinate(face_axis(face)) ==
+               layers[static_cast<std::size_t>(face)][static_cast<std::size_t>(cell.level)];
+    };
     CubeMap& map = layout.cube_map;
     map.level.fill(0);
     for (const OctreeCell& cell : octree.cells) {
         if (!cell.is_leaf()) continue;
-        const std::uint32_t last = (1u << cell.level) - 1u;
         for (int face = 0; face < 6; ++face) {
-            const std::uint32_t c = cell.coordinate(face_axis(face));
-            if (c == (face_side(face) ? last : 0u)) {
-                auto& level = map.level[static_cast<std::size_t>(face)];
-                level = std::max<std::uint32_t>(level, std::min<std::uint32_t>(cell.level, kMaxCubeMapLevel));
-            }
+            if (!in_layer(cell, face)) continue;
+            auto& level = map.level[static_cast<std::size_t>(face)];
+            level = std::max<std::uint32_t>(level, std::min<std::uint32_t>(cell.level, kMaxCubeMapLevel));
         }
     }
     std::size_t texels = 0;
@@ -87,15 +106,14 @@ void fill_cube_map(const Octree& octree, const std::vector<std::uint32_t>& addre
         texels += std::size_t{1} << (2 * map.level[static_cast<std::size_t>(face)]);
     }
     map.texels.assign(texels, 0);
-    // Every texel of a face is the cell of that face's level that contains it: a boundary leaf of that level
+    // Every texel of a face is the cell of that face's level and layer that contains it: a leaf of that level
     // or coarser (its address), or an inner cell of that level (its tree index, tagged).
     for (std::uint32_t index = 0; index < octree.cells.size(); ++index) {
         const OctreeCell& cell = octree.cells[index];
-        const std::uint32_t last = (1u << cell.level) - 1u;
         for (int face = 0; face < 6; ++face) {
             const std::uint32_t level = map.level[static_cast<std::size_t>(face)];
             const int axis = face_axis(face);
-            if (cell.coordinate(axis) != (face_side(face) ? last : 0u)) continue;
+            if (!in_layer(cell, face)) continue;
             const bool covers = cell.is_leaf() ? cell.level <= level : cell.level == level;
             if (!covers) continue;
             const std::uint32_t value = cell.is_leaf() ? address[index] : (index | kInnerBit);
@@ -119,6 +137,10 @@ PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
     layout.options = options;
     layout.cube = octree.cube;
     layout.tolerance = octree.tolerance;
+    // An empty geometry has no bounds: its walk stays in the root.
+    const Box3f bounds = geometry.bounds();
+    layout.bounds = bounds.empty() ? Box3f{octree.cube.lo, octree.cube.lo + Vec3f(octree.cube.size)}
+                                   : bounds.grown(octree.tolerance);
     layout.triangle_count = static_cast<std::uint32_t>(geometry.triangles.size());
 
     const std::vector<std::uint32_t> order = record_order(octree, options);

@@ -15,6 +15,7 @@
 // links, and the walk descends it (walk.hpp).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -22,6 +23,7 @@
 
 #include "accel/octree_build.hpp"
 #include "lancer/accel.hpp"
+#include "lancer/box.hpp"
 
 namespace lancer::plucker {
 
@@ -62,6 +64,25 @@ inline constexpr std::uint32_t kBoxWord = 2;  // stored boxes: the box index; el
     return cube.plane(axis, level, i);
 }
 
+// The cell of `level` holding coordinate p on `axis`, with a coordinate exactly on a plane between two cells
+// given to the cell on the ray's side (up: [lo, hi), down: (lo, hi]). Clamped to the root.
+[[nodiscard]] inline std::uint32_t cell_index(const OctreeCube& cube, int axis, std::uint32_t level, float p,
+                                              std::uint32_t up) {
+    const std::uint32_t last = (1u << level) - 1u;
+    const float scaled = (p - cube.lo[axis]) / cube.size * static_cast<float>(1u << level);
+    // NaN (a root cube of size 0: the scene is one point; fuzz/rays_fuzz.cpp) starts at 0 like a negative
+    // estimate: converting it would be undefined, and the exact planes below settle the index either way.
+    std::uint32_t i =
+        !(scaled > 0.0f) ? 0u : std::min(last, static_cast<std::uint32_t>(std::min(scaled, 65536.0f)));
+    // The estimate may be off by one near a plane: settle it against the exact planes.
+    const int l = static_cast<int>(level);
+    while (i > 0 && (up ? p < cube.plane(axis, l, i) : p <= cube.plane(axis, l, i)))
+        --i;
+    while (i < last && (up ? p >= cube.plane(axis, l, i + 1) : p > cube.plane(axis, l, i + 1)))
+        ++i;
+    return i;
+}
+
 // 36 bytes: a cell's lower corner, mid planes and upper corner, each the exact float of OctreeCube::plane
 // (exit_plane_of for the corners), so that a cell's exit plane is bit for bit its neighbour's entry plane
 // and its mid planes are its finer neighbours' shared faces. The seed stores 16 bytes per box; the mid planes
@@ -85,10 +106,11 @@ struct PluckerPrimitive {
 };
 static_assert(sizeof(PluckerPrimitive) == 40);
 
-// The boundary cube map (seed 000 section 3, Figure 3): for each of the six faces of the root, a square of
-// 2^level x 2^level texels, level the deepest leaf on that face, each holding the address of the boundary
-// leaf that contains it. Texel (i, j) on face f covers in-face cells i (lower in-face axis) and j (upper)
-// at that level; it is texels[offset[f] + i + (j << level[f])].
+// The boundary cube map (seed 000 section 3, Figure 3), on the faces of the geometry's bounds rather than
+// the root's: for each face, a square of 2^level x 2^level texels, level the deepest leaf in the face's
+// layer (the cells that hold the face's plane, ties to the side of the rays entering through it), each
+// holding the address of the leaf of that layer that contains it. Texel (i, j) on face f covers in-face
+// cells i (lower in-face axis) and j (upper) at that level; it is texels[offset[f] + i + (j << level[f])].
 // The cube map stops at 2^10 x 2^10 texels per face (4 MiB, the seed's 24 MB for the dragon over six
 // faces); a texel that covers several deeper leaves holds the inner cell of that level covering it, tagged
 // with kInnerBit, and the entry descends from there (walk.hpp).
@@ -110,6 +132,10 @@ struct PluckerLayout {
     PluckerLayoutOptions options;
     OctreeCube cube;
     float tolerance = 0.0f;
+    // The geometry's bounds grown by the tolerance (the root, for an empty geometry): the root is a cube
+    // anchored at their lower corner, and a ray walks only the part of it inside them (walk.hpp's
+    // entry_leaf). Made from the geometry, not stored in a file.
+    Box3f bounds;
     std::uint32_t triangle_count = 0;  // primitives below it are triangles, the rest spheres
     std::vector<std::uint32_t> cells;  // the word stream
     std::vector<PluckerPrimitive> primitives;

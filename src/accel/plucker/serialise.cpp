@@ -198,6 +198,7 @@ PluckerFile read_plucker_file(const std::filesystem::path& file) {
                           rebuilt.locate == layout.locate;
         if (!same)
             fail(file, "inconsistent structure: its links, boxes or cube map are not those of its own tree");
+        layout.bounds = rebuilt.bounds;
     } catch (const std::invalid_argument& error) {
         fail(file, error.what());
     } catch (const std::length_error& error) {

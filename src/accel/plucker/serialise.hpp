@@ -24,10 +24,9 @@
 namespace lancer::plucker {
 
 inline constexpr char kFileMagic[8] = {'L', 'A', 'N', 'C', 'E', 'R', 'P', 'O'};
-// Version 2: the geometric tolerance stored in the header gained 2^-19 of the largest side (fuzz finding 23),
-// so the cells of a version 1 file may hold fewer references than a build makes. Version 3: the stored
-// boxes' faces on the root's boundary are the root grown by the tolerance (exit_plane_of, fuzz finding 25).
-inline constexpr std::uint32_t kFileVersion = 3;
+// Raised whenever a layout change makes older files' arrays mean something else (docs/plucker-octree.md,
+// "File").
+inline constexpr std::uint32_t kFileVersion = 4;
 
 struct PluckerFileHeader {
     char magic[8];                           // 8

@@ -98,25 +98,6 @@ struct ComputedBoxes {
     }
 };
 
-// The cell of `level` holding coordinate p on `axis`, with a coordinate exactly on a plane between two cells
-// given to the cell on the ray's side (up: [lo, hi), down: (lo, hi]). Clamped to the root.
-[[nodiscard]] inline std::uint32_t cell_index(const OctreeCube& cube, int axis, std::uint32_t level, float p,
-                                              std::uint32_t up) {
-    const std::uint32_t last = (1u << level) - 1u;
-    const float scaled = (p - cube.lo[axis]) / cube.size * static_cast<float>(1u << level);
-    // NaN (a root cube of size 0: the scene is one point; fuzz/rays_fuzz.cpp) starts at 0 like a negative
-    // estimate: converting it would be undefined, and the exact planes below settle the index either way.
-    std::uint32_t i =
-        !(scaled > 0.0f) ? 0u : std::min(last, static_cast<std::uint32_t>(std::min(scaled, 65536.0f)));
-    // The estimate may be off by one near a plane: settle it against the exact planes.
-    const int l = static_cast<int>(level);
-    while (i > 0 && (up ? p < cube.plane(axis, l, i) : p <= cube.plane(axis, l, i)))
-        --i;
-    while (i < last && (up ? p >= cube.plane(axis, l, i + 1) : p > cube.plane(axis, l, i + 1)))
-        ++i;
-    return i;
-}
-
 // The leaf holding point p, from tree cell `node` of the given level and coordinates (the root, or a cube
 // map texel's cell), with the same tie rule.
 [[nodiscard]] inline std::uint32_t descend(const PluckerLayout& layout, std::uint32_t node, int level,
@@ -137,27 +118,38 @@ struct ComputedBoxes {
     return layout.locate[node] >> 1;
 }
 
-// ENTRY (seed 000 section 4.1): the first leaf along [tnear, tfar], or false when the ray misses the root
-// (grown by the scene's tolerance, as every structure's boxes: docs/numerical-contract.md).
+// The interval of one slab [lo, hi] along a ray, the exit widened by its rounding. NaN (the origin on a
+// plane, no motion along the axis): the ray runs inside the closed slab.
+struct SlabInterval {
+    float near_t, far_t;
+};
+[[nodiscard]] inline SlabInterval slab_interval(float lo, float hi, float origin, float inverse) {
+    const float t_lo = (lo - origin) * inverse, t_hi = (hi - origin) * inverse;
+    if (std::isnan(t_lo) || std::isnan(t_hi)) return {-kInfinity, kInfinity};
+    return {std::min(t_lo, t_hi), widened_slab_exit(std::max(t_lo, t_hi))};
+}
+
+// ENTRY (seed 000 section 4.1): the first leaf along [tnear, tfar], or false when the ray misses the
+// geometry's bounds (grown by the scene's tolerance, as every structure's boxes: docs/numerical-contract.md).
+// The seed enters by the root's faces; the root is a cube anchored at the bounds' lower corner, and the walk
+// starts and ends at the bounds instead, so that it does not cross the root's empty rest (PluckerLayout::
+// bounds). walk_end: where the ray leaves the bounds.
 [[nodiscard]] inline bool entry_leaf(const PluckerLayout& layout, const Ray& ray, const WalkRay& walk_ray,
-                                     std::uint32_t& address) {
+                                     std::uint32_t& address, float& walk_end) {
     const OctreeCube& cube = layout.cube;
+    const Box3f& bounds = layout.bounds;
     float t_entry = -kInfinity, t_exit = kInfinity;
     int entry_axis = 0;
     for (int axis = 0; axis < 3; ++axis) {
-        const float inverse = 1.0f / ray.direction[axis];
-        const float lo = exit_plane_of(cube, layout.tolerance, axis, 0, 0),
-                    hi = exit_plane_of(cube, layout.tolerance, axis, 0, 1);
-        const float t_lo = (lo - ray.origin[axis]) * inverse, t_hi = (hi - ray.origin[axis]) * inverse;
-        float slab_near = std::min(t_lo, t_hi), slab_far = widened_slab_exit(std::max(t_lo, t_hi));
-        // NaN: the origin on the plane and no motion along the axis: the ray runs inside the closed slab.
-        if (std::isnan(t_lo) || std::isnan(t_hi)) slab_near = -kInfinity, slab_far = kInfinity;
-        if (slab_near > t_entry) t_entry = slab_near, entry_axis = axis;
-        t_exit = std::min(t_exit, slab_far);
+        const SlabInterval slab =
+            slab_interval(bounds.lo[axis], bounds.hi[axis], ray.origin[axis], 1.0f / ray.direction[axis]);
+        if (slab.near_t > t_entry) t_entry = slab.near_t, entry_axis = axis;
+        t_exit = std::min(t_exit, slab.far_t);
     }
     if (!(std::max(t_entry, ray.tnear) <= std::min(t_exit, ray.tfar))) return false;
+    walk_end = t_exit;
     if (t_entry <= ray.tnear) {
-        // Inside the root at tnear: descend from the root.
+        // Inside the bounds at tnear: descend from the root.
         const Vec3f p = ray.origin + ray.tnear * ray.direction;
         address = descend(layout, 0, 0, {0, 0, 0}, p, walk_ray);
         return true;
@@ -168,7 +160,7 @@ struct ComputedBoxes {
     const std::uint32_t level = layout.cube_map.level[static_cast<std::size_t>(face)];
     const int u = lower_in_face_axis(entry_axis), v = upper_in_face_axis(entry_axis);
     Vec3f p = ray.origin + t_entry * ray.direction;
-    p[entry_axis] = entry_up ? cube.plane(entry_axis, 0, 0) : cube.plane(entry_axis, 0, 1);
+    p[entry_axis] = entry_up ? bounds.lo[entry_axis] : bounds.hi[entry_axis];
     const std::uint32_t i = cell_index(cube, u, level, p[u], walk_ray.up[static_cast<std::size_t>(u)]);
     const std::uint32_t j = cell_index(cube, v, level, p[v], walk_ray.up[static_cast<std::size_t>(v)]);
     const std::uint32_t texel =
@@ -177,9 +169,11 @@ struct ComputedBoxes {
         address = texel;
         return true;
     }
-    // A texel over several deeper leaves (the cube map stops at level 10): descend from its cell.
+    // A texel over several deeper leaves (the cube map stops at level 10): descend from its cell, of the
+    // face's layer (layout.cpp's face_layers).
     std::array<std::uint32_t, 3> coordinates{};
-    coordinates[static_cast<std::size_t>(entry_axis)] = entry_up ? 0u : (1u << level) - 1u;
+    coordinates[static_cast<std::size_t>(entry_axis)] =
+        cell_index(cube, entry_axis, level, p[entry_axis], entry_up);
     coordinates[static_cast<std::size_t>(u)] = i;
     coordinates[static_cast<std::size_t>(v)] = j;
     address = descend(layout, texel & kAddressMask, static_cast<int>(level), coordinates, p, walk_ray);
@@ -224,7 +218,8 @@ class Walker {
   public:
     struct State {
         WalkRay ray;
-        std::uint32_t address = 0;  // the current leaf's record
+        std::uint32_t address = 0;   // the current leaf's record
+        float walk_end = kInfinity;  // where the ray leaves the geometry's bounds (entry_leaf)
         std::size_t steps_left = 0;
     };
 
@@ -234,7 +229,7 @@ class Walker {
     [[nodiscard]] bool enter(const Ray& ray, State& state) const {
         state.ray = WalkRay(ray, layout_.cube);
         state.steps_left = layout_.cells.size();
-        return entry_leaf(layout_, ray, state.ray, state.address);
+        return entry_leaf(layout_, ray, state.ray, state.address, state.walk_end);
     }
 
     [[nodiscard]] const std::uint32_t* record(const State& state) const {
@@ -299,8 +294,9 @@ class Walker {
         // Done once the search interval ends before this leaf's exit: limit <= (V_a - o_a) / d_a, written
         // without a division (w_a has the sign of the direction when the exit lies ahead), the product exact
         // in double (in float, a denormal |d_a| made it 0 for a limit beyond an exit at t = 0).
-        if (static_cast<double>(limit) * ray.abs_direction[axis] <= exit_lower_bound(exit.ahead))
-            return false;
+        // The interval also ends where the ray leaves the geometry's bounds.
+        const float end = std::min(limit, state.walk_end);
+        if (static_cast<double>(end) * ray.abs_direction[axis] <= exit_lower_bound(exit.ahead)) return false;
         if (exit.leaves_root) return false;
         std::uint32_t link = exit.link;
         if constexpr (!kBalanced) {
