@@ -4,9 +4,12 @@
 #include <immintrin.h>
 #endif
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <limits>
 #include <new>
 #include <optional>
 #include <stdexcept>
@@ -28,6 +31,14 @@ constexpr unsigned int kSphereGeometry = 1;
 // Embree asserts that coordinates stay below FLT_LARGE (1.8e18): an origin beyond 2^60 (a far ray that ray
 // conditioning could not move near the scene) is outside Embree's domain and answered as a miss.
 constexpr float kEmbreeLargest = 0x1p60f;
+// Embree runs with denormals read as zero (below), so a denormal tnear is 0 to it and a hit may come back
+// behind the caller's tnear: such rays go through to_embree, whose t is clamped to the caller's interval.
+// Told from the bits, since the tests below run in that mode too, where a denormal compares equal to 0.
+constexpr std::uint32_t kMagnitudeBits = 0x7fffffffu, kSmallestNormalBits = 0x00800000u;
+bool zero_or_normal(float x) {
+    const std::uint32_t magnitude = std::bit_cast<std::uint32_t>(x) & kMagnitudeBits;
+    return magnitude == 0 || magnitude >= kSmallestNormalBits;
+}
 
 // Embree's float triangle test multiplies three of the scene's lengths (T = Ng . (v0 - o), Ng = e1 x e2),
 // which overflowed for a scene 3e16 across: it returned t = NaN or inf (fuzz finding 19, docs/robustness.md).
@@ -48,6 +59,12 @@ float scene_scale(const Box3f& bounds) {
     return std::ldexp(1.0f, scale_exponent);
 }
 
+// The floats' order as integers, +0 and -0 alike (NaN excluded).
+std::int32_t order_key(float x) {
+    const auto bits = std::bit_cast<std::int32_t>(x);
+    return bits >= 0 ? bits : -(bits & std::numeric_limits<std::int32_t>::max());
+}
+
 // A ray as Embree is given it: lancer's t = Embree's t * scale + t_offset, kept in the caller's
 // [tnear, tfar], which the rounded shift back could leave by an ulp (fuzz/rays_fuzz.cpp).
 struct EmbreeRay {
@@ -57,7 +74,11 @@ struct EmbreeRay {
     float tnear = 0.0f, tfar = kInfinity;  // the caller's interval
 
     [[nodiscard]] float lancer_t(float embree_t) const {
-        return std::clamp(embree_t * scale + t_offset, tnear, tfar);
+        // Clamped in the floats' order as integers: this runs with denormals read as zero, where a denormal
+        // tnear compares equal to 0 and std::clamp would let a t of 0 below it through.
+        const float t = embree_t * scale + t_offset;
+        const std::int32_t key = order_key(t);
+        return key < order_key(tnear) ? tnear : (key > order_key(tfar) ? tfar : t);
     }
 };
 
@@ -139,11 +160,12 @@ void fill_lane(const Ray& ray, RTCRayHitNt<N>& out, int lane) {
     out.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
 }
 
-// Whether Embree takes the ray as it is, its t unchanged: a valid ray with tnear >= 0 and an origin within
-// Embree's domain, in a scene that is not scaled. Every camera and secondary ray of an ordinary scene is such
-// a ray, and skips to_embree's work.
+// Whether Embree takes the ray as it is, its t unchanged: a valid ray with tnear 0 or normal and an origin
+// within Embree's domain, in a scene that is not scaled. Every camera and secondary ray of an ordinary scene
+// is such a ray, and skips to_embree's work.
 bool taken_as_is(const Ray& ray) {
-    return ray.tnear >= 0.0f && is_valid(ray) && max_component(abs(ray.origin)) <= kEmbreeLargest;
+    return ray.tnear >= 0.0f && zero_or_normal(ray.tnear) && is_valid(ray) &&
+           max_component(abs(ray.origin)) <= kEmbreeLargest;
 }
 
 #if defined(__AVX2__)
@@ -159,7 +181,14 @@ bool fill_eight_as_is(const Ray* rays, RTCRayNt<N>& out, int first_lane) {
     // column: origin x, y, z, direction x, y, z, tnear, tfar across the eight rays.
     const __m256 sign = _mm256_set1_ps(-0.0f), zero = _mm256_setzero_ps();
     const __m256 largest = _mm256_set1_ps(kEmbreeLargest), infinity = _mm256_set1_ps(kInfinity);
-    __m256 taken = _mm256_cmp_ps(column[6], zero, _CMP_GE_OQ);                      // 0 <= tnear
+    __m256 taken = _mm256_cmp_ps(column[6], zero, _CMP_GE_OQ);  // 0 <= tnear
+    const __m256i tnear_magnitude =
+        _mm256_and_si256(_mm256_castps_si256(column[6]), _mm256_set1_epi32(static_cast<int>(kMagnitudeBits)));
+    const __m256i zero_or_normal_tnear =  // zero_or_normal: a magnitude of 0 or above the largest denormal
+        _mm256_or_si256(_mm256_cmpeq_epi32(tnear_magnitude, _mm256_setzero_si256()),
+                        _mm256_cmpgt_epi32(tnear_magnitude,
+                                           _mm256_set1_epi32(static_cast<int>(kSmallestNormalBits - 1))));
+    taken = _mm256_and_ps(taken, _mm256_castsi256_ps(zero_or_normal_tnear));
     taken = _mm256_and_ps(taken, _mm256_cmp_ps(column[6], infinity, _CMP_LT_OQ));   // tnear finite
     taken = _mm256_and_ps(taken, _mm256_cmp_ps(column[6], column[7], _CMP_LE_OQ));  // tnear <= tfar
     __m256 nonzero = zero;
@@ -204,14 +233,17 @@ bool fill_from_packet(const RayPacket& rays, int first, RTCRayHitNt<N>& out, int
         const float dx = rays.direction[0][index], dy = rays.direction[1][index],
                     dz = rays.direction[2][index];
         const float tnear = rays.tnear[index], tfar = rays.tfar[index];
-        // is_valid, with `|x| < inf` for isfinite and `tfar == tfar` for !isnan.
-        const int is_valid_ray = (std::fabs(ox) < kInfinity) & (std::fabs(oy) < kInfinity) &
-                                 (std::fabs(oz) < kInfinity) & (std::fabs(dx) < kInfinity) &
-                                 (std::fabs(dy) < kInfinity) & (std::fabs(dz) < kInfinity) &
-                                 ((dx != 0.0f) | (dy != 0.0f) | (dz != 0.0f)) &
-                                 (std::fabs(tnear) < kInfinity) & (tfar == tfar) & (tnear <= tfar);
-        const int as_is = (tnear >= 0.0f) & (std::fabs(ox) <= kEmbreeLargest) &
-                          (std::fabs(oy) <= kEmbreeLargest) & (std::fabs(oz) <= kEmbreeLargest);
+        // is_valid without branches (each comparison an int, combined bitwise), with `|x| < inf` for isfinite
+        // and `tfar == tfar` for !isnan.
+        auto bit = [](bool condition) { return static_cast<int>(condition); };
+        const int is_valid_ray = bit(std::fabs(ox) < kInfinity) & bit(std::fabs(oy) < kInfinity) &
+                                 bit(std::fabs(oz) < kInfinity) & bit(std::fabs(dx) < kInfinity) &
+                                 bit(std::fabs(dy) < kInfinity) & bit(std::fabs(dz) < kInfinity) &
+                                 (bit(dx != 0.0f) | bit(dy != 0.0f) | bit(dz != 0.0f)) &
+                                 bit(std::fabs(tnear) < kInfinity) & bit(tfar == tfar) & bit(tnear <= tfar);
+        const int as_is = bit(tnear >= 0.0f) & bit(zero_or_normal(tnear)) &
+                          bit(std::fabs(ox) <= kEmbreeLargest) & bit(std::fabs(oy) <= kEmbreeLargest) &
+                          bit(std::fabs(oz) <= kEmbreeLargest);
         all_taken &= (1 - is_valid_ray) | as_is;
         valid[lane] = -is_valid_ray;
         out.ray.org_x[lane] = ox, out.ray.org_y[lane] = oy, out.ray.org_z[lane] = oz;

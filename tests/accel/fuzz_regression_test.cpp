@@ -181,6 +181,13 @@ std::vector<FuzzCase> fuzz_cases() {
            {-0x1.548beap-2f, -0x1.14c2bcp-1f, 0x1.7793e8p-1f},
            0,
            kInfinity}}},
+        // A ray from a point of a triangle with tnear the smallest denormal (finding 26): Embree, which runs
+        // with denormals read as zero, took tnear as 0 and reported the triangle at t = 0, behind tnear;
+        // brute force answers the miss. Sixteen copies, so that Embree's 16-wide structure takes a full
+        // packet (its SIMD fast path) as well as the one-ray path.
+        {{"denormal tnear on the surface", {{{-1, -1, 0}, {1, -1, 0}, {0, 1, 0}}}, {}},
+         std::vector<Ray>(16, Ray{{0, 0, 0}, {0, 0, 1}, 0x1p-149f, 1}),
+         false},  // Embree gives clean answers only: its hit at t = 0 comes back clamped to tnear
     };
 }
 

@@ -721,8 +721,9 @@ class BinnedBuilder {
                 for (std::size_t i = 0; i < count; ++i) {
                     std::uint32_t rank = 0;
                     for (std::size_t j = 0; j < kExactSplitBelow; ++j) {
-                        rank += static_cast<std::uint32_t>((keys[j] < keys[i]) |
-                                                           ((keys[j] == keys[i]) & (prims[j] < prims[i])));
+                        const auto below = static_cast<std::uint32_t>(keys[j] < keys[i]);
+                        const auto tie = static_cast<std::uint32_t>(keys[j] == keys[i]);
+                        rank += below | (tie & static_cast<std::uint32_t>(prims[j] < prims[i]));
                     }
                     orders_[axis][rank] = static_cast<std::uint8_t>(i);
                 }

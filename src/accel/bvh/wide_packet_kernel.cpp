@@ -17,7 +17,7 @@
 #include "accel/simd_float.hpp"
 
 #if defined(__AVX2__)
-namespace lancer::LANCER_ISA_NAMESPACE {
+namespace lancer::inline LANCER_ISA_NAMESPACE {
 namespace {
 
 constexpr int kPacketSize = kWidePacketSize;
@@ -171,7 +171,7 @@ struct BlockRays;
 
 template <>
 struct BlockRays<simd::Avx2> {
-    static constexpr int kRays = 1;
+    [[maybe_unused]] static constexpr int kRays = 1;  // unused by the AVX-512 compilation (clang warns)
     __m256i index;  // the ray's lane in its group
 
     explicit BlockRays(const std::array<int, 2>& rays) : index(_mm256_set1_epi32(rays[0])) {}
@@ -949,5 +949,5 @@ const WidePacketKernels& wide_packet_kernels() {
     return kernels;
 }
 
-}  // namespace lancer::LANCER_ISA_NAMESPACE
+}  // namespace lancer::inline LANCER_ISA_NAMESPACE
 #endif

@@ -27,15 +27,23 @@ struct WidePacketKernels {
                              const RayPacket& rays, HitPacket& hits, TraversalCounters* counters);
 };
 
+// Each compilation's table in its instruction set's namespace (core/isa_namespace.hpp). The namespace of the
+// compilation including this header is inline there, and is reopened as inline here (clang warns otherwise).
 #if defined(__AVX2__)
-namespace avx2 {
+#if !defined(LANCER_KERNEL_AVX512)
+inline
+#endif
+    namespace avx2 {
 [[nodiscard]] const WidePacketKernels& wide_packet_kernels();
-}
+}  // namespace avx2
 #endif
 #if LANCER_HAS_AVX512_KERNELS
-namespace avx512 {
+#if defined(LANCER_KERNEL_AVX512)
+inline
+#endif
+    namespace avx512 {
 [[nodiscard]] const WidePacketKernels& wide_packet_kernels();
-}
+}  // namespace avx512
 #endif
 
 }  // namespace lancer

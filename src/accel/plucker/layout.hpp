@@ -141,7 +141,7 @@ struct PluckerLayout {
     std::vector<PluckerPrimitive> primitives;
     std::vector<PluckerBox> boxes;  // empty without stored boxes
     CubeMap cube_map;
-    // Point location for rays that start inside the root, one word per cell of the tree (the build's cell
+    // Point location for rays that start inside the bounds, one word per cell of the tree (the build's cell
     // order): inner: first child << 1 | 1; leaf: its address << 1.
     std::vector<std::uint32_t> locate;
 };
