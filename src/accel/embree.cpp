@@ -31,9 +31,10 @@ constexpr unsigned int kSphereGeometry = 1;
 // Embree asserts that coordinates stay below FLT_LARGE (1.8e18): an origin beyond 2^60 (a far ray that ray
 // conditioning could not move near the scene) is outside Embree's domain and answered as a miss.
 constexpr float kEmbreeLargest = 0x1p60f;
-// Embree runs with denormals read as zero (below), so a denormal tnear is 0 to it and a hit may come back
-// behind the caller's tnear: such rays go through to_embree, whose t is clamped to the caller's interval.
-// Told from the bits, since the tests below run in that mode too, where a denormal compares equal to 0.
+// Embree runs with denormals read as zero (below), so a denormal tnear or tfar is 0 to it: a hit may come
+// back behind the caller's tnear, or for an empty interval. Such rays go through to_embree, whose interval
+// test and t clamp do not rest on float comparisons. Told from the bits, since the tests below run in that
+// mode too, where a denormal compares equal to 0.
 constexpr std::uint32_t kMagnitudeBits = 0x7fffffffu, kSmallestNormalBits = 0x00800000u;
 bool zero_or_normal(float x) {
     const std::uint32_t magnitude = std::bit_cast<std::uint32_t>(x) & kMagnitudeBits;
@@ -65,6 +66,14 @@ std::int32_t order_key(float x) {
     return bits >= 0 ? bits : -(bits & std::numeric_limits<std::int32_t>::max());
 }
 
+// t clamped to [tnear, tfar], in the floats' order as integers: this runs with denormals read as zero, where
+// a denormal tnear compares equal to 0 and std::clamp would let a t of 0 below it through. Embree's own t
+// may also pass its tfar by a rounding error (its reciprocal of the determinant), which this takes back.
+float in_interval(float t, float tnear, float tfar) {
+    const std::int32_t key = order_key(t);
+    return key < order_key(tnear) ? tnear : (key > order_key(tfar) ? tfar : t);
+}
+
 // A ray as Embree is given it: lancer's t = Embree's t * scale + t_offset, kept in the caller's
 // [tnear, tfar], which the rounded shift back could leave by an ulp (fuzz/rays_fuzz.cpp).
 struct EmbreeRay {
@@ -74,11 +83,7 @@ struct EmbreeRay {
     float tnear = 0.0f, tfar = kInfinity;  // the caller's interval
 
     [[nodiscard]] float lancer_t(float embree_t) const {
-        // Clamped in the floats' order as integers: this runs with denormals read as zero, where a denormal
-        // tnear compares equal to 0 and std::clamp would let a t of 0 below it through.
-        const float t = embree_t * scale + t_offset;
-        const std::int32_t key = order_key(t);
-        return key < order_key(tnear) ? tnear : (key > order_key(tfar) ? tfar : t);
+        return in_interval(embree_t * scale + t_offset, tnear, tfar);
     }
 };
 
@@ -88,7 +93,9 @@ struct EmbreeRay {
 // (grown by the geometric tolerance) instead, so that the origin Embree sees lies near the scene even when
 // tnear is far behind (a far ray moved near the scene by Accel::intersect comes with tnear < 0).
 std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float scene_scale) {
-    if (!is_valid(ray)) return std::nullopt;
+    // is_valid's tnear <= tfar, in the floats' integer order: under denormals-are-zero, a denormal interval
+    // that is empty (tnear > tfar) compares as [0, 0].
+    if (!is_valid(ray) || order_key(ray.tnear) > order_key(ray.tfar)) return std::nullopt;
     EmbreeRay query{ray};
     query.tnear = ray.tnear, query.tfar = ray.tfar;
     if (ray.tnear < 0.0f) {
@@ -164,7 +171,7 @@ void fill_lane(const Ray& ray, RTCRayHitNt<N>& out, int lane) {
 // within Embree's domain, in a scene that is not scaled. Every camera and secondary ray of an ordinary scene
 // is such a ray, and skips to_embree's work.
 bool taken_as_is(const Ray& ray) {
-    return ray.tnear >= 0.0f && zero_or_normal(ray.tnear) && is_valid(ray) &&
+    return ray.tnear >= 0.0f && zero_or_normal(ray.tnear) && zero_or_normal(ray.tfar) && is_valid(ray) &&
            max_component(abs(ray.origin)) <= kEmbreeLargest;
 }
 
@@ -173,6 +180,15 @@ bool taken_as_is(const Ray& ray) {
 // layout (8 floats a ray: origin, direction, tnear, tfar) to Embree's SoA (simd::Avx2::load_fields8).
 // Returns whether Embree takes all eight as they are (taken_as_is, the same tests in SIMD); when it does not,
 // the caller writes the lanes one by one over these.
+// zero_or_normal lane by lane: all ones where the magnitude's bits are 0 or above the largest denormal's.
+__m256 zero_or_normal(__m256 x) {
+    const __m256i magnitude =
+        _mm256_and_si256(_mm256_castps_si256(x), _mm256_set1_epi32(static_cast<int>(kMagnitudeBits)));
+    return _mm256_castsi256_ps(_mm256_or_si256(
+        _mm256_cmpeq_epi32(magnitude, _mm256_setzero_si256()),
+        _mm256_cmpgt_epi32(magnitude, _mm256_set1_epi32(static_cast<int>(kSmallestNormalBits - 1)))));
+}
+
 template <int N>
 bool fill_eight_as_is(const Ray* rays, RTCRayNt<N>& out, int first_lane) {
     static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, tfar) == 7 * sizeof(float));
@@ -182,13 +198,7 @@ bool fill_eight_as_is(const Ray* rays, RTCRayNt<N>& out, int first_lane) {
     const __m256 sign = _mm256_set1_ps(-0.0f), zero = _mm256_setzero_ps();
     const __m256 largest = _mm256_set1_ps(kEmbreeLargest), infinity = _mm256_set1_ps(kInfinity);
     __m256 taken = _mm256_cmp_ps(column[6], zero, _CMP_GE_OQ);  // 0 <= tnear
-    const __m256i tnear_magnitude =
-        _mm256_and_si256(_mm256_castps_si256(column[6]), _mm256_set1_epi32(static_cast<int>(kMagnitudeBits)));
-    const __m256i zero_or_normal_tnear =  // zero_or_normal: a magnitude of 0 or above the largest denormal
-        _mm256_or_si256(_mm256_cmpeq_epi32(tnear_magnitude, _mm256_setzero_si256()),
-                        _mm256_cmpgt_epi32(tnear_magnitude,
-                                           _mm256_set1_epi32(static_cast<int>(kSmallestNormalBits - 1))));
-    taken = _mm256_and_ps(taken, _mm256_castsi256_ps(zero_or_normal_tnear));
+    taken = _mm256_and_ps(taken, _mm256_and_ps(zero_or_normal(column[6]), zero_or_normal(column[7])));
     taken = _mm256_and_ps(taken, _mm256_cmp_ps(column[6], infinity, _CMP_LT_OQ));   // tnear finite
     taken = _mm256_and_ps(taken, _mm256_cmp_ps(column[6], column[7], _CMP_LE_OQ));  // tnear <= tfar
     __m256 nonzero = zero;
@@ -241,7 +251,7 @@ bool fill_from_packet(const RayPacket& rays, int first, RTCRayHitNt<N>& out, int
                                  bit(std::fabs(dy) < kInfinity) & bit(std::fabs(dz) < kInfinity) &
                                  (bit(dx != 0.0f) | bit(dy != 0.0f) | bit(dz != 0.0f)) &
                                  bit(std::fabs(tnear) < kInfinity) & bit(tfar == tfar) & bit(tnear <= tfar);
-        const int as_is = bit(tnear >= 0.0f) & bit(zero_or_normal(tnear)) &
+        const int as_is = bit(tnear >= 0.0f) & bit(zero_or_normal(tnear)) & bit(zero_or_normal(tfar)) &
                           bit(std::fabs(ox) <= kEmbreeLargest) & bit(std::fabs(oy) <= kEmbreeLargest) &
                           bit(std::fabs(oz) <= kEmbreeLargest);
         all_taken &= (1 - is_valid_ray) | as_is;
@@ -440,8 +450,9 @@ void EmbreeAccel::intersect_with_flags(std::span<const Ray> rays, std::span<Hit>
             [&](std::size_t index, const RTCRayHitNt<N>& packet, int lane, const EmbreeRay* mapped) {
                 const float t = packet.ray.tfar[lane];
                 hits[index] =
-                    to_hit(mapped ? mapped->lancer_t(t) : t, packet.hit.geomID[lane], packet.hit.primID[lane],
-                           packet.hit.u[lane], packet.hit.v[lane], triangle_count_);
+                    to_hit(mapped ? mapped->lancer_t(t) : in_interval(t, rays[index].tnear, rays[index].tfar),
+                           packet.hit.geomID[lane], packet.hit.primID[lane], packet.hit.u[lane],
+                           packet.hit.v[lane], triangle_count_);
             });
     });
 }
@@ -483,7 +494,9 @@ void EmbreeAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                 const auto primitive = static_cast<std::int32_t>(packet.hit.primID[lane]);
                 const int hit = geometry != static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID);
                 const int sphere = geometry == static_cast<std::int32_t>(kSphereGeometry);
-                hits.t[first + lane] = hit ? packet.ray.tfar[lane] : kInfinity;
+                hits.t[first + lane] = hit ? in_interval(packet.ray.tfar[lane], source->tnear[first + lane],
+                                                         source->tfar[first + lane])
+                                           : kInfinity;
                 hits.prim[first + lane] = hit ? primitive + sphere * sphere_offset : -1;
                 hits.u[first + lane] = hit ? packet.hit.u[lane] : 0.0f;
                 hits.v[first + lane] = hit ? packet.hit.v[lane] : 0.0f;

@@ -183,10 +183,16 @@ std::vector<FuzzCase> fuzz_cases() {
            kInfinity}}},
         // A ray from a point of a triangle with tnear the smallest denormal (finding 26): Embree, which runs
         // with denormals read as zero, took tnear as 0 and reported the triangle at t = 0, behind tnear;
-        // brute force answers the miss. Sixteen copies, so that Embree's 16-wide structure takes a full
-        // packet (its SIMD fast path) as well as the one-ray path.
+        // brute force answers the miss. Then the empty interval [2^-148, 2^-149], an invalid ray that Embree
+        // saw as [0, 0] and hit. Sixteen copies of each, so that Embree's 16-wide structure takes full
+        // packets
+        // (its SIMD fast path) as well as the one-ray path.
         {{"denormal tnear on the surface", {{{-1, -1, 0}, {1, -1, 0}, {0, 1, 0}}}, {}},
-         std::vector<Ray>(16, Ray{{0, 0, 0}, {0, 0, 1}, 0x1p-149f, 1}),
+         [] {
+             std::vector<Ray> rays(16, Ray{{0, 0, 0}, {0, 0, 1}, 0x1p-149f, 1});
+             rays.resize(32, Ray{{0, 0, 0}, {0, 0, 1}, 0x1p-148f, 0x1p-149f});
+             return rays;
+         }(),
          false},  // Embree gives clean answers only: its hit at t = 0 comes back clamped to tnear
     };
 }
@@ -656,6 +662,50 @@ TEST(FuzzRegression, PluckerWalkFollowsTheRootFacesWithinTheTolerance) {
     }
     const std::vector<std::vector<Hit>> expected = expect_every_structure_agrees(scene, rays);
     EXPECT_EQ(expected[0][0].prim, 0);  // Moller-Trumbore reports the vertex (8, -8)
+}
+
+// Fuzz finding 27 (docs/robustness.md): from a point of the icosphere's surface, with the interval starting
+// behind it, Moller-Trumbore reports triangle 265 at t = -2.4e-17 and triangle 4 at t = -8.3e-18, each a
+// rounding error from its triangle. bvh8_packet culled 265 by its exact bounding box and answered 4; its
+// triangle boxes are now grown by the geometric tolerance, as the BVHs' node boxes are.
+TEST(FuzzRegression, PacketTriangleCullKeepsAHitBesideItsTriangle) {
+    TestScene scene{"icosphere", {}, {}};
+    make_icosphere(3).append_triangles(scene.triangles);
+    const std::vector<Ray> rays = {{{-0x1.846e14p-1f, 0x1.36b1cap-1f, 0x1.e58d82p-3f},
+                                    {-0x1.3p+2f, -0x1.4p+2f, -0x1.2cp+2f},
+                                    -0x1.4p+2f,
+                                    kInfinity}};
+    const std::vector<std::vector<Hit>> expected = expect_every_structure_agrees(scene, rays);
+    EXPECT_EQ(expected[0][0].prim, 265);  // Moller-Trumbore
+    EXPECT_TRUE(expected[1][0].hit());    // watertight
+}
+
+// Fuzz finding 28 (docs/robustness.md): on the icosphere stretched 4096 times along x, Embree's fast
+// triangle test reported triangle 788 at t = 1 for this ray, whose interval ends one float before 1 (the
+// rounding of its reciprocal of the determinant). Every structure's hits lie in [tnear, tfar], Embree's
+// included, taken as they are one by one and in a full packet.
+TEST(FuzzRegression, EmbreeHitsStayInsideTheInterval) {
+    TriangleMesh mesh = make_icosphere(3);
+    for (Vec3f& position : mesh.positions)
+        position.x *= 0x1p12f;
+    TestScene scene{"stretched icosphere", {}, {}};
+    mesh.append_triangles(scene.triangles);
+    const std::vector<Ray> rays(16, Ray{{-0x1.3cp+2f, -0x1.38p+2f, 0x1.4484cp-100f},
+                                        {-0x1.69ad9ep+10f, 0x1.02b004p+2f, -0x1.ae1066p-2f},
+                                        0,
+                                        0x1.fffffep-1f});
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        for (const std::string_view name : accel_names()) {
+            const std::unique_ptr<Accel> accel = make_accel(name);
+            accel->build(scene.geometry(), build_options(test));
+            const std::vector<Hit> hits = trace(*accel, rays);
+            for (const Hit& hit : hits) {
+                if (!hit.hit()) continue;
+                EXPECT_GE(hit.t, rays[0].tnear) << name;
+                EXPECT_LE(hit.t, rays[0].tfar) << name;
+            }
+        }
+    }
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "accel/build_util.hpp"
 #include "accel/bvh/triangle_block.hpp"
 #include "accel/packet_batch.hpp"
 #include "accel/primitive_test.hpp"
@@ -120,22 +121,25 @@ using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per l
     return cull_boxes(bounds, packet, tlimit_max, entry);
 }
 
-// The bounding boxes of a block's 8 triangles, for cull_boxes: a triangle some ray hits lies in its box, so
-// that ray's box test passes (the same argument as for a leaf's box, which holds the triangle), and so does
-// the interval test. `triangles`: the lanes that hold one (padding and spheres have NaN vertices, whose
-// boxes cull_boxes would pass: its max and min drop NaN operands).
+// The bounding boxes of a block's 8 triangles grown by the scene's geometric tolerance, for cull_boxes: a
+// triangle some ray hits lies in that box, so that ray's box test passes (the same argument as for a leaf's
+// box, which the build grows by the same tolerance), and so does the interval test. Ungrown, the boxes culled
+// a hit the float triangle test reports a rounding error away from its triangle (fuzz finding 27, a hit at
+// t = -2e-17 from an origin on the surface). `triangles`: the lanes that hold one (padding and spheres have
+// NaN vertices, whose boxes cull_boxes would pass: its max and min drop NaN operands).
 struct TriangleBoxes {
     Boxes bounds;
     unsigned triangles;
 };
-[[nodiscard]] TriangleBoxes triangle_boxes(const Block& block) {
+[[nodiscard]] TriangleBoxes triangle_boxes(const Block& block, float tolerance) {
     using Ops = simd::Avx2;
+    const auto margin = Ops::broadcast(tolerance);
     TriangleBoxes boxes;
     for (int axis = 0; axis < 3; ++axis) {
         const auto v0 = Ops::load(block.vertex[0][axis]), v1 = Ops::load(block.vertex[1][axis]),
                    v2 = Ops::load(block.vertex[2][axis]);
-        boxes.bounds[Node::kLo][axis] = Ops::min(v0, Ops::min(v1, v2));
-        boxes.bounds[Node::kHi][axis] = Ops::max(v0, Ops::max(v1, v2));
+        boxes.bounds[Node::kLo][axis] = Ops::sub(Ops::min(v0, Ops::min(v1, v2)), margin);
+        boxes.bounds[Node::kHi][axis] = Ops::add(Ops::max(v0, Ops::max(v1, v2)), margin);
     }
     boxes.triangles = Ops::bits(Ops::equal(boxes.bounds[Node::kLo][0], boxes.bounds[Node::kLo][0]));
     return boxes;
@@ -172,7 +176,7 @@ struct BlockRays;
 template <>
 struct BlockRays<simd::Avx2> {
     [[maybe_unused]] static constexpr int kRays = 1;  // unused by the AVX-512 compilation (clang warns)
-    __m256i index;  // the ray's lane in its group
+    __m256i index;                                    // the ray's lane in its group
 
     explicit BlockRays(const std::array<int, 2>& rays) : index(_mm256_set1_epi32(rays[0])) {}
     // Each lane takes its ray's value of a group vector.
@@ -259,7 +263,10 @@ class PacketTracer {
 
   public:
     PacketTracer(const Bvh8Accel& bvh, const Geometry& geometry)
-        : nodes_(bvh.nodes()), blocks_(bvh.blocks()), geometry_(geometry) {}
+        : nodes_(bvh.nodes()),
+          blocks_(bvh.blocks()),
+          geometry_(geometry),
+          tolerance_(geometric_tolerance(bvh.bounds())) {}
 
     // Loads rays.size() <= kPacketSize rays; false when the packet cannot be traced together: two valid rays
     // disagree on a direction sign, or a reciprocal direction is not finite (a zero or denormal component,
@@ -562,7 +569,7 @@ class PacketTracer {
         std::array<TriangleBoxes, kMaxLeafBlocks> boxes;
         std::array<unsigned, kMaxLeafBlocks> spheres;
         for (std::uint32_t b = first_block; b < end; ++b) {
-            boxes[b - first_block] = triangle_boxes(blocks_[b]);
+            boxes[b - first_block] = triangle_boxes(blocks_[b], tolerance_);
             spheres[b - first_block] = sphere_lanes(blocks_[b]);
         }
         std::array<BlockEdges, kMaxLeafBlocks> edges;  // Moller-Trumbore only, at the first group with a test
@@ -861,6 +868,7 @@ class PacketTracer {
     const std::vector<Node>& nodes_;
     const std::vector<Block>& blocks_;
     const Geometry& geometry_;
+    float tolerance_;  // the scene's geometric tolerance, by which the triangle boxes are grown
     std::array<Ray, kPacketSize> padded_rays_;
     RayPacket padded_packet_;
     PacketRays packet_;
