@@ -176,10 +176,6 @@ bool taken_as_is(const Ray& ray) {
 }
 
 #if defined(__AVX2__)
-// Eight rays into lanes [first_lane, first_lane + 8) of a packet, as they are, transposed from lancer's
-// layout (8 floats a ray: origin, direction, tnear, tfar) to Embree's SoA (simd::Avx2::load_fields8).
-// Returns whether Embree takes all eight as they are (taken_as_is, the same tests in SIMD); when it does not,
-// the caller writes the lanes one by one over these.
 // zero_or_normal lane by lane: all ones where the magnitude's bits are 0 or above the largest denormal's.
 __m256 zero_or_normal(__m256 x) {
     const __m256i magnitude =
@@ -189,6 +185,10 @@ __m256 zero_or_normal(__m256 x) {
         _mm256_cmpgt_epi32(magnitude, _mm256_set1_epi32(static_cast<int>(kSmallestNormalBits - 1)))));
 }
 
+// Eight rays into lanes [first_lane, first_lane + 8) of a packet, as they are, transposed from lancer's
+// layout (8 floats a ray: origin, direction, tnear, tfar) to Embree's SoA (simd::Avx2::load_fields8).
+// Returns whether Embree takes all eight as they are (taken_as_is, the same tests in SIMD); when it does not,
+// the caller writes the lanes one by one over these.
 template <int N>
 bool fill_eight_as_is(const Ray* rays, RTCRayNt<N>& out, int first_lane) {
     static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, tfar) == 7 * sizeof(float));
