@@ -67,8 +67,7 @@ std::int32_t order_key(float x) {
 }
 
 // t clamped to [tnear, tfar], in the floats' order as integers: this runs with denormals read as zero, where
-// a denormal tnear compares equal to 0 and std::clamp would let a t of 0 below it through. Embree's own t
-// may also pass its tfar by a rounding error (its reciprocal of the determinant), which this takes back.
+// a denormal tnear compares equal to 0 and std::clamp would let a t of 0 below it through (to_embree's rays).
 float in_interval(float t, float tnear, float tfar) {
     const std::int32_t key = order_key(t);
     return key < order_key(tnear) ? tnear : (key > order_key(tfar) ? tfar : t);
@@ -167,12 +166,19 @@ void fill_lane(const Ray& ray, RTCRayHitNt<N>& out, int lane) {
     out.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
 }
 
-// Whether Embree takes the ray as it is, its t unchanged: a valid ray with tnear 0 or normal and an origin
-// within Embree's domain, in a scene that is not scaled. Every camera and secondary ray of an ordinary scene
-// is such a ray, and skips to_embree's work.
+// Whether Embree takes the ray as it is: a valid ray with tnear and tfar 0 or normal and an origin within
+// Embree's domain, in a scene that is not scaled. Every camera and secondary ray of an ordinary scene is such
+// a ray, and skips to_embree's work. Its t needs only as_is_t.
 bool taken_as_is(const Ray& ray) {
     return ray.tnear >= 0.0f && zero_or_normal(ray.tnear) && zero_or_normal(ray.tfar) && is_valid(ray) &&
            max_component(abs(ray.origin)) <= kEmbreeLargest;
+}
+
+// The t of a ray taken as it is, back in its interval: Embree's fast test may pass tfar by a rounding error
+// (its reciprocal of the determinant; fuzz finding 28). With tnear and tfar 0 or normal, and Embree's t never
+// denormal (flush-to-zero), float comparisons are exact even with denormals read as zero.
+float as_is_t(float t, float tnear, float tfar) {
+    return std::min(std::max(t, tnear), tfar);
 }
 
 #if defined(__AVX2__)
@@ -450,7 +456,7 @@ void EmbreeAccel::intersect_with_flags(std::span<const Ray> rays, std::span<Hit>
             [&](std::size_t index, const RTCRayHitNt<N>& packet, int lane, const EmbreeRay* mapped) {
                 const float t = packet.ray.tfar[lane];
                 hits[index] =
-                    to_hit(mapped ? mapped->lancer_t(t) : in_interval(t, rays[index].tnear, rays[index].tfar),
+                    to_hit(mapped ? mapped->lancer_t(t) : as_is_t(t, rays[index].tnear, rays[index].tfar),
                            packet.hit.geomID[lane], packet.hit.primID[lane], packet.hit.u[lane],
                            packet.hit.v[lane], triangle_count_);
             });
@@ -494,8 +500,8 @@ void EmbreeAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                 const auto primitive = static_cast<std::int32_t>(packet.hit.primID[lane]);
                 const int hit = geometry != static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID);
                 const int sphere = geometry == static_cast<std::int32_t>(kSphereGeometry);
-                hits.t[first + lane] = hit ? in_interval(packet.ray.tfar[lane], source->tnear[first + lane],
-                                                         source->tfar[first + lane])
+                hits.t[first + lane] = hit ? as_is_t(packet.ray.tfar[lane], source->tnear[first + lane],
+                                                     source->tfar[first + lane])
                                            : kInfinity;
                 hits.prim[first + lane] = hit ? primitive + sphere * sphere_offset : -1;
                 hits.u[first + lane] = hit ? packet.hit.u[lane] : 0.0f;

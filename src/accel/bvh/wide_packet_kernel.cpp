@@ -18,7 +18,8 @@
 #include "accel/simd_float.hpp"
 
 #if defined(__AVX2__)
-namespace lancer::inline LANCER_ISA_NAMESPACE {
+namespace lancer {
+inline namespace LANCER_ISA_NAMESPACE {
 namespace {
 
 constexpr int kPacketSize = kWidePacketSize;
@@ -957,5 +958,6 @@ const WidePacketKernels& wide_packet_kernels() {
     return kernels;
 }
 
-}  // namespace lancer::inline LANCER_ISA_NAMESPACE
+}  // namespace LANCER_ISA_NAMESPACE
+}  // namespace lancer
 #endif
