@@ -4,8 +4,8 @@
 #include <cstdint>
 #include <string>
 
-#include "accel/agreement.hpp"
 #include "fuzz_support.hpp"
+#include "lancer/agreement.hpp"
 
 namespace lancer::fuzz {
 

@@ -20,11 +20,11 @@
 #include <sstream>
 #include <thread>
 
-#include "accel/agreement.hpp"
 #include "commands.hpp"
 #include "common.hpp"
 #include "cuda_device.hpp"
 #include "distributed.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/denormals.hpp"
 #include "lancer/generate.hpp"

@@ -8,8 +8,6 @@
 #include <charconv>
 #include <new>
 
-#include "accel/plucker/plucker.hpp"
-#include "accel/plucker/serialise.hpp"
 #include "lancer/io.hpp"
 #include "lancer/memory.hpp"
 
@@ -99,65 +97,36 @@ BuiltAccel build_timed(const AccelChoice& choice, const Geometry& geometry) {
     return built;
 }
 
-namespace {
-
-// The scene a `.plo` file stands for: its triangles as one mesh (global order kept), its spheres, the
-// default material; no camera (the canonical view), no lights, no planes.
-Scene scene_of(const plucker::PluckerFile& file) {
-    Scene scene;
-    TriangleMesh mesh;
-    mesh.name = "plucker";
-    mesh.positions.reserve(3 * file.triangles.size());
-    for (const Triangle& triangle : file.triangles) {
-        for (const Vec3f& vertex : {triangle.v0, triangle.v1, triangle.v2}) {
-            mesh.indices.push_back(static_cast<std::uint32_t>(mesh.positions.size()));
-            mesh.positions.push_back(vertex);
-        }
-    }
-    scene.meshes.push_back(std::move(mesh));
-    scene.spheres = file.spheres;
-    for (Sphere& sphere : scene.spheres)
-        sphere.material = 0;
-    scene.materials.emplace_back();
-    return scene;
-}
-
-}  // namespace
-
 PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice& choice) {
-    PreparedScene prepared;
     if (file.extension() != ".plo") {
-        prepared.loaded = load_timed(file);
+        LoadedScene loaded = load_timed(file);
+        const BuildOptions options = choice.build_options();
+        const std::size_t primitives = loaded.scene.triangle_count() + loaded.scene.spheres.size();
+        Stopwatch watch;
         try {
-            prepared.geometry = std::make_unique<SceneGeometry>(prepared.loaded.scene);
+            World world(std::move(loaded.scene), choice.name, options);
+            return {std::move(world), loaded.load_ms, watch.elapsed_ms()};
+        } catch (const std::invalid_argument& error) {
+            throw InputError(error.what());
         } catch (const std::bad_alloc&) {
-            throw out_of_memory(file.string(), "loading");
+            throw out_of_memory("the scene (" + std::to_string(primitives) + " primitives)",
+                                "building " + choice.name);
         }
-        prepared.built = build_timed(choice, prepared.geometry->view());
-        return prepared;
     }
     if (choice.name_option != nullptr && choice.name_option->count() > 0 && choice.name != "plucker")
         throw InputError(file.string() + " holds a plucker octree: --accel must be plucker or left out");
     if (!choice.settings.empty())
         throw InputError("--set does not apply to a stored structure: give the options to `lancer convert`");
     Stopwatch watch;
-    plucker::PluckerFile stored;
     try {
-        stored = plucker::read_plucker_file(file);
-    } catch (const plucker::PluckerFileError& error) {
+        World world = World::load_structure(
+            file, choice.watertight ? std::optional(TriangleTest::Watertight) : std::nullopt);
+        return {std::move(world), watch.elapsed_ms(), 0.0};
+    } catch (const StructureFileError& error) {
         throw InputError(error.what());
     } catch (const std::bad_alloc&) {
         throw out_of_memory(file.string(), "loading");
     }
-    prepared.loaded.scene = scene_of(stored);
-    prepared.geometry = std::make_unique<SceneGeometry>(prepared.loaded.scene);
-    auto accel = std::make_unique<PluckerAccel>();
-    const BuildOptions options =
-        lancer::build_options(choice.watertight ? TriangleTest::Watertight : stored.triangle_test);
-    accel->adopt(prepared.geometry->view(), options, std::move(stored.layout));
-    prepared.loaded.load_ms = watch.elapsed_ms();
-    prepared.built.accel = std::move(accel);
-    return prepared;
 }
 
 namespace {

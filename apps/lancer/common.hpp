@@ -15,6 +15,7 @@
 
 #include "lancer/accel.hpp"
 #include "lancer/scene.hpp"
+#include "lancer/world.hpp"
 
 namespace lancer::cli {
 
@@ -82,9 +83,9 @@ struct BuiltAccel {
 // load_ms the read and the checks). A `.plo` file takes --watertight but not --set, and --accel only as
 // plucker. Throws LoadError, InputError.
 struct PreparedScene {
-    LoadedScene loaded;
-    std::unique_ptr<SceneGeometry> geometry;  // the structure keeps spans into it: never moved
-    BuiltAccel built;
+    World world;
+    double load_ms = 0.0;
+    double build_ms = 0.0;
 };
 [[nodiscard]] PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice& choice);
 

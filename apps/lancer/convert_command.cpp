@@ -1,11 +1,9 @@
 // lancer convert SCENE --accel plucker -o FILE.plo: builds the Pluecker octree once and writes it with its
-// geometry (src/accel/plucker/serialise.hpp), for `lancer render FILE.plo` and `lancer rays FILE.plo`.
+// geometry (World::save_structure), for `lancer render FILE.plo` and `lancer rays FILE.plo`.
 #include <fmt/core.h>
 
 #include <memory>
 
-#include "accel/plucker/plucker.hpp"
-#include "accel/plucker/serialise.hpp"
 #include "commands.hpp"
 #include "common.hpp"
 
@@ -22,22 +20,19 @@ void run(const ConvertOptions& options) {
     if (options.accel.name != "plucker")
         throw InputError("convert writes the plucker octree only: use --accel plucker (got '" +
                          options.accel.name + "')");
-    const LoadedScene loaded = load_timed(options.scene_file);
-    const SceneGeometry geometry(loaded.scene);
-    const BuiltAccel built = build_timed(options.accel, geometry.view());
-    const auto& accel = static_cast<const PluckerAccel&>(*built.accel);
+    const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
+    const World& world = prepared.world;
     Stopwatch watch;
     try {
-        plucker::write_plucker_file(options.output, geometry.view(), accel.layout(),
-                                    options.accel.build_options().triangle_test);
-    } catch (const plucker::PluckerFileError& error) {
+        world.save_structure(options.output);
+    } catch (const StructureFileError& error) {
         throw InputError(error.what());
     }
-    const AccelStats stats = accel.stats();
+    const AccelStats stats = world.accel().stats();
     fmt::print("{}: {} primitives, {} leaves (max depth {}), build {:.1f} ms\n", options.scene_file,
-               geometry.view().size(), stats.leaves, stats.max_depth, built.build_ms);
+               world.geometry().view().size(), stats.leaves, stats.max_depth, prepared.build_ms);
     fmt::print("wrote {} ({:.2f} MB structure) in {:.1f} ms\n", options.output,
-               static_cast<double>(accel.memory_bytes()) / (1024.0 * 1024.0), watch.elapsed_ms());
+               static_cast<double>(world.accel().memory_bytes()) / (1024.0 * 1024.0), watch.elapsed_ms());
 }
 
 }  // namespace

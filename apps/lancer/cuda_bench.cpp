@@ -5,8 +5,8 @@
 
 #include <algorithm>
 
-#include "accel/agreement.hpp"
 #include "cuda_device.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/camera.hpp"
 
 namespace lancer::cli {
@@ -52,8 +52,8 @@ void run_cuda_bench(const DeviceChoice& device, std::span<const CudaBenchMesh> m
             for (const CudaKernel kernel : kernels_of(device, name)) {
                 DeviceChoice chosen = device;
                 chosen.kernel = cuda_kernel_name(kernel);
-                const std::unique_ptr<CudaTracer> tracer =
-                    make_cuda_tracer(chosen, choice, *built.accel, geometry.view());
+                const std::unique_ptr<CudaTracer> tracer = make_cuda_tracer(
+                    chosen, choice.build_options().triangle_test, *built.accel, geometry.view());
                 if (!header_printed) {
                     fmt::print(
                         "lancer bench --device cuda: {}; {}x{} canonical view, {} frames after 1 warm-up\n",

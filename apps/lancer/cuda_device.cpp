@@ -1,11 +1,6 @@
 #include "cuda_device.hpp"
 
-#include <cmath>
 #include <stdexcept>
-
-#include "lancer/camera.hpp"
-#include "render/heatmap.hpp"
-#include "render/scene_intersector.hpp"
 
 namespace lancer::cli {
 
@@ -39,57 +34,16 @@ CudaKernel DeviceChoice::kernel_for(std::string_view accel_name) const {
     }
 }
 
-std::unique_ptr<CudaTracer> make_cuda_tracer(const DeviceChoice& device, const AccelChoice& choice,
+std::unique_ptr<CudaTracer> make_cuda_tracer(const DeviceChoice& device, TriangleTest triangle_test,
                                              const Accel& accel, const Geometry& geometry) {
     const CudaKernel kernel = device.kernel_for(accel.name());
     try {
-        return std::make_unique<CudaTracer>(accel, geometry, choice.build_options().triangle_test, kernel);
+        return std::make_unique<CudaTracer>(accel, geometry, triangle_test, kernel);
     } catch (const CudaError& error) {
         throw InputError(std::string("--device cuda: ") + error.what());
     } catch (const std::invalid_argument& error) {
         throw InputError(std::string("--device cuda: ") + error.what());
     }
-}
-
-Image render_on_cuda(const DeviceChoice& device, const AccelChoice& choice, const Scene& scene,
-                     const SceneGeometry& geometry, const Accel& accel, const Camera& camera,
-                     ShadingMode mode, RenderStats& stats) {
-    if (!scene.planes.empty())
-        throw InputError(
-            "--device cuda: the scene has infinite planes; the GPU kernels trace triangles only");
-    const std::unique_ptr<CudaTracer> tracer = make_cuda_tracer(device, choice, accel, geometry.view());
-    const bool heatmap = mode == ShadingMode::Heatmap;
-    const CudaTrace traced = tracer->trace_frame(camera, heatmap);
-
-    Image image(camera.width, camera.height);
-    stats.trace_ms = traced.kernel_ms;
-    stats.primary_rays = traced.hits.size();
-    if (heatmap) {
-        stats.counters.rays = traced.steps.size();
-        for (const std::uint32_t steps : traced.steps)
-            stats.counters.nodes_visited += steps;
-        heat_to_image(traced.steps, image);
-        return image;
-    }
-    // Flat shading (render.cpp's Figure 5 look): the material colour times |cos| with the view.
-    const SceneIntersector intersector(scene, geometry, accel);
-    const PinholeCamera pinhole(camera);
-    for (int y = 0; y < camera.height; ++y) {
-        for (int x = 0; x < camera.width; ++x) {
-            const Hit& hit =
-                traced.hits[static_cast<std::size_t>(y) * static_cast<std::size_t>(camera.width) +
-                            static_cast<std::size_t>(x)];
-            if (!hit.hit()) {
-                image.at(x, y) = scene.background;
-                continue;
-            }
-            const Ray ray = pinhole.generate(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
-            const SurfacePoint surface = intersector.surface(ray, hit);
-            image.at(x, y) =
-                surface.color * std::fabs(dot(surface.geometric_normal, normalize(ray.direction)));
-        }
-    }
-    return image;
 }
 
 }  // namespace lancer::cli

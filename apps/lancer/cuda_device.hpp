@@ -28,16 +28,10 @@ struct DeviceChoice {
     [[nodiscard]] CudaKernel kernel_for(std::string_view accel_name) const;
 };
 
-// A tracer for `accel`, built on `geometry` as `choice` says; CUDA and input errors become InputError.
+// A tracer for `accel`, built on `geometry` with `triangle_test`; CUDA and input errors become InputError.
 [[nodiscard]] std::unique_ptr<CudaTracer> make_cuda_tracer(const DeviceChoice& device,
-                                                           const AccelChoice& choice, const Accel& accel,
+                                                           TriangleTest triangle_test, const Accel& accel,
                                                            const Geometry& geometry);
-
-// `lancer render --device cuda` for `mode` flat or heatmap (the command refuses the others before loading),
-// on scenes without infinite planes; fills `stats` as render() does (trace_ms: the kernel).
-[[nodiscard]] Image render_on_cuda(const DeviceChoice& device, const AccelChoice& choice, const Scene& scene,
-                                   const SceneGeometry& geometry, const Accel& accel, const Camera& camera,
-                                   ShadingMode mode, RenderStats& stats);
 
 // `lancer bench --device cuda`: every kernel of each structure (plucker, bvh) on each mesh's canonical
 // view, validated against the CPU structure, timed by CUDA events (the kernel alone).

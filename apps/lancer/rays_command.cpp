@@ -6,6 +6,7 @@
 #include <bit>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "commands.hpp"
@@ -58,10 +59,10 @@ void run(const RaysOptions& options) {
         throw InputError("under mpirun, lancer rays runs on the CPU alone: leave out --device");
     // Every rank loads the scene and builds its structure; rank 0 reads the rays and hands each rank its
     // slice (docs/distributed.md).
-    PreparedScene prepared;
+    std::optional<PreparedScene> prepared;
     job.on_every_rank("loading the scene",
                       [&] { prepared = prepare_scene(options.scene_file, options.accel); });
-    const BuiltAccel& built = prepared.built;
+    const World& world = prepared->world;
     std::vector<Ray> rays;
     job.on_every_rank("reading the rays", [&] {
         if (job.is_root()) rays = read_rays(options.rays_file);
@@ -70,11 +71,12 @@ void run(const RaysOptions& options) {
     std::vector<Hit> hits;
     Stopwatch watch;
     if (options.device.cuda()) {
-        hits = make_cuda_tracer(options.device, options.accel, *built.accel, prepared.geometry->view())
+        hits = make_cuda_tracer(options.device, world.options().triangle_test, world.accel(),
+                                world.geometry().view())
                    ->trace(rays)
                    .hits;
     } else {
-        hits = job.intersect(*built.accel, rays, options.threads);
+        hits = job.intersect(world.accel(), rays, options.threads);
     }
     const double trace_ms = watch.elapsed_ms();
     if (!job.is_root()) return;  // rank 0 writes the hits and the summary
@@ -84,7 +86,7 @@ void run(const RaysOptions& options) {
     for (const Hit& hit : hits)
         hit_count += hit.hit() ? 1 : 0;
     fmt::print(stderr, "rays: {} rays, {} hits, accel {} (build {:.1f} ms), trace {:.1f} ms\n", rays.size(),
-               hit_count, built.accel->name(), built.build_ms, trace_ms);
+               hit_count, world.accel().name(), prepared->build_ms, trace_ms);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "commands.hpp"
@@ -40,15 +41,15 @@ bool is_exr(const std::filesystem::path& file) {
     return extension == ".exr";
 }
 
-void print_summary(const RenderCommandOptions& options, const LoadedScene& loaded, const BuiltAccel& built,
-                   const Image& image, const RenderStats& stats) {
-    const Scene& scene = loaded.scene;
+void print_summary(const RenderCommandOptions& options, const PreparedScene& prepared, const Image& image,
+                   const RenderStats& stats) {
+    const Scene& scene = prepared.world.scene();
     const bool whitted = options.mode == ShadingMode::Whitted;
     fmt::print("{}: {}x{}{}, {} triangles, {} spheres, {} planes, {} lights\n", options.scene_file,
                image.width, image.height, whitted ? fmt::format(", {} spp", options.samples_per_pixel) : "",
                scene.triangle_count(), scene.spheres.size(), scene.planes.size(), scene.lights.size());
-    fmt::print("load {:.1f} ms, accel {} build {:.1f} ms, render {:.1f} ms\n", loaded.load_ms,
-               built.accel->name(), built.build_ms, stats.trace_ms);
+    fmt::print("load {:.1f} ms, accel {} build {:.1f} ms, render {:.1f} ms\n", prepared.load_ms,
+               prepared.world.accel().name(), prepared.build_ms, stats.trace_ms);
     const double mrays_per_s = static_cast<double>(stats.total_rays()) / (stats.trace_ms * 1e3);
     if (whitted) {
         fmt::print("rays: {} primary, {} shadow, {} reflection, {} refraction; {} in all, {:.2f} Mrays/s\n",
@@ -72,22 +73,22 @@ void print_summary(const RenderCommandOptions& options, const LoadedScene& loade
 // The frame again with the structure --beside names, on the same geometry, triangle test and threads; its
 // image is not written. Its ray counts are printed too when they differ (a peer's own triangle test may
 // send a few shadow or secondary rays elsewhere).
-void render_beside(const RenderCommandOptions& options, const SceneGeometry& geometry, const Scene& scene,
-                   const Camera& camera, const RenderOptions& render_options, const BuiltAccel& built,
-                   const RenderStats& stats) {
+void render_beside(const RenderCommandOptions& options, const World& world, const Camera& camera,
+                   const RenderOptions& render_options, const RenderStats& stats) {
     AccelChoice choice = options.accel;
     choice.name = options.beside;
-    const BuiltAccel other = build_timed(choice, geometry.view());
+    const BuiltAccel other = build_timed(choice, world.geometry().view());
     RenderStats other_stats;
-    static_cast<void>(render(scene, geometry, *other.accel, camera, render_options, &other_stats));
+    static_cast<void>(
+        render(world.scene(), world.geometry(), *other.accel, camera, render_options, &other_stats));
     const double mrays = static_cast<double>(stats.total_rays()) / (stats.trace_ms * 1e3);
     const double other_mrays = static_cast<double>(other_stats.total_rays()) / (other_stats.trace_ms * 1e3);
     fmt::print("beside: {} build {:.1f} ms, render {:.1f} ms, {:.2f} Mrays/s; {} at {:.2f}x of it\n",
-               other.accel->name(), other.build_ms, other_stats.trace_ms, other_mrays, built.accel->name(),
+               other.accel->name(), other.build_ms, other_stats.trace_ms, other_mrays, world.accel().name(),
                mrays / other_mrays);
     if (other_stats.total_rays() != stats.total_rays())
         fmt::print("beside: {} traced {} rays where {} traced {}\n", other.accel->name(),
-                   other_stats.total_rays(), built.accel->name(), stats.total_rays());
+                   other_stats.total_rays(), world.accel().name(), stats.total_rays());
 }
 
 void run(RenderCommandOptions options) {
@@ -111,13 +112,11 @@ void run(RenderCommandOptions options) {
         throw InputError(
             "under mpirun, lancer render runs on the CPU alone: leave out --device and --beside");
     // Every rank loads the scene and builds its structure (docs/distributed.md).
-    PreparedScene prepared;
+    std::optional<PreparedScene> prepared;
     job.on_every_rank("loading the scene",
                       [&] { prepared = prepare_scene(options.scene_file, options.accel); });
-    const LoadedScene& loaded = prepared.loaded;
-    const Scene& scene = loaded.scene;
-    const SceneGeometry& geometry = *prepared.geometry;
-    const BuiltAccel& built = prepared.built;
+    const World& world = prepared->world;
+    const Scene& scene = world.scene();
 
     Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds());
     if (!options.size.empty()) std::tie(camera.width, camera.height) = parse_size(options.size);
@@ -131,10 +130,20 @@ void run(RenderCommandOptions options) {
     render_options.min_weight = options.min_weight;
     render_options.fresnel = options.fresnel;
     RenderStats stats;
-    const Image image = options.device.cuda()
-                            ? render_on_cuda(options.device, options.accel, scene, geometry, *built.accel,
-                                             camera, options.mode, stats)
-                            : job.render(scene, geometry, *built.accel, camera, render_options, stats);
+    Image image;
+    if (options.device.cuda()) {
+        render_options.device = RenderDevice::Cuda;
+        render_options.cuda_kernel = options.device.kernel_for(world.accel().name());
+        try {
+            image = render(world, camera, render_options, &stats);
+        } catch (const CudaError& error) {
+            throw InputError(std::string("--device cuda: ") + error.what());
+        } catch (const std::invalid_argument& error) {
+            throw InputError(std::string("--device cuda: ") + error.what());
+        }
+    } else {
+        image = job.render(scene, world.geometry(), world.accel(), camera, render_options, stats);
+    }
     if (!job.is_root()) return;  // rank 0 writes the picture and the summary
     try {
         if (is_exr(options.output))
@@ -144,9 +153,8 @@ void run(RenderCommandOptions options) {
     } catch (const std::runtime_error& error) {
         throw InputError(error.what());
     }
-    print_summary(options, loaded, built, image, stats);
-    if (!options.beside.empty())
-        render_beside(options, geometry, scene, camera, render_options, built, stats);
+    print_summary(options, *prepared, image, stats);
+    if (!options.beside.empty()) render_beside(options, world, camera, render_options, stats);
 }
 
 }  // namespace

@@ -51,18 +51,16 @@ RayCost trace_view(const Accel& accel, const Scene& scene, int width, int height
 
 void run(const StatsOptions& options) {
     const PreparedScene prepared = prepare_scene(options.scene_file, options.accel);
-    const LoadedScene& loaded = prepared.loaded;
-    const SceneGeometry& geometry = *prepared.geometry;
-    const BuiltAccel& built = prepared.built;
-    const AccelStats stats = built.accel->stats();
-    const std::size_t primitives = geometry.view().size();
-    const double memory_mb = static_cast<double>(built.accel->memory_bytes()) / (1024.0 * 1024.0);
+    const Accel& accel = prepared.world.accel();
+    const AccelStats stats = accel.stats();
+    const std::size_t primitives = prepared.world.geometry().view().size();
+    const double memory_mb = static_cast<double>(accel.memory_bytes()) / (1024.0 * 1024.0);
 
     fmt::print("scene        {} ({} primitives), load {:.1f} ms\n", options.scene_file, primitives,
-               loaded.load_ms);
-    fmt::print("accel        {}\n", built.accel->name());
-    fmt::print("build        {:.1f} ms ({:.2f} Mprims/s)\n", built.build_ms,
-               built.build_ms > 0.0 ? static_cast<double>(primitives) / (built.build_ms * 1e3) : 0.0);
+               prepared.load_ms);
+    fmt::print("accel        {}\n", accel.name());
+    fmt::print("build        {:.1f} ms ({:.2f} Mprims/s)\n", prepared.build_ms,
+               prepared.build_ms > 0.0 ? static_cast<double>(primitives) / (prepared.build_ms * 1e3) : 0.0);
     fmt::print("nodes        {} ({} leaves, {} empty)\n", stats.nodes, stats.leaves, stats.empty_leaves);
     fmt::print("depth        max {}, mean leaf depth {:.2f}\n", stats.max_depth, stats.mean_depth);
     fmt::print("refs/leaf    mean {:.2f}, max {}\n", stats.mean_refs_per_leaf, stats.max_refs_per_leaf);
@@ -78,7 +76,7 @@ void run(const StatsOptions& options) {
     RayCost cost;
     if (options.rays) {
         const auto [width, height] = parse_size(options.size);
-        cost = trace_view(*built.accel, loaded.scene, width, height);
+        cost = trace_view(accel, prepared.world.scene(), width, height);
         const double rays = static_cast<double>(cost.rays);
         fmt::print(
             "view         {}x{}, {:.1f}% hits, {:.2f} nodes/ray, {:.2f} prims/ray (one thread, counting)\n",
@@ -99,10 +97,9 @@ void run(const StatsOptions& options) {
             "\"mean_refs_per_leaf\": {:.4f}, \"max_refs_per_leaf\": {}, \"references\": {}, \"sah_cost\": "
             "{:.6f}, "
             "\"memory_bytes\": {}, \"memory_by_array\": {{{}}}",
-            options.scene_file, built.accel->name(), primitives, built.build_ms, stats.nodes, stats.leaves,
+            options.scene_file, accel.name(), primitives, prepared.build_ms, stats.nodes, stats.leaves,
             stats.empty_leaves, stats.max_depth, stats.mean_depth, stats.mean_refs_per_leaf,
-            stats.max_refs_per_leaf, stats.references, stats.sah_cost, built.accel->memory_bytes(),
-            memory_json);
+            stats.max_refs_per_leaf, stats.references, stats.sah_cost, accel.memory_bytes(), memory_json);
         if (options.rays) {
             const double rays = static_cast<double>(cost.rays);
             json += fmt::format(

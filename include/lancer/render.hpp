@@ -5,11 +5,14 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <span>
 #include <vector>
 
 #include "lancer/accel.hpp"
+#include "lancer/cuda.hpp"
 #include "lancer/scene.hpp"
+#include "lancer/world.hpp"
 
 namespace lancer {
 
@@ -22,10 +25,17 @@ enum class ShadingMode {
               // perceptual ramp, with a legend (0 .. image maximum) in the bottom-left corner
 };
 
+// Where render(const World&, ...) traces the primary rays: the CPU, or an NVIDIA GPU through CudaTracer
+// (lancer/cuda.hpp), whose kernels trace the structure's triangles alone and so render ShadingMode::Flat
+// and Heatmap of scenes without infinite planes.
+enum class RenderDevice { Cpu, Cuda };
+
 struct RenderOptions {
     ShadingMode mode = ShadingMode::Whitted;
-    int threads = 0;        // 0: all hardware threads
-    int tile_size = 16;     // pixels per tile side
+    RenderDevice device = RenderDevice::Cpu;
+    std::optional<CudaKernel> cuda_kernel;  // RenderDevice::Cuda: default_cuda_kernel(the structure) if empty
+    int threads = 0;                        // 0: all hardware threads
+    int tile_size = 16;                     // pixels per tile side
     bool progress = false;  // a progress line on stderr (the CLI turns it on when stderr is a terminal)
     // Whitted mode (docs/whitted.md):
     int samples_per_pixel = 1;  // stratified over the pixel (a Hammersley set); 1 = the pixel centre
@@ -70,6 +80,12 @@ struct RenderStats {
 // negative or NaN minimum weight, or a scene whose primitives name missing materials.
 [[nodiscard]] Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
                            const Camera& camera, const RenderOptions& options, RenderStats* stats = nullptr);
+
+// render() of a World, on options.device. On the GPU, stats->trace_ms is the kernel's time. Throws as
+// render() does, std::invalid_argument for a mode or scene the GPU does not render or a kernel that does not
+// trace the structure, and CudaError when no GPU can be used.
+[[nodiscard]] Image render(const World& world, const Camera& camera, const RenderOptions& options,
+                           RenderStats* stats = nullptr);
 
 // A frame rendered in parts, by several processes (`mpirun lancer render`: docs/distributed.md). The
 // frame's tiles are the squares of options.tile_size (clipped to the image) numbered row-major; every part

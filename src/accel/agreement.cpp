@@ -1,4 +1,4 @@
-#include "accel/agreement.hpp"
+#include "lancer/agreement.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -29,6 +29,8 @@ namespace {
 constexpr int kMaxSamplesPerPixel = 4096;
 
 void check_options(const Camera& camera, const RenderOptions& options) {
+    if (options.device != RenderDevice::Cpu)
+        throw std::invalid_argument("render: the GPU renders a World (render(const World&, ...))");
     if (camera.width <= 0 || camera.height <= 0) {
         throw std::invalid_argument("render: image size " + std::to_string(camera.width) + "x" +
                                     std::to_string(camera.height) + " is not positive");

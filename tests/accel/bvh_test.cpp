@@ -11,9 +11,9 @@
 #include <cstring>
 #include <random>
 
-#include "accel/agreement.hpp"
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
 #include "test_scenes.hpp"

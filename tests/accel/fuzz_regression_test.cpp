@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "accel/agreement.hpp"
 #include "lancer/accel.hpp"
+#include "lancer/agreement.hpp"
 #include "test_scenes.hpp"
 
 namespace lancer {

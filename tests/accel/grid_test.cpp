@@ -9,9 +9,9 @@
 #include <cmath>
 #include <random>
 
-#include "accel/agreement.hpp"
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
 

@@ -11,9 +11,9 @@
 #include <random>
 #include <tuple>
 
-#include "accel/agreement.hpp"
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
 #include "test_scenes.hpp"

@@ -5,9 +5,9 @@
 #include <map>
 #include <random>
 
-#include "accel/agreement.hpp"
 #include "accel/brute.hpp"
 #include "configurations.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
 #include "test_scenes.hpp"

@@ -12,9 +12,9 @@
 #include <cstring>
 #include <random>
 
-#include "accel/agreement.hpp"
 #include "accel/brute.hpp"
 #include "accel/bvh/wide_packet.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"

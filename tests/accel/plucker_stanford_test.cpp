@@ -7,8 +7,8 @@
 
 #include <filesystem>
 
-#include "accel/agreement.hpp"
 #include "accel/plucker/plucker.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/io.hpp"
 #include "ray_sets.hpp"
 

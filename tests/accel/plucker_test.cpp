@@ -12,12 +12,12 @@
 #include <span>
 #include <tuple>
 
-#include "accel/agreement.hpp"
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
 #include "accel/plucker/balance.hpp"
 #include "accel/plucker/conventions.hpp"
 #include "accel/plucker/walk.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
 #include "ray_sets.hpp"
 #include "test_scenes.hpp"

@@ -10,8 +10,8 @@
 #include <filesystem>
 #include <map>
 
-#include "accel/agreement.hpp"
 #include "configurations.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/io.hpp"
 #include "ray_sets.hpp"
 

@@ -7,9 +7,9 @@
 #include <cstring>
 #include <filesystem>
 
-#include "accel/agreement.hpp"
 #include "accel/ray_sets.hpp"
 #include "accel/test_scenes.hpp"
+#include "lancer/agreement.hpp"
 #include "lancer/cuda.hpp"
 #include "lancer/io.hpp"
 

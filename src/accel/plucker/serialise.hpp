@@ -16,10 +16,10 @@
 
 #include <cstdint>
 #include <filesystem>
-#include <stdexcept>
 #include <vector>
 
 #include "accel/plucker/layout.hpp"
+#include "lancer/world.hpp"
 
 namespace lancer::plucker {
 
@@ -46,11 +46,8 @@ struct PluckerFileHeader {
 };
 static_assert(sizeof(PluckerFileHeader) == 136);
 
-// A malformed, truncated or inconsistent file; the message names the file and the first problem.
-class PluckerFileError : public std::runtime_error {
-  public:
-    using std::runtime_error::runtime_error;
-};
+// The public error of a `.plo` file that cannot be read or written (lancer/world.hpp).
+using PluckerFileError = StructureFileError;
 
 struct PluckerFile {
     std::vector<Triangle> triangles;

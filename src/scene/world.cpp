@@ -1,0 +1,65 @@
+#include "lancer/world.hpp"
+
+#include <utility>
+
+#include "accel/plucker/plucker.hpp"
+#include "accel/plucker/serialise.hpp"
+
+namespace lancer {
+
+World::World(Scene scene, std::string_view accel_name, const BuildOptions& options)
+    : scene_(std::make_unique<Scene>(std::move(scene))),
+      geometry_(std::make_unique<SceneGeometry>(*scene_)),
+      accel_(make_accel(accel_name)),
+      options_(options) {
+    accel_->build(geometry_->view(), options_);
+}
+
+namespace {
+
+// The scene a `.plo` file stands for (World::load_structure).
+Scene scene_of(const plucker::PluckerFile& file) {
+    Scene scene;
+    TriangleMesh mesh;
+    mesh.name = "plucker";
+    mesh.positions.reserve(3 * file.triangles.size());
+    mesh.indices.reserve(3 * file.triangles.size());
+    for (const Triangle& triangle : file.triangles) {
+        for (const Vec3f& vertex : {triangle.v0, triangle.v1, triangle.v2}) {
+            mesh.indices.push_back(static_cast<std::uint32_t>(mesh.positions.size()));
+            mesh.positions.push_back(vertex);
+        }
+    }
+    scene.meshes.push_back(std::move(mesh));
+    scene.spheres = file.spheres;
+    for (Sphere& sphere : scene.spheres)
+        sphere.material = 0;
+    scene.materials.emplace_back();
+    return scene;
+}
+
+}  // namespace
+
+World World::load_structure(const std::filesystem::path& file, std::optional<TriangleTest> triangle_test) {
+    plucker::PluckerFile stored = plucker::read_plucker_file(file);
+    World world;
+    world.scene_ = std::make_unique<Scene>(scene_of(stored));
+    world.geometry_ = std::make_unique<SceneGeometry>(*world.scene_);
+    world.options_ = build_options(triangle_test.value_or(stored.triangle_test));
+    auto accel = std::make_unique<PluckerAccel>();
+    accel->adopt(world.geometry_->view(), world.options_, std::move(stored.layout));
+    world.accel_ = std::move(accel);
+    return world;
+}
+
+void World::save_structure(const std::filesystem::path& file) const {
+    const auto* plucker = dynamic_cast<const PluckerAccel*>(accel_.get());
+    if (plucker == nullptr) {
+        throw StructureFileError(file.string() +
+                                 ": only the plucker structure can be saved (this world's is " +
+                                 std::string(accel_->name()) + ")");
+    }
+    plucker::write_plucker_file(file, geometry_->view(), plucker->layout(), options_.triangle_test);
+}
+
+}  // namespace lancer

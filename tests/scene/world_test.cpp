@@ -1,0 +1,128 @@
+// lancer::World: the scene, its geometry and one structure made together, and a `.plo` file as another way
+// to make one (save_structure, load_structure).
+#include "lancer/world.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "../accel/ray_sets.hpp"
+#include "lancer/agreement.hpp"
+#include "lancer/generate.hpp"
+
+namespace lancer {
+namespace {
+
+// An icosphere and a torus knot with two spheres: meshes, spheres and more than one material.
+Scene test_scene() {
+    Scene scene;
+    scene.meshes.push_back(make_icosphere(2, {-1.5f, 0.0f, 0.0f}, 1.0f));
+    TriangleMesh knot = make_torus_knot(64, 8);
+    knot.material = 1;
+    scene.meshes.push_back(std::move(knot));
+    scene.spheres.push_back({{2.0f, 1.0f, 0.5f}, 0.5f, 1});
+    scene.spheres.push_back({{0.0f, -2.0f, 0.0f}, 0.25f, 0});
+    scene.materials.resize(2);
+    scene.materials[1].color = {0.2f, 0.7f, 0.3f};
+    return scene;
+}
+
+std::vector<Ray> test_rays(const World& world) {
+    return testing::random_rays(world.scene().bounds(), 4000, 23).rays;
+}
+
+std::vector<Hit> trace(const World& world, const std::vector<Ray>& rays) {
+    std::vector<Hit> hits(rays.size());
+    world.accel().intersect(rays, hits);
+    return hits;
+}
+
+void expect_same_hits(const std::vector<Hit>& expected, const std::vector<Hit>& actual) {
+    ASSERT_EQ(expected.size(), actual.size());
+    EXPECT_EQ(std::memcmp(expected.data(), actual.data(), expected.size() * sizeof(Hit)), 0);
+}
+
+class WorldTest : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        dir_ = std::filesystem::temp_directory_path() /
+               ("lancer_world_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+                "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+        std::filesystem::create_directories(dir_);
+    }
+    void TearDown() override { std::filesystem::remove_all(dir_); }
+
+    std::filesystem::path dir_;
+};
+
+TEST_F(WorldTest, BuildsTheNamedStructureOverItsScene) {
+    const Scene scene = test_scene();
+    const World world(scene, "bvh", build_options(TriangleTest::Watertight));
+    EXPECT_EQ(world.accel().name(), "bvh");
+    EXPECT_EQ(world.options().triangle_test, TriangleTest::Watertight);
+    EXPECT_EQ(world.scene().meshes.size(), 2u);
+    EXPECT_EQ(world.geometry().view().size(), scene.triangle_count() + scene.spheres.size());
+    const World brute(scene, "brute", build_options(TriangleTest::Watertight));
+    const std::vector<Ray> rays = test_rays(world);
+    const std::vector<Hit> hits = trace(world, rays);
+    const Agreement agreement = compare_hits(rays, trace(brute, rays), hits);
+    EXPECT_EQ(agreement.mismatches, 0u) << agreement.summary();
+    EXPECT_GT(agreement.hits, rays.size() / 20);
+}
+
+TEST_F(WorldTest, MovesWithoutMovingWhatItsStructureReads) {
+    World world(test_scene(), "bvh8", build_options(TriangleTest::MollerTrumbore));
+    const std::vector<Ray> rays = test_rays(world);
+    const std::vector<Hit> before = trace(world, rays);
+    const World moved = std::move(world);
+    expect_same_hits(before, trace(moved, rays));
+}
+
+TEST_F(WorldTest, RefusesAnUnknownStructure) {
+    EXPECT_THROW(World(test_scene(), "no_such_structure", {}), std::invalid_argument);
+}
+
+TEST_F(WorldTest, SavedStructureLoadsBackWithTheSameAnswers) {
+    const World world(test_scene(), "plucker", build_options(TriangleTest::Watertight));
+    const std::filesystem::path file = dir_ / "world.plo";
+    world.save_structure(file);
+    const World loaded = World::load_structure(file);
+    EXPECT_EQ(loaded.accel().name(), "plucker");
+    EXPECT_EQ(loaded.options().triangle_test, TriangleTest::Watertight);
+    EXPECT_EQ(loaded.geometry().view().size(), world.geometry().view().size());
+    ASSERT_EQ(loaded.scene().meshes.size(), 1u);  // the file's triangles as one mesh, in their order
+    EXPECT_EQ(loaded.scene().meshes[0].triangle_count(), world.scene().triangle_count());
+    EXPECT_EQ(loaded.scene().spheres.size(), 2u);
+    const std::vector<Ray> rays = test_rays(world);
+    expect_same_hits(trace(world, rays), trace(loaded, rays));
+    // The triangle test can be replaced at load time.
+    EXPECT_EQ(World::load_structure(file, TriangleTest::MollerTrumbore).options().triangle_test,
+              TriangleTest::MollerTrumbore);
+}
+
+TEST_F(WorldTest, OnlyThePluckerStructureIsSaved) {
+    const World world(test_scene(), "bvh", {});
+    try {
+        world.save_structure(dir_ / "bvh.plo");
+        FAIL() << "a bvh was saved";
+    } catch (const StructureFileError& error) {
+        EXPECT_NE(std::string(error.what()).find("only the plucker structure"), std::string::npos)
+            << error.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "bvh.plo"));
+}
+
+TEST_F(WorldTest, ADamagedFileIsAStructureFileError) {
+    const std::filesystem::path file = dir_ / "damaged.plo";
+    std::ofstream(file, std::ios::binary) << "LANCERPO and then nothing that a header needs";
+    EXPECT_THROW(static_cast<void>(World::load_structure(file)), StructureFileError);
+    EXPECT_THROW(static_cast<void>(World::load_structure(dir_ / "absent.plo")), StructureFileError);
+}
+
+}  // namespace
+}  // namespace lancer
