@@ -682,7 +682,8 @@ void add_bench_command(CLI::App& app) {
     command->add_flag("--moller-trumbore", options->moller_trumbore,
                       "Moller-Trumbore instead of the default watertight test (Embree then runs its fast, "
                       "non-robust test: the two leak through different edges, so they may disagree)");
-    command->add_option("--set", options->settings, "Structure option KEY=VALUE (repeatable)");
+    command->add_option("--set", options->settings,
+                        "Structure option KEY=VALUE (repeatable; `lancer info --options` lists them)");
     add_memory_limit_option(*command);
     command->add_option("--json", options->json_file,
                         "Write one record per mesh, structure and thread count");

@@ -61,7 +61,10 @@ void AccelChoice::add_options(CLI::App& command) {
     name_option =
         command.add_option("--accel", name, "Acceleration structure: " + names)->capture_default_str();
     command.add_flag("--watertight", watertight, "Watertight triangle test (Woop, Benthin & Wald 2013)");
-    command.add_option("--set", settings, "Structure option KEY=VALUE, e.g. bvh.builder=sweep (repeatable)");
+    command.add_option(
+        "--set", settings,
+        "Structure option KEY=VALUE, e.g. bvh.builder=sweep (repeatable; `lancer info --options` lists "
+        "them)");
     add_memory_limit_option(command);
 }
 

@@ -1,7 +1,10 @@
-// lancer info FILE: what a file holds once loaded.
+// lancer info FILE: what a file holds once loaded. lancer info --options: the structures and their `--set`
+// keys, from the registry, as the Markdown tables of the README.
 #include <fmt/core.h>
 
 #include <memory>
+#include <string>
+#include <string_view>
 
 #include "commands.hpp"
 #include "common.hpp"
@@ -43,14 +46,44 @@ void run(const std::string& file) {
     }
 }
 
+// A table cell: the pipes escaped, as the README's tables write them.
+std::string cell(std::string_view text) {
+    std::string escaped;
+    for (const char c : text)
+        escaped += c == '|' ? std::string("\\|") : std::string(1, c);
+    return escaped;
+}
+
+void print_options() {
+    fmt::print("| `--accel` | structure |\n| --- | --- |\n");
+    for (const AccelInfo& accel : accel_infos())
+        fmt::print("| `{}` | {} |\n", accel.name, cell(accel.summary));
+    fmt::print("\n| `--set` key | accepts | default | sets |\n| --- | --- | --- | --- |\n");
+    for (const BuildOptionInfo& option : build_option_infos())
+        fmt::print("| `{}` | {} | `{}` | {} |\n", option.key, cell(option.accepted), option.default_value,
+                   cell(option.help));
+}
+
 }  // namespace
 
 void add_info_command(CLI::App& app) {
     auto file = std::make_shared<std::string>();
-    CLI::App* command =
-        app.add_subcommand("info", "Counts, bounds, materials, lights and load time of a file");
-    command->add_option("file", *file, "Mesh or scene file")->required();
-    command->callback([file] { run(*file); });
+    auto options = std::make_shared<bool>(false);
+    CLI::App* command = app.add_subcommand(
+        "info",
+        "Counts, bounds, materials, lights and load time of a file; or the structures and their options");
+    CLI::Option* file_option = command->add_option("file", *file, "Mesh or scene file");
+    command->add_flag("--options", *options, "List the structures and their --set keys (Markdown)")
+        ->excludes(file_option);
+    command->callback([file, options] {
+        if (*options) {
+            print_options();
+        } else if (file->empty()) {
+            throw InputError("info: give a FILE, or --options");
+        } else {
+            run(*file);
+        }
+    });
 }
 
 }  // namespace lancer::cli

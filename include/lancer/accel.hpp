@@ -101,14 +101,19 @@ struct BuildOptions {
     SimdIsa isa = SimdIsa::Auto;
 };
 
-// Sets one option from "KEY=VALUE", as `--set` gives it: grid.density, octree.max_depth, octree.leaf_size,
-// plucker.max_depth, plucker.leaf_size, plucker.balanced, plucker.stored_boxes, plucker.morton (true |
-// false), kdtree.cost (wald-havran | seed003), kdtree.traversal_cost, kdtree.intersection_cost,
-// kdtree.empty_bonus, kdtree.max_depth, bvh.builder (sweep | binned), bvh.max_leaf_size, bvh.bins,
-// bvh.spatial_splits (true | false), embree.quality (high | medium), simd.isa (auto | avx2 | avx512, of
-// those available). Throws std::invalid_argument naming the
-// key and the values it accepts.
+// Sets one option from "KEY=VALUE", as `--set` gives it; build_option_infos() lists the keys. Throws
+// std::invalid_argument naming the key and the values it accepts.
 void set_build_option(BuildOptions& options, std::string_view assignment);
+
+// One key of set_build_option: what it sets, the values it accepts and its default.
+struct BuildOptionInfo {
+    std::string key;  // "bvh.builder"
+    std::string accepted;
+    std::string default_value;
+    std::string help;
+};
+// Every key, grouped by structure (what `lancer info --options` prints).
+[[nodiscard]] std::vector<BuildOptionInfo> build_option_infos();
 
 // Defaults with the given triangle test (brace-initialising the aggregate would leave the rest to -Wextra).
 [[nodiscard]] inline BuildOptions build_options(TriangleTest test) {
@@ -204,6 +209,12 @@ class Accel {
 
 // The names `--accel` accepts, in the order `lancer bench --accel all` measures them.
 [[nodiscard]] std::vector<std::string_view> accel_names();
+// The same with a line on each (what `lancer info --options` prints).
+struct AccelInfo {
+    std::string_view name;
+    std::string_view summary;
+};
+[[nodiscard]] std::vector<AccelInfo> accel_infos();
 // A new, unbuilt structure; throws std::invalid_argument naming the known structures for an unknown name.
 [[nodiscard]] std::unique_ptr<Accel> make_accel(std::string_view name);
 

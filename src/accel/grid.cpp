@@ -1,27 +1,21 @@
 #include "accel/grid.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
 #include "accel/build_util.hpp"
-
-#if LANCER_HAS_TBB
-#include <atomic>
-
-#include <tbb/parallel_for.h>
-#endif
+#include "core/parallel.hpp"
 
 namespace lancer {
 namespace {
 
-#if LANCER_HAS_TBB
 // Primitives per task of the parallel cell filling: a fixed block, so that the pairs' order (and the grid)
 // does not depend on the thread count.
 constexpr std::size_t kPairBlock = 8192;
-#endif
 
 // Cubic cells of side s with prod_a max(1, extent_a / s) ~= target_cells (seed 004: resolution ~ cbrt(n) per
 // axis for a cube). An axis thinner than s gets one cell and leaves the budget to the others, so a flat box
@@ -191,13 +185,12 @@ bool GridAccel::fill_cells(std::size_t reference_budget) {
     };
     const auto prim_count = static_cast<std::uint32_t>(geometry_.size());
     std::vector<CellReference> pairs;
-#if LANCER_HAS_TBB
     // Fixed blocks of primitives, each listing its pairs in primitive order, concatenated in block order:
     // the pairs the serial loop lists, whatever the thread count.
     const std::size_t block_count = (prim_count + kPairBlock - 1) / kPairBlock;
     std::vector<std::vector<CellReference>> blocks(block_count);
     std::atomic<bool> over_budget = false;
-    tbb::parallel_for(std::size_t{0}, block_count, [&](std::size_t block) {
+    parallel::for_each_index(0, block_count, [&](std::size_t block) {
         if (over_budget) return;
         const auto begin = static_cast<std::uint32_t>(block * kPairBlock);
         const auto end = static_cast<std::uint32_t>(std::min<std::size_t>(prim_count, begin + kPairBlock));
@@ -212,10 +205,6 @@ bool GridAccel::fill_cells(std::size_t reference_budget) {
         pairs.insert(pairs.end(), block.begin(), block.end());
         std::vector<CellReference>().swap(block);
     }
-#else
-    pairs.reserve(2 * geometry_.size());
-    if (!list_pairs(0, prim_count, pairs)) return false;
-#endif
     // Counting sort by cell; stable, so each cell lists its primitives in ascending order (deterministic).
     const std::size_t cells = static_cast<std::size_t>(resolution_[0]) * resolution_[1] * resolution_[2];
     cell_begin_.assign(cells + 1, 0);

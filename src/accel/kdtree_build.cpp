@@ -7,12 +7,7 @@
 #include <stdexcept>
 
 #include "accel/build_util.hpp"
-
-#if LANCER_HAS_TBB
-#include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_invoke.h>
-#include <tbb/parallel_sort.h>
-#endif
+#include "core/parallel.hpp"
 
 namespace lancer {
 
@@ -107,34 +102,15 @@ class SideScratch {
     explicit SideScratch(std::size_t primitive_count) : primitive_count_(primitive_count) {}
 
     [[nodiscard]] std::vector<Side>& local() {
-#if LANCER_HAS_TBB
         std::vector<Side>& sides = per_thread_.local();
-#else
-        std::vector<Side>& sides = sides_;
-#endif
         if (sides.size() != primitive_count_) sides.assign(primitive_count_, Side::Both);
         return sides;
     }
 
   private:
     std::size_t primitive_count_;
-#if LANCER_HAS_TBB
-    tbb::enumerable_thread_specific<std::vector<Side>> per_thread_;
-#else
-    std::vector<Side> sides_;
-#endif
+    parallel::PerThread<std::vector<Side>> per_thread_;
 };
-
-// Runs `first` and `second`, concurrently with TBB.
-template <class First, class Second>
-void invoke_both(First&& first, Second&& second) {
-#if LANCER_HAS_TBB
-    tbb::parallel_invoke(std::forward<First>(first), std::forward<Second>(second));
-#else
-    first();
-    second();
-#endif
-}
 
 [[nodiscard]] double surface_area(const Box3f& box) {
     const double x = double{box.hi.x} - box.lo.x, y = double{box.hi.y} - box.lo.y,
@@ -167,9 +143,9 @@ class Builder {
                 list.reserve(2 * valid.size());
             for (std::uint32_t prim : valid)
                 add_events(events, prim, primitive_bounds(geometry_, prim));
-            invoke_both(
+            parallel::invoke(
                 [&] { sort_events(events[0]); },
-                [&] { invoke_both([&] { sort_events(events[1]); }, [&] { sort_events(events[2]); }); });
+                [&] { parallel::invoke([&] { sort_events(events[1]); }, [&] { sort_events(events[2]); }); });
             build_node(std::move(events), tree_.bounds, valid.size(), 0);
         }
         KdTreeBuildStats& stats = tree_.stats;
@@ -184,13 +160,7 @@ class Builder {
 
   private:
     // Event is totally ordered (position, then type and primitive), so any sort gives the same list.
-    static void sort_events(EventList& list) {
-#if LANCER_HAS_TBB
-        tbb::parallel_sort(list.begin(), list.end());
-#else
-        std::sort(list.begin(), list.end());
-#endif
-    }
+    static void sort_events(EventList& list) { parallel::sort(list.begin(), list.end()); }
 
     struct Split {
         int axis = -1;
@@ -336,8 +306,9 @@ class Builder {
         left_tree.depth_limit = right_tree.depth_limit = tree_.depth_limit;
         Builder left(geometry_, options_, left_tree, scratch_),
             right(geometry_, options_, right_tree, scratch_);
-        invoke_both([&] { left.build_node(std::move(left_events), left_box, left_count, depth + 1); },
-                    [&] { right.build_node(std::move(right_events), right_box, right_count, depth + 1); });
+        parallel::invoke(
+            [&] { left.build_node(std::move(left_events), left_box, left_count, depth + 1); },
+            [&] { right.build_node(std::move(right_events), right_box, right_count, depth + 1); });
         splice(left);
         const auto above = static_cast<std::uint32_t>(tree_.nodes.size());
         splice(right);

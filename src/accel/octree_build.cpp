@@ -8,11 +8,7 @@
 #include <utility>
 
 #include "accel/build_util.hpp"
-
-#if LANCER_HAS_TBB
-#include <tbb/parallel_for.h>
-#include <tbb/task_group.h>
-#endif
+#include "core/parallel.hpp"
 
 namespace lancer {
 
@@ -84,13 +80,12 @@ std::array<std::vector<std::uint32_t>, 8> split_references(const Geometry& geome
         }
     };
     ChildLists children;
-#if LANCER_HAS_TBB
     if (references.size() > kSplitBlock) {
         // Fixed blocks, concatenated in block order: the lists stay in increasing order, whatever the
         // threads.
         const std::size_t block_count = (references.size() + kSplitBlock - 1) / kSplitBlock;
         std::vector<ChildLists> blocks(block_count);
-        tbb::parallel_for(std::size_t{0}, block_count, [&](std::size_t block) {
+        parallel::for_each_index(0, block_count, [&](std::size_t block) {
             sort_into(references.subspan(block * kSplitBlock,
                                          std::min(kSplitBlock, references.size() - block * kSplitBlock)),
                       blocks[block]);
@@ -105,7 +100,6 @@ std::array<std::vector<std::uint32_t>, 8> split_references(const Geometry& geome
         }
         return children;
     }
-#endif
     sort_into(references, children);
     return children;
 }
@@ -177,16 +171,11 @@ class OctreeBuilder {
         auto build_child = [&](std::size_t child) {
             children[child] = build(child_roots[child], std::move(children_references[child]));
         };
-#if LANCER_HAS_TBB
-        tbb::parallel_for(std::size_t{0}, std::size_t{8}, build_child);
+        parallel::for_each_index(0, 8, build_child);
         // A child that threw (std::bad_alloc past --max-memory) cancels every task of the build: a nested
-        // parallel_for then returns normally with some children not built. Only the outermost call rethrows,
-        // so the others leave at once instead of splicing subtrees that do not exist.
-        if (tbb::is_current_task_group_canceling()) return {};
-#else
-        for (std::size_t child = 0; child < 8; ++child)
-            build_child(child);
-#endif
+        // loop then returns normally with some children not built. Only the outermost call rethrows, so the
+        // others leave at once instead of splicing subtrees that do not exist.
+        if (parallel::cancelling()) return {};
         tree.cells[0].first_child = 1;
         for (const Subtree& child : children)
             tree.cells.push_back(child.cells[0]);

@@ -23,26 +23,39 @@ namespace {
 
 struct Entry {
     std::string_view name;
+    std::string_view summary;
     std::function<std::unique_ptr<Accel>()> make;
 };
 
 const std::vector<Entry>& registry() {
     static const std::vector<Entry> entries = {
-        {"brute", [] { return std::make_unique<BruteAccel>(); }},
-        {"grid", [] { return std::make_unique<GridAccel>(); }},
-        {"octree", [] { return std::make_unique<OctreeAccel>(); }},
-        {"plucker", [] { return std::make_unique<PluckerAccel>(); }},
-        {"plucker_packet", [] { return std::make_unique<PluckerPacketAccel>(); }},
-        {"kdtree", [] { return std::make_unique<KdTreeAccel>(); }},
-        {"bvh", [] { return std::make_unique<BvhAccel>(); }},
-        {"bvh_packet", [] { return std::make_unique<BvhPacketAccel>(); }},
-        {"bvh4", [] { return std::make_unique<Bvh4Accel>(); }},
-        {"bvh8", [] { return std::make_unique<Bvh8Accel>(); }},
-        {"bvh8_packet", [] { return std::make_unique<WidePacketAccel>(); }},
+        {"brute", "every primitive against every ray: the oracle",
+         [] { return std::make_unique<BruteAccel>(); }},
+        {"grid", "uniform grid walked by 3D-DDA (Amanatides & Woo 1987)",
+         [] { return std::make_unique<GridAccel>(); }},
+        {"octree", "classic octree, parametric traversal (Revelles et al. 2000)",
+         [] { return std::make_unique<OctreeAccel>(); }},
+        {"plucker", "Pluecker-connected octree walked leaf to leaf (Portalez & Duguet 2016)",
+         [] { return std::make_unique<PluckerAccel>(); }},
+        {"plucker_packet", "the Pluecker walk for packets of 64 rays, grouped by leaf",
+         [] { return std::make_unique<PluckerPacketAccel>(); }},
+        {"kdtree", "SAH kd-tree (Wald & Havran 2006)", [] { return std::make_unique<KdTreeAccel>(); }},
+        {"bvh", "binary SAH BVH, binned or full sweep", [] { return std::make_unique<BvhAccel>(); }},
+        {"bvh_packet", "the binary BVH for packets of 64 coherent rays",
+         [] { return std::make_unique<BvhPacketAccel>(); }},
+        {"bvh4", "4-wide BVH collapsed from the binary one, SIMD boxes and triangle blocks",
+         [] { return std::make_unique<Bvh4Accel>(); }},
+        {"bvh8", "8-wide BVH collapsed from the binary one, SIMD boxes and triangle blocks",
+         [] { return std::make_unique<Bvh8Accel>(); }},
+        {"bvh8_packet", "the 8-wide BVH for packets of 64 coherent rays, 8 or 16 a SIMD instruction",
+         [] { return std::make_unique<WidePacketAccel>(); }},
 #if LANCER_HAS_EMBREE
-        {"embree", [] { return std::make_unique<EmbreeAccel>(1); }},
-        {"embree8", [] { return std::make_unique<EmbreeAccel>(8); }},
-        {"embree16", [] { return std::make_unique<EmbreeAccel>(16); }},
+        {"embree", "Intel Embree 3, rtcIntersect1 and rtcOccluded1",
+         [] { return std::make_unique<EmbreeAccel>(1); }},
+        {"embree8", "Intel Embree 3, rtcIntersect8 and rtcOccluded8",
+         [] { return std::make_unique<EmbreeAccel>(8); }},
+        {"embree16", "Intel Embree 3, rtcIntersect16 and rtcOccluded16",
+         [] { return std::make_unique<EmbreeAccel>(16); }},
 #endif
     };
     return entries;
@@ -55,6 +68,13 @@ std::vector<std::string_view> accel_names() {
     for (const Entry& entry : registry())
         names.push_back(entry.name);
     return names;
+}
+
+std::vector<AccelInfo> accel_infos() {
+    std::vector<AccelInfo> infos;
+    for (const Entry& entry : registry())
+        infos.push_back({entry.name, entry.summary});
+    return infos;
 }
 
 std::unique_ptr<Accel> make_accel(std::string_view name) {

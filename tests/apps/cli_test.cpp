@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -360,6 +361,40 @@ TEST_F(Cli, InfoCountsTrianglesAfterFanTriangulation) {
     const Result result = run("info " + write("mesh.off", kMesh).string());
     ASSERT_EQ(result.exit_code, 0) << result.output;
     EXPECT_NE(result.output.find("triangles   3"), std::string::npos) << result.output;
+}
+
+// `lancer info --options` prints the registry's structures and `--set` keys; the README holds the same tables.
+// Every printed row must be in the README's block, and every `--set` row of that block must be printed (the
+// structure rows may name Embree's, which a build without Embree does not print).
+TEST_F(Cli, InfoOptionsListsTheRegistryAsTheReadmeDoes) {
+    const Result result = run("info --options");
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    std::ostringstream text;
+    text << std::ifstream(fs::path(LANCER_SOURCE_DIR) / "README.md").rdbuf();
+    const std::string readme = text.str();
+    const std::string begin = "<!-- lancer info --options -->\n", end = "<!-- end of lancer info --options -->";
+    const std::size_t first = readme.find(begin), last = readme.find(end);
+    ASSERT_NE(first, std::string::npos);
+    ASSERT_NE(last, std::string::npos);
+    const std::string block = readme.substr(first + begin.size(), last - first - begin.size());
+    const std::regex set_row(R"(^\| `[a-z]+\.[a-z_]+` \|.*)");
+    std::istringstream printed(result.output);
+    std::size_t set_rows = 0;
+    for (std::string line; std::getline(printed, line);) {
+        EXPECT_NE(block.find(line + "\n"), std::string::npos) << "not in the README: " << line;
+        set_rows += std::regex_match(line, set_row) ? 1 : 0;
+    }
+    std::istringstream documented(block);
+    for (std::string line; std::getline(documented, line);) {
+        if (std::regex_match(line, set_row)) {
+            EXPECT_NE(result.output.find(line + "\n"), std::string::npos) << "not printed: " << line;
+        }
+    }
+    EXPECT_GE(set_rows, 19u);
+    // A key that is not in the table is refused with the list of keys.
+    const Result refused = run("stats " + write("mesh.off", kMesh).string() + " --set bvh.leafs=3");
+    EXPECT_EQ(refused.exit_code, 2);
+    EXPECT_NE(refused.output.find("KEY one of grid.density"), std::string::npos) << refused.output;
 }
 
 // Hostile inputs (issue 8): each exits with code 2 and names the file, the line and what was expected, before

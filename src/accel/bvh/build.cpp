@@ -11,16 +11,10 @@
 #include <tuple>
 
 #include "accel/build_util.hpp"
+#include "core/parallel.hpp"
 
 #if defined(__SSE2__)
 #include <immintrin.h>
-#endif
-
-#if LANCER_HAS_TBB
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
-#include <tbb/parallel_reduce.h>
 #endif
 
 namespace lancer {
@@ -145,12 +139,7 @@ std::vector<BuildRef> make_refs(const Geometry& geometry) {
             refs[prim] = {bounds, bounds.center(), prim};
         }
     };
-#if LANCER_HAS_TBB
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, refs.size(), 16384),
-                      [&](const tbb::blocked_range<std::size_t>& r) { make(r.begin(), r.end()); });
-#else
-    make(0, refs.size());
-#endif
+    parallel::for_each_chunk(0, refs.size(), 16384, make);
     return refs;
 }
 
@@ -509,19 +498,13 @@ class BinnedBuilder {
                 acc.first.extend(refs_[i].bounds), acc.second.extend(refs_[i].centroid);
             return acc;
         };
-#if LANCER_HAS_TBB
         if (end - begin > kParallelBinning) {
-            return tbb::parallel_reduce(
-                tbb::blocked_range<std::size_t>(begin, end), NodeBounds{},
-                [&](const tbb::blocked_range<std::size_t>& r, NodeBounds acc) {
-                    return accumulate(r.begin(), r.end(), acc);
-                },
-                [](NodeBounds a, const NodeBounds& b) {
-                    a.first.extend(b.first), a.second.extend(b.second);
-                    return a;
-                });
+            return parallel::reduce(begin, end, 1, NodeBounds{}, accumulate,
+                                    [](NodeBounds a, const NodeBounds& b) {
+                                        a.first.extend(b.first), a.second.extend(b.second);
+                                        return a;
+                                    });
         }
-#endif
         return accumulate(begin, end, {});
     }
 
@@ -544,12 +527,11 @@ class BinnedBuilder {
                 }
             }
         };
-#if LANCER_HAS_TBB
         if (end - begin > kParallelBinning) {
-            bins = tbb::parallel_reduce(
-                tbb::blocked_range<std::size_t>(begin, end, 16384), Bins(bins_),
-                [&](const tbb::blocked_range<std::size_t>& r, Bins chunk) {
-                    fill(r.begin(), r.end(), chunk);
+            bins = parallel::reduce(
+                begin, end, 16384, Bins(bins_),
+                [&](std::size_t from, std::size_t to, Bins chunk) {
+                    fill(from, to, chunk);
                     return chunk;
                 },
                 [this](Bins a, const Bins& b) {
@@ -558,7 +540,6 @@ class BinnedBuilder {
                 });
             return;
         }
-#endif
         fill(begin, end, bins);
     }
 
@@ -628,10 +609,9 @@ class BinnedBuilder {
         if (spatial_is_better) children = spatial_partition(range, bounds, spatial);
         if (!children) children = object_partition(range, object.split, map, centroids);
         const auto [first, second] = slots.set_inner(slot, bounds, children->axis, children->left.capacity());
-#if LANCER_HAS_TBB
         if (count > kParallelSubtree) {
             // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
-            tbb::parallel_invoke(
+            parallel::invoke(
                 [&, first_slot = first] {
                     build(slots, first_slot, children->left, depth + 1, children->left_bounds);
                 },
@@ -640,7 +620,6 @@ class BinnedBuilder {
                 });
             return;
         }
-#endif
         build(slots, first, children->left, depth + 1, children->left_bounds);
         build(slots, second, children->right, depth + 1, children->right_bounds);
     }
@@ -991,12 +970,11 @@ class BinnedBuilder {
             for (std::size_t i = from; i < to; ++i)
                 spatial_bin_reference(refs_[i], map, into);
         };
-#if LANCER_HAS_TBB
         if (end - begin > kParallelBinning) {
-            bins = tbb::parallel_reduce(
-                tbb::blocked_range<std::size_t>(begin, end, 16384), SpatialBins{},
-                [&](const tbb::blocked_range<std::size_t>& r, SpatialBins chunk) {
-                    fill(r.begin(), r.end(), chunk);
+            bins = parallel::reduce(
+                begin, end, 16384, SpatialBins{},
+                [&](std::size_t from, std::size_t to, SpatialBins chunk) {
+                    fill(from, to, chunk);
                     return chunk;
                 },
                 [](SpatialBins a, const SpatialBins& b) {
@@ -1005,7 +983,6 @@ class BinnedBuilder {
                 });
             return;
         }
-#endif
         fill(begin, end, bins);
     }
 

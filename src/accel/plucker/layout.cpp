@@ -7,10 +7,7 @@
 
 #include "accel/plucker/balance.hpp"
 #include "accel/plucker/conventions.hpp"
-
-#if LANCER_HAS_TBB
-#include <tbb/parallel_for.h>
-#endif
+#include "core/parallel.hpp"
 
 namespace lancer::plucker {
 namespace {
@@ -47,12 +44,7 @@ std::vector<std::uint32_t> record_order(const Octree& octree, const PluckerLayou
 // body(record) for every record: in parallel with oneTBB (each call writes only its record's places).
 template <class Body>
 void for_each_record(std::size_t records, Body&& body) {
-#if LANCER_HAS_TBB
-    tbb::parallel_for(std::size_t{0}, records, body);
-#else
-    for (std::size_t record = 0; record < records; ++record)
-        body(record);
-#endif
+    parallel::for_each_index(0, records, body);
 }
 
 PluckerBox box_of(const OctreeCube& cube, float tolerance, const OctreeCell& cell) {
