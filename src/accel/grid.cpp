@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -88,10 +87,7 @@ std::size_t GridAccel::max_references(std::size_t primitive_count) {
         std::min(budget, static_cast<double>(std::numeric_limits<CellOffset>::max())));
 }
 
-void GridAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
-    const auto start = std::chrono::steady_clock::now();
-    geometry_ = geometry;
-    options_ = options;
+void GridAccel::build_from(const Geometry& geometry, const BuildOptions& options) {
     bounds_ = geometry.bounds();
     // Kernels report hit points a few ulps off their primitive (docs/numerical-contract.md, "Boxes"): the
     // entry box and every cell are grown by the scene's geometric tolerance, so that neither the slab test
@@ -115,7 +111,6 @@ void GridAccel::build_structure(const Geometry& geometry, const BuildOptions& op
             set_resolution(coarser);
         }
     }
-    build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
 void GridAccel::set_resolution(const std::array<int, 3>& resolution) {
@@ -239,8 +234,8 @@ std::span<const std::uint32_t> GridAccel::cell_primitives(int x, int y, int z) c
 // next plane on each axis recomputed from the planes themselves rather than accumulated (t_next += dt), so
 // that each carries one bounded rounding error instead of one per step.
 template <bool kAnyHit, bool kCount, class TriangleTestT>
-bool GridAccel::traverse(const PreparedRay<TriangleTestT>& prepared, Hit& best,
-                         TraversalCounters& counters) const {
+bool GridAccel::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
+                      TraversalCounters& counters) const {
     const Ray& ray = prepared.ray;
     const SlabRay slab(ray);
     float t_entry, t_exit;
@@ -305,24 +300,7 @@ bool GridAccel::traverse(const PreparedRay<TriangleTestT>& prepared, Hit& best,
     return !kAnyHit && best.hit();
 }
 
-void GridAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                                TraversalCounters* counters) const {
-    intersect_each(options_.triangle_test, rays, hits, counters,
-                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                         Hit& best, TraversalCounters& counts) {
-                       traverse<false, kCount>(prepared, best, counts);
-                   });
-}
-
-void GridAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                               TraversalCounters* counters) const {
-    occluded_each(options_.triangle_test, rays, occluded, counters,
-                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                        TraversalCounters& counts) {
-                      Hit unused;
-                      return traverse<true, kCount>(prepared, unused, counts);
-                  });
-}
+template class SingleRayAccel<GridAccel>;
 
 std::vector<std::pair<std::string, std::size_t>> GridAccel::memory_by_array() const {
     const std::size_t plane_count =

@@ -12,11 +12,11 @@
 #include <vector>
 
 #include "accel/primitive_test.hpp"
-#include "lancer/accel.hpp"
+#include "accel/single_ray.hpp"
 
 namespace lancer {
 
-class GridAccel final : public Accel {
+class GridAccel final : public SingleRayAccel<GridAccel> {
   public:
     // One cell's slice of the reference array: references_[cell_begin_[c]] .. references_[cell_begin_[c+1]].
     // 4 bytes per cell, plus 4 bytes per reference: a compressed-row (CSR) layout, no per-cell vector.
@@ -46,16 +46,12 @@ class GridAccel final : public Accel {
     [[nodiscard]] std::span<const std::uint32_t> cell_primitives(int x, int y, int z) const;
 
   private:
-    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
-    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                         TraversalCounters* counters) const override;
-    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                        TraversalCounters* counters) const override;
+    friend SingleRayAccel<GridAccel>;
 
-    // Walks the cells the ray crosses. Closest hit (kAnyHit false): leaves the answer in `best`. Any hit:
-    // returns true at the first hit found.
+    void build_from(const Geometry& geometry, const BuildOptions& options);
+    // Walks the cells the ray crosses (SingleRayAccel's contract).
     template <bool kAnyHit, bool kCount, class TriangleTestT>
-    bool traverse(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters) const;
+    bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters) const;
 
     // Fills cell_begin_ and references_ at the current resolution; false (and nothing kept) when the
     // references would exceed `reference_budget`.
@@ -73,9 +69,6 @@ class GridAccel final : public Accel {
     [[nodiscard]] std::vector<std::pair<std::string, std::size_t>> memory_by_array() const;
     [[nodiscard]] std::size_t cell_count() const { return cell_begin_.empty() ? 0 : cell_begin_.size() - 1; }
 
-    Geometry geometry_;
-    BuildOptions options_;
-    double build_ms_ = 0.0;
     Box3f bounds_;            // the scene's box: its cells' size and index mapping derive from it
     float tolerance_ = 0.0f;  // geometric_tolerance(bounds_): cells and the entry box are grown by it
     Box3f entry_box_;         // bounds_ grown by tolerance_: the ray's entry (slab test) and the outer planes
@@ -86,5 +79,7 @@ class GridAccel final : public Accel {
     std::vector<CellOffset> cell_begin_;        // cell count + 1 offsets into references_
     std::vector<std::uint32_t> references_;     // primitive indices, ascending within each cell
 };
+
+extern template class SingleRayAccel<GridAccel>;
 
 }  // namespace lancer

@@ -1,7 +1,6 @@
 #include "accel/kdtree.hpp"
 
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -80,14 +79,6 @@ static_assert(sizeof(StackEntry) == 12);
 
 }  // namespace
 
-void KdTreeAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
-    const auto start = std::chrono::steady_clock::now();
-    geometry_ = geometry;
-    options_ = options;
-    tree_ = build_kdtree(geometry, options.kdtree);
-    build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
-
 // Front-to-back walk with a stack of far children (Havran's TA_rec_B in the iterative form of pbrt-v3's
 // KdTreeAccel::Intersect; seed 004 "KD-tree : parcours récursif": the three cases t* > tmax, t* < tmin,
 // tmin <= t* <= tmax). Each node is entered with an interval [tmin, tmax] that contains every parameter where
@@ -95,8 +86,9 @@ void KdTreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
 // split crossing is bracketed (bracket() above), the near child gets [tmin, hi], the far one [lo, tmax]. A
 // child is skipped only when its interval is empty, so no rounding skips a leaf the ray passes through, and
 // a hit the kernel reports a hair outside its primitive's leaves is still found.
-template <bool kAnyHit, class PreparedRayT, bool kCount>
-bool KdTreeAccel::walk(const PreparedRayT& prepared, Hit& best, TraversalCounters& counts) const {
+template <bool kAnyHit, bool kCount, class TriangleTestT>
+bool KdTreeAccel::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
+                        TraversalCounters& counts) const {
     const float tolerance = tree_.tolerance;
     const WalkRay ray(prepared.ray, tolerance);
     float tmin, tmax;
@@ -181,24 +173,7 @@ bool KdTreeAccel::walk(const PreparedRayT& prepared, Hit& best, TraversalCounter
     }
 }
 
-void KdTreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                                  TraversalCounters* counters) const {
-    intersect_each(options_.triangle_test, rays, hits, counters,
-                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                         Hit& best, TraversalCounters& counts) {
-                       walk<false, PreparedRay<TriangleTestT>, kCount>(prepared, best, counts);
-                   });
-}
-
-void KdTreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                                 TraversalCounters* counters) const {
-    occluded_each(options_.triangle_test, rays, occluded, counters,
-                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                        TraversalCounters& counts) {
-                      Hit unused;
-                      return walk<true, PreparedRay<TriangleTestT>, kCount>(prepared, unused, counts);
-                  });
-}
+template class SingleRayAccel<KdTreeAccel>;
 
 AccelStats KdTreeAccel::stats() const {
     const KdTreeBuildStats& built = tree_.stats;

@@ -5,11 +5,11 @@
 #pragma once
 
 #include "accel/kdtree_build.hpp"
-#include "lancer/accel.hpp"
+#include "accel/single_ray.hpp"
 
 namespace lancer {
 
-class KdTreeAccel final : public Accel {
+class KdTreeAccel final : public SingleRayAccel<KdTreeAccel> {
   public:
     [[nodiscard]] std::string_view name() const override { return "kdtree"; }
     [[nodiscard]] AccelStats stats() const override;
@@ -19,20 +19,18 @@ class KdTreeAccel final : public Accel {
     [[nodiscard]] const KdTreeData& tree() const { return tree_; }
 
   private:
-    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
-    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                         TraversalCounters* counters) const override;
-    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                        TraversalCounters* counters) const override;
+    friend SingleRayAccel<KdTreeAccel>;
 
-    // The walk of one valid ray; kAnyHit returns at the first hit (occlusion).
-    template <bool kAnyHit, class PreparedRayT, bool kCount>
-    bool walk(const PreparedRayT& prepared, Hit& best, TraversalCounters& counts) const;
+    void build_from(const Geometry& geometry, const BuildOptions& options) {
+        tree_ = build_kdtree(geometry, options.kdtree);
+    }
+    // The walk of one valid ray (SingleRayAccel's contract).
+    template <bool kAnyHit, bool kCount, class TriangleTestT>
+    bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;
 
-    Geometry geometry_;
-    BuildOptions options_;
     KdTreeData tree_;
-    double build_ms_ = 0.0;
 };
+
+extern template class SingleRayAccel<KdTreeAccel>;
 
 }  // namespace lancer

@@ -1,7 +1,6 @@
 #include "accel/octree.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 
 #include "accel/primitive_test.hpp"
@@ -75,10 +74,7 @@ inline void enter_node(const WalkRay& ray, const OctreeCube& cube, int level, Fr
 
 }  // namespace
 
-void OctreeAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
-    const auto start = std::chrono::steady_clock::now();
-    geometry_ = geometry;
-    options_ = options;
+void OctreeAccel::build_from(const Geometry& geometry, const BuildOptions& options) {
     Octree octree = build_octree(geometry, options.octree);
     cube_ = octree.cube;
     tolerance_ = octree.tolerance;
@@ -88,10 +84,8 @@ void OctreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
                               : OctreeNode{cell.first_child, OctreeNode::kInner};
     });
     references_ = std::move(octree.references);
-    const auto stop = std::chrono::steady_clock::now();
 
     stats_ = AccelStats{};
-    stats_.build_ms = std::chrono::duration<double, std::milli>(stop - start).count();
     stats_.primitives = geometry.size();
     stats_.nodes = nodes_.size();
     stats_.references = references_.size();
@@ -207,47 +201,35 @@ void OctreeAccel::walk(const Ray& ray, LeafVisitor&& visit_leaf, TraversalCounte
     }
 }
 
-void OctreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                                  TraversalCounters* counters) const {
-    intersect_each(options_.triangle_test, rays, hits, counters,
-                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                         Hit& best, TraversalCounters& counts) {
-                       walk<kCount>(
-                           prepared.ray,
-                           [&](std::uint32_t node_index, float) {
-                               const OctreeNode& leaf = nodes_[node_index];
-                               for (std::uint32_t r = leaf.index; r < leaf.index + leaf.count; ++r)
-                                   intersect_primitive(geometry_, references_[r], prepared, best);
-                               if constexpr (kCount) counts.prims_tested += leaf.count;
-                               return best.hit() ? best.t : prepared.ray.tfar;
-                           },
-                           &counts);
-                   });
+template <bool kAnyHit, bool kCount, class TriangleTestT>
+bool OctreeAccel::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
+                        TraversalCounters& counts) const {
+    bool hit = false;
+    walk<kCount>(
+        prepared.ray,
+        [&](std::uint32_t node_index, float limit) {
+            const OctreeNode& leaf = nodes_[node_index];
+            if constexpr (kAnyHit) {
+                for (std::uint32_t r = leaf.index; r < leaf.index + leaf.count; ++r) {
+                    if constexpr (kCount) ++counts.prims_tested;
+                    if (occludes(geometry_, references_[r], prepared)) {
+                        hit = true;
+                        return -kInfinity;  // any hit ends the walk
+                    }
+                }
+                return limit;
+            } else {
+                for (std::uint32_t r = leaf.index; r < leaf.index + leaf.count; ++r)
+                    intersect_primitive(geometry_, references_[r], prepared, best);
+                if constexpr (kCount) counts.prims_tested += leaf.count;
+                return best.hit() ? best.t : prepared.ray.tfar;
+            }
+        },
+        &counts);
+    return kAnyHit ? hit : best.hit();
 }
 
-void OctreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                                 TraversalCounters* counters) const {
-    occluded_each(options_.triangle_test, rays, occluded, counters,
-                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                        TraversalCounters& counts) {
-                      bool hit = false;
-                      walk<kCount>(
-                          prepared.ray,
-                          [&](std::uint32_t node_index, float limit) {
-                              const OctreeNode& leaf = nodes_[node_index];
-                              for (std::uint32_t r = leaf.index; r < leaf.index + leaf.count; ++r) {
-                                  if constexpr (kCount) ++counts.prims_tested;
-                                  if (occludes(geometry_, references_[r], prepared)) {
-                                      hit = true;
-                                      return -kInfinity;  // any hit ends the walk
-                                  }
-                              }
-                              return limit;
-                          },
-                          &counts);
-                      return hit;
-                  });
-}
+template class SingleRayAccel<OctreeAccel>;
 
 std::vector<std::uint32_t> OctreeAccel::leaves_along(const Ray& ray) const {
     std::vector<std::uint32_t> leaves;

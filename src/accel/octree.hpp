@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "accel/octree_build.hpp"
-#include "lancer/accel.hpp"
+#include "accel/single_ray.hpp"
 
 namespace lancer {
 
@@ -84,10 +84,14 @@ struct OctreeNode {
 };
 static_assert(sizeof(OctreeNode) == 8);
 
-class OctreeAccel final : public Accel {
+class OctreeAccel final : public SingleRayAccel<OctreeAccel> {
   public:
     [[nodiscard]] std::string_view name() const override { return "octree"; }
-    [[nodiscard]] AccelStats stats() const override { return stats_; }
+    [[nodiscard]] AccelStats stats() const override {
+        AccelStats stats = stats_;
+        stats.build_ms = build_ms_;
+        return stats;
+    }
     [[nodiscard]] std::size_t memory_bytes() const override;
 
     // The leaves (node indices, equal to build_octree's cell indices) the walk enters along the ray over
@@ -95,22 +99,23 @@ class OctreeAccel final : public Accel {
     [[nodiscard]] std::vector<std::uint32_t> leaves_along(const Ray& ray) const;
 
   private:
-    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
-    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                         TraversalCounters* counters) const override;
-    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                        TraversalCounters* counters) const override;
+    friend SingleRayAccel<OctreeAccel>;
+
+    void build_from(const Geometry& geometry, const BuildOptions& options);
+    // SingleRayAccel's contract: walk() with the leaves' primitive tests.
+    template <bool kAnyHit, bool kCount, class TriangleTestT>
+    bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;
 
     template <bool kCount, class LeafVisitor>
     void walk(const Ray& ray, LeafVisitor&& visit_leaf, TraversalCounters* counters) const;
 
-    Geometry geometry_;
-    BuildOptions options_;
     OctreeCube cube_;
     float tolerance_ = 0.0f;  // the scene's geometric tolerance: the root's outer faces are grown by it
     std::vector<OctreeNode> nodes_;
     std::vector<std::uint32_t> references_;
-    AccelStats stats_;
+    AccelStats stats_;  // build_ms excepted
 };
+
+extern template class SingleRayAccel<OctreeAccel>;
 
 }  // namespace lancer

@@ -1,21 +1,16 @@
 #include "accel/bvh/bvh.hpp"
 
 #include <array>
-#include <chrono>
 
 #include "accel/bvh/build.hpp"
 #include "accel/primitive_test.hpp"
 
 namespace lancer {
 
-void BvhAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
-    const auto start = std::chrono::steady_clock::now();
-    geometry_ = geometry;
-    options_ = options;
+void BvhAccel::build_from(const Geometry& geometry, const BuildOptions& options) {
     BvhBuildResult built = build_bvh(geometry, options.bvh);
     nodes_ = std::move(built.nodes);
     prim_indices_ = std::move(built.prim_indices);
-    build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
 namespace {
@@ -84,25 +79,12 @@ bool traverse(const std::vector<BvhNode>& nodes, const std::vector<std::uint32_t
 
 }  // namespace
 
-void BvhAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                               TraversalCounters* counters) const {
-    intersect_each(options_.triangle_test, rays, hits, counters,
-                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                         Hit& best, TraversalCounters& counts) {
-                       traverse<false, kCount>(nodes_, prim_indices_, geometry_, prepared, best, counts);
-                   });
+template <bool kAnyHit, bool kCount, class TriangleTestT>
+bool BvhAccel::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const {
+    return traverse<kAnyHit, kCount>(nodes_, prim_indices_, geometry_, prepared, best, counts);
 }
 
-void BvhAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                              TraversalCounters* counters) const {
-    occluded_each(options_.triangle_test, rays, occluded, counters,
-                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                        TraversalCounters& counts) {
-                      Hit unused;
-                      return traverse<true, kCount>(nodes_, prim_indices_, geometry_, prepared, unused,
-                                                    counts);
-                  });
-}
+template class SingleRayAccel<BvhAccel>;
 
 AccelStats BvhAccel::stats() const {
     AccelStats stats;

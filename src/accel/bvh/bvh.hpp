@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "lancer/accel.hpp"
+#include "accel/single_ray.hpp"
 
 namespace lancer {
 
@@ -26,7 +26,7 @@ struct BvhNode {
 };
 static_assert(sizeof(BvhNode) == 32);
 
-class BvhAccel final : public Accel {
+class BvhAccel final : public SingleRayAccel<BvhAccel> {
   public:
     [[nodiscard]] std::string_view name() const override { return "bvh"; }
     [[nodiscard]] AccelStats stats() const override;
@@ -41,17 +41,17 @@ class BvhAccel final : public Accel {
     static constexpr int kMaxDepth = 96;
 
   private:
-    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
-    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                         TraversalCounters* counters) const override;
-    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                        TraversalCounters* counters) const override;
+    friend SingleRayAccel<BvhAccel>;
 
-    Geometry geometry_;
-    BuildOptions options_;
+    void build_from(const Geometry& geometry, const BuildOptions& options);
+    // SingleRayAccel's contract.
+    template <bool kAnyHit, bool kCount, class TriangleTestT>
+    bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;
+
     std::vector<BvhNode> nodes_;
     std::vector<std::uint32_t> prim_indices_;  // leaf ranges point here; entries are global primitive indices
-    double build_ms_ = 0.0;
 };
+
+extern template class SingleRayAccel<BvhAccel>;
 
 }  // namespace lancer

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <chrono>
 
 #include "accel/bvh/build.hpp"
 #include "accel/primitive_test.hpp"
@@ -223,10 +222,7 @@ bool traverse(const std::vector<WideBvhNode<W>>& nodes,
 }  // namespace
 
 template <int W>
-void WideBvhAccel<W>::build_structure(const Geometry& geometry, const BuildOptions& options) {
-    const auto start = std::chrono::steady_clock::now();
-    geometry_ = geometry;
-    options_ = options;
+void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& options) {
     BvhBuildResult binary = build_bvh(geometry, options.bvh);
     nodes_.clear();
     blocks_.clear();
@@ -234,28 +230,13 @@ void WideBvhAccel<W>::build_structure(const Geometry& geometry, const BuildOptio
         const std::vector<SubtreeRange> ranges = subtree_ranges(binary.nodes, kBlockLanes);
         collapse<W>({binary.nodes, ranges, binary.prim_indices, geometry}, 0, nodes_, blocks_);
     }
-    build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
 template <int W>
-void WideBvhAccel<W>::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                                      TraversalCounters* counters) const {
-    intersect_each(options_.triangle_test, rays, hits, counters,
-                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                         Hit& best, TraversalCounters& counts) {
-                       traverse<W, false, kCount>(nodes_, blocks_, geometry_, prepared, best, counts);
-                   });
-}
-
-template <int W>
-void WideBvhAccel<W>::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                                     TraversalCounters* counters) const {
-    occluded_each(options_.triangle_test, rays, occluded, counters,
-                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
-                                                        TraversalCounters& counts) {
-                      Hit unused;
-                      return traverse<W, true, kCount>(nodes_, blocks_, geometry_, prepared, unused, counts);
-                  });
+template <bool kAnyHit, bool kCount, class TriangleTestT>
+bool WideBvhAccel<W>::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
+                            TraversalCounters& counts) const {
+    return traverse<W, kAnyHit, kCount>(nodes_, blocks_, geometry_, prepared, best, counts);
 }
 
 template <int W>
@@ -312,6 +293,8 @@ std::size_t WideBvhAccel<W>::memory_bytes() const {
     return nodes_.size() * sizeof(WideBvhNode<W>) + blocks_.size() * sizeof(Block);
 }
 
+template class SingleRayAccel<WideBvhAccel<4>>;
+template class SingleRayAccel<WideBvhAccel<8>>;
 template class WideBvhAccel<4>;
 template class WideBvhAccel<8>;
 

@@ -180,7 +180,7 @@ template <int W>
 }
 
 template <int W>
-class WideBvhAccel final : public Accel {
+class WideBvhAccel final : public SingleRayAccel<WideBvhAccel<W>> {
   public:
     static_assert(W == 4 || W == 8);
     // Primitives per leaf block: one SSE vector for bvh4, one AVX2 vector for bvh8.
@@ -196,19 +196,22 @@ class WideBvhAccel final : public Accel {
     [[nodiscard]] const std::vector<Block>& blocks() const { return blocks_; }
 
   private:
-    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
-    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
-                         TraversalCounters* counters) const override;
-    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                        TraversalCounters* counters) const override;
+    friend SingleRayAccel<WideBvhAccel<W>>;
+    using SingleRayAccel<WideBvhAccel<W>>::geometry_;
+    using SingleRayAccel<WideBvhAccel<W>>::build_ms_;
+    using SingleRayAccel<WideBvhAccel<W>>::options_;
 
-    Geometry geometry_;
-    BuildOptions options_;
+    void build_from(const Geometry& geometry, const BuildOptions& options);
+    // SingleRayAccel's contract.
+    template <bool kAnyHit, bool kCount, class TriangleTestT>
+    bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;
+
     std::vector<WideBvhNode<W>> nodes_;
     std::vector<Block> blocks_;
-    double build_ms_ = 0.0;
 };
 
+extern template class SingleRayAccel<WideBvhAccel<4>>;
+extern template class SingleRayAccel<WideBvhAccel<8>>;
 extern template class WideBvhAccel<4>;
 extern template class WideBvhAccel<8>;
 using Bvh4Accel = WideBvhAccel<4>;

@@ -1,0 +1,70 @@
+// What every structure that traces one ray at a time shares: the geometry and options it was built with,
+// the build's time, and the two batch methods, made from one traversal the structure writes once:
+//
+//   template <bool kAnyHit, bool kCount, class TriangleTestT>
+//   bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;
+//
+// Closest hit (kAnyHit false): the answer is left in `best`. Any hit: returns whether one was found.
+// kCount: add the nodes and primitives visited to `counts`. The structure builds in
+// build_from(geometry, options), which this class times.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <span>
+
+#include "accel/primitive_test.hpp"
+#include "lancer/accel.hpp"
+
+namespace lancer {
+
+template <class Derived>
+class SingleRayAccel : public Accel {
+  protected:
+    void build_structure(const Geometry& geometry, const BuildOptions& options) final;
+    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                         TraversalCounters* counters) const final;
+    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                        TraversalCounters* counters) const final;
+
+    Geometry geometry_;
+    BuildOptions options_;
+    double build_ms_ = 0.0;
+};
+
+// Defined out of the class, so that they are not inline: each structure's source file, where its trace()
+// is defined, instantiates them (`template class SingleRayAccel<GridAccel>;`), and its header declares that
+// instantiation (`extern template`), so that no other file needs trace()'s definition.
+template <class Derived>
+void SingleRayAccel<Derived>::build_structure(const Geometry& geometry, const BuildOptions& options) {
+    const auto start = std::chrono::steady_clock::now();
+    geometry_ = geometry;
+    options_ = options;
+    static_cast<Derived*>(this)->build_from(geometry, options);
+    build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+template <class Derived>
+void SingleRayAccel<Derived>::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                                              TraversalCounters* counters) const {
+    const auto& self = static_cast<const Derived&>(*this);
+    intersect_each(options_.triangle_test, rays, hits, counters,
+                   [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                         Hit& best, TraversalCounters& counts) {
+                       self.template trace<false, kCount>(prepared, best, counts);
+                   });
+}
+
+template <class Derived>
+void SingleRayAccel<Derived>::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                                             TraversalCounters* counters) const {
+    const auto& self = static_cast<const Derived&>(*this);
+    occluded_each(options_.triangle_test, rays, occluded, counters,
+                  [&]<class TriangleTestT, bool kCount>(const PreparedRay<TriangleTestT>& prepared,
+                                                        TraversalCounters& counts) {
+                      Hit unused;
+                      return self.template trace<true, kCount>(prepared, unused, counts);
+                  });
+}
+
+}  // namespace lancer
