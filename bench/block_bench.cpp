@@ -18,7 +18,7 @@
 #include "lancer/accel.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/denormals.hpp"
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 
 namespace lancer {
 namespace {

@@ -10,7 +10,7 @@
 #include <string>
 #include <system_error>
 
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 
 namespace lancer::fuzz {
 

@@ -8,8 +8,8 @@
 #include <charconv>
 #include <new>
 
-#include "lancer/io.hpp"
-#include "lancer/memory.hpp"
+#include "lancer/load_scene.hpp"
+#include "lancer/memory_limit.hpp"
 
 namespace lancer::cli {
 

@@ -49,8 +49,8 @@ struct LoadedScene {
 // Throws LoadError, or InputError when loading passes --max-memory.
 [[nodiscard]] LoadedScene load_timed(const std::filesystem::path& file);
 
-// --max-memory SIZE (512M, 2G): the bound of include/lancer/memory.hpp, set as soon as the flag is parsed, so
-// that loading and building run under it. AccelChoice::add_options adds it.
+// --max-memory SIZE (512M, 2G): the bound of include/lancer/memory_limit.hpp, set as soon as the flag is
+// parsed, so that loading and building run under it. AccelChoice::add_options adds it.
 void add_memory_limit_option(CLI::App& command);
 
 // The InputError for a std::bad_alloc that `subject` met while `phase` ("building octree"): "needs more

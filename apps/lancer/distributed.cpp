@@ -15,7 +15,7 @@
 #include <type_traits>
 
 #include "common.hpp"
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 
 #if LANCER_HAS_MPI
 #include <mpi.h>

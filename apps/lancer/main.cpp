@@ -10,7 +10,7 @@
 #include "commands.hpp"
 #include "common.hpp"
 #include "distributed.hpp"
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 
 namespace {
 

@@ -25,7 +25,7 @@ class World {
   public:
     // Flattens `scene` and builds structure `accel_name` (make_accel's names) on it. Throws
     // std::invalid_argument for an unknown name or a coordinate outside the contract's domain, and
-    // std::bad_alloc when the memory limit (lancer/memory.hpp) is passed.
+    // std::bad_alloc when the memory limit (lancer/memory_limit.hpp) is passed.
     World(Scene scene, std::string_view accel_name, const BuildOptions& options);
 
     // The scene and octree of a `.plo` file (written by save_structure): its triangles as one mesh in their

@@ -130,9 +130,9 @@ Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, floa
     return {t, static_cast<std::int32_t>(global), u, v};
 }
 
-// Embree's allocations count against --max-memory (include/lancer/memory.hpp) like operator new's. A request
-// refused before it is made (post == false) fails the build with RTC_ERROR_OUT_OF_MEMORY; one reported after
-// the fact cannot be refused, only counted.
+// Embree's allocations count against --max-memory (include/lancer/memory_limit.hpp) like operator new's. A
+// request refused before it is made (post == false) fails the build with RTC_ERROR_OUT_OF_MEMORY; one
+// reported after the fact cannot be refused, only counted.
 bool monitor_memory(void*, ssize_t bytes, bool post) {
     if (bytes < 0) {
         memory::subtract(static_cast<std::size_t>(-bytes));

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "lancer/memory.hpp"
+#include "lancer/memory_limit.hpp"
 
 namespace lancer {
 namespace {

@@ -1,5 +1,5 @@
-// The counter behind include/lancer/memory.hpp, for the allocators that feed it: the replaced global operator
-// new (memory_limit_new.cpp) and Embree's device memory monitor (src/accel/embree.cpp).
+// The counter behind include/lancer/memory_limit.hpp, for the allocators that feed it: the replaced global
+// operator new (memory_limit_new.cpp) and Embree's device memory monitor (src/accel/embree.cpp).
 #pragma once
 
 #include <cstddef>

@@ -17,7 +17,7 @@
 #include <utility>
 #include <vector>
 
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 #include "scene/loaders.hpp"
 #include "scene/polygon.hpp"
 #include "scene/text_reader.hpp"

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 #include "scene/loaders.hpp"
 #include "scene/text_reader.hpp"
 

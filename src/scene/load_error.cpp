@@ -1,4 +1,4 @@
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 
 #include <utility>
 

@@ -4,7 +4,7 @@
 #include <string>
 #include <string_view>
 
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 #include "scene/loaders.hpp"
 
 namespace lancer {

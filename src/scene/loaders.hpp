@@ -1,5 +1,5 @@
-// The readers behind load_scene (include/lancer/io.hpp), one per format. Each returns the scene as the file
-// describes it; load_scene then adds the default material and checks the scene's invariants.
+// The readers behind load_scene (include/lancer/load_scene.hpp), one per format. Each returns the scene as
+// the file describes it; load_scene then adds the default material and checks the scene's invariants.
 #pragma once
 
 #include <cstddef>

@@ -20,7 +20,7 @@
 #include <utility>
 #include <vector>
 
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 #include "scene/loaders.hpp"
 #include "scene/text_reader.hpp"
 

@@ -10,7 +10,7 @@
 #include <system_error>
 #include <utility>
 
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 
 namespace lancer {
 

@@ -9,7 +9,7 @@
 
 #include "accel/plucker/plucker.hpp"
 #include "lancer/agreement.hpp"
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 #include "ray_sets.hpp"
 
 namespace lancer {

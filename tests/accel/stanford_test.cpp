@@ -12,7 +12,7 @@
 
 #include "configurations.hpp"
 #include "lancer/agreement.hpp"
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 #include "ray_sets.hpp"
 
 namespace lancer {

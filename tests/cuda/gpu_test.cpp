@@ -11,7 +11,7 @@
 #include "accel/test_scenes.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/cuda.hpp"
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 
 namespace lancer {
 namespace {

@@ -20,7 +20,7 @@
 #include "cuda/plucker_walk.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 
 namespace lancer {
 namespace {

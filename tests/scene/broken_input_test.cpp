@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "allocation_probe.hpp"
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 #include "scene_test_util.hpp"
 
 namespace lancer {

@@ -3,7 +3,7 @@
 
 #include <vector>
 
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 #include "scene_test_util.hpp"
 
 namespace lancer {

@@ -9,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 
 namespace lancer::test {
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "lancer/io.hpp"
+#include "lancer/load_scene.hpp"
 #include "scene/polygon.hpp"
 #include "scene_test_util.hpp"
 
