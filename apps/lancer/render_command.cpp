@@ -5,9 +5,10 @@
 
 #include <cctype>
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "commands.hpp"
 #include "common.hpp"
@@ -162,16 +163,16 @@ void add_render_command(CLI::App& app) {
                      "Image to write: 8-bit sRGB PNG, or linear half-float OpenEXR when it ends in .exr")
         ->capture_default_str();
     command->add_option("--size", options->size, "Image size WIDTHxHEIGHT (default: the scene's camera)");
-    const std::map<std::string, ShadingMode> modes = {{"whitted", ShadingMode::Whitted},
-                                                      {"flat", ShadingMode::Flat},
-                                                      {"normal", ShadingMode::Normal},
-                                                      {"depth", ShadingMode::Depth},
-                                                      {"heatmap", ShadingMode::Heatmap}};
+    const std::vector<std::pair<std::string, ShadingMode>> modes = {{"whitted", ShadingMode::Whitted},
+                                                                    {"flat", ShadingMode::Flat},
+                                                                    {"normal", ShadingMode::Normal},
+                                                                    {"depth", ShadingMode::Depth},
+                                                                    {"heatmap", ShadingMode::Heatmap}};
     command
         ->add_option("--mode", options->mode,
                      "Shading: whitted (default: shadows, reflection, refraction), flat, normal, depth or "
                      "heatmap (nodes per ray)")
-        ->transform(CLI::CheckedTransformer(modes, CLI::ignore_case));
+        ->transform(one_of(modes));
     command->add_option("--spp", options->samples_per_pixel, "Whitted mode: stratified samples per pixel")
         ->capture_default_str()
         ->check(CLI::Range(1, 4096));

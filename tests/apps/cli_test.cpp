@@ -127,8 +127,23 @@ TEST_F(Cli, BadInputExitsWithTwoAndSaysWhere) {
     EXPECT_EQ(result.exit_code, 2);
     EXPECT_NE(result.output.find("WIDTHxHEIGHT"), std::string::npos) << result.output;
 
+    // An option that takes one of a few names says which, in order.
     result = run("render " + good.string() + " --mode sepia");
     EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("--mode: 'sepia' is not one of whitted, flat, normal, depth, heatmap"),
+              std::string::npos)
+        << result.output;
+    result = run("rays " + good.string() + " --rays " + rays.string() + " --hits " + hits.string() +
+                 " --device gpu");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("--device: 'gpu' is not one of cpu, cuda"), std::string::npos)
+        << result.output;
+    result = run("render " + good.string() + " --device cuda --cuda-kernel fast");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("--cuda-kernel: 'fast' is not one of plucker, while-while, speculative, "
+                                 "persistent"),
+              std::string::npos)
+        << result.output;
 
     // The scaling bench needs the ranks of an mpirun job (docs/distributed.md).
     result = run("bench --mpi --mesh " + good.string() + " --accel bvh --frames 1 --size 8");
