@@ -6,6 +6,7 @@
 #include <cctype>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -34,11 +35,17 @@ struct RenderCommandOptions {
     bool fresnel = false;
 };
 
-bool is_exr(const std::filesystem::path& file) {
+enum class ImageFormat { Png, Exr };
+
+// The format -o names by its extension, in any case; none for any other extension, which the option refuses
+// before anything is loaded, rather than writing PNG bytes under a name that says otherwise.
+std::optional<ImageFormat> image_format(const std::filesystem::path& file) {
     std::string extension = file.extension().string();
     for (char& c : extension)
         c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    return extension == ".exr";
+    if (extension == ".png") return ImageFormat::Png;
+    if (extension == ".exr") return ImageFormat::Exr;
+    return std::nullopt;
 }
 
 void print_summary(const RenderCommandOptions& options, const LoadedScene& loaded, const BuiltAccel& built,
@@ -138,7 +145,7 @@ void run(RenderCommandOptions options) {
                             : job.render(scene, geometry, *built.accel, camera, render_options, stats);
     if (!job.is_root()) return;  // rank 0 writes the picture and the summary
     try {
-        if (is_exr(options.output))
+        if (image_format(options.output) == ImageFormat::Exr)
             write_exr(image, options.output);
         else
             write_png(image, options.output);
@@ -160,8 +167,15 @@ void add_render_command(CLI::App& app) {
         "Scene or mesh file, or a .plo octree from `lancer convert` (default: the demo scene)");
     command
         ->add_option("-o,--output", options->output,
-                     "Image to write: 8-bit sRGB PNG, or linear half-float OpenEXR when it ends in .exr")
-        ->capture_default_str();
+                     "Image to write: 8-bit sRGB PNG when it ends in .png, linear half-float OpenEXR when it "
+                     "ends in .exr")
+        ->capture_default_str()
+        ->check(CLI::Validator(
+            [](const std::string& file) {
+                return image_format(file) ? std::string()
+                                          : "'" + file + "' is neither a .png nor an .exr file";
+            },
+            ""));
     command->add_option("--size", options->size, "Image size WIDTHxHEIGHT (default: the scene's camera)");
     const std::vector<std::pair<std::string, ShadingMode>> modes = {{"whitted", ShadingMode::Whitted},
                                                                     {"flat", ShadingMode::Flat},
