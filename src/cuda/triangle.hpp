@@ -1,7 +1,7 @@
 // The two triangle tests of core/intersect.hpp (Moller-Trumbore 1997; Woop, Benthin & Wald 2013) for the
 // host and the device: the same operations in the same order, so that with unfused products (g++
 // -ffp-contract=off, nvcc --fmad=false) and IEEE division (nvcc's default -prec-div=true) both return the
-// CPU's t, u and v bit for bit (tests/cuda/triangle_port_test.cpp). Spheres are not ported: the GPU path
+// CPU's t, u and v bit for bit (tests/cuda/port_test.cpp). Spheres are not ported: the GPU path
 // traces triangle meshes (docs/cuda.md).
 #pragma once
 
