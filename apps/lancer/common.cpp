@@ -5,6 +5,7 @@
 #include <tbb/task_arena.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <charconv>
 #include <new>
 
@@ -188,6 +189,35 @@ std::pair<int, int> parse_size(const std::string& text) {
         }
     }
     throw InputError("--size: expected WIDTHxHEIGHT with both in [1, 32768], got '" + text + "'");
+}
+
+CLI::Validator one_of(std::vector<std::pair<std::string, std::string>> names_to_text) {
+    const auto lower = [](std::string word) {
+        for (char& c : word)
+            c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        return word;
+    };
+    std::string names;
+    for (const auto& entry : names_to_text)
+        names += (names.empty() ? "" : ", ") + entry.first;
+    return CLI::Validator(
+        [table = std::move(names_to_text), names, lower](std::string& input) -> std::string {
+            for (const auto& [name, text] : table) {
+                if (lower(input) == lower(name)) {
+                    input = text;
+                    return {};
+                }
+            }
+            return "'" + input + "' is not one of " + names;
+        },
+        "");
+}
+
+CLI::Validator one_of(const std::vector<std::string>& names) {
+    std::vector<std::pair<std::string, std::string>> names_to_text;
+    for (const std::string& name : names)
+        names_to_text.emplace_back(name, name);
+    return one_of(std::move(names_to_text));
 }
 
 }  // namespace lancer::cli

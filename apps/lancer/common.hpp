@@ -8,6 +8,8 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <tbb/task_arena.h>
@@ -101,5 +103,23 @@ void occluded_parallel(const Accel& accel, std::span<const Ray> rays, std::span<
 
 // "1024x768" -> {1024, 768}; throws InputError otherwise.
 [[nodiscard]] std::pair<int, int> parse_size(const std::string& text);
+
+// The transform of an option that takes one of a few names, in any case: each name becomes its text (what
+// CLI11 then converts to the option's type), and any other word is refused with "--mode: 'sepia' is not one
+// of whitted, flat, ...", the names in the order given.
+[[nodiscard]] CLI::Validator one_of(std::vector<std::pair<std::string, std::string>> names_to_text);
+
+// The same for a string option: the name itself, in the case given here.
+[[nodiscard]] CLI::Validator one_of(const std::vector<std::string>& names);
+
+// The same for an enum option: each name becomes its enumerator.
+template <class Enum>
+requires std::is_enum_v<Enum>
+[[nodiscard]] CLI::Validator one_of(const std::vector<std::pair<std::string, Enum>>& names) {
+    std::vector<std::pair<std::string, std::string>> names_to_text;
+    for (const auto& [name, value] : names)
+        names_to_text.emplace_back(name, std::to_string(static_cast<std::underlying_type_t<Enum>>(value)));
+    return one_of(std::move(names_to_text));
+}
 
 }  // namespace lancer::cli

@@ -6,12 +6,17 @@ namespace lancer::cli {
 
 void DeviceChoice::add_options(CLI::App& command) {
     command.add_option("--device", device, "Where to trace: cpu, or cuda (an NVIDIA GPU; docs/cuda.md)")
-        ->check(CLI::IsMember({"cpu", "cuda"}))
+        ->transform(one_of(std::vector<std::string>{"cpu", "cuda"}))
         ->capture_default_str();
-    command.add_option(
-        "--cuda-kernel", kernel,
-        "With --device cuda: plucker, while-while, speculative or persistent (default: plucker "
-        "for --accel plucker, persistent for bvh)");
+    std::vector<std::string> kernels;
+    for (const CudaKernel each : {CudaKernel::Plucker, CudaKernel::WhileWhile,
+                                  CudaKernel::SpeculativeWhileWhile, CudaKernel::Persistent})
+        kernels.emplace_back(cuda_kernel_name(each));
+    command
+        .add_option("--cuda-kernel", kernel,
+                    "With --device cuda: plucker, while-while, speculative or persistent (default: plucker "
+                    "for --accel plucker, persistent for bvh)")
+        ->transform(one_of(kernels));
 }
 
 void DeviceChoice::require_available() const {

@@ -5,10 +5,11 @@
 
 #include <cctype>
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "commands.hpp"
 #include "common.hpp"
@@ -34,11 +35,17 @@ struct RenderCommandOptions {
     bool fresnel = false;
 };
 
-bool is_exr(const std::filesystem::path& file) {
+enum class ImageFormat { Png, Exr };
+
+// The format -o names by its extension, in any case; none for any other extension, which the option refuses
+// before anything is loaded, rather than writing PNG bytes under a name that says otherwise.
+std::optional<ImageFormat> image_format(const std::filesystem::path& file) {
     std::string extension = file.extension().string();
     for (char& c : extension)
         c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    return extension == ".exr";
+    if (extension == ".png") return ImageFormat::Png;
+    if (extension == ".exr") return ImageFormat::Exr;
+    return std::nullopt;
 }
 
 void print_summary(const RenderCommandOptions& options, const PreparedScene& prepared, const Image& image,
@@ -146,7 +153,7 @@ void run(RenderCommandOptions options) {
     }
     if (!job.is_root()) return;  // rank 0 writes the picture and the summary
     try {
-        if (is_exr(options.output))
+        if (image_format(options.output) == ImageFormat::Exr)
             write_exr(image, options.output);
         else
             write_png(image, options.output);
@@ -167,19 +174,26 @@ void add_render_command(CLI::App& app) {
         "Scene or mesh file, or a .plo octree from `lancer convert` (default: the demo scene)");
     command
         ->add_option("-o,--output", options->output,
-                     "Image to write: 8-bit sRGB PNG, or linear half-float OpenEXR when it ends in .exr")
-        ->capture_default_str();
+                     "Image to write: 8-bit sRGB PNG when it ends in .png, linear half-float OpenEXR when it "
+                     "ends in .exr")
+        ->capture_default_str()
+        ->check(CLI::Validator(
+            [](const std::string& file) {
+                return image_format(file) ? std::string()
+                                          : "'" + file + "' is neither a .png nor an .exr file";
+            },
+            ""));
     command->add_option("--size", options->size, "Image size WIDTHxHEIGHT (default: the scene's camera)");
-    const std::map<std::string, ShadingMode> modes = {{"whitted", ShadingMode::Whitted},
-                                                      {"flat", ShadingMode::Flat},
-                                                      {"normal", ShadingMode::Normal},
-                                                      {"depth", ShadingMode::Depth},
-                                                      {"heatmap", ShadingMode::Heatmap}};
+    const std::vector<std::pair<std::string, ShadingMode>> modes = {{"whitted", ShadingMode::Whitted},
+                                                                    {"flat", ShadingMode::Flat},
+                                                                    {"normal", ShadingMode::Normal},
+                                                                    {"depth", ShadingMode::Depth},
+                                                                    {"heatmap", ShadingMode::Heatmap}};
     command
         ->add_option("--mode", options->mode,
                      "Shading: whitted (default: shadows, reflection, refraction), flat, normal, depth or "
                      "heatmap (nodes per ray)")
-        ->transform(CLI::CheckedTransformer(modes, CLI::ignore_case));
+        ->transform(one_of(modes));
     command->add_option("--spp", options->samples_per_pixel, "Whitted mode: stratified samples per pixel")
         ->capture_default_str()
         ->check(CLI::Range(1, 4096));

@@ -42,7 +42,7 @@ bool zero_or_normal(float x) {
 }
 
 // Embree's float triangle test multiplies three of the scene's lengths (T = Ng . (v0 - o), Ng = e1 x e2),
-// which overflowed for a scene 3e16 across: it returned t = NaN or inf (fuzz finding 19, docs/robustness.md).
+// which overflows float well inside the coordinate domain (docs/numerical-contract.md, "Coordinate domain").
 // Embree is therefore given the scene scaled by a power of two that brings its largest coordinate into
 // [2^-20, 2^20], where those products stay in float's range; ordinary scenes lie there already (scale 1).
 // Ray origins are scaled with the scene and directions are not, so Embree's t is lancer's times the scale:
@@ -116,9 +116,9 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float
 }
 
 // Embree runs with flush-to-zero and denormals-are-zero (lancer/denormals.hpp), the mode its manual asks for:
-// without it a denormal made its triangle test report a hit at t = NaN, on which the next geometry's
-// traversal asserted `ray.valid()` and aborted (fuzz finding 18, docs/robustness.md). Every call sets it for
-// its duration, unless the caller has already.
+// without it a denormal can make its triangle test report a hit at t = NaN, on which the next geometry's
+// traversal asserts `ray.valid()` and aborts. Every call sets it for its duration, unless the caller has
+// already.
 
 // Embree numbers primitives per geometry; lancer's global numbering puts the spheres after the triangles.
 Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, float v,
@@ -174,9 +174,10 @@ bool taken_as_is(const Ray& ray) {
            max_component(abs(ray.origin)) <= kEmbreeLargest;
 }
 
-// The t of a ray taken as it is, back in its interval: Embree's fast test may pass tfar by a rounding error
-// (its reciprocal of the determinant; fuzz finding 28). With tnear and tfar 0 or normal, and Embree's t never
-// denormal (flush-to-zero), float comparisons are exact even with denormals read as zero.
+// The t of a ray taken as it is, back in its interval, where a hit lies (docs/numerical-contract.md, "Hits"):
+// Embree's fast test may pass tfar by a rounding error (its reciprocal of the determinant). With tnear and
+// tfar 0 or normal, and Embree's t never denormal (flush-to-zero), float comparisons are exact even with
+// denormals read as zero.
 float as_is_t(float t, float tnear, float tfar) {
     return std::min(std::max(t, tnear), tfar);
 }

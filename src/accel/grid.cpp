@@ -124,7 +124,7 @@ void GridAccel::set_resolution(const std::array<int, 3>& resolution) {
         // The outer planes are the entry box's faces, not the scene box's: the boundary cells reach as far as
         // the entry box, so that a ray that enters the grown box, or runs along a face of the scene box
         // inside the tolerance band, walks the cells there rather than leaving the grid at the scene box's
-        // face (docs/robustness.md, finding 15).
+        // face (docs/numerical-contract.md, "Boxes").
         std::vector<float>& planes = planes_[axis];
         planes.assign(static_cast<std::size_t>(resolution[axis]) + 1, entry_box_.hi[axis]);
         planes[0] = entry_box_.lo[axis];

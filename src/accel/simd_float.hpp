@@ -1,14 +1,10 @@
 // Thin wrappers over SSE, AVX2 and AVX-512 float vectors, so that the wide BVH's box test and the triangle
-// tests read like their scalar kernels (Embree's vfloat<N> and vbool<N>, without its machinery). Chosen at
-// compile time by __SSE4_1__ / __AVX2__ / __AVX512F__ (the project builds with -march=native,
-// LANCER_NATIVE); the callers keep a scalar path for builds without them.
-//
-// A comparison returns a Mask: a vector of all-ones lanes for SSE and AVX2, a k-register for AVX-512.
-// Masks combine with mask_and / mask_or, and bits() turns one into an integer, bit i for lane i.
-//
-// Numerics: every operation is the IEEE fp32 operation of the scalar code (division is divps, never the
-// rcpps estimate), and -ffp-contract=off keeps GCC from fusing the vector multiplies and adds, as in the
-// scalar kernels. Comparisons are ordered and quiet: a NaN compares false, as in C++.
+// tests read like their scalar kernels (Embree's vfloat<N> and vbool<N>, without its machinery), chosen at
+// compile time (docs/isa.md). Every operation is the scalar code's IEEE fp32 operation (division by divps,
+// never the rcpps estimate; no fused multiply-add), so both paths give the same bits
+// (docs/accel/bvh_wide.md). A comparison returns a Mask (all-ones lanes for SSE and AVX2, a k-register for
+// AVX-512), ordered and quiet as in C++ (a NaN compares false); mask_and / mask_or combine masks, bits()
+// gives bit i for lane i.
 #pragma once
 
 #if defined(__AVX512F__) || defined(__AVX2__) || defined(__SSE4_1__)

@@ -116,16 +116,15 @@ struct MollerTrumbore {
         const float inv_det = 1.0f / det;
         const Vec3f to_origin = ray.origin - tri.v0;
         // The float u and v decide only where they are farther from the triangle's edges than their error
-        // bound (kRoundingSlack); within it the double test decides (a filtered predicate). A hit the float
-        // test reported inside that band lay up to 75 2^-24 |T| from the exact line (fuzz finding 23): from
-        // an origin one scene away, beyond the geometric tolerance by which the structures grow their boxes,
-        // so brute force reported triangles that every structure culled. The screens are widened by the
-        // same bound, so that they never drop a hit the double test would find; the double test decides
-        // before any test that depends on [tnear, tfar], so that a structure that passes a shorter tfar than
-        // brute force still gets the same answer. A grazing ray (|det| within 2^12 of the ill-conditioned
-        // band) always goes to double: its float t errs by up to 2^-24 |T| |d| |e1| |e2| / |det| too, a
-        // 65536th of |T| at the band and without bound towards the first band (fuzz finding 16: t = 349 for
-        // an exact -1.8, a hit 330 units off the triangle).
+        // bound (kRoundingSlack); within it the double test decides (a filtered predicate). Decided in float
+        // up to the edges, a hit could lie farther from the exact line than the geometric tolerance by which
+        // the structures grow their boxes, and brute force would report triangles that every structure culls.
+        // The screens are widened by the same bound, so that they never drop a hit the double test would
+        // find; the double test decides before any test that depends on [tnear, tfar], so that a structure
+        // that passes a shorter tfar than brute force still gets the same answer. A grazing ray (|det| within
+        // 2^12 of the ill-conditioned band) always goes to double: its float t errs by up to
+        // 2^-24 |T| |d| |e1| |e2| / |det| too, a 65536th of |T| at the band and without bound towards the
+        // first band. docs/numerical-contract.md, "Triangle tests".
         const bool grazing = std::fabs(det) <= band * kGrazingScale;
         const float slack = kRoundingSlack * ray.direction_scale *
                             (max_component(abs(to_origin)) + e1_scale + e2_scale) * std::fabs(inv_det);
@@ -178,9 +177,9 @@ struct MollerTrumbore {
 // ones are therefore decided in double, where a product of floats is exact and a difference of two is
 // rounded once: the exact sign, the same a neighbour's normal float edge function has. So is a hit whose
 // numerator T = sum w z falls below 2^-100: its products may have underflowed, and t = T / det, with det
-// as small as FLT_MIN, was then wrong by up to 2^-24 (fuzz finding 22: t = 0 for a hit at 2^-24 on a
-// sliver 2^-126 wide, 1 unit off along a direction of 2^24). Above 2^-100 some product exceeds 2^-102, whose
-// own float rounding dwarfs the 2^-150 that underflow may cost the others.
+// as small as FLT_MIN, could then be wrong by up to 2^-24 (docs/numerical-contract.md, "Triangle tests").
+// Above 2^-100 some product exceeds 2^-102, whose own float rounding dwarfs the 2^-150 that underflow may
+// cost the others.
 struct Watertight {
     // The axes {kx, ky, kz} of a ray whose direction is dominant along kz: kx and ky the next two in cyclic
     // order, swapped when the dominant component is negative, to keep the winding. The packet kernels
@@ -272,9 +271,10 @@ struct Watertight {
 // Haines et al., "Precision Improvements for Ray/Sphere Intersection" (Ray Tracing Gems, ch. 7), which
 // stays accurate far from the sphere, and the stable root pair q / a, c / q. The nearer root in
 // [tnear, tfar] wins; the far one answers rays that start inside. (u, v) = (azimuth / 2pi, polar / pi).
-// In double: the squares of float lengths neither underflow nor overflow there. In float, a sphere of
-// radius 3e-41 squared to 0, and so did a ray's 1.4e-30 distance from it: the discriminant 0 - 0 said
-// tangent (fuzz finding 17). Spheres are tested one at a time (scalar lanes), so double costs little.
+// In double: the squares of float lengths neither underflow nor overflow there, where in float a tiny radius
+// and a ray's tiny distance from the sphere both square to 0 and the discriminant says tangent
+// (docs/numerical-contract.md, "Spheres"). Spheres are tested one at a time (scalar lanes), so double costs
+// little.
 [[nodiscard]] inline bool intersect_sphere(const Ray& ray, const Sphere& sphere, float tnear, float tfar,
                                            TriangleHit& out) {
     if (!(sphere.radius > 0.0f)) return false;

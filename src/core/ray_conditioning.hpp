@@ -1,24 +1,8 @@
 // Rays conditioned once per batch, before any structure sees them, the same way for every structure (and the
 // CUDA tracer): a direction near the ends of the float range is scaled by a power of two, and a ray from far
-// away is moved near the scene along its line. t is mapped back after the trace. docs/numerical-contract.md,
-// "Ray conditioning"; fuzz findings 11, 13 and 14 of docs/robustness.md.
-//
-// Directions: a product of a direction with an edge or a cell size overflows for a component near FLT_MAX
-// and underflows (or its reciprocal overflows) for a denormal one; Moller-Trumbore's det went to +inf, the
-// watertight shear to a denormal 1/d, and grid, octree and BVH walks lost hits. A power of two changes no
-// bit of any product that neither overflows nor underflows, so the scaled ray is the same line.
-//
-// Far origins: every kernel works in the ray's frame (the watertight test translates the vertices by the
-// origin, the slab test subtracts it from the planes). A float origin at distance D rounds those differences
-// to ulp(D): from 4.5e11 away a 5-unit scene is seen through a 2^15-unit grid and brute force reported a
-// "hit" on a triangle that the exact line misses by more than a unit. The line itself is exact, though, so a
-// far ray is re-parametrised from a point of its line near the scene (move_near) and rounded to float once.
-//
-// Near and far are measured in the largest side of the scene's box, the scale of the distance |T| from an
-// origin to a vertex, to which the triangle tests' rounding is proportional: from an origin within
-// kFarOriginSides sides of the centre, a test reports no hit farther from the exact line than the
-// structures' geometric tolerance, so no structure culls what brute force finds (fuzz finding 23: the
-// threshold was 128 sides, and on a needle 2^24 long the rounding from 25 sides away passed the tolerance).
+// away is moved near the scene along its line; t is mapped back after the trace. So every kernel works on
+// products that neither overflow nor underflow, rounded at the scene's scale, not at the origin's distance:
+// docs/numerical-contract.md, "Ray conditioning" and "Far origins".
 #pragma once
 
 #if defined(__AVX2__)
@@ -77,10 +61,9 @@ class FarOriginFrame {
     // [tnear - s, tfar - s], with the shift s returned beside it (t = t' + s). The interval is the caller's
     // in double, so that one beyond the float range (a direction scaled by scale_direction) is moved
     // exactly. The shift itself may pass the float range: from an origin near FLT_MAX along a direction
-    // shorter than 1 the scene lies beyond t = -FLT_MAX, and refusing such a move left the far origin to
-    // every kernel, where brute force's rounding found a hit that no structure saw (fuzz finding 20). The
-    // ray must be valid (is_valid): a finite origin and a non-zero finite direction keep every shift a
-    // finite double.
+    // shorter than 1 the scene lies beyond t = -FLT_MAX, and such a ray left at its far origin would be
+    // answered by rounding noise (docs/numerical-contract.md, "Far origins"). The ray must be valid
+    // (is_valid): a finite origin and a non-zero finite direction keep every shift a finite double.
     struct Moved {
         Ray ray;
         double shift;
@@ -181,8 +164,7 @@ struct ConditionedRays {
 
 // The caller's interval in the units of a direction scaled by 2^-exponent, in double: tnear exactly, tfar
 // capped where the caller's t would overflow, so that no hit maps back to infinity and occluded, which maps
-// nothing back, answers as closest hit does (fuzz finding 21: from -FLT_MAX along 0.8125, an occluder at a
-// t beyond the float range).
+// nothing back, answers as closest hit does (docs/numerical-contract.md, "Far origins").
 [[nodiscard]] inline std::pair<double, double> scaled_interval(const Ray& ray, int exponent) {
     return {std::ldexp(double(ray.tnear), exponent),
             std::ldexp(std::fmin(double(ray.tfar), double(std::numeric_limits<float>::max())), exponent)};

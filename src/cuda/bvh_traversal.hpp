@@ -1,17 +1,8 @@
 // The per-ray BVH traversals of Aila & Laine, "Understanding the efficiency of ray traversal on GPUs" (HPG
-// 2009, section 3 and their Appendix's kernels), over the 64-byte nodes of gpu_layout.hpp, for the device
-// and, in tests/cuda, the host:
-// - while-while: an inner loop over inner nodes until the ray reaches a leaf, then a loop over the leaf's
-//   triangles, so that the lanes of a warp that traverse and those that intersect do so in separate
-//   phases;
-// - speculative while-while: a ray that finds a leaf postpones it and goes on traversing until every lane
-//   of the warp has one (a warp vote), or it finds a second leaf; the postponed leaves are then tested
-//   together. The vote is a policy: __any_sync on the device, and on the host either this ray alone or
-//   "another lane still searches" (which drives every postponement path).
-// Deviation from the paper's code: the child boxes are tested with the CPU's slab test (core/intersect.hpp:
-// the far distance widened by 2 gamma(3), a NaN slab unbounded), not the paper's fma form, so that the
-// pruning is the CPU's, proven against brute force; and the stack holds the far child without its entry
-// distance (as the paper), so a popped node is culled by its children's boxes only.
+// 2009, section 3 and their Appendix's kernels), while-while and speculative while-while, over the 64-byte
+// nodes of gpu_layout.hpp, for the device and, in tests/cuda, the host. The child boxes are tested with the
+// CPU's slab test, not the paper's fma form, so that the pruning is the one proven against brute force
+// (docs/cuda.md, "Kernels").
 #pragma once
 
 #include "cuda/gpu_layout.hpp"
@@ -52,7 +43,8 @@ LANCER_HOST_DEVICE inline bool hit_child_box(const Vec3f& origin, const Vec3f& i
     return t0 <= t1;
 }
 
-// The far children waiting, in local memory on the device (Aila & Laine's per-thread stack).
+// The far children waiting, in local memory on the device (Aila & Laine's per-thread stack), without their
+// entry distance, as in the paper: a popped node is culled by its children's boxes only.
 struct TraversalStack {
     std::int32_t entries[kBvhStackSize];
     int size = 0;

@@ -1,14 +1,8 @@
 // The plain-old-data arrays the GPU kernels read, and the views (pointers and counts) that the per-ray
-// traversals take, shared by the host (flatten.cpp, the CPU tests) and the device (kernels.cu).
-//
-// BVH: the node layout of Aila & Laine, "Understanding the efficiency of ray traversal on GPUs" (HPG 2009):
-// an inner node holds both children's boxes, so that one 64-byte fetch (four 16-byte loads) tests both, and
-// the leaves are not nodes but tagged child words. Triangles are stored as their vertices, in leaf order
-// with their global index (the CPU's Moller-Trumbore and watertight tests then run unchanged; Woop's
-// unit-triangle transform would save 4 bytes and a few products but give other roundings, docs/cuda.md).
-//
-// Pluecker octree: the CPU's serialised arrays as they are (layout.hpp): the cell word stream, the leaf
-// ordered primitives, the boxes, the cube map texels and the point-location words.
+// traversals take, shared by the host (flatten.cpp, the CPU tests) and the device (kernels.cu): Aila &
+// Laine's 64-byte BVH nodes with triangles stored as vertices, so that the CPU's triangle tests run
+// unchanged, and the Pluecker octree's serialised arrays as they are (layout.hpp). Why each choice:
+// docs/cuda.md, "Memory layout".
 #pragma once
 
 #include <cstdint>

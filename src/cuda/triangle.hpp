@@ -1,7 +1,7 @@
 // The two triangle tests of core/intersect.hpp (Moller-Trumbore 1997; Woop, Benthin & Wald 2013) for the
 // host and the device: the same operations in the same order, so that with unfused products (g++
 // -ffp-contract=off, nvcc --fmad=false) and IEEE division (nvcc's default -prec-div=true) both return the
-// CPU's t, u and v bit for bit (tests/cuda/triangle_port_test.cpp). Spheres are not ported: the GPU path
+// CPU's t, u and v bit for bit (tests/cuda/port_test.cpp). Spheres are not ported: the GPU path
 // traces triangle meshes (docs/cuda.md).
 #pragma once
 
@@ -38,13 +38,14 @@ struct MollerTrumboreTest {
         const float det = dot(p, e1);
         const Vec3f a1 = abs_of(e1), a2 = abs_of(e2);
         const float e1_scale = max_of(a1.x, max_of(a1.y, a1.z)), e2_scale = max_of(a2.x, max_of(a2.y, a2.z));
-        // A det beyond the float range is a miss, as in core/intersect.hpp (fuzz finding 13).
+        // A det beyond the float range is a miss, as in core/intersect.hpp (docs/numerical-contract.md,
+        // "Triangle tests").
         const float band = kIllConditioned * ray.direction_scale * e1_scale * e2_scale;
         if (!(abs_of(det) > band && abs_of(det) < kInfinity)) return false;
         const float inv_det = 1.0f / det;
         const Vec3f to_origin = ray.origin - tri.v0;
         // Widened float screens; a grazing ray, or one within the float error bound of an edge, is decided
-        // by the double test (core/intersect.hpp, fuzz findings 16 and 23).
+        // by the double test (core/intersect.hpp; docs/numerical-contract.md, "Triangle tests").
         const bool grazing = abs_of(det) <= band * kGrazingScale;
         const Vec3f a0 = abs_of(to_origin);
         const float slack = kRoundingSlack * ray.direction_scale *

@@ -1,20 +1,8 @@
 // NFF, Eric Haines' Neutral File Format as the Standard Procedural Databases write it (shared/data/README.md
-// section 3). The file is read as a stream of whitespace-separated tokens, since SPD lets an entity run over
-// several lines; '#' starts a comment to the end of the line.
-//
-// Everything that is not a sphere becomes triangles of one mesh named after the file stem, in file order,
-// with one material id per triangle (load_scene folds them into TriangleMesh::material when they agree):
-//   p N      the polygon triangulated by triangulate_polygon (fan when convex, ear clipping otherwise)
-//   pp N     the same, with the file's vertex normals
-//   c        a cylinder or truncated cone without caps, cone_segments quads around (tessellate_cone)
-// The mesh carries vertex normals when the file has a `pp` or a `c`; the vertices of `p` polygons then get
-// their face normal. Spheres stay spheres.
-//
-// Two lancer extensions, which no SPD file uses (docs/formats.md):
-//   plane nx ny nz d [checkered]   the infinite plane x . n = d, optionally checkered on a unit grid
-//   ambient r g b                  the ambient light
-// Lights given without a colour, and the ambient light unless `ambient` sets it, get the SPD's relative
-// intensity sqrt(N) / (2N) for N lights (shared/data/README.md section 3).
+// section 3), read as a stream of whitespace-separated tokens since SPD lets an entity run over several
+// lines. Polygons and cones become triangles of one mesh in file order, spheres stay spheres; two lancer
+// extensions, `plane` and `ambient`. Every keyword, the tessellation and the mesh grouping:
+// docs/formats.md, "NFF".
 #include <cmath>
 #include <cstdint>
 #include <limits>

@@ -128,8 +128,23 @@ TEST_F(Cli, BadInputExitsWithTwoAndSaysWhere) {
     EXPECT_EQ(result.exit_code, 2);
     EXPECT_NE(result.output.find("WIDTHxHEIGHT"), std::string::npos) << result.output;
 
+    // An option that takes one of a few names says which, in order.
     result = run("render " + good.string() + " --mode sepia");
     EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("--mode: 'sepia' is not one of whitted, flat, normal, depth, heatmap"),
+              std::string::npos)
+        << result.output;
+    result = run("rays " + good.string() + " --rays " + rays.string() + " --hits " + hits.string() +
+                 " --device gpu");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("--device: 'gpu' is not one of cpu, cuda"), std::string::npos)
+        << result.output;
+    result = run("render " + good.string() + " --device cuda --cuda-kernel fast");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("--cuda-kernel: 'fast' is not one of plucker, while-while, speculative, "
+                                 "persistent"),
+              std::string::npos)
+        << result.output;
 
     // The scaling bench needs the ranks of an mpirun job (docs/distributed.md).
     result = run("bench --mpi --mesh " + good.string() + " --accel bvh --frames 1 --size 8");
@@ -185,6 +200,33 @@ TEST_F(Cli, RenderWritesAPngAndReportsItsWork) {
     char signature[8] = {};
     in.read(signature, 8);
     EXPECT_EQ(std::string(signature + 1, 3), "PNG");
+}
+
+// -o names the format by its extension, in any case: .png or .exr; any other is refused before the scene is
+// loaded (a missing scene file would be reported otherwise), and nothing is written.
+TEST_F(Cli, RenderWritesTheFormatItsOutputNames) {
+    const fs::path mesh = write("mesh.off", kMesh);
+    for (const char* name : {"out.jpg", "out.tga", "out"}) {
+        const Result result =
+            run("render " + (dir_ / "missing.off").string() + " -o " + (dir_ / name).string());
+        EXPECT_EQ(result.exit_code, 2) << result.output;
+        EXPECT_NE(result.output.find("--output: '" + (dir_ / name).string() +
+                                     "' is neither a .png nor an .exr file"),
+                  std::string::npos)
+            << result.output;
+        EXPECT_FALSE(fs::exists(dir_ / name));
+    }
+    const auto first_bytes = [&](const std::string& name) {
+        const Result result =
+            run("render " + mesh.string() + " --size 8x6 --mode flat -o " + (dir_ / name).string());
+        EXPECT_EQ(result.exit_code, 0) << result.output;
+        std::ifstream in(dir_ / name, std::ios::binary);
+        std::string bytes(4, '\0');
+        in.read(bytes.data(), 4);
+        return bytes;
+    };
+    EXPECT_EQ(first_bytes("upper.PNG"), "\x89PNG");
+    EXPECT_EQ(first_bytes("mixed.Exr"), "\x76\x2f\x31\x01");
 }
 
 TEST_F(Cli, BenchWritesOneRecordPerStructureAndThreadCount) {

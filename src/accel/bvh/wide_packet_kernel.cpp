@@ -122,12 +122,11 @@ using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per l
     return cull_boxes(bounds, packet, tlimit_max, entry);
 }
 
-// The bounding boxes of a block's 8 triangles grown by the scene's geometric tolerance, for cull_boxes: a
-// triangle some ray hits lies in that box, so that ray's box test passes (the same argument as for a leaf's
-// box, which the build grows by the same tolerance), and so does the interval test. Ungrown, the boxes culled
-// a hit the float triangle test reports a rounding error away from its triangle (fuzz finding 27, a hit at
-// t = -2e-17 from an origin on the surface). `triangles`: the lanes that hold one (padding and spheres have
-// NaN vertices, whose boxes cull_boxes would pass: its max and min drop NaN operands).
+// The bounding boxes of a block's 8 triangles grown by the scene's geometric tolerance, for cull_boxes: the
+// triangle tests report hits up to a rounding error outside their triangle, and the grown box still holds
+// them (the argument for a leaf's box, which the build grows by the same tolerance;
+// docs/numerical-contract.md, "Boxes"). `triangles`: the lanes that hold one (padding and spheres have NaN
+// vertices, whose boxes cull_boxes would pass: its max and min drop NaN operands).
 struct TriangleBoxes {
     Boxes bounds;
     unsigned triangles;

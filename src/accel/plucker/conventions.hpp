@@ -1,19 +1,7 @@
 // The numbering of faces, vertices and sub-faces of a cell of the Pluecker octree, and the lookup tables of
-// seed 000 section 4.2 (equations 6 to 10) derived from it at compile time. The seed's Figure 4, which fixes
-// its own numbering, is missing from the text, so its tables (7), (8) and (9) cannot be copied: these are
-// derived from sample rays whose Pluecker products are computed exactly in integers, and
-// tests/accel/plucker_tables_test.cpp checks them against slab computations. Derivation:
-// docs/plucker-octree.md.
-//
-// Conventions (the octree build's, octree_build.hpp):
-//   axis a        0 = x, 1 = y, 2 = z
-//   face f        2 a + side, side 1 = the upper face (+a), 0 = the lower face (-a):
-//                 0 -x, 1 +x, 2 -y, 3 +y, 4 -z, 5 +z
-//   vertex v      bit a set for the upper coordinate on axis a (the child order of the build)
-//   octant        the exit vertex of a ray: bit a set when the ray moves towards +a. A zero direction
-//                 component is given a sign per ray (walk.hpp, WalkRay) and never wins an exit.
-//   sub-face q    on face f the in-face axes u < v (increasing): q = bit_u | bit_v << 1, bit = 1 for the
-//                 upper half. The four finer neighbours across a face are stored in this order.
+// seed 000 section 4.2 (equations 6 to 10) derived from it at compile time: the seed's Figure 4, which fixes
+// its own numbering, is missing, so its tables (7), (8) and (9) cannot be copied. Derivation and conventions:
+// docs/plucker-octree.md; tests/accel/plucker_tables_test.cpp checks the tables against slab computations.
 #pragma once
 
 #include <array>
@@ -21,6 +9,11 @@
 
 namespace lancer::plucker {
 
+// The octree build's conventions (octree_build.hpp): axis 0 = x, 1 = y, 2 = z; face 2 axis + side, side 1 the
+// upper face (0 -x, 1 +x, 2 -y, 3 +y, 4 -z, 5 +z); vertex: bit a set for the upper coordinate on axis a (the
+// build's child order); octant: the exit vertex of a ray, bit a set when it moves towards +a (a zero
+// component is given a sign per ray, walk.hpp, and never wins an exit); sub-face on a face with in-face axes
+// u < v: bit_u | bit_v << 1, bit 1 the upper half, the order of the four finer neighbours across a face.
 [[nodiscard]] constexpr int face_axis(int face) {
     return face >> 1;
 }

@@ -1,18 +1,8 @@
-// The trace-time arrays of the Pluecker octree (seed 000 section 3): the cells as a stream of 32-bit words,
-// the triangles in leaf order, the cell boxes and the boundary cube map, plus the point-location tree that
-// rays starting inside the root need. Plain data: this is also the on-disk layout (serialise.hpp).
-//
-// A leaf is stored as the words of equation (3):
-//   tCount | tOffset | i | nEnds | N_0^0 ... N_5^3                   (stored boxes: i indexes `boxes`)
-//   tCount | tOffset | x | y << 16 | z | level << 16 | nEnds | N ...  (no stored boxes: i becomes the
-//   position)
-// nEnds packs the running end of each direction's neighbour list, 5 bits per face: the neighbours across
-// face f are the words [start(f), end(f)) after the header, with start(0) = 0 and start(f) = end(f - 1). The
-// seed packs the six counts instead (4 bits each); the running ends carry the same information and make
-// goToDirection a shift instead of a loop over the previous counts (docs/plucker-octree.md).
-// A neighbour word is the address (word index) of the neighbour's first word. In the unconstrained variant
-// a link may point at an inner cell (kInnerBit set): its record is the box word(s) and the 8 children's
-// links, and the walk descends it (walk.hpp).
+// The trace-time arrays of the Pluecker octree (seed 000 section 3): the cells as a stream of 32-bit words
+// (a leaf's are equation (3)'s, with running ends of the neighbour lists instead of counts), the triangles in
+// leaf order, the cell boxes and the boundary cube map, plus the point-location tree that rays starting
+// inside the root need. Plain data: this is also the on-disk layout (serialise.hpp). Each deviation from the
+// seed and its reason: docs/plucker-octree.md, "Layout".
 #pragma once
 
 #include <algorithm>
@@ -27,6 +17,9 @@
 
 namespace lancer::plucker {
 
+// A neighbour word is the address (word index) of the neighbour's first word. In the unconstrained variant a
+// link may point at an inner cell (kInnerBit set): its record is the box word(s) and the 8 children's links,
+// and the walk descends it (walk.hpp).
 inline constexpr std::uint32_t kInnerBit = 0x80000000u;
 inline constexpr std::uint32_t kAddressMask = 0x7FFFFFFFu;
 
@@ -54,9 +47,9 @@ inline constexpr std::uint32_t kBoxWord = 2;  // stored boxes: the box index; el
 // The plane by which the walk leaves a cell through face i of `level` on `axis`: the exact float of
 // OctreeCube::plane, but on the root's boundary (i = 0 or 2^level) the root's face grown by the tolerance,
 // the box in which the entry accepts rays (walk.hpp). A ray within the tolerance outside a root face, moving
-// away from it by less than a float per unit, left the root through that face at once and missed a hit the
-// triangle test reports in that margin (fuzz finding 25); through the grown face it goes on along the
-// boundary cells until it leaves the grown root.
+// away from it by less than a float per unit, would leave the root through the exact face at once and miss a
+// hit the triangle test reports in that margin; through the grown face it goes on along the boundary cells
+// until it leaves the grown root (docs/numerical-contract.md, "Boxes").
 [[nodiscard]] inline float exit_plane_of(const OctreeCube& cube, float tolerance, int axis, int level,
                                          std::uint32_t i) {
     if (i == 0) return cube.plane(axis, 0, 0) - tolerance;

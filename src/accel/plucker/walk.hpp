@@ -1,20 +1,9 @@
 // The walk of seed 000 section 4 over the arrays of layout.hpp: entry by the boundary cube map (4.1), exit
 // face by three Pluecker signs and a table (4.2.1), sub-face by two more signs and a table (4.2.2), the loop
-// of 4.2.3. Phases in the code: ENTRY, LEAF, EXIT-FACE, NEIGHBOR.
-//
-// Deviations from the seed, each needed for an exact closest hit (docs/plucker-octree.md):
-// - The seed returns at the first leaf with a hit. A triangle crossing several leaves may be hit beyond the
-//   current leaf's exit, where a later leaf may hold a closer triangle: the walk goes on until the best hit
-//   (or tfar) lies before the exit of the current leaf. The test costs one product and one comparison.
-// - Rays that start inside the root (tnear past the root's entry) locate their first leaf by a descent of
-//   the tree instead of the cube map.
-// - A zero direction component is given the sign that points from the ray's coordinate towards the root's
-//   far side, and the cube map, the descent and the sub-face test break ties towards that sign, so that the
-//   walk only visits cells whose exit plane on that axis differs from the ray's coordinate: the axis then
-//   never wins an exit (its slab exit is +inf) and every Pluecker product it enters has an exact sign.
-// - The Pluecker products are computed in double, where a product of two floats is exact, so that their
-//   signs are exact for any magnitudes (in float, a denormal component's products underflowed to 0 and
-//   chose an exit face far from the first one: fuzz finding 24).
+// of 4.2.3. Phases in the code: ENTRY, LEAF, EXIT-FACE, NEIGHBOR. It deviates from the seed where an exact
+// closest hit needs it: it goes on past the first leaf with a hit, descends the tree for rays that start
+// inside, gives zero direction components a sign, and computes the Pluecker products in double
+// (docs/plucker-octree.md, "The walk", "Zero direction components", "The Plücker products").
 #pragma once
 
 #include <algorithm>
