@@ -405,16 +405,17 @@ TEST_F(Cli, InfoCountsTrianglesAfterFanTriangulation) {
     EXPECT_NE(result.output.find("triangles   3"), std::string::npos) << result.output;
 }
 
-// `lancer info --options` prints the registry's structures and `--set` keys; the README holds the same tables.
-// Every printed row must be in the README's block, and every `--set` row of that block must be printed (the
-// structure rows may name Embree's, which a build without Embree does not print).
+// `lancer info --options` prints the registry's structures and `--set` keys; the README holds the same
+// tables. Every printed row must be in the README's block, and every `--set` row of that block must be
+// printed (the structure rows may name Embree's, which a build without Embree does not print).
 TEST_F(Cli, InfoOptionsListsTheRegistryAsTheReadmeDoes) {
     const Result result = run("info --options");
     ASSERT_EQ(result.exit_code, 0) << result.output;
     std::ostringstream text;
     text << std::ifstream(fs::path(LANCER_SOURCE_DIR) / "README.md").rdbuf();
     const std::string readme = text.str();
-    const std::string begin = "<!-- lancer info --options -->\n", end = "<!-- end of lancer info --options -->";
+    const std::string begin = "<!-- lancer info --options -->\n",
+                      end = "<!-- end of lancer info --options -->";
     const std::size_t first = readme.find(begin), last = readme.find(end);
     ASSERT_NE(first, std::string::npos);
     ASSERT_NE(last, std::string::npos);
