@@ -1,35 +1,30 @@
 // lancer bench: the throughput of every structure on the views of shared/bench/VIEWS.md, Embree beside
 // lancer in the same process on the same rays and threads. Every structure's answers are checked against
 // the first structure's before it is timed, ray by ray; a disagreement fails the bench (exit code 1). The
-// canonical (primary) view's rays go to the structures in 8x8 pixel tiles, tiles in scanline order
-// (trace_frame); the secondary views' (diffuse, shadow) are made once per mesh and traced from an array in
-// memory, 4096 consecutive rays a task (intersect_parallel, occluded_parallel): Embree's rows then call
-// rtcIntersectN or rtcOccludedN on consecutive rays without the COHERENT flag.
+// timed paths are in bench_trace.hpp (the secondary views go 4096 consecutive rays a task through
+// intersect_parallel and occluded_parallel: Embree's rows then call rtcIntersectN or rtcOccludedN without the
+// COHERENT flag), the JSON and SVG reports in bench_report.hpp.
 #include <fmt/core.h>
 #include <fmt/os.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <array>
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <optional>
 #include <sstream>
 #include <thread>
 
+#include "bench_report.hpp"
+#include "bench_trace.hpp"
 #include "commands.hpp"
 #include "common.hpp"
 #include "cuda_device.hpp"
 #include "distributed.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/camera.hpp"
-#include "lancer/denormals.hpp"
 #include "lancer/generate.hpp"
 #include "lancer/isa.hpp"
-#include "lancer/views.hpp"
 
 namespace lancer::cli {
 namespace {
@@ -49,37 +44,6 @@ struct BenchOptions {
     std::string svg_file;
     bool mpi = false;
     DeviceChoice device;
-};
-
-// The canonical view's camera rays, or one of the secondary sets made from its hits.
-enum class BenchView { Primary, Diffuse, Shadow };
-
-std::string_view view_name(BenchView view) {
-    switch (view) {
-        case BenchView::Primary:
-            return "primary";
-        case BenchView::Diffuse:
-            return secondary_view_name(SecondaryView::Diffuse);
-        case BenchView::Shadow:
-            return secondary_view_name(SecondaryView::Shadow);
-    }
-    return "";
-}
-
-struct Record {
-    std::string mesh;
-    BenchView view = BenchView::Primary;
-    std::size_t triangles = 0;
-    std::string accel;
-    int threads = 0;
-    double build_ms = 0.0;
-    std::size_t memory_bytes = 0;
-    std::size_t geometry_bytes = 0;
-    double mrays_median = 0.0, mrays_min = 0.0, mrays_max = 0.0;
-    double hit_fraction = 0.0;
-    double nodes_per_ray = 0.0, prims_per_ray = 0.0;
-    bool counted = false;        // false for structures that expose no traversal counts (Embree)
-    std::size_t mismatches = 0;  // rays answered otherwise than by the first structure (Embree rows only)
 };
 
 std::vector<BenchView> parse_views(const std::string& text) {
@@ -168,164 +132,6 @@ std::vector<BenchMesh> load_meshes(const BenchOptions& options) {
     return meshes;
 }
 
-// Rays are generated in square tiles of kTileSide x kTileSide pixels, one RayPacket each, and the tiles go in
-// scanline order. PinholeCamera::tile_rays writes a tile's rays straight into the packet, every 16 lanes a
-// 4x4 pixel block and every 8 a 4x2 one: the packets Embree's tutorials trace (embree8, embree16), and the
-// packet structures' (bvh8_packet). Every structure gets the same packets; hits are stored and compared at
-// their pixel.
-constexpr int kTileSide = PinholeCamera::kTileSide;
-
-int tile_rows(const PinholeCamera& camera) {
-    return (camera.height() + kTileSide - 1) / kTileSide;
-}
-
-// Calls visit(x0, y0) for the corner of every tile of the tile rows [first_row, last_row), in scanline order.
-template <class Visit>
-void for_each_tile(const PinholeCamera& camera, int first_row, int last_row, Visit&& visit) {
-    for (int tile_row = first_row; tile_row < last_row; ++tile_row) {
-        for (int x0 = 0; x0 < camera.width(); x0 += kTileSide)
-            visit(x0, tile_row * kTileSide);
-    }
-}
-
-// Calls visit(lane, pixel) for every lane of the tile at (x0, y0) whose pixel lies in the image, pixel
-// being its index in row-major order.
-template <class Visit>
-void for_each_tile_pixel(const PinholeCamera& camera, int x0, int y0, Visit&& visit) {
-    const auto width = static_cast<std::size_t>(camera.width());
-    for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
-        const int i = x0 + PinholeCamera::tile_column(lane), j = y0 + PinholeCamera::tile_row(lane);
-        if (i < camera.width() && j < camera.height())
-            visit(lane, static_cast<std::size_t>(j) * width + static_cast<std::size_t>(i));
-    }
-}
-
-// Each lane's hit at its pixel. A tile inside the image goes a block row at a time: 4 lanes, 4 pixels in a
-// row of the image (HitPacket::copy_four).
-void store_tile_hits(const PinholeCamera& camera, int x0, int y0, const HitPacket& tile_hits,
-                     std::vector<Hit>& hits) {
-    if (x0 + kTileSide > camera.width() || y0 + kTileSide > camera.height()) {
-        for_each_tile_pixel(camera, x0, y0,
-                            [&](int lane, std::size_t pixel) { hits[pixel] = tile_hits.hit(lane); });
-        return;
-    }
-    const auto width = static_cast<std::size_t>(camera.width());
-    for (int lane = 0; lane < RayPacket::kMaxSize; lane += PinholeCamera::kBlockSide) {
-        Hit* const row = hits.data() + static_cast<std::size_t>(y0 + PinholeCamera::tile_row(lane)) * width +
-                         static_cast<std::size_t>(x0 + PinholeCamera::tile_column(lane));
-        tile_hits.copy_four(lane, row);
-    }
-}
-
-// The tiles of the tile rows [first_row, last_row): each tile's rays generated into a packet, traced
-// (Accel::intersect_packet), and each closest hit stored at its pixel of `hits`.
-void trace_tiles(const Accel& accel, const PinholeCamera& camera, int first_row, int last_row,
-                 std::vector<Hit>& hits, TraversalCounters* counters = nullptr) {
-    RayPacket rays;
-    HitPacket tile_hits;
-    const auto width = static_cast<std::size_t>(camera.width());
-    for_each_tile(camera, first_row, last_row, [&](int x0, int y0) {
-        camera.tile_rays(x0, y0, rays);
-        // The tile's pixels asked for, for writing, before the trace: the 64 hits are stored at once after
-        // it, and the lines of a cold 16 MB image fetched then stalled the stores (Embree's tutorials store
-        // each packet's hits as they come, which overlaps those fetches with the trace). Written here, not in
-        // a function of its own: GCC deems a function of prefetches alone pure and drops its calls.
-        // A tile row's 128 bytes may straddle three lines: every fourth pixel and the last are asked for.
-        const int columns = std::min(kTileSide, camera.width() - x0);
-        for (int row = 0; row < std::min(kTileSide, camera.height() - y0); ++row) {
-            const Hit* const pixels =
-                hits.data() + static_cast<std::size_t>(y0 + row) * width + static_cast<std::size_t>(x0);
-            for (int column = 0; column < columns; column += 4)
-                __builtin_prefetch(pixels + column, 1);
-            __builtin_prefetch(pixels + columns - 1, 1);
-        }
-        accel.intersect_packet(rays, tile_hits, counters);
-        store_tile_hits(camera, x0, y0, tile_hits, hits);
-    });
-}
-
-// One frame as VIEWS.md times it: generate every ray from the camera, trace it, store its closest hit at its
-// pixel. One task per row of tiles. An Embree row's tasks set flush-to-zero once, as Embree's manual and
-// tutorials do (lancer/denormals.hpp); lancer's structures run in the IEEE mode.
-void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hit>& hits,
-                 tbb::task_arena& arena) {
-    const bool flush_denormals = accel.name().starts_with("embree");
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<int>(0, tile_rows(camera), 1),
-                          [&](const tbb::blocked_range<int>& rows) {
-                              std::optional<DenormalsFlushed> flushed;
-                              if (flush_denormals) flushed.emplace();
-                              trace_tiles(accel, camera, rows.begin(), rows.end(), hits);
-                          });
-    });
-}
-
-// One view of one mesh: its rays (in pixel order for the primary view, as its hits are stored) and the
-// first structure's answers, which every other structure must give. The shadow view's reference is the
-// first structure's closest hits: a ray is occluded when it has one.
-struct ViewRays {
-    BenchView view;
-    std::vector<Ray> rays;
-    std::vector<Hit> reference;
-    std::string reference_name;
-};
-
-// One structure's answers on a view through the path that is timed, with its traversal counts.
-struct ViewAnswers {
-    std::vector<Hit> hits;
-    std::vector<std::uint8_t> occluded;
-    TraversalCounters counters;
-    std::size_t hit_count = 0;  // rays that hit (primary, diffuse) or are occluded (shadow)
-};
-
-ViewAnswers answer_view(const Accel& accel, const ViewRays& view, const PinholeCamera& camera) {
-    ViewAnswers answers;
-    answers.hits.resize(view.rays.size());
-    if (view.view == BenchView::Primary) {
-        trace_tiles(accel, camera, 0, tile_rows(camera), answers.hits, &answers.counters);
-    } else if (view.view == BenchView::Diffuse) {
-        accel.intersect(view.rays, answers.hits, &answers.counters);
-    } else {
-        answers.occluded.resize(view.rays.size());
-        accel.occluded(view.rays, answers.occluded, &answers.counters);
-        answers.hit_count =
-            static_cast<std::size_t>(std::count(answers.occluded.begin(), answers.occluded.end(), 1));
-        return answers;
-    }
-    answers.hit_count = static_cast<std::size_t>(
-        std::count_if(answers.hits.begin(), answers.hits.end(), [](const Hit& hit) { return hit.hit(); }));
-    return answers;
-}
-
-// The canonical view's rays, and the secondary sets asked for, made from lancer's closest hits on it (any
-// structure's, bit for bit: the binary BVH's, whose build is quick).
-std::vector<ViewRays> make_views(const std::vector<BenchView>& wanted, const Geometry& geometry,
-                                 const PinholeCamera& camera, bool watertight) {
-    const std::vector<Ray> primary = camera.pixel_centre_rays(0, 0, camera.width(), camera.height());
-    std::vector<Hit> primary_hits;
-    std::vector<ViewRays> views;
-    for (BenchView view : wanted) {
-        if (view == BenchView::Primary) {
-            views.push_back({view, primary, {}, {}});
-            continue;
-        }
-        if (primary_hits.empty()) {
-            primary_hits.resize(primary.size());
-            build_timed(AccelChoice{"bvh", watertight, {}}, geometry).accel->intersect(primary, primary_hits);
-        }
-        std::vector<Ray> rays =
-            secondary_view_rays(view == BenchView::Diffuse ? SecondaryView::Diffuse : SecondaryView::Shadow,
-                                geometry, primary, primary_hits);
-        // No camera ray hit (a mesh seen edge on): nothing to time.
-        if (rays.empty()) {
-            fmt::print("bench: the {} view has no rays: no camera ray hits the mesh\n", view_name(view));
-            continue;
-        }
-        views.push_back({view, std::move(rays), {}, {}});
-    }
-    return views;
-}
-
 std::string cpu_name() {
     std::ifstream cpuinfo("/proc/cpuinfo");
     std::string line;
@@ -333,82 +139,6 @@ std::string cpu_name() {
         if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
     }
     return "unknown CPU";
-}
-
-void write_json(const std::string& file, const std::vector<Record>& records) {
-    std::string json = "[\n";
-    for (std::size_t i = 0; i < records.size(); ++i) {
-        const Record& r = records[i];
-        json += fmt::format(
-            "  {{\"mesh\": \"{}\", \"view\": \"{}\", \"triangles\": {}, \"accel\": \"{}\", \"threads\": {}, "
-            "\"build_ms\": "
-            "{:.3f}, "
-            "\"memory_bytes\": {}, \"geometry_bytes\": {}, \"mrays_per_s\": {:.4f}, \"mrays_min\": {:.4f}, "
-            "\"mrays_max\": {:.4f}, \"hit_fraction\": {:.6f}, \"nodes_per_ray\": {}, \"prims_per_ray\": "
-            "{}, \"mismatches\": {}}}{}\n",
-            r.mesh, view_name(r.view), r.triangles, r.accel, r.threads, r.build_ms, r.memory_bytes,
-            r.geometry_bytes, r.mrays_median, r.mrays_min, r.mrays_max, r.hit_fraction,
-            r.counted ? fmt::format("{:.4f}", r.nodes_per_ray) : "null",
-            r.counted ? fmt::format("{:.4f}", r.prims_per_ray) : "null", r.mismatches,
-            i + 1 < records.size() ? "," : "");
-    }
-    json += "]\n";
-    try {
-        fmt::output_file(file).print("{}", json);
-    } catch (const std::system_error& error) {
-        throw InputError(file + ": " + error.what());
-    }
-}
-
-// Horizontal bars, one group per mesh, one bar per structure and thread count, labelled with the value.
-void write_svg(const std::string& file, const std::vector<Record>& records) {
-    constexpr int kBarHeight = 16, kLabelWidth = 230, kChartWidth = 520, kGroupGap = 28;
-    double best = 0.0;
-    for (const Record& r : records)
-        best = std::max(best, r.mrays_median);
-    const std::array<const char*, 6> palette = {"#4c72b0", "#dd8452", "#55a868",
-                                                "#c44e52", "#8172b3", "#937860"};
-    std::vector<std::string> accels;
-    for (const Record& r : records) {
-        if (std::find(accels.begin(), accels.end(), r.accel) == accels.end()) accels.push_back(r.accel);
-    }
-    std::string body;
-    int y = 40;
-    std::string current_mesh;
-    for (const Record& r : records) {
-        if (r.mesh != current_mesh) {
-            current_mesh = r.mesh;
-            y += kGroupGap / 2;
-            body += fmt::format("<text x=\"8\" y=\"{}\" font-weight=\"bold\">{} ({} triangles)</text>\n", y,
-                                r.mesh, r.triangles);
-            y += 8;
-        }
-        const auto colour =
-            static_cast<std::size_t>(std::find(accels.begin(), accels.end(), r.accel) - accels.begin());
-        const double width = best > 0.0 ? kChartWidth * r.mrays_median / best : 0.0;
-        body += fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"end\">{}{}, {} thread{}</text>\n",
-                            kLabelWidth - 6, y + kBarHeight - 4, r.accel,
-                            r.view == BenchView::Primary ? "" : fmt::format(", {}", view_name(r.view)),
-                            r.threads, r.threads > 1 ? "s" : "");
-        body += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{:.1f}\" height=\"{}\" fill=\"{}\"/>\n",
-                            kLabelWidth, y, width, kBarHeight - 2, palette[colour % palette.size()]);
-        body += fmt::format("<text x=\"{:.1f}\" y=\"{}\">{:.2f}</text>\n", kLabelWidth + width + 4,
-                            y + kBarHeight - 4, r.mrays_median);
-        y += kBarHeight;
-    }
-    const int height = y + 20;
-    const std::string svg = fmt::format(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" font-family=\"sans-serif\" "
-        "font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-        "<text x=\"8\" y=\"20\" font-size=\"14\">lancer bench: Mrays/s on the views of VIEWS.md (median of "
-        "the "
-        "frames)</text>\n{}</svg>\n",
-        kLabelWidth + kChartWidth + 80, height, body);
-    try {
-        fmt::output_file(file).print("{}", svg);
-    } catch (const std::system_error& error) {
-        throw InputError(file + ": " + error.what());
-    }
 }
 
 void run(const BenchOptions& options) {
@@ -450,7 +180,7 @@ void run(const BenchOptions& options) {
             "bench: Embree's robust mode (the watertight test) builds without spatial splits whatever "
             "embree.quality says; --moller-trumbore times its HIGH build\n");
 
-    std::vector<Record> records;
+    std::vector<BenchRecord> records;
     bool agreement_failed = false;
     for (const BenchMesh& mesh : meshes) {
         const SceneGeometry geometry(mesh.scene);
@@ -505,13 +235,14 @@ void run(const BenchOptions& options) {
                         if (view.view == BenchView::Primary)
                             trace_frame(*built.accel, camera, answers.hits, arena);
                         else if (view.view == BenchView::Shadow)
-                            occluded_parallel(*built.accel, view.rays, answers.occluded, arena);
+                            arena.execute(
+                                [&] { occluded_parallel(*built.accel, view.rays, answers.occluded); });
                         else
-                            intersect_parallel(*built.accel, view.rays, answers.hits, arena);
+                            arena.execute([&] { intersect_parallel(*built.accel, view.rays, answers.hits); });
                         if (frame >= 0) mrays.push_back(ray_count / (watch.elapsed_ms() * 1e3));
                     }
                     std::sort(mrays.begin(), mrays.end());
-                    Record record;
+                    BenchRecord record;
                     record.mesh = mesh.name;
                     record.view = view.view;
                     record.triangles = geometry.triangle_count();
@@ -546,14 +277,14 @@ void run(const BenchOptions& options) {
             }
         }
     }
-    if (!options.json_file.empty()) write_json(options.json_file, records);
-    if (!options.svg_file.empty()) write_svg(options.svg_file, records);
+    if (!options.json_file.empty()) write_bench_json(options.json_file, records);
+    if (!options.svg_file.empty()) write_bench_svg(options.svg_file, records);
     if (agreement_failed)
         throw CheckFailure("bench: structures disagree (see above); figures not trustworthy");
 }
 
 // One structure's strong scaling over the ranks of an mpirun job (lancer bench --mpi).
-struct ScalingRecord {
+struct ScalingBenchRecord {
     std::string mesh;
     std::string accel;
     int threads = 0;
@@ -592,7 +323,7 @@ void run_mpi(const BenchOptions& options) {
         fmt::print("{:<16} {:<14} {:>3} {:>5} {:>14} {:>14} {:>10}\n", "mesh", "accel", "thr", "ranks",
                    "1 rank Mrays/s", "all Mrays/s", "efficiency");
     }
-    std::vector<ScalingRecord> records;
+    std::vector<ScalingBenchRecord> records;
     for (const BenchMesh& mesh : meshes) {
         const SceneGeometry geometry(mesh.scene);
         const Camera camera = canonical_view(geometry.view().bounds(), options.size, options.size);
@@ -621,12 +352,12 @@ void run_mpi(const BenchOptions& options) {
                     const double all_elapsed = job.max_over_ranks(all.elapsed_ms());
                     if (frame >= 0) alone_ms.push_back(alone_elapsed), all_ms.push_back(all_elapsed);
                 }
-                ScalingRecord record{mesh.name,
-                                     name,
-                                     threads,
-                                     job.size(),
-                                     rays / (median_of(alone_ms) * 1e3),
-                                     rays / (median_of(all_ms) * 1e3)};
+                ScalingBenchRecord record{mesh.name,
+                                          name,
+                                          threads,
+                                          job.size(),
+                                          rays / (median_of(alone_ms) * 1e3),
+                                          rays / (median_of(all_ms) * 1e3)};
                 if (job.is_root()) {
                     fmt::print("{:<16} {:<14} {:>3} {:>5} {:>14.2f} {:>14.2f} {:>10.2f}\n", record.mesh,
                                record.accel, threads, record.ranks, record.mrays_one_rank,
@@ -639,7 +370,7 @@ void run_mpi(const BenchOptions& options) {
     if (!job.is_root() || options.json_file.empty()) return;
     std::string json = "[\n";
     for (std::size_t i = 0; i < records.size(); ++i) {
-        const ScalingRecord& r = records[i];
+        const ScalingBenchRecord& r = records[i];
         json += fmt::format(
             "  {{\"mesh\": \"{}\", \"view\": \"primary\", \"accel\": \"{}\", \"threads\": {}, \"ranks\": {}, "
             "\"mrays_one_rank\": {:.4f}, \"mrays_all_ranks\": {:.4f}, \"parallel_efficiency\": {:.4f}}}{}\n",

@@ -1,8 +1,5 @@
 #include "common.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 #include <unistd.h>
 
 #include <cctype>
@@ -131,43 +128,6 @@ PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice
     } catch (const std::bad_alloc&) {
         throw out_of_memory(file.string(), "loading");
     }
-}
-
-namespace {
-
-// Calls trace(first, count) on chunks of kRayChunk consecutive rays of [0, ray_count), one task each, inside
-// `arena`: big enough to amortise the virtual call, small enough to balance two cores on uneven rays.
-// simple_partitioner keeps the chunks at that size, which bench/embree_reference's arrays copy.
-constexpr std::size_t kRayChunk = 4096;
-template <class Trace>
-void for_each_ray_chunk(tbb::task_arena& arena, std::size_t ray_count, Trace&& trace) {
-    arena.execute([&] {
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, ray_count, kRayChunk),
-            [&](const tbb::blocked_range<std::size_t>& range) { trace(range.begin(), range.size()); },
-            tbb::simple_partitioner());
-    });
-}
-
-}  // namespace
-
-void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits,
-                        tbb::task_arena& arena) {
-    for_each_ray_chunk(arena, rays.size(), [&](std::size_t first, std::size_t count) {
-        accel.intersect(rays.subspan(first, count), hits.subspan(first, count));
-    });
-}
-
-void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads) {
-    tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-    intersect_parallel(accel, rays, hits, arena);
-}
-
-void occluded_parallel(const Accel& accel, std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                       tbb::task_arena& arena) {
-    for_each_ray_chunk(arena, rays.size(), [&](std::size_t first, std::size_t count) {
-        accel.occluded(rays.subspan(first, count), occluded.subspan(first, count));
-    });
 }
 
 bool stderr_is_terminal() {

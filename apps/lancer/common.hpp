@@ -12,7 +12,6 @@
 #include <utility>
 #include <vector>
 
-#include <tbb/task_arena.h>
 #include <CLI/CLI.hpp>
 
 #include "lancer/accel.hpp"
@@ -90,14 +89,6 @@ struct PreparedScene {
     double build_ms = 0.0;
 };
 [[nodiscard]] PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice& choice);
-
-// Closest hits of all rays, in chunks over `threads` oneTBB threads (0 = all).
-void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads);
-// The same inside a caller's arena (lancer bench times one per thread count), and occlusion alike.
-void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits,
-                        tbb::task_arena& arena);
-void occluded_parallel(const Accel& accel, std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                       tbb::task_arena& arena);
 
 [[nodiscard]] bool stderr_is_terminal();
 

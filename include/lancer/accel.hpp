@@ -207,6 +207,13 @@ class Accel {
     Box3f bounds_;
 };
 
+// intersect() and occluded() on `threads` threads (0: all, or those of the oneTBB arena the caller runs in),
+// in tasks of 4096 consecutive rays: large enough to amortise a batch call, small enough to balance cores on
+// uneven rays. The same answers as one call; without oneTBB, one call.
+void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads = 0);
+void occluded_parallel(const Accel& accel, std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                       int threads = 0);
+
 // The names `--accel` accepts, in the order `lancer bench --accel all` measures them.
 [[nodiscard]] std::vector<std::string_view> accel_names();
 // The same with a line on each (what `lancer info --options` prints).

@@ -3,6 +3,7 @@
 #include <string>
 
 #include "accel/packet_batch.hpp"
+#include "core/parallel.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/accel.hpp"
 
@@ -94,6 +95,33 @@ void Accel::occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded
     const ConditionedRays conditioned = condition_rays(rays, bounds_);
     occluded_batch(conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays), occluded,
                    counters);
+}
+
+namespace {
+
+// Rays per task of intersect_parallel and occluded_parallel (lancer/accel.hpp), the size of
+// bench/embree_reference's arrays too.
+constexpr std::size_t kRayChunk = 4096;
+
+}  // namespace
+
+void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads) {
+    check_batch(rays.size(), hits.size());
+    parallel::with_threads(threads, [&] {
+        parallel::for_each_chunk(0, rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
+            accel.intersect(rays.subspan(from, to - from), hits.subspan(from, to - from));
+        });
+    });
+}
+
+void occluded_parallel(const Accel& accel, std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                       int threads) {
+    check_batch(rays.size(), occluded.size());
+    parallel::with_threads(threads, [&] {
+        parallel::for_each_chunk(0, rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
+            accel.occluded(rays.subspan(from, to - from), occluded.subspan(from, to - from));
+        });
+    });
 }
 
 }  // namespace lancer

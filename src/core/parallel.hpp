@@ -15,6 +15,7 @@
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/parallel_sort.h>
+#include <tbb/task_arena.h>
 #include <tbb/task_group.h>
 #endif
 
@@ -58,6 +59,18 @@ template <class T, class Accumulate, class Combine>
 template <class First, class Second>
 void invoke(First&& first, Second&& second) {
     tbb::parallel_invoke(std::forward<First>(first), std::forward<Second>(second));
+}
+
+// body() with its loops on at most `threads` threads; 0: those of the arena the caller runs in (all of them
+// outside any).
+template <class Body>
+void with_threads(int threads, Body&& body) {
+    if (threads <= 0) {
+        body();
+        return;
+    }
+    tbb::task_arena arena(threads);
+    arena.execute(body);
 }
 
 template <class Iterator>
@@ -106,6 +119,11 @@ template <class First, class Second>
 void invoke(First&& first, Second&& second) {
     first();
     second();
+}
+
+template <class Body>
+void with_threads(int /*threads*/, Body&& body) {
+    body();
 }
 
 template <class Iterator>

@@ -29,11 +29,15 @@ inline void check_every_index_once() {
     parallel::for_each_index(5, 5, [&](std::size_t) { FAIL() << "an empty range ran its body"; });
 }
 
-inline void check_chunks_tile_the_range() {
+// `chunked`: the backend cuts the range into tasks of at most the grain (TBB), or runs it whole (serial).
+inline void check_chunks_tile_the_range(bool chunked) {
     std::vector<std::atomic<int>> visits(kCount);
     std::atomic<std::size_t> chunks = 0;
     parallel::for_each_chunk(3, kCount, 1000, [&](std::size_t from, std::size_t to) {
         EXPECT_LT(from, to);
+        if (chunked) {
+            EXPECT_LE(to - from, 1000u);
+        }
         chunks.fetch_add(1);
         for (std::size_t i = from; i < to; ++i)
             visits[i].fetch_add(1);
@@ -41,6 +45,17 @@ inline void check_chunks_tile_the_range() {
     for (std::size_t i = 0; i < kCount; ++i)
         ASSERT_EQ(visits[i].load(), i < 3 ? 0 : 1) << i;
     EXPECT_LE(chunks.load(), kCount / 500 + 1);  // no chunk below half the grain
+    if (!chunked) {
+        EXPECT_EQ(chunks.load(), 1u);
+    }
+}
+
+inline void check_with_threads_runs_its_body() {
+    std::atomic<int> ran = 0;
+    parallel::with_threads(1,
+                           [&] { parallel::for_each_index(0, 100, [&](std::size_t) { ran.fetch_add(1); }); });
+    parallel::with_threads(0, [&] { ran.fetch_add(1); });
+    EXPECT_EQ(ran.load(), 101);
 }
 
 inline void check_reduce_merges_every_chunk() {

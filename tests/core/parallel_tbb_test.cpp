@@ -9,13 +9,16 @@ TEST(ParallelTbb, VisitsEveryIndexOnce) {
     check_every_index_once();
 }
 TEST(ParallelTbb, ChunksTileTheRange) {
-    check_chunks_tile_the_range();
+    check_chunks_tile_the_range(true);
 }
 TEST(ParallelTbb, ReduceMergesEveryChunk) {
     check_reduce_merges_every_chunk();
 }
 TEST(ParallelTbb, InvokeRunsBoth) {
     check_invoke_runs_both();
+}
+TEST(ParallelTbb, WithThreadsRunsItsBody) {
+    check_with_threads_runs_its_body();
 }
 TEST(ParallelTbb, Sorts) {
     check_sort();

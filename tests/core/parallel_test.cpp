@@ -12,13 +12,16 @@ TEST(ParallelSerial, VisitsEveryIndexOnce) {
     check_every_index_once();
 }
 TEST(ParallelSerial, ChunksTileTheRange) {
-    check_chunks_tile_the_range();
+    check_chunks_tile_the_range(false);
 }
 TEST(ParallelSerial, ReduceMergesEveryChunk) {
     check_reduce_merges_every_chunk();
 }
 TEST(ParallelSerial, InvokeRunsBoth) {
     check_invoke_runs_both();
+}
+TEST(ParallelSerial, WithThreadsRunsItsBody) {
+    check_with_threads_runs_its_body();
 }
 TEST(ParallelSerial, Sorts) {
     check_sort();
