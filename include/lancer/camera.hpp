@@ -10,6 +10,15 @@
 
 namespace lancer {
 
+// A pinhole camera as it makes rays (VIEWS.md): the eye, the unit forward axis f = normalize(look_at - eye),
+// the right axis x = normalize(cross(f, up)), the up axis y = cross(x, f), tan(fov / 2), W / H and the
+// image's size. The CPU (PinholeCamera) and the GPU's frame kernels make their rays from it by one source.
+struct CameraFrame {
+    Vec3f eye, forward, right, up;
+    float tan_half_fov = 0.0f, aspect = 1.0f;
+    int width = 0, height = 0;
+};
+
 class PinholeCamera {
   public:
     explicit PinholeCamera(const Camera& camera);
@@ -47,18 +56,12 @@ class PinholeCamera {
     void tile_rays(int x0, int y0, RayPacket& out) const;
     // The rays through the pixel centres of [x0, x1) x [y0, y1), row by row.
     [[nodiscard]] std::vector<Ray> pixel_centre_rays(int x0, int y0, int x1, int y1) const;
-    [[nodiscard]] int width() const { return width_; }
-    [[nodiscard]] int height() const { return height_; }
+    [[nodiscard]] int width() const { return frame_.width; }
+    [[nodiscard]] int height() const { return frame_.height; }
+    [[nodiscard]] const CameraFrame& frame() const { return frame_; }
 
   private:
-    // The two film coordinates u(film_x) and v(film_y) of the formula above, and the direction from them.
-    [[nodiscard]] float film_u(float film_x) const;
-    [[nodiscard]] float film_v(float film_y) const;
-    [[nodiscard]] Vec3f direction(float u, float v) const;
-
-    Vec3f eye_, forward_, right_, up_;
-    float tan_half_fov_, aspect_;
-    int width_, height_;
+    CameraFrame frame_;
 };
 
 }  // namespace lancer

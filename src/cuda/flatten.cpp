@@ -1,7 +1,5 @@
 #include "cuda/flatten.hpp"
 
-#include <cmath>
-#include <numbers>
 #include <stdexcept>
 #include <string>
 
@@ -103,19 +101,6 @@ PluckerTables plucker_tables() {
         }
     }
     return tables;
-}
-
-CameraFrame camera_frame(const Camera& camera) {
-    CameraFrame frame;
-    frame.eye = camera.eye;
-    frame.tan_half_fov = std::tan(camera.vertical_fov_degrees * std::numbers::pi_v<float> / 360.0f);
-    frame.aspect = static_cast<float>(camera.width) / static_cast<float>(camera.height);
-    frame.width = camera.width;
-    frame.height = camera.height;
-    frame.forward = normalize(camera.look_at - camera.eye);
-    frame.right = normalize(cross(frame.forward, camera.up));
-    frame.up = cross(frame.right, frame.forward);
-    return frame;
 }
 
 }  // namespace lancer::gpu

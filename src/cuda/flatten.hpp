@@ -32,7 +32,4 @@ struct FlatBvh {
 
 [[nodiscard]] PluckerTables plucker_tables();
 
-// PinholeCamera's frame for `camera` (scene/camera.cpp: the same operations).
-[[nodiscard]] CameraFrame camera_frame(const Camera& camera);
-
 }  // namespace lancer::gpu

@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "accel/plucker/layout.hpp"
+#include "core/camera_ray.hpp"
 #include "cuda/host_device.hpp"
 #include "lancer/scene.hpp"
 
@@ -78,27 +79,6 @@ struct PluckerTables {
     std::uint8_t neighbour_quadrant[6][8];
     std::uint8_t quadrant_tie[6][8];
 };
-
-// The canonical camera as PinholeCamera holds it (scene/camera.cpp), for the frame kernels.
-struct CameraFrame {
-    Vec3f eye, forward, right, up;
-    float tan_half_fov = 0.0f, aspect = 1.0f;
-    int width = 0, height = 0;
-};
-
-// PinholeCamera::generate with the same operations in the same order (a unit direction: d / sqrt(d.d)).
-LANCER_HOST_DEVICE inline Ray camera_ray(const CameraFrame& camera, float film_x, float film_y) {
-    const float u =
-        (2.0f * film_x / static_cast<float>(camera.width) - 1.0f) * camera.tan_half_fov * camera.aspect;
-    const float v = (1.0f - 2.0f * film_y / static_cast<float>(camera.height)) * camera.tan_half_fov;
-    const Vec3f d = camera.forward + u * camera.right + v * camera.up;
-    Ray ray;
-    ray.origin = camera.eye;
-    ray.direction = d / sqrtf(dot(d, d));
-    ray.tnear = 0.0f;
-    ray.tfar = kInfinity;
-    return ray;
-}
 
 // A frame's rays are numbered by tiles of 8 x 4 pixels, one warp each (Aila & Laine's primary rays: a
 // warp's rays stay coherent), tiles row by row. Indices past the film's edges name no pixel.

@@ -6,14 +6,9 @@
 #include <cstdint>
 #include <cstring>
 
+#include "core/host_device.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/vec.hpp"
-
-#if defined(__CUDACC__)
-#define LANCER_HOST_DEVICE __host__ __device__
-#else
-#define LANCER_HOST_DEVICE
-#endif
 
 namespace lancer::gpu {
 

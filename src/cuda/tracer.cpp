@@ -140,7 +140,7 @@ CudaTrace CudaTracer::trace_frame(const Camera& camera, bool count_steps) {
                           count_steps);
     }
     gpu::LaunchRays launch;
-    launch.camera = gpu::camera_frame(camera);
+    launch.camera = PinholeCamera(camera).frame();
     return impl_->run(launch, ray_count, count_steps);
 }
 
