@@ -7,3 +7,23 @@
 #else
 #define LANCER_HOST_DEVICE
 #endif
+
+#include <cmath>
+
+#include "lancer/vec.hpp"
+
+namespace lancer {
+
+// |x| on the CPU and the GPU alike (std::fabs is no device function): the sign bit cleared on both.
+LANCER_HOST_DEVICE inline float magnitude(float x) {
+#if defined(__CUDA_ARCH__)
+    return fabsf(x);
+#else
+    return std::fabs(x);
+#endif
+}
+LANCER_HOST_DEVICE inline Vec3f magnitude(const Vec3f& v) {
+    return {magnitude(v.x), magnitude(v.y), magnitude(v.z)};
+}
+
+}  // namespace lancer

@@ -1,6 +1,7 @@
 // Ray-primitive kernels: slab test, Moller-Trumbore, watertight triangle, sphere, plane.
 // Every kernel accepts a hit only for t in [tnear, tfar] (docs/numerical-contract.md) and rejects NaN
-// intermediate values by writing each acceptance test so that a NaN comparison fails it.
+// intermediate values by writing each acceptance test so that a NaN comparison fails it. The two triangle
+// tests are host-device (LANCER_HOST_DEVICE): the GPU kernels call this one source (cuda/triangle.hpp).
 #pragma once
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <limits>
 #include <numbers>
 
+#include "core/host_device.hpp"
 #include "core/isa_namespace.hpp"
 #include "core/vec3d.hpp"
 #include "lancer/box.hpp"
@@ -92,14 +94,14 @@ struct MollerTrumbore {
     struct RayData {
         Vec3f origin, direction;
         float direction_scale;  // max |d_i|
-        explicit RayData(const Ray& ray)
+        LANCER_HOST_DEVICE explicit RayData(const Ray& ray)
             : origin(ray.origin),
               direction(ray.direction),
-              direction_scale(max_component(abs(ray.direction))) {}
+              direction_scale(max_component(magnitude(ray.direction))) {}
     };
 
-    [[nodiscard]] static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
-                                        TriangleHit& out) {
+    [[nodiscard]] LANCER_HOST_DEVICE static bool intersect(const RayData& ray, const Triangle& tri,
+                                                           float tnear, float tfar, TriangleHit& out) {
         const Vec3f e1 = tri.v1 - tri.v0;
         const Vec3f e2 = tri.v2 - tri.v0;
         const Vec3f p = cross(ray.direction, e2);
@@ -110,9 +112,9 @@ struct MollerTrumbore {
         // times the triangle's own angle) is a miss too.
         // A det beyond the float range (edges whose product passes 2^127) makes inv_det 0 and u = v = t = 0:
         // a hit at the origin whatever the triangle. It is a miss.
-        const float e1_scale = max_component(abs(e1)), e2_scale = max_component(abs(e2));
+        const float e1_scale = max_component(magnitude(e1)), e2_scale = max_component(magnitude(e2));
         const float band = kIllConditioned * ray.direction_scale * e1_scale * e2_scale;
-        if (!(std::fabs(det) > band && std::fabs(det) < kInfinity)) return false;
+        if (!(magnitude(det) > band && magnitude(det) < kInfinity)) return false;
         const float inv_det = 1.0f / det;
         const Vec3f to_origin = ray.origin - tri.v0;
         // The float u and v decide only where they are farther from the triangle's edges than their error
@@ -125,9 +127,9 @@ struct MollerTrumbore {
         // 2^12 of the ill-conditioned band) always goes to double: its float t errs by up to
         // 2^-24 |T| |d| |e1| |e2| / |det| too, a 65536th of |T| at the band and without bound towards the
         // first band. docs/numerical-contract.md, "Triangle tests".
-        const bool grazing = std::fabs(det) <= band * kGrazingScale;
+        const bool grazing = magnitude(det) <= band * kGrazingScale;
         const float slack = kRoundingSlack * ray.direction_scale *
-                            (max_component(abs(to_origin)) + e1_scale + e2_scale) * std::fabs(inv_det);
+                            (max_component(magnitude(to_origin)) + e1_scale + e2_scale) * magnitude(inv_det);
         const float slack_u = slack * e2_scale, slack_v = slack * e1_scale;
         const float u = dot(to_origin, p) * inv_det;
         if (!(u >= -slack_u && u <= 1.0f + slack_u)) return false;
@@ -144,8 +146,9 @@ struct MollerTrumbore {
 
     // The same formula in double, on the float inputs (exact in double): its 2^-53 rounding leaves t, u and
     // v within about 2^-33 |T| even at the first band.
-    [[nodiscard]] static bool intersect_in_double(const RayData& ray, const Triangle& tri, float tnear,
-                                                  float tfar, TriangleHit& out) {
+    [[nodiscard]] LANCER_HOST_DEVICE static bool intersect_in_double(const RayData& ray, const Triangle& tri,
+                                                                     float tnear, float tfar,
+                                                                     TriangleHit& out) {
         const Vec3d v0(tri.v0), direction(ray.direction);
         const Vec3d e1 = Vec3d(tri.v1) - v0, e2 = Vec3d(tri.v2) - v0;
         const Vec3d p = cross(direction, e2);
@@ -194,8 +197,8 @@ struct Watertight {
         int kx, ky, kz;  // kz: the dominant axis of the direction
         float shear_x, shear_y, shear_z;
 
-        explicit RayData(const Ray& ray) : origin(ray.origin) {
-            kz = max_axis(abs(ray.direction));
+        LANCER_HOST_DEVICE explicit RayData(const Ray& ray) : origin(ray.origin) {
+            kz = max_axis(magnitude(ray.direction));
             const std::array<int, 3> axes = permutation(kz, ray.direction[kz] < 0.0f);
             kx = axes[0], ky = axes[1];
             shear_x = ray.direction[kx] / ray.direction[kz];
@@ -208,8 +211,8 @@ struct Watertight {
     // lanes to this scalar kernel.
     static constexpr float kSmallNumerator = 0x1p-100f;
 
-    [[nodiscard]] static bool intersect(const RayData& ray, const Triangle& tri, float tnear, float tfar,
-                                        TriangleHit& out) {
+    [[nodiscard]] LANCER_HOST_DEVICE static bool intersect(const RayData& ray, const Triangle& tri,
+                                                           float tnear, float tfar, TriangleHit& out) {
         const Sheared v = sheared(ray, tri);
         const float w0 = v.bx * v.cy - v.by * v.cx;
         const float w1 = v.cx * v.ay - v.cy * v.ax;
@@ -218,13 +221,13 @@ struct Watertight {
         // decided before the double fallback, which would only find the same signs again.
         if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
         constexpr float kFloatMin = std::numeric_limits<float>::min();
-        if (std::fabs(w0) < kFloatMin || std::fabs(w1) < kFloatMin || std::fabs(w2) < kFloatMin)
+        if (magnitude(w0) < kFloatMin || magnitude(w1) < kFloatMin || magnitude(w2) < kFloatMin)
             return intersect_in_double(ray, v, tnear, tfar, out);
         // Three normal edge functions of one sign: det is not zero.
         const float det = w0 + w1 + w2;
         const float az = ray.shear_z * v.az, bz = ray.shear_z * v.bz, cz = ray.shear_z * v.cz;
         const float numerator = w0 * az + w1 * bz + w2 * cz;
-        if (std::fabs(numerator) < kSmallNumerator) return intersect_in_double(ray, v, tnear, tfar, out);
+        if (magnitude(numerator) < kSmallNumerator) return intersect_in_double(ray, v, tnear, tfar, out);
         const float inv_det = 1.0f / det;
         const float t = numerator * inv_det;
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit
@@ -238,7 +241,7 @@ struct Watertight {
     struct Sheared {
         float ax, ay, az, bx, by, bz, cx, cy, cz;
     };
-    static Sheared sheared(const RayData& ray, const Triangle& tri) {
+    LANCER_HOST_DEVICE static Sheared sheared(const RayData& ray, const Triangle& tri) {
         const Vec3f a = tri.v0 - ray.origin;
         const Vec3f b = tri.v1 - ray.origin;
         const Vec3f c = tri.v2 - ray.origin;
@@ -249,8 +252,8 @@ struct Watertight {
 
     // The same test from the same sheared floats, in double: exact edge-function signs, and det, T, t, u and
     // v free of underflow, rounded to float once.
-    static bool intersect_in_double(const RayData& ray, const Sheared& v, float tnear, float tfar,
-                                    TriangleHit& out) {
+    LANCER_HOST_DEVICE static bool intersect_in_double(const RayData& ray, const Sheared& v, float tnear,
+                                                       float tfar, TriangleHit& out) {
         const double w0 = double(v.bx) * v.cy - double(v.by) * v.cx;
         const double w1 = double(v.cx) * v.ay - double(v.cy) * v.ax;
         const double w2 = double(v.ax) * v.by - double(v.ay) * v.bx;

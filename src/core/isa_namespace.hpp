@@ -7,6 +7,9 @@
 
 #if defined(LANCER_KERNEL_AVX512)
 #define LANCER_ISA_NAMESPACE avx512
+#elif defined(__CUDACC__)
+// nvcc's host pass compiles the shared scalar kernels without the library's -march: their own names.
+#define LANCER_ISA_NAMESPACE cuda
 #else
 #define LANCER_ISA_NAMESPACE avx2
 #endif

@@ -168,9 +168,9 @@ template <bool kCount, class Source>
 void launch_test(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count,
                  Hit* hits, std::uint32_t* steps, std::uint32_t* next_ray) {
     if (scene.watertight)
-        launch<WatertightTest, kCount>(kernel, scene, source, count, hits, steps, next_ray);
+        launch<Watertight, kCount>(kernel, scene, source, count, hits, steps, next_ray);
     else
-        launch<MollerTrumboreTest, kCount>(kernel, scene, source, count, hits, steps, next_ray);
+        launch<MollerTrumbore, kCount>(kernel, scene, source, count, hits, steps, next_ray);
 }
 
 }  // namespace

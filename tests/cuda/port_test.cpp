@@ -199,10 +199,10 @@ TEST(CudaPorts, AgreeBitForBitWithTheCpuStructuresOnTheTestScenes) {
         std::size_t hits_seen = 0;
         for (const TestScene& scene : make_triangle_scenes()) {
             const std::vector<testing::RaySet> sets = ray_sets_for(scene);
-            expect_ports_agree<gpu::MollerTrumboreTest>(scene.geometry(), TriangleTest::MollerTrumbore, sets,
-                                                        scene.name, hits_seen, spatial_splits);
-            expect_ports_agree<gpu::WatertightTest>(scene.geometry(), TriangleTest::Watertight, sets,
-                                                    scene.name, hits_seen, spatial_splits);
+            expect_ports_agree<MollerTrumbore>(scene.geometry(), TriangleTest::MollerTrumbore, sets,
+                                               scene.name, hits_seen, spatial_splits);
+            expect_ports_agree<Watertight>(scene.geometry(), TriangleTest::Watertight, sets, scene.name,
+                                           hits_seen, spatial_splits);
         }
         // The comparison means something only if the rays hit: most scenes are hit by a good share of them.
         EXPECT_GT(hits_seen, 20000u);
@@ -217,8 +217,8 @@ TEST(CudaPorts, AgreeBitForBitOnTheBunnysCanonicalView) {
     const SceneGeometry geometry(scene);
     const std::vector<testing::RaySet> sets = {testing::canonical_view_rays(geometry.view().bounds(), 512)};
     std::size_t hits_seen = 0;
-    expect_ports_agree<gpu::MollerTrumboreTest>(geometry.view(), TriangleTest::MollerTrumbore, sets, "bunny",
-                                                hits_seen);
+    expect_ports_agree<MollerTrumbore>(geometry.view(), TriangleTest::MollerTrumbore, sets, "bunny",
+                                       hits_seen);
     EXPECT_GT(hits_seen, 512u * 512u / 10u);
 }
 
@@ -247,15 +247,14 @@ TEST(CudaPorts, StepCountsAreTheCpuWalksLeaves) {
         plucker.intersect({&ray, 1}, {&expected, 1}, &counters);
         unconstrained_plucker.intersect({&ray, 1}, {&expected, 1}, &unconstrained_counters);
         gpu::CountSteps walk_steps, unconstrained_walk_steps, bvh_steps;
-        (void)gpu::trace_plucker<gpu::MollerTrumboreTest, gpu::SeedLayout>(view, tables, ray, walk_steps);
+        (void)gpu::trace_plucker<MollerTrumbore, gpu::SeedLayout>(view, tables, ray, walk_steps);
         ASSERT_EQ(walk_steps.steps, counters.nodes_visited);
-        (void)gpu::trace_plucker<gpu::MollerTrumboreTest, gpu::WalkLayout<false, true>>(
-            unconstrained_view, tables, ray, unconstrained_walk_steps);
+        (void)gpu::trace_plucker<MollerTrumbore, gpu::WalkLayout<false, true>>(unconstrained_view, tables,
+                                                                               ray, unconstrained_walk_steps);
         ASSERT_EQ(unconstrained_walk_steps.steps, unconstrained_counters.nodes_visited);
         leaves += walk_steps.steps;
         unconstrained_steps += unconstrained_walk_steps.steps;
-        const Hit hit =
-            gpu::trace_bvh<true, gpu::MollerTrumboreTest>(flat.view(), ray, gpu::LoneLane{}, bvh_steps);
+        const Hit hit = gpu::trace_bvh<true, MollerTrumbore>(flat.view(), ray, gpu::LoneLane{}, bvh_steps);
         if (hit.hit()) {
             EXPECT_GE(bvh_steps.steps, 2u);
         }
