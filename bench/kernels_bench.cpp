@@ -169,10 +169,10 @@ void BM_PluckerExitFace(benchmark::State& state) {
         const float size = 0.01f + 0.1f * unit(rng);
         const Vec3f origin = lo + size * Vec3f(unit(rng), unit(rng), unit(rng));
         const Ray ray{origin, {signed_unit(rng), signed_unit(rng), signed_unit(rng)}, 0.0f, kInfinity};
-        const plucker::WalkRay walk_ray(ray, cube);
+        const plucker::WalkRay walk_ray(ray, cube, plucker::kTables);
         Vec3f vertex;
         for (int axis = 0; axis < 3; ++axis)
-            vertex[axis] = lo[axis] + (walk_ray.up[static_cast<std::size_t>(axis)] ? size : 0.0f);
+            vertex[axis] = lo[axis] + (walk_ray.up(axis) ? size : 0.0f);
         inputs.push_back({walk_ray, vertex - origin});
     }
     const std::vector<std::uint32_t> order = shuffled(kCount);
@@ -191,22 +191,25 @@ BENCHMARK(BM_PluckerExitFace)->Name("step/plucker_exit_face");
 void BM_PluckerLeafStep(benchmark::State& state) {
     const Walks& scene = walks();
     const plucker::PluckerLayout& layout = scene.plucker.layout();
-    const plucker::StoredBoxes boxes{layout.boxes.data()};
-    const plucker::Walker<true, plucker::StoredBoxes> walker(layout, boxes);
-    using State = plucker::Walker<true, plucker::StoredBoxes>::State;
+    const plucker::PluckerView view = plucker::view_of(layout);
+    const plucker::Walker<true, true> walker(view, plucker::kTables);
+    using State = plucker::Walker<true, true>::State;
+    TraversalCounters unused;
+    plucker::CellCounter<false> steps{unused};
     std::vector<State> states;
     for (std::size_t r = 0; states.size() < kCount && r < scene.rays.size(); ++r) {
         State walk_state;
         if (!walker.enter(scene.rays[r], walk_state)) continue;
         do {
             states.push_back(walk_state);
-        } while (states.size() < kCount && walker.advance<false>(walk_state, kInfinity, nullptr));
+        } while (states.size() < kCount &&
+                 walker.advance(walk_state, walker.exit(walk_state), kInfinity, steps));
     }
     const std::vector<std::uint32_t> order = shuffled(states.size());
     std::size_t i = 0;
     for (auto _ : state) {
         State walk_state = states[order[i]];
-        benchmark::DoNotOptimize(walker.advance<false>(walk_state, kInfinity, nullptr));
+        benchmark::DoNotOptimize(walker.advance(walk_state, walker.exit(walk_state), kInfinity, steps));
         benchmark::DoNotOptimize(walk_state.address);
         i = (i + 1) % states.size();
     }

@@ -14,6 +14,7 @@
 #include <span>
 #include <vector>
 
+#include "core/host_device.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/box.hpp"
 #include "lancer/scene.hpp"
@@ -49,24 +50,13 @@ struct OctreeCube {
     // Coordinate on `axis` of face i of the cells of `level` (i in [0, 2^level]). The fraction i / 2^level
     // is exact, so the same face reached from any level is the same float: a parent's mid plane is exactly
     // its children's shared face, and the traversal's slab distances match the build's boxes bit for bit.
-    [[nodiscard]] float plane(int axis, int level, std::uint32_t i) const {
-        return lo[axis] +
-               size * (static_cast<float>(i) * kInversePowersOfTwo[static_cast<std::size_t>(level)]);
+    [[nodiscard]] LANCER_HOST_DEVICE float plane(int axis, int level, std::uint32_t i) const {
+        return lo[axis] + size * (static_cast<float>(i) * inverse_power_of_two(level));
     }
     [[nodiscard]] Box3f cell_box(int level, std::uint32_t x, std::uint32_t y, std::uint32_t z) const {
         return {{plane(0, level, x), plane(1, level, y), plane(2, level, z)},
                 {plane(0, level, x + 1), plane(1, level, y + 1), plane(2, level, z + 1)}};
     }
-
-    static constexpr std::array<float, kOctreeMaxLevel + 2> kInversePowersOfTwo = [] {
-        std::array<float, kOctreeMaxLevel + 2> powers{};
-        float power = 1.0f;
-        for (float& p : powers) {
-            p = power;
-            power *= 0.5f;
-        }
-        return powers;
-    }();
 };
 
 // The smallest cube with corner lo = bounds.lo whose faces (as OctreeCube::plane rounds them) enclose

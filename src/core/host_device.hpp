@@ -9,6 +9,8 @@
 #endif
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "lancer/vec.hpp"
 
@@ -24,6 +26,51 @@ LANCER_HOST_DEVICE inline float magnitude(float x) {
 }
 LANCER_HOST_DEVICE inline Vec3f magnitude(const Vec3f& v) {
     return {magnitude(v.x), magnitude(v.y), magnitude(v.z)};
+}
+
+// std::min and std::max, NaN operand order included: min_of(a, b) is a unless b < a (fminf would drop a NaN
+// instead, and the slab tests rely on std::min's order). Neither is a device function.
+LANCER_HOST_DEVICE inline float min_of(float a, float b) {
+    return b < a ? b : a;
+}
+LANCER_HOST_DEVICE inline float max_of(float a, float b) {
+    return a < b ? b : a;
+}
+LANCER_HOST_DEVICE inline std::uint32_t min_of(std::uint32_t a, std::uint32_t b) {
+    return b < a ? b : a;
+}
+LANCER_HOST_DEVICE inline bool is_nan(float a) {
+    return a != a;
+}
+
+// 2^-level, exactly, from its bits rather than a table: a walk reads it at a per-lane level, and a
+// constant-memory table is served one address at a time.
+LANCER_HOST_DEVICE inline float inverse_power_of_two(int level) {
+    const auto bits = static_cast<std::uint32_t>(127 - level) << 23;
+    float power;
+    std::memcpy(&power, &bits, sizeof(power));
+    return power;
+}
+
+// Loads through the read-only data cache on the device (__ldg, seed 000 section 5.2: cells, triangles and
+// boxes are never written during a frame); a plain load on the host.
+template <class T>
+LANCER_HOST_DEVICE inline T read_only(const T* address) {
+#if defined(__CUDA_ARCH__)
+    return __ldg(address);
+#else
+    return *address;
+#endif
+}
+
+// Asks the cache for the line at `address` without waiting for it: PTX prefetch.global.L1 on the device,
+// the compiler's prefetch on the host.
+LANCER_HOST_DEVICE inline void prefetch_line(const void* address) {
+#if defined(__CUDA_ARCH__)
+    asm volatile("prefetch.global.L1 [%0];" ::"l"(address));
+#else
+    __builtin_prefetch(address);
+#endif
 }
 
 }  // namespace lancer

@@ -47,7 +47,7 @@ struct SlabRay {
 // (fuzz/rays_fuzz.cpp, docs/robustness.md).
 inline constexpr float kSlabExitGrow = 1.0f + 2.0f * gamma_bound(3);
 inline constexpr float kSlabExitShrink = 1.0f - 2.0f * gamma_bound(3);
-[[nodiscard]] inline float widened_slab_exit(float t) {
+[[nodiscard]] LANCER_HOST_DEVICE inline float widened_slab_exit(float t) {
     return t * (t > 0.0f ? kSlabExitGrow : kSlabExitShrink);
 }
 

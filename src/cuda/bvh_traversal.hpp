@@ -17,7 +17,7 @@ inline constexpr int kBvhStackSize = 97;
 
 // The numerical contract's validity test (is_valid of lancer/ray.hpp) for host and device.
 LANCER_HOST_DEVICE inline bool is_finite_of(float a) {
-    return abs_of(a) <= 3.40282347e+38f;
+    return magnitude(a) <= 3.40282347e+38f;
 }
 LANCER_HOST_DEVICE inline bool is_valid_ray(const Ray& ray) {
     return is_finite_of(ray.origin.x) && is_finite_of(ray.origin.y) && is_finite_of(ray.origin.z) &&
@@ -34,7 +34,7 @@ LANCER_HOST_DEVICE inline bool hit_child_box(const Vec3f& origin, const Vec3f& i
         const float near_plane = (lo[axis] - origin[axis]) * inverse[axis];
         const float far_plane = (hi[axis] - origin[axis]) * inverse[axis];
         float slab_near = min_of(near_plane, far_plane);
-        float slab_far = widened_exit(max_of(near_plane, far_plane));
+        float slab_far = widened_slab_exit(max_of(near_plane, far_plane));
         if (is_nan(near_plane) || is_nan(far_plane)) slab_near = -kInfinity, slab_far = kInfinity;
         t0 = max_of(t0, slab_near);
         t1 = min_of(t1, slab_far);

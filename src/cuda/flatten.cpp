@@ -3,8 +3,6 @@
 #include <stdexcept>
 #include <string>
 
-#include "accel/plucker/conventions.hpp"
-
 namespace lancer::gpu {
 namespace {
 
@@ -64,43 +62,11 @@ FlatBvh flatten_bvh(const BvhAccel& bvh, const Geometry& geometry) {
     return flat;
 }
 
-PluckerView plucker_view(const plucker::PluckerLayout& layout) {
+plucker::PluckerView plucker_view(const plucker::PluckerLayout& layout) {
     for (const plucker::PluckerPrimitive& primitive : layout.primitives)
         if (primitive.prim >= layout.triangle_count)
             throw std::invalid_argument("cuda: the GPU kernels trace triangles only; the scene has spheres");
-    PluckerView view;
-    view.cells = layout.cells.data();
-    view.primitives = layout.primitives.data();
-    view.boxes = layout.boxes.data();
-    view.texels = layout.cube_map.texels.data();
-    view.locate = layout.locate.data();
-    view.cube_lo = layout.cube.lo;
-    view.cube_size = layout.cube.size;
-    view.tolerance = layout.tolerance;
-    view.bounds_lo = layout.bounds.lo;
-    view.bounds_hi = layout.bounds.hi;
-    view.balanced = layout.options.balanced;
-    view.stored_boxes = layout.options.stored_boxes;
-    view.cell_words = static_cast<std::uint32_t>(layout.cells.size());  // cell addresses are 31-bit words
-    for (std::size_t face = 0; face < 6; ++face) {
-        view.cube_map_level[face] = layout.cube_map.level[face];
-        view.cube_map_offset[face] = layout.cube_map.offset[face];
-    }
-    return view;
-}
-
-PluckerTables plucker_tables() {
-    PluckerTables tables{};
-    for (std::size_t octant = 0; octant < 8; ++octant)
-        for (std::size_t pattern = 0; pattern < 8; ++pattern)
-            tables.exit_face[octant][pattern] = plucker::kExitFace[octant][pattern];
-    for (std::size_t face = 0; face < 6; ++face) {
-        for (std::size_t pattern = 0; pattern < 8; ++pattern) {
-            tables.neighbour_quadrant[face][pattern] = plucker::kNeighbourQuadrant[face][pattern];
-            tables.quadrant_tie[face][pattern] = plucker::kQuadrantTieBits[face][pattern];
-        }
-    }
-    return tables;
+    return plucker::view_of(layout);
 }
 
 }  // namespace lancer::gpu

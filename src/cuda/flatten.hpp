@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "accel/bvh/bvh.hpp"
-#include "accel/plucker/layout.hpp"
+#include "accel/plucker/walk.hpp"
 #include "cuda/gpu_layout.hpp"
 #include "lancer/scene.hpp"
 
@@ -26,10 +26,8 @@ struct FlatBvh {
 // ray enters. Throws for spheres (the GPU traces triangles) and for more than kMaxTriangleReferences.
 [[nodiscard]] FlatBvh flatten_bvh(const BvhAccel& bvh, const Geometry& geometry);
 
-// The octree's arrays as the CPU serialised them. Throws unless the layout is the default variant the
-// kernel walks (2:1 balanced, stored boxes) and holds triangles only.
-[[nodiscard]] PluckerView plucker_view(const plucker::PluckerLayout& layout);
-
-[[nodiscard]] PluckerTables plucker_tables();
+// The octree's arrays as the CPU walks them (plucker::view_of). Throws unless the layout holds triangles
+// only.
+[[nodiscard]] plucker::PluckerView plucker_view(const plucker::PluckerLayout& layout);
 
 }  // namespace lancer::gpu

@@ -7,7 +7,7 @@
 
 #include <cstdint>
 
-#include "accel/plucker/layout.hpp"
+#include "accel/plucker/walk.hpp"
 #include "core/camera_ray.hpp"
 #include "cuda/host_device.hpp"
 #include "lancer/scene.hpp"
@@ -52,32 +52,6 @@ struct BvhView {
     const AilaLaineNode* nodes = nullptr;  // node 0 is the root; none for an empty scene
     std::uint32_t node_count = 0;
     const TriangleRef* triangles = nullptr;
-};
-
-struct PluckerView {
-    const std::uint32_t* cells = nullptr;
-    const plucker::PluckerPrimitive* primitives = nullptr;
-    const plucker::PluckerBox* boxes = nullptr;
-    const std::uint32_t* texels = nullptr;
-    const std::uint32_t* locate = nullptr;
-    Vec3f cube_lo;
-    float cube_size = 0.0f;
-    float tolerance = 0.0f;
-    Vec3f bounds_lo, bounds_hi;  // PluckerLayout::bounds
-    bool balanced = true;        // plucker.balanced: every link names a leaf, else it may name an inner cell
-    bool stored_boxes = true;    // plucker.stored_boxes: a cell's box word indexes `boxes`, else it holds the
-                                 // cell's integer coordinates and level
-    std::uint32_t cell_words = 0;  // the size of `cells`, which bounds a walk without the 2:1 rule
-    std::uint32_t cube_map_level[6] = {};
-    std::uint32_t cube_map_offset[6] = {};
-};
-
-// Seed 000's lookup tables (equations 8 and 9) and the tie bits, copied from conventions.hpp; the GPU
-// keeps them in constant memory (section 5.2), where a warp reading one entry is served in one broadcast.
-struct PluckerTables {
-    std::uint8_t exit_face[8][8];
-    std::uint8_t neighbour_quadrant[6][8];
-    std::uint8_t quadrant_tie[6][8];
 };
 
 // A frame's rays are numbered by tiles of 8 x 4 pixels, one warp each (Aila & Laine's primary rays: a

@@ -16,7 +16,7 @@ constexpr unsigned kBlockSize = 128;
 constexpr unsigned kWarpSize = 32;
 
 // Seed 000 section 5.2: the lookup tables in constant memory.
-__constant__ PluckerTables c_tables;
+__constant__ plucker::PluckerTables c_tables;
 
 // The speculative traversal's vote over the lanes still in the loop.
 struct WarpVote {
@@ -113,7 +113,7 @@ __global__ void __launch_bounds__(kBlockSize)
 template <class TriangleTestT, bool kCount, class Source>
 void launch_walk(unsigned blocks, const LaunchScene& scene, const Source& source, Hit* hits,
                  std::uint32_t* steps) {
-    const PluckerView& octree = scene.plucker;
+    const plucker::PluckerView& octree = scene.plucker;
     if (octree.balanced && octree.stored_boxes)
         trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, WalkLayout<true, true>>
             <<<blocks, kBlockSize>>>(scene, source, hits, steps);
@@ -175,8 +175,8 @@ void launch_test(CudaKernel kernel, const LaunchScene& scene, const Source& sour
 
 }  // namespace
 
-void upload_plucker_tables(const PluckerTables& tables) {
-    check_cuda(cudaMemcpyToSymbol(c_tables, &tables, sizeof(PluckerTables)), "cudaMemcpyToSymbol");
+void upload_plucker_tables(const plucker::PluckerTables& tables) {
+    check_cuda(cudaMemcpyToSymbol(c_tables, &tables, sizeof(plucker::PluckerTables)), "cudaMemcpyToSymbol");
 }
 
 float launch_trace(CudaKernel kernel, const LaunchScene& scene, const LaunchRays& rays, Hit* hits,

@@ -11,7 +11,7 @@ namespace lancer::gpu {
 
 struct LaunchScene {
     BvhView bvh;
-    PluckerView plucker;
+    plucker::PluckerView plucker;
     bool watertight = false;
 };
 
@@ -23,7 +23,7 @@ struct LaunchRays {
 };
 
 // Copies seed 000's tables to constant memory (once per process is enough; idempotent).
-void upload_plucker_tables(const PluckerTables& tables);
+void upload_plucker_tables(const plucker::PluckerTables& tables);
 
 // Runs `kernel` over the rays, hits[slot] for each (a frame's slot: y * width + x), and returns the
 // kernel's milliseconds (CUDA events). A frame with `steps` not null also writes each ray's step count

@@ -109,14 +109,14 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTes
         if (plucker == nullptr)
             throw std::invalid_argument("cuda: the plucker kernel traces a `plucker` structure");
         const plucker::PluckerLayout& layout = plucker->layout();
-        gpu::PluckerView view = gpu::plucker_view(layout);  // checks the variant and the primitives
+        plucker::PluckerView view = gpu::plucker_view(layout);  // checks the primitives
         view.cells = impl_->cells.upload(layout.cells);
         view.primitives = impl_->primitives.upload(layout.primitives);
         view.boxes = impl_->boxes.upload(layout.boxes);
         view.texels = impl_->texels.upload(layout.cube_map.texels);
         view.locate = impl_->locate.upload(layout.locate);
         impl_->scene.plucker = view;
-        gpu::upload_plucker_tables(gpu::plucker_tables());
+        gpu::upload_plucker_tables(plucker::kTables);
         return;
     }
     const auto* bvh = dynamic_cast<const BvhAccel*>(&accel);

@@ -26,7 +26,7 @@ bool is_first_exit(const std::array<double, 3>& t, int face) {
 
 // The octant a WalkRay gives a ray whose origin is `origin` in the unit root cube.
 WalkRay walk_ray(const Vec3f& origin, const Vec3f& direction) {
-    return WalkRay({origin, direction, 0.0f, kInfinity}, OctreeCube{Vec3f(-100.0f), 200.0f});
+    return WalkRay({origin, direction, 0.0f, kInfinity}, OctreeCube{Vec3f(-100.0f), 200.0f}, kTables);
 }
 
 TEST(PluckerTables, AreTheSeedsTablesRenumbered) {
@@ -151,7 +151,7 @@ void expect_exit_faces_match_slabs(bool denormal) {
         std::array<double, 3> t{};
         bool inside_zero_slabs = true;
         for (int axis = 0; axis < 3; ++axis) {
-            const bool up = ray.up[static_cast<std::size_t>(axis)];
+            const bool up = ray.up(axis) == 1u;
             vertex[axis] = up ? lo[axis] + size : lo[axis];
             if (direction[axis] == 0.0f) {
                 t[static_cast<std::size_t>(axis)] = std::numeric_limits<double>::infinity();
@@ -190,7 +190,7 @@ TEST(PluckerTables, ExitFaceMatchesSlabsWithDenormalComponents) {
 std::uint32_t slab_quadrant(const WalkRay& ray, int face, double a, double b, double mid_a, double mid_b) {
     const int u = lower_in_face_axis(face_axis(face)), v = upper_in_face_axis(face_axis(face));
     const auto upper = [&](int axis, double x, double mid) {
-        return x > mid || (x == mid && ray.up[static_cast<std::size_t>(axis)] == 1u);
+        return x > mid || (x == mid && ray.up(axis) == 1u);
     };
     return (upper(u, a, mid_a) ? 1u : 0u) | (upper(v, b, mid_b) ? 2u : 0u);
 }
@@ -223,7 +223,7 @@ TEST(PluckerTables, SubFaceIsTheQuadrantOfTheCrossingPointIncludingMedians) {
                         const WalkRay ray = walk_ray(origin, direction);
                         const std::uint32_t expected =
                             slab_quadrant(ray, face, crossing[u], crossing[v], kCell / 2.0, kCell / 2.0);
-                        ASSERT_EQ(sub_face(ray, face, centre - origin), expected)
+                        ASSERT_EQ(sub_face(ray, kTables, face, centre - origin), expected)
                             << "face " << face << " crossing (" << a << ", " << b << ") d (" << du << ", "
                             << dv << ")";
                         ++checked;
@@ -257,7 +257,7 @@ TEST(PluckerTables, SubFaceMatchesTheCrossingPointOnRandomRays) {
         const double t = (static_cast<double>(centre[normal]) - origin[normal]) / direction[normal];
         const double a = origin[u] + t * direction[u], b = origin[v] + t * direction[v];
         const std::uint32_t expected = slab_quadrant(ray, face, a, b, centre[u], centre[v]);
-        const std::uint32_t q = sub_face(ray, face, centre - origin);
+        const std::uint32_t q = sub_face(ray, kTables, face, centre - origin);
         if (q != expected) {
             // Only a crossing within rounding of a median may go to the other side.
             const double margin = 1e-5 * (size + length(centre - origin));

@@ -289,8 +289,8 @@ TEST(PluckerBuild, TheCubeMapAndThePointLocationFindTheCellsHoldingTheirPoints) 
         const Box3f root = octree.cell_box(octree.cells[0]);
         for (int n = 0; n < 2000; ++n) {
             const Vec3f p = root.lo + Vec3f(unit(rng), unit(rng), unit(rng)) * root.extent().x;
-            const plucker::WalkRay ray({p, {1, 1, 1}, 0.0f, kInfinity}, layout.cube);
-            const std::uint32_t address = plucker::descend(layout, 0, 0, {0, 0, 0}, p, ray);
+            const plucker::WalkRay ray({p, {1, 1, 1}, 0.0f, kInfinity}, layout.cube, plucker::kTables);
+            const std::uint32_t address = plucker::descend(plucker::view_of(layout), 0, 0, {0, 0, 0}, p, ray);
             ASSERT_TRUE(leaves.count(address));
             ASSERT_TRUE(octree.cell_box(leaves.at(address).geometry).contains(p));
         }

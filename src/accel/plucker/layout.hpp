@@ -5,13 +5,13 @@
 // seed and its reason: docs/plucker-octree.md, "Layout".
 #pragma once
 
-#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
 
 #include "accel/octree_build.hpp"
+#include "core/host_device.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/box.hpp"
 
@@ -50,8 +50,8 @@ inline constexpr std::uint32_t kBoxWord = 2;  // stored boxes: the box index; el
 // away from it by less than a float per unit, would leave the root through the exact face at once and miss a
 // hit the triangle test reports in that margin; through the grown face it goes on along the boundary cells
 // until it leaves the grown root (docs/numerical-contract.md, "Boxes").
-[[nodiscard]] inline float exit_plane_of(const OctreeCube& cube, float tolerance, int axis, int level,
-                                         std::uint32_t i) {
+[[nodiscard]] LANCER_HOST_DEVICE inline float exit_plane_of(const OctreeCube& cube, float tolerance, int axis,
+                                                            int level, std::uint32_t i) {
     if (i == 0) return cube.plane(axis, 0, 0) - tolerance;
     if (i == 1u << level) return cube.plane(axis, 0, 1) + tolerance;
     return cube.plane(axis, level, i);
@@ -59,14 +59,15 @@ inline constexpr std::uint32_t kBoxWord = 2;  // stored boxes: the box index; el
 
 // The cell of `level` holding coordinate p on `axis`, with a coordinate exactly on a plane between two cells
 // given to the cell on the ray's side (up: [lo, hi), down: (lo, hi]). Clamped to the root.
-[[nodiscard]] inline std::uint32_t cell_index(const OctreeCube& cube, int axis, std::uint32_t level, float p,
-                                              std::uint32_t up) {
+[[nodiscard]] LANCER_HOST_DEVICE inline std::uint32_t cell_index(const OctreeCube& cube, int axis,
+                                                                 std::uint32_t level, float p,
+                                                                 std::uint32_t up) {
     const std::uint32_t last = (1u << level) - 1u;
     const float scaled = (p - cube.lo[axis]) / cube.size * static_cast<float>(1u << level);
     // NaN (a root cube of size 0: the scene is one point; fuzz/rays_fuzz.cpp) starts at 0 like a negative
     // estimate: converting it would be undefined, and the exact planes below settle the index either way.
     std::uint32_t i =
-        !(scaled > 0.0f) ? 0u : std::min(last, static_cast<std::uint32_t>(std::min(scaled, 65536.0f)));
+        !(scaled > 0.0f) ? 0u : min_of(last, static_cast<std::uint32_t>(min_of(scaled, 65536.0f)));
     // The estimate may be off by one near a plane: settle it against the exact planes.
     const int l = static_cast<int>(level);
     while (i > 0 && (up ? p < cube.plane(axis, l, i) : p <= cube.plane(axis, l, i)))

@@ -28,12 +28,13 @@ static_assert(kPacketSize <= 64);
 // the rays whose current leaf is the first walking ray's; visit_leaf(record, group, limits) tests them and
 // lowers limits[i], the end of ray i's search interval (below tnear ends its walk, as in walk()); then each
 // ray of the group takes its own EXIT-FACE and NEIGHBOR steps.
-template <bool kBalanced, bool kCount, class Boxes, class TriangleTestT, class LeafVisitor>
-void walk_packet(const PluckerLayout& layout, const Boxes& boxes,
-                 const std::vector<PreparedRay<TriangleTestT>>& prepared, LaneMask valid,
-                 LeafVisitor&& visit_leaf, TraversalCounters& counts) {
-    using Walker = plucker::Walker<kBalanced, Boxes>;
-    const Walker walker(layout, boxes);
+template <bool kBalanced, bool kStoredBoxes, bool kCount, class TriangleTestT, class LeafVisitor>
+void walk_packet(const plucker::PluckerView& view, const std::vector<PreparedRay<TriangleTestT>>& prepared,
+                 LaneMask valid, LeafVisitor&& visit_leaf, TraversalCounters& counts) {
+    using Walker = plucker::Walker<kBalanced, kStoredBoxes>;
+    const Walker walker(view, plucker::kTables);
+    // The inner cells a link descends, counted as the single-ray walk counts them.
+    plucker::CellCounter<kCount> inner_cells{counts};
     std::array<typename Walker::State, kPacketSize> states;
     std::array<float, kPacketSize> limits{};
     // Each ray's current leaf, side by side so that finding a group is one pass of compares.
@@ -55,12 +56,12 @@ void walk_packet(const PluckerLayout& layout, const Boxes& boxes,
         const LaneMask group = same_leaf & walking;
         // LEAF
         if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(group));
-        visit_leaf(layout.cells.data() + address, group, limits);
+        visit_leaf(view.cells + address, group, limits);
         // EXIT-FACE, NEIGHBOR
         for (LaneMask lanes = group; lanes != 0; lanes &= lanes - 1) {
             const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
             if (limits[lane] < prepared[lane].ray.tnear ||
-                !walker.template advance<kCount>(states[lane], limits[lane], &counts))
+                !walker.advance(states[lane], walker.exit(states[lane]), limits[lane], inner_cells))
                 walking &= ~(LaneMask{1} << lane);
             addresses[lane] = states[lane].address;
         }
@@ -68,14 +69,14 @@ void walk_packet(const PluckerLayout& layout, const Boxes& boxes,
 }
 
 // Cuts the batch into packets of consecutive rays and calls
-// packet.template operator()<kCount, kBalanced>(boxes, prepared, valid, first, count, counts) for each, with
-// the policies and the layout's variant dispatched once per batch.
+// packet.template operator()<kCount, kBalanced, kStoredBoxes>(prepared, valid, first, count, counts) for
+// each, with the policies and the layout's variant dispatched once per batch.
 template <class Packet>
 void for_each_packet(const PluckerLayout& layout, TriangleTest test, std::span<const Ray> rays,
                      TraversalCounters* counters, Packet&& packet) {
     dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
-        plucker::dispatch_layout(layout, [&]<bool kBalanced>(const auto& boxes) {
+        plucker::dispatch_layout(layout.options, [&]<bool kBalanced, bool kStoredBoxes>() {
             std::vector<PreparedRay<TriangleTestT>> prepared;
             prepared.reserve(kPacketSize);
             for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
@@ -86,7 +87,8 @@ void for_each_packet(const PluckerLayout& layout, TriangleTest test, std::span<c
                     prepared.emplace_back(rays[first + lane]);
                     if (is_valid(rays[first + lane])) valid |= LaneMask{1} << lane;
                 }
-                packet.template operator()<kCount, kBalanced>(boxes, prepared, valid, first, count, counts);
+                packet.template operator()<kCount, kBalanced, kStoredBoxes>(prepared, valid, first, count,
+                                                                            counts);
             }
         });
         if constexpr (kCount) {
@@ -107,13 +109,15 @@ void PluckerPacketAccel::build_structure(const Geometry& geometry, const BuildOp
 void PluckerPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                          TraversalCounters* counters) const {
     const PluckerLayout& layout = plucker_.layout();
+    const plucker::PluckerView view = plucker::view_of(layout);
     for_each_packet(
         layout, triangle_test_, rays, counters,
-        [&]<bool kCount, bool kBalanced>(const auto& boxes, const auto& prepared, LaneMask valid,
-                                         std::size_t first, std::size_t count, TraversalCounters& counts) {
+        [&]<bool kCount, bool kBalanced, bool kStoredBoxes>(const auto& prepared, LaneMask valid,
+                                                            std::size_t first, std::size_t count,
+                                                            TraversalCounters& counts) {
             std::array<Hit, kPacketSize> best;
-            walk_packet<kBalanced, kCount>(
-                layout, boxes, prepared, valid,
+            walk_packet<kBalanced, kStoredBoxes, kCount>(
+                view, prepared, valid,
                 [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
                     if constexpr (kCount) counts.prims_tested += group_tests(record, group);
                     // Each block gathered once for the whole group, then tested against each of its rays.
@@ -135,13 +139,15 @@ void PluckerPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hi
 void PluckerPacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                         TraversalCounters* counters) const {
     const PluckerLayout& layout = plucker_.layout();
+    const plucker::PluckerView view = plucker::view_of(layout);
     for_each_packet(
         layout, triangle_test_, rays, counters,
-        [&]<bool kCount, bool kBalanced>(const auto& boxes, const auto& prepared, LaneMask valid,
-                                         std::size_t first, std::size_t count, TraversalCounters& counts) {
+        [&]<bool kCount, bool kBalanced, bool kStoredBoxes>(const auto& prepared, LaneMask valid,
+                                                            std::size_t first, std::size_t count,
+                                                            TraversalCounters& counts) {
             LaneMask hit = 0;
-            walk_packet<kBalanced, kCount>(
-                layout, boxes, prepared, valid,
+            walk_packet<kBalanced, kStoredBoxes, kCount>(
+                view, prepared, valid,
                 [&](const std::uint32_t* record, LaneMask group, std::array<float, kPacketSize>& limits) {
                     if constexpr (kCount) counts.prims_tested += group_tests(record, group);
                     plucker::for_each_leaf_block(layout, record, [&](const plucker::LeafBlock& block) {

@@ -97,17 +97,19 @@ std::size_t PluckerAccel::memory_bytes() const {
 
 void PluckerAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                    TraversalCounters* counters) const {
+    const plucker::PluckerView view = plucker::view_of(layout_);
     dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        plucker::dispatch_layout(layout_, [&]<bool kBalanced>(const auto& boxes) {
-            TraversalCounters local;  // summed here, so that the hot loop does not write through the pointer
+        TraversalCounters local;  // summed here, so that the hot loop does not write through the pointer
+        plucker::dispatch_layout(layout_.options, [&]<bool kBalanced, bool kStoredBoxes>() {
+            plucker::CellCounter<kCount> steps{local};
             for (std::size_t i = 0; i < rays.size(); ++i) {
                 Hit best;
                 if (is_valid(rays[i])) {
                     const PreparedRay<TriangleTestT> prepared(rays[i]);
                     const auto block_ray = plucker::leaf_block_ray(prepared, geometry_);
                     const Ray& ray = prepared.ray;
-                    plucker::walk<kBalanced, kCount>(
-                        layout_, boxes, ray,
+                    plucker::walk<kBalanced, kStoredBoxes>(
+                        view, plucker::kTables, ray,
                         [&](const std::uint32_t* record, float) {
                             plucker::for_each_leaf_block(
                                 layout_, record, [&](const plucker::LeafBlock& block) {
@@ -117,30 +119,32 @@ void PluckerAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hit
                             if constexpr (kCount) local.prims_tested += record[plucker::kTriangleCount];
                             return best.hit() ? best.t : ray.tfar;
                         },
-                        &local);
+                        steps);
                 }
                 hits[i] = best;
             }
-            if constexpr (kCount) {
-                local.rays = rays.size();
-                *counters += local;
-            }
         });
+        if constexpr (kCount) {
+            local.rays = rays.size();
+            *counters += local;
+        }
     });
 }
 
 void PluckerAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                   TraversalCounters* counters) const {
+    const plucker::PluckerView view = plucker::view_of(layout_);
     dispatch_policies(options_.triangle_test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
-        plucker::dispatch_layout(layout_, [&]<bool kBalanced>(const auto& boxes) {
-            TraversalCounters local;
+        TraversalCounters local;
+        plucker::dispatch_layout(layout_.options, [&]<bool kBalanced, bool kStoredBoxes>() {
+            plucker::CellCounter<kCount> steps{local};
             for (std::size_t i = 0; i < rays.size(); ++i) {
                 occluded[i] = 0;
                 if (!is_valid(rays[i])) continue;
                 const PreparedRay<TriangleTestT> prepared(rays[i]);
                 const auto block_ray = plucker::leaf_block_ray(prepared, geometry_);
-                plucker::walk<kBalanced, kCount>(
-                    layout_, boxes, prepared.ray,
+                plucker::walk<kBalanced, kStoredBoxes>(
+                    view, plucker::kTables, prepared.ray,
                     [&](const std::uint32_t* record, float limit) {
                         if constexpr (kCount) local.prims_tested += record[plucker::kTriangleCount];
                         if (plucker::for_each_leaf_block(
@@ -152,27 +156,30 @@ void PluckerAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint
                         }
                         return limit;
                     },
-                    &local);
-            }
-            if constexpr (kCount) {
-                local.rays = rays.size();
-                *counters += local;
+                    steps);
             }
         });
+        if constexpr (kCount) {
+            local.rays = rays.size();
+            *counters += local;
+        }
     });
 }
 
 std::vector<std::uint32_t> PluckerAccel::leaves_along(const Ray& ray) const {
     std::vector<std::uint32_t> leaves;
     if (!is_valid(ray)) return leaves;
-    plucker::dispatch_layout(layout_, [&]<bool kBalanced>(const auto& boxes) {
-        plucker::walk<kBalanced, false>(
-            layout_, boxes, ray,
+    const plucker::PluckerView view = plucker::view_of(layout_);
+    plucker::dispatch_layout(layout_.options, [&]<bool kBalanced, bool kStoredBoxes>() {
+        TraversalCounters unused;
+        plucker::CellCounter<false> steps{unused};
+        plucker::walk<kBalanced, kStoredBoxes>(
+            view, plucker::kTables, ray,
             [&](const std::uint32_t* record, float limit) {
                 leaves.push_back(static_cast<std::uint32_t>(record - layout_.cells.data()));
                 return limit;
             },
-            nullptr);
+            steps);
     });
     return leaves;
 }
