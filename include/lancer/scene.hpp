@@ -139,6 +139,12 @@ struct Scene {
     [[nodiscard]] Box3f bounds() const;
 };
 
+// Checks what every consumer of a Scene relies on: vertices and spheres inside the coordinate domain,
+// indices in range and in threes, one normal per vertex and one material id per triangle where given, every
+// material id in range, and fewer primitives than a hit's 32-bit id numbers. Throws std::invalid_argument
+// naming the first broken one. load_scene and the renderer call it; a scene made in code may too.
+void check_scene(const Scene& scene);
+
 // The scene flattened for the structures: one triangle array, the spheres, and the way back from a global
 // triangle index to its mesh. Built once after loading.
 class SceneGeometry {

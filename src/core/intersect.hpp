@@ -36,7 +36,7 @@ struct SlabRay {
     Vec3f origin;
     Vec3f inv_direction;
 
-    explicit SlabRay(const Ray& ray)
+    LANCER_HOST_DEVICE explicit SlabRay(const Ray& ray)
         : origin(ray.origin),
           inv_direction(1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z) {}
 };
@@ -53,17 +53,17 @@ inline constexpr float kSlabExitShrink = 1.0f - 2.0f * gamma_bound(3);
 
 // On success [t_entry, t_exit] is the part of [tnear, tfar] inside the box, t_exit widened
 // (widened_slab_exit) so that rounding never misses a box whose face a hit lies on.
-[[nodiscard]] inline bool intersect_box(const SlabRay& ray, const Box3f& box, float tnear, float tfar,
-                                        float& t_entry, float& t_exit) {
+[[nodiscard]] LANCER_HOST_DEVICE inline bool intersect_box(const SlabRay& ray, const Box3f& box, float tnear,
+                                                           float tfar, float& t_entry, float& t_exit) {
     float t0 = tnear, t1 = tfar;
     for (int axis = 0; axis < 3; ++axis) {
         float near_plane = (box.lo[axis] - ray.origin[axis]) * ray.inv_direction[axis];
         float far_plane = (box.hi[axis] - ray.origin[axis]) * ray.inv_direction[axis];
-        float slab_near = std::min(near_plane, far_plane);
-        float slab_far = widened_slab_exit(std::max(near_plane, far_plane));
-        if (std::isnan(near_plane) || std::isnan(far_plane)) slab_near = -kInfinity, slab_far = kInfinity;
-        t0 = std::max(t0, slab_near);
-        t1 = std::min(t1, slab_far);
+        float slab_near = min_of(near_plane, far_plane);
+        float slab_far = widened_slab_exit(max_of(near_plane, far_plane));
+        if (is_nan(near_plane) || is_nan(far_plane)) slab_near = -kInfinity, slab_far = kInfinity;
+        t0 = max_of(t0, slab_near);
+        t1 = min_of(t1, slab_far);
     }
     t_entry = t0, t_exit = t1;
     return t0 <= t1;

@@ -26,23 +26,6 @@ LANCER_HOST_DEVICE inline bool is_valid_ray(const Ray& ray) {
            is_finite_of(ray.tnear) && !is_nan(ray.tfar) && ray.tnear <= ray.tfar;
 }
 
-// intersect_box of core/intersect.hpp for one child's box.
-LANCER_HOST_DEVICE inline bool hit_child_box(const Vec3f& origin, const Vec3f& inverse, const Vec3f& lo,
-                                             const Vec3f& hi, float tnear, float tfar, float& t_entry) {
-    float t0 = tnear, t1 = tfar;
-    for (int axis = 0; axis < 3; ++axis) {
-        const float near_plane = (lo[axis] - origin[axis]) * inverse[axis];
-        const float far_plane = (hi[axis] - origin[axis]) * inverse[axis];
-        float slab_near = min_of(near_plane, far_plane);
-        float slab_far = widened_slab_exit(max_of(near_plane, far_plane));
-        if (is_nan(near_plane) || is_nan(far_plane)) slab_near = -kInfinity, slab_far = kInfinity;
-        t0 = max_of(t0, slab_near);
-        t1 = min_of(t1, slab_far);
-    }
-    t_entry = t0;
-    return t0 <= t1;
-}
-
 // The far children waiting, in local memory on the device (Aila & Laine's per-thread stack), without their
 // entry distance, as in the paper: a popped node is culled by its children's boxes only.
 struct TraversalStack {
@@ -80,7 +63,7 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
     Hit best;
     if (!is_valid_ray(ray) || bvh.node_count == 0) return best;
     const typename TriangleTestT::RayData triangle_ray(ray);
-    const Vec3f inverse(1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z);
+    const SlabRay slab(ray);
     TraversalStack stack;
 
     std::int32_t node = 0;
@@ -92,11 +75,13 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
             const AilaLaineNode n = read_only_record(bvh.nodes + node);
             steps.step();
             const float limit = best.prim >= 0 ? best.t : ray.tfar;
-            float entry0, entry1;
-            const bool hit0 = hit_child_box(ray.origin, inverse, {n.c0_lo_x, n.c0_lo_y, n.c0_lo_z},
-                                            {n.c0_hi_x, n.c0_hi_y, n.c0_hi_z}, ray.tnear, limit, entry0);
-            const bool hit1 = hit_child_box(ray.origin, inverse, {n.c1_lo_x, n.c1_lo_y, n.c1_lo_z},
-                                            {n.c1_hi_x, n.c1_hi_y, n.c1_hi_z}, ray.tnear, limit, entry1);
+            float entry0, entry1, exit;
+            const bool hit0 =
+                intersect_box(slab, {{n.c0_lo_x, n.c0_lo_y, n.c0_lo_z}, {n.c0_hi_x, n.c0_hi_y, n.c0_hi_z}},
+                              ray.tnear, limit, entry0, exit);
+            const bool hit1 =
+                intersect_box(slab, {{n.c1_lo_x, n.c1_lo_y, n.c1_lo_z}, {n.c1_hi_x, n.c1_hi_y, n.c1_hi_z}},
+                              ray.tnear, limit, entry1, exit);
             if (!hit0 && !hit1) {
                 node = stack.pop();
             } else {

@@ -11,37 +11,17 @@
 namespace lancer {
 namespace {
 
-void check_material(const Scene& scene, std::uint32_t material, const char* owner) {
-    if (material >= scene.materials.size()) {
-        throw std::invalid_argument(std::string("render: ") + owner + " uses material " +
-                                    std::to_string(material) + " but the scene has " +
-                                    std::to_string(scene.materials.size()));
+// The scene's own invariants (check_scene), and that `geometry` was made from it.
+void check_scene_and_geometry(const Scene& scene, const SceneGeometry& geometry) {
+    try {
+        check_scene(scene);
+    } catch (const std::invalid_argument& error) {
+        throw std::invalid_argument(std::string("render: ") + error.what());
     }
-}
-
-void check_scene(const Scene& scene, const SceneGeometry& geometry) {
     const Geometry view = geometry.view();
     if (view.triangles.size() != scene.triangle_count() || view.spheres.size() != scene.spheres.size()) {
         throw std::invalid_argument("render: the scene geometry was not made from this scene");
     }
-    if (view.size() + scene.planes.size() >
-        static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
-        throw std::invalid_argument("render: more primitives than a hit's 32-bit id can number");
-    }
-    for (const TriangleMesh& mesh : scene.meshes) {
-        check_material(scene, mesh.material, "a mesh");
-        for (std::uint32_t material : mesh.material_ids)
-            check_material(scene, material, "a triangle");
-        if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size()) {
-            throw std::invalid_argument("render: mesh '" + mesh.name + "' has " +
-                                        std::to_string(mesh.normals.size()) + " normals for " +
-                                        std::to_string(mesh.positions.size()) + " positions");
-        }
-    }
-    for (const Sphere& sphere : scene.spheres)
-        check_material(scene, sphere.material, "a sphere");
-    for (const Plane& plane : scene.planes)
-        check_material(scene, plane.material, "a plane");
 }
 
 // The unit grid of the two world axes other than the normal's dominant one: an axis-aligned plane gets unit
@@ -59,7 +39,7 @@ Vec3f checker_color(const Plane& plane, Vec3f position, Vec3f color) {
 
 SceneIntersector::SceneIntersector(const Scene& scene, const SceneGeometry& geometry, const Accel& accel)
     : scene_(scene), geometry_(geometry), view_(geometry.view()), accel_(accel), first_plane_id_(0) {
-    check_scene(scene, geometry);
+    check_scene_and_geometry(scene, geometry);
     first_plane_id_ = static_cast<std::int32_t>(view_.size());
 }
 

@@ -1,6 +1,9 @@
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <stdexcept>
+#include <string>
 
 #include "lancer/scene.hpp"
 
@@ -13,6 +16,58 @@ Box3f Geometry::bounds() const {
     for (const Sphere& sphere : spheres)
         box.extend(sphere.bounds());
     return box;
+}
+
+void check_scene(const Scene& scene) {
+    constexpr const char* kDomain = "[-2^60, 2^60]";
+    const auto fail = [](const std::string& message) { throw std::invalid_argument(message); };
+    const std::size_t material_count = scene.materials.size();
+    const auto check_material = [&](std::uint32_t material, const std::string& user) {
+        if (material >= material_count) {
+            fail(user + " uses material " + std::to_string(material) + ", but the scene has " +
+                 std::to_string(material_count));
+        }
+    };
+    std::size_t primitives = scene.spheres.size() + scene.planes.size();
+    for (const TriangleMesh& mesh : scene.meshes) {
+        const std::string name = "mesh '" + mesh.name + "'";
+        // Finite values can still overflow on the way (a huge cone radius); the structures take coordinates
+        // within the contract's domain (kCoordinateLimit, docs/numerical-contract.md).
+        for (const Vec3f& position : mesh.positions) {
+            if (!in_coordinate_domain(position))
+                fail(name + " has a vertex outside the coordinate domain " + kDomain);
+        }
+        if (mesh.indices.size() % 3 != 0) fail(name + " has an index count that is not a multiple of 3");
+        for (const std::uint32_t index : mesh.indices) {
+            if (index >= mesh.positions.size()) fail(name + " has a vertex index out of range");
+        }
+        if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size()) {
+            fail(name + " has " + std::to_string(mesh.normals.size()) + " normals for " +
+                 std::to_string(mesh.positions.size()) + " vertices");
+        }
+        if (!mesh.material_ids.empty() && mesh.material_ids.size() != mesh.triangle_count()) {
+            fail(name + " has " + std::to_string(mesh.material_ids.size()) + " material ids for " +
+                 std::to_string(mesh.triangle_count()) + " triangles");
+        }
+        check_material(mesh.material, name);
+        for (std::size_t t = 0; t < mesh.material_ids.size(); ++t) {
+            // The message is built only for the culprit: this loop runs over every triangle.
+            if (mesh.material_ids[t] >= material_count) {
+                check_material(mesh.material_ids[t], "triangle " + std::to_string(t) + " of " + name);
+            }
+        }
+        primitives += mesh.triangle_count();
+    }
+    for (const Sphere& sphere : scene.spheres) {
+        check_material(sphere.material, "a sphere");
+        const Box3f bounds = sphere.bounds();
+        if (!in_coordinate_domain(bounds.lo) || !in_coordinate_domain(bounds.hi))
+            fail("a sphere reaches outside the coordinate domain " + std::string(kDomain));
+    }
+    for (const Plane& plane : scene.planes)
+        check_material(plane.material, "a plane");
+    if (primitives > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+        fail("the scene has more primitives than a hit's 32-bit id can number");
 }
 
 std::size_t Scene::triangle_count() const {

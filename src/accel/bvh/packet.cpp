@@ -212,20 +212,14 @@ void trace_batch(const BvhAccel& bvh, const Geometry& geometry, TriangleTest tes
 
 }  // namespace
 
-void BvhPacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
-    bvh_.build(geometry, options);
-    geometry_ = geometry;
-    triangle_test_ = options.triangle_test;
-}
-
 void BvhPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                      TraversalCounters* counters) const {
-    trace_batch<false>(bvh_, geometry_, triangle_test_, rays, hits, counters);
+    trace_batch<false>(single_ray_, geometry_, triangle_test_, rays, hits, counters);
 }
 
 void BvhPacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                     TraversalCounters* counters) const {
-    trace_batch<true>(bvh_, geometry_, triangle_test_, rays, occluded, counters);
+    trace_batch<true>(single_ray_, geometry_, triangle_test_, rays, occluded, counters);
 }
 
 }  // namespace lancer

@@ -10,30 +10,22 @@
 #include <cstdint>
 
 #include "accel/bvh/bvh.hpp"
-#include "lancer/accel.hpp"
+#include "accel/packet_accel.hpp"
 
 namespace lancer {
 
-class BvhPacketAccel final : public Accel {
+class BvhPacketAccel final : public PacketAccel<BvhAccel> {
   public:
     // Rays traced together: one 8x8 tile of `lancer bench`, and at most the 64 bits of a lane mask.
     static constexpr int kPacketSize = 64;
 
     [[nodiscard]] std::string_view name() const override { return "bvh_packet"; }
-    // The build of `bvh`, untouched.
-    [[nodiscard]] AccelStats stats() const override { return bvh_.stats(); }
-    [[nodiscard]] std::size_t memory_bytes() const override { return bvh_.memory_bytes(); }
 
   private:
-    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                         TraversalCounters* counters) const override;
-
-    BvhAccel bvh_;
-    Geometry geometry_;
-    TriangleTest triangle_test_ = TriangleTest::MollerTrumbore;
 };
 
 }  // namespace lancer

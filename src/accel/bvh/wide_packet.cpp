@@ -27,9 +27,7 @@ const WidePacketKernels* kernels_for(SimdIsa isa) {
 
 void WidePacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     kernels_ = kernels_for(options.isa);
-    bvh8_.build(geometry, options);
-    geometry_ = geometry;
-    triangle_test_ = options.triangle_test;
+    PacketAccel::build_structure(geometry, options);
 }
 
 int WidePacketAccel::lane_count() const {
@@ -38,20 +36,20 @@ int WidePacketAccel::lane_count() const {
 
 void WidePacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                       TraversalCounters* counters) const {
-    if (kernels_ == nullptr) return bvh8_.intersect(rays, hits, counters);
-    kernels_->intersect(bvh8_, geometry_, triangle_test_, rays, hits, counters);
+    if (kernels_ == nullptr) return single_ray_.intersect(rays, hits, counters);
+    kernels_->intersect(single_ray_, geometry_, triangle_test_, rays, hits, counters);
 }
 
 void WidePacketAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                                             TraversalCounters* counters) const {
     if (kernels_ == nullptr) return Accel::intersect_packet_rays(rays, hits, counters);
-    kernels_->intersect_packet(bvh8_, geometry_, triangle_test_, rays, hits, counters);
+    kernels_->intersect_packet(single_ray_, geometry_, triangle_test_, rays, hits, counters);
 }
 
 void WidePacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                      TraversalCounters* counters) const {
-    if (kernels_ == nullptr) return bvh8_.occluded(rays, occluded, counters);
-    kernels_->occluded(bvh8_, geometry_, triangle_test_, rays, occluded, counters);
+    if (kernels_ == nullptr) return single_ray_.occluded(rays, occluded, counters);
+    kernels_->occluded(single_ray_, geometry_, triangle_test_, rays, occluded, counters);
 }
 
 }  // namespace lancer

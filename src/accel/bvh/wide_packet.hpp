@@ -14,11 +14,11 @@
 
 #include "accel/bvh/wide.hpp"
 #include "accel/bvh/wide_packet_kernel.hpp"
-#include "lancer/accel.hpp"
+#include "accel/packet_accel.hpp"
 
 namespace lancer {
 
-class WidePacketAccel final : public Accel {
+class WidePacketAccel final : public PacketAccel<Bvh8Accel> {
   public:
     static constexpr int kPacketSize = kWidePacketSize;
 
@@ -27,9 +27,6 @@ class WidePacketAccel final : public Accel {
     // kernels, 8 with the AVX2 ones (BuildOptions::isa chooses), 1 in a build without AVX2, which traces
     // every ray through bvh8.
     [[nodiscard]] int lane_count() const;
-    // The build of `bvh8`, untouched.
-    [[nodiscard]] AccelStats stats() const override { return bvh8_.stats(); }
-    [[nodiscard]] std::size_t memory_bytes() const override { return bvh8_.memory_bytes(); }
 
   private:
     void build_structure(const Geometry& geometry, const BuildOptions& options) override;
@@ -40,9 +37,6 @@ class WidePacketAccel final : public Accel {
     void intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                                TraversalCounters* counters) const override;
 
-    Bvh8Accel bvh8_;
-    Geometry geometry_;
-    TriangleTest triangle_test_ = TriangleTest::MollerTrumbore;
     const WidePacketKernels* kernels_ = nullptr;
 };
 

@@ -100,15 +100,9 @@ void for_each_packet(const PluckerLayout& layout, TriangleTest test, std::span<c
 
 }  // namespace
 
-void PluckerPacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
-    plucker_.build(geometry, options);
-    geometry_ = geometry;
-    triangle_test_ = options.triangle_test;
-}
-
 void PluckerPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                          TraversalCounters* counters) const {
-    const PluckerLayout& layout = plucker_.layout();
+    const PluckerLayout& layout = single_ray_.layout();
     const plucker::PluckerView view = plucker::view_of(layout);
     for_each_packet(
         layout, triangle_test_, rays, counters,
@@ -138,7 +132,7 @@ void PluckerPacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hi
 
 void PluckerPacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                         TraversalCounters* counters) const {
-    const PluckerLayout& layout = plucker_.layout();
+    const PluckerLayout& layout = single_ray_.layout();
     const plucker::PluckerView view = plucker::view_of(layout);
     for_each_packet(
         layout, triangle_test_, rays, counters,

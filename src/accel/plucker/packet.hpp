@@ -9,31 +9,23 @@
 
 #include <cstdint>
 
+#include "accel/packet_accel.hpp"
 #include "accel/plucker/plucker.hpp"
-#include "lancer/accel.hpp"
 
 namespace lancer {
 
-class PluckerPacketAccel final : public Accel {
+class PluckerPacketAccel final : public PacketAccel<PluckerAccel> {
   public:
     // Rays walked together: one 8x8 tile of `lancer bench`, and the 64 bits of a lane mask.
     static constexpr int kPacketSize = 64;
 
     [[nodiscard]] std::string_view name() const override { return "plucker_packet"; }
-    // The build of `plucker`, untouched.
-    [[nodiscard]] AccelStats stats() const override { return plucker_.stats(); }
-    [[nodiscard]] std::size_t memory_bytes() const override { return plucker_.memory_bytes(); }
 
   private:
-    void build_structure(const Geometry& geometry, const BuildOptions& options) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                         TraversalCounters* counters) const override;
-
-    PluckerAccel plucker_;
-    Geometry geometry_;
-    TriangleTest triangle_test_ = TriangleTest::MollerTrumbore;
 };
 
 }  // namespace lancer
