@@ -137,7 +137,7 @@ const Walks& walks() {
         made->bvh.build(geometry, options);
         made->kdtree.build(geometry, options);
         made->plucker.build(geometry, options);
-        made->octree = build_octree(geometry, options.octree);
+        made->octree = build_octree(geometry, options.group<OctreeOptions>());
         return made;
     }();
     return *data;

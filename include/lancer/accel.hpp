@@ -2,8 +2,11 @@
 // Virtual dispatch happens once per batch of rays, never per node.
 #pragma once
 
+#include <any>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <memory>
 #include <span>
 #include <stdexcept>
@@ -25,85 +28,41 @@ enum class TriangleTest {
     Watertight,      // Woop, Benthin & Wald 2013: no ray passes between two triangles that share an edge
 };
 
-// Regular grid (seed 004): cells per axis = density * cbrt(N), shared among the axes in proportion to the
-// box's extents, so that cells are about cubic.
-struct GridOptions {
-    float density = 1.0f;
-};
-
-// Classic octree (seed 004; Revelles et al. 2000): a node is split while depth < max_depth and it holds
-// more than leaf_size references.
-struct OctreeOptions {
-    int max_depth = 10;
-    int leaf_size = 8;
-};
-
-// Pluecker-connected octree (seed 000, Portalez & Duguet 2016): the octree above with the 2:1 rule and
-// face-neighbour links, walked leaf to leaf. max_depth 0 = automatic: round(0.8 log2(N) - 5), the depths of
-// the seed's section 5.2 (8 for the bunny's 69k triangles, 10 for the armadillo's 346k, 11 for the
-// dragon's 871k). The other fields are the variants of its section 6 (docs/plucker-octree.md).
-struct PluckerOptions {
-    int max_depth = 0;
-    // Split while a cell holds more references. 32, not the seed's 12 ("6 triangles per leaf on average",
-    // 5.1): leaves are tested 8 triangles per block here, so larger leaves cost few extra tests and save
-    // steps, memory and build time (docs/plucker-octree.md, "Leaf size"); the seed's tables use 12.
-    int leaf_size = 32;
-    bool balanced = true;      // false: no 2:1 rule, links to the same-or-larger neighbour and a descent
-    bool stored_boxes = true;  // false: cell planes recomputed from integer coordinates and level
-    bool morton = false;       // true: cells in depth-first (Morton) order instead of the build's order
-};
-
-enum class KdTreeCost {
-    WaldHavran,  // Wald & Havran 2006: SAH with an empty-space bonus
-    Seed003,     // seed 003 section 5.3.2: C = 1 / SA(N) [SA(L)(Nl + Nb) + SA(R)(Nr + Nb)], no bonus
-};
-
-// SAH kd-tree (Wald & Havran 2006). max_depth 0 = automatic: 8 + 1.3 log2(N).
-struct KdTreeOptions {
-    KdTreeCost cost = KdTreeCost::WaldHavran;
-    float traversal_cost = 15.0f;
-    float intersection_cost = 20.0f;
-    // Cost factor (1 - bonus) when a side is empty: Wald & Havran's lambda = 0.8, a 20% bonus. A bonus of 0.8
-    // (factor 0.2) spends the depth limit on thin empty slabs: 1.6x the SAH cost and 6x the primitive tests
-    // per ray on the armadillo (docs/accel/kdtree.md).
-    float empty_bonus = 0.2f;
-    int max_depth = 0;
-};
-
-enum class BvhBuilder {
-    SweepSah,   // seed 002: full sweep over centroids sorted on each axis
-    BinnedSah,  // Wald 2007: binned SAH, parallel over oneTBB when available
-};
-
-struct BvhOptions {
-    BvhBuilder builder = BvhBuilder::BinnedSah;
-    int max_leaf_size = 4;
-    int bins = 32;
-    // Spatial splits (Stich, Friedrich & Dietrich 2009, the SBVH) in the binned builder: a node may also
-    // be split by a plane that cuts references in two, a primitive then appearing in several leaves, within
-    // a budget of references (docs/accel/bvh.md, "Spatial splits"). The sweep builder ignores it.
-    bool spatial_splits = false;
-};
-
-// Embree's build quality for the `embree` structures: HIGH (with spatial splits, its best trace speed) or
-// MEDIUM (the faster build).
-enum class EmbreeQuality { High, Medium };
-
-struct BuildOptions {
+// The options of a build: what every structure shares (the triangle test, the instruction set), and each
+// structure's own group, a struct declared in its folder with a name (`static constexpr std::string_view
+// kGroup = "bvh";`) and its defaults, kept here by that name so that this header names no structure. Code
+// that includes a structure's header reaches its group by type; everyone else by `--set` key
+// (set_build_option, build_option_infos).
+class BuildOptions {
+  public:
     TriangleTest triangle_test = TriangleTest::MollerTrumbore;
-    GridOptions grid;
-    OctreeOptions octree;
-    PluckerOptions plucker;
-    KdTreeOptions kdtree;
-    BvhOptions bvh;
-    EmbreeQuality embree_quality = EmbreeQuality::High;
     // The instruction set of the kernels built for more than one (lancer/isa.hpp): today bvh8_packet's.
     SimdIsa isa = SimdIsa::Auto;
+
+    // Group's options, its defaults until one is set.
+    template <class Group>
+    [[nodiscard]] Group& group() {
+        std::any& slot = groups_[std::string(Group::kGroup)];
+        if (!slot.has_value()) slot = Group{};
+        return std::any_cast<Group&>(slot);
+    }
+    template <class Group>
+    [[nodiscard]] const Group& group() const {
+        static const Group defaults{};
+        const auto found = groups_.find(Group::kGroup);
+        return found == groups_.end() ? defaults : std::any_cast<const Group&>(found->second);
+    }
+
+  private:
+    std::map<std::string, std::any, std::less<>> groups_;
 };
 
 // Sets one option from "KEY=VALUE", as `--set` gives it; build_option_infos() lists the keys. Throws
 // std::invalid_argument naming the key and the values it accepts.
 void set_build_option(BuildOptions& options, std::string_view assignment);
+// The value of one key in `options`, as set_build_option reads it. Throws std::invalid_argument naming the
+// known keys for an unknown one.
+[[nodiscard]] std::string build_option_value(const BuildOptions& options, std::string_view key);
 
 // One key of set_build_option: what it sets, the values it accepts and its default.
 struct BuildOptionInfo {

@@ -384,8 +384,9 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
     primitive_count_ = geometry.size();
     buffer_bytes_ = 0;
     scene_ = rtcNewScene(device_);
-    rtcSetSceneBuildQuality(scene_, options.embree_quality == EmbreeQuality::High ? RTC_BUILD_QUALITY_HIGH
-                                                                                  : RTC_BUILD_QUALITY_MEDIUM);
+    rtcSetSceneBuildQuality(scene_, options.group<EmbreeOptions>().quality == EmbreeQuality::High
+                                        ? RTC_BUILD_QUALITY_HIGH
+                                        : RTC_BUILD_QUALITY_MEDIUM);
     if (options.triangle_test == TriangleTest::Watertight) rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);
 
     if (!geometry.triangles.empty()) {
@@ -539,6 +540,13 @@ AccelStats EmbreeAccel::stats() const {
     stats.primitives = primitive_count_;
     stats.memory_by_array = {{"embree buffers", buffer_bytes_}};
     return stats;
+}
+
+std::vector<BuildOptionRow> EmbreeAccel::option_rows() {
+    return {choice_option<EmbreeOptions, EmbreeQuality>(
+        "quality",
+        "Embree's build quality (its robust mode, the watertight test, builds without spatial splits)",
+        &EmbreeOptions::quality, {{"high", EmbreeQuality::High}, {"medium", EmbreeQuality::Medium}})};
 }
 
 }  // namespace lancer

@@ -9,14 +9,26 @@
 
 #include <embree3/rtcore.h>
 
+#include <string_view>
 #include <vector>
 
+#include "accel/options.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {
 
+// The options of the `embree` structures: Embree's build quality, HIGH (with spatial splits, its best trace
+// speed) or MEDIUM (the faster build).
+enum class EmbreeQuality { High, Medium };
+struct EmbreeOptions {
+    static constexpr std::string_view kGroup = "embree";
+    EmbreeQuality quality = EmbreeQuality::High;
+};
+
 class EmbreeAccel final : public Accel {
   public:
+    // The `--set` keys of this structure's option group (accel/options.hpp).
+    [[nodiscard]] static std::vector<BuildOptionRow> option_rows();
     // packet_width: 1 (single-ray calls), 8 or 16.
     explicit EmbreeAccel(int packet_width);
     ~EmbreeAccel() override;

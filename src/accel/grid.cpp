@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "accel/build_util.hpp"
+#include "accel/kdtree_build.hpp"
 #include "core/parallel.hpp"
 
 namespace lancer {
@@ -99,7 +100,7 @@ void GridAccel::build_from(const Geometry& geometry, const BuildOptions& options
     const std::size_t primitive_count = geometry.size();
     if (primitive_count > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         throw std::length_error("grid: more primitives than Hit::prim can number");
-    set_resolution(choose_resolution(bounds_, primitive_count, options.grid.density));
+    set_resolution(choose_resolution(bounds_, primitive_count, options.group<GridOptions>().density));
     if (resolution_[0] > 0) {
         // Bounded memory: large primitives each crossing a whole slice of cells would multiply the
         // references; the grid is then coarsened, 4 times fewer cells per try. One cell always fits.
@@ -351,6 +352,11 @@ AccelStats GridAccel::stats() const {
     }
     stats.memory_by_array = memory_by_array();
     return stats;
+}
+
+std::vector<BuildOptionRow> GridAccel::option_rows() {
+    return {number_option("density", "the cube root of the cells per primitive", &GridOptions::density, 0.01f,
+                          64.0f)};
 }
 
 }  // namespace lancer

@@ -8,16 +8,27 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
+#include "accel/options.hpp"
 #include "accel/primitive_test.hpp"
 #include "accel/single_ray.hpp"
 
 namespace lancer {
 
+// The options of `grid` (seed 004): cells per axis = density * cbrt(N), shared among the axes in proportion
+// to the box's extents, so that cells are about cubic.
+struct GridOptions {
+    static constexpr std::string_view kGroup = "grid";
+    float density = 1.0f;
+};
+
 class GridAccel final : public SingleRayAccel<GridAccel> {
   public:
+    // The `--set` keys of this structure's option group (accel/options.hpp).
+    [[nodiscard]] static std::vector<BuildOptionRow> option_rows();
     // One cell's slice of the reference array: references_[cell_begin_[c]] .. references_[cell_begin_[c+1]].
     // 4 bytes per cell, plus 4 bytes per reference: a compressed-row (CSR) layout, no per-cell vector.
     using CellOffset = std::uint32_t;

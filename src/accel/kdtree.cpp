@@ -200,4 +200,18 @@ std::size_t KdTreeAccel::memory_bytes() const {
     return tree_.nodes.size() * sizeof(KdNode) + tree_.references.size() * sizeof(std::uint32_t);
 }
 
+std::vector<BuildOptionRow> KdTreeAccel::option_rows() {
+    return {
+        choice_option<KdTreeOptions, KdTreeCost>(
+            "cost", "the split cost: Wald & Havran's SAH, or seed 003's", &KdTreeOptions::cost,
+            {{"wald-havran", KdTreeCost::WaldHavran}, {"seed003", KdTreeCost::Seed003}}),
+        number_option("traversal_cost", "the SAH's cost of a traversal step", &KdTreeOptions::traversal_cost,
+                      0.0f, 1e6f),
+        number_option("intersection_cost", "the SAH's cost of a primitive test",
+                      &KdTreeOptions::intersection_cost, 1e-3f, 1e6f),
+        number_option("empty_bonus", "the SAH's bonus for an empty side", &KdTreeOptions::empty_bonus, 0.0f,
+                      1.0f),
+        number_option("max_depth", "deepest level; 0: 8 + 1.3 log2(N)", &KdTreeOptions::max_depth, 0, 64)};
+}
+
 }  // namespace lancer

@@ -5,12 +5,15 @@
 #pragma once
 
 #include "accel/kdtree_build.hpp"
+#include "accel/options.hpp"
 #include "accel/single_ray.hpp"
 
 namespace lancer {
 
 class KdTreeAccel final : public SingleRayAccel<KdTreeAccel> {
   public:
+    // The `--set` keys of this structure's option group (accel/options.hpp).
+    [[nodiscard]] static std::vector<BuildOptionRow> option_rows();
     [[nodiscard]] std::string_view name() const override { return "kdtree"; }
     [[nodiscard]] AccelStats stats() const override;
     [[nodiscard]] std::size_t memory_bytes() const override;
@@ -22,7 +25,7 @@ class KdTreeAccel final : public SingleRayAccel<KdTreeAccel> {
     friend SingleRayAccel<KdTreeAccel>;
 
     void build_from(const Geometry& geometry, const BuildOptions& options) {
-        tree_ = build_kdtree(geometry, options.kdtree);
+        tree_ = build_kdtree(geometry, options.group<KdTreeOptions>());
     }
     // The walk of one valid ray (SingleRayAccel's contract).
     template <bool kAnyHit, bool kCount, class TriangleTestT>

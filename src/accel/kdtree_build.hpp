@@ -7,12 +7,31 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "lancer/accel.hpp"
 #include "lancer/box.hpp"
 
 namespace lancer {
+
+enum class KdTreeCost {
+    WaldHavran,  // Wald & Havran 2006: SAH with an empty-space bonus
+    Seed003,     // seed 003 section 5.3.2: C = 1 / SA(N) [SA(L)(Nl + Nb) + SA(R)(Nr + Nb)], no bonus
+};
+
+// The options of `kdtree` (Wald & Havran 2006). max_depth 0 = automatic: 8 + 1.3 log2(N).
+struct KdTreeOptions {
+    static constexpr std::string_view kGroup = "kdtree";
+    KdTreeCost cost = KdTreeCost::WaldHavran;
+    float traversal_cost = 15.0f;
+    float intersection_cost = 20.0f;
+    // Cost factor (1 - bonus) when a side is empty: Wald & Havran's lambda = 0.8, a 20% bonus. A bonus of 0.8
+    // (factor 0.2) spends the depth limit on thin empty slabs: 1.6x the SAH cost and 6x the primitive tests
+    // per ray on the armadillo (docs/accel/kdtree.md).
+    float empty_bonus = 0.2f;
+    int max_depth = 0;
+};
 
 // 8 bytes, pbrt-v3's KdAccelNode:
 //   payload (4): inner node: the split position (float bits); leaf: its one primitive itself, stored inline,

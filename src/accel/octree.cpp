@@ -75,7 +75,7 @@ inline void enter_node(const WalkRay& ray, const OctreeCube& cube, int level, Fr
 }  // namespace
 
 void OctreeAccel::build_from(const Geometry& geometry, const BuildOptions& options) {
-    Octree octree = build_octree(geometry, options.octree);
+    Octree octree = build_octree(geometry, options.group<OctreeOptions>());
     cube_ = octree.cube;
     tolerance_ = octree.tolerance;
     nodes_.resize(octree.cells.size());
@@ -242,6 +242,13 @@ std::vector<std::uint32_t> OctreeAccel::leaves_along(const Ray& ray) const {
         },
         nullptr);
     return leaves;
+}
+
+std::vector<BuildOptionRow> OctreeAccel::option_rows() {
+    return {
+        number_option("max_depth", "deepest level of the classic octree", &OctreeOptions::max_depth, 0, 20),
+        number_option("leaf_size", "references a node may hold before it is split", &OctreeOptions::leaf_size,
+                      1, 1 << 20)};
 }
 
 }  // namespace lancer

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "accel/octree_build.hpp"
+#include "accel/options.hpp"
 #include "accel/single_ray.hpp"
 
 namespace lancer {
@@ -86,6 +87,8 @@ static_assert(sizeof(OctreeNode) == 8);
 
 class OctreeAccel final : public SingleRayAccel<OctreeAccel> {
   public:
+    // The `--set` keys of this structure's option group (accel/options.hpp).
+    [[nodiscard]] static std::vector<BuildOptionRow> option_rows();
     [[nodiscard]] std::string_view name() const override { return "octree"; }
     [[nodiscard]] AccelStats stats() const override {
         AccelStats stats = stats_;

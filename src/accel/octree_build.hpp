@@ -12,6 +12,7 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "core/host_device.hpp"
@@ -20,6 +21,14 @@
 #include "lancer/scene.hpp"
 
 namespace lancer {
+
+// The options of `octree` (seed 004; Revelles et al. 2000): a node is split while depth < max_depth and it
+// holds more than leaf_size references.
+struct OctreeOptions {
+    static constexpr std::string_view kGroup = "octree";
+    int max_depth = 10;
+    int leaf_size = 8;
+};
 
 // Deepest level the build reaches, whatever OctreeOptions::max_depth asks: coordinates fit 16 bits, and a
 // level-16 cell is still 2^8 float ulps of a coordinate as large as the root, so its faces stay distinct.

@@ -47,9 +47,10 @@ World World::load_structure(const std::filesystem::path& file, std::optional<Tri
     world.geometry_ = std::make_unique<SceneGeometry>(*world.scene_);
     world.options_ = build_options(triangle_test.value_or(stored.triangle_test));
     // The layout's own variant, which the file fixed when it was written.
-    world.options_.plucker.balanced = stored.layout.options.balanced;
-    world.options_.plucker.stored_boxes = stored.layout.options.stored_boxes;
-    world.options_.plucker.morton = stored.layout.options.morton;
+    PluckerOptions& plucker_options = world.options_.group<PluckerOptions>();
+    plucker_options.balanced = stored.layout.options.balanced;
+    plucker_options.stored_boxes = stored.layout.options.stored_boxes;
+    plucker_options.morton = stored.layout.options.morton;
     auto accel = std::make_unique<PluckerAccel>();
     accel->adopt(world.geometry_->view(), world.options_, std::move(stored.layout));
     world.accel_ = std::move(accel);

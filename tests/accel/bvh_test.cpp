@@ -25,9 +25,9 @@ using testing::knot_triangles;
 
 BuildOptions with_builder(BvhBuilder builder, int max_leaf_size = 4, bool spatial_splits = false) {
     BuildOptions options;
-    options.bvh.builder = builder;
-    options.bvh.max_leaf_size = max_leaf_size;
-    options.bvh.spatial_splits = spatial_splits;
+    options.group<BvhOptions>().builder = builder;
+    options.group<BvhOptions>().max_leaf_size = max_leaf_size;
+    options.group<BvhOptions>().spatial_splits = spatial_splits;
     return options;
 }
 
@@ -223,7 +223,7 @@ TEST(Bvh, CoincidentPrimitivesStayBounded) {
          {with_builder(BvhBuilder::SweepSah), with_builder(BvhBuilder::BinnedSah), with_spatial_splits()}) {
         BvhAccel bvh;
         bvh.build({triangles, {}}, options);
-        expect_valid_hierarchy(bvh, {triangles, {}}, 4, options.bvh.spatial_splits);
+        expect_valid_hierarchy(bvh, {triangles, {}}, 4, options.group<BvhOptions>().spatial_splits);
         const Ray ray{{0.2f, 0.2f, 1.0f}, {0, 0, -1}, 0.0f, kInfinity};
         Hit hit;
         bvh.intersect({&ray, 1}, {&hit, 1});
@@ -233,11 +233,12 @@ TEST(Bvh, CoincidentPrimitivesStayBounded) {
 
 TEST(Bvh, SpatialSplitsIsASetKey) {
     BuildOptions options;
-    EXPECT_FALSE(options.bvh.spatial_splits);  // off by default (docs/accel/bvh.md, "Spatial splits")
+    EXPECT_FALSE(
+        options.group<BvhOptions>().spatial_splits);  // off by default (docs/accel/bvh.md, "Spatial splits")
     set_build_option(options, "bvh.spatial_splits=true");
-    EXPECT_TRUE(options.bvh.spatial_splits);
+    EXPECT_TRUE(options.group<BvhOptions>().spatial_splits);
     set_build_option(options, "bvh.spatial_splits=false");
-    EXPECT_FALSE(options.bvh.spatial_splits);
+    EXPECT_FALSE(options.group<BvhOptions>().spatial_splits);
     EXPECT_THROW(set_build_option(options, "bvh.spatial_splits=yes"), std::invalid_argument);
 }
 

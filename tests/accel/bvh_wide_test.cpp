@@ -111,7 +111,7 @@ template <int W>
 void check_structure(const Geometry& geometry) {
     for (int leaf : {1, 4, 16}) {
         BuildOptions options;
-        options.bvh.max_leaf_size = leaf;
+        options.group<BvhOptions>().max_leaf_size = leaf;
         WideBvhAccel<W> wide;
         wide.build(geometry, options);
         expect_valid_wide_hierarchy(wide, geometry, leaf);
@@ -135,8 +135,8 @@ TEST(WideBvh, CollapseGivesValidHierarchies) {
 template <int W>
 void expect_leaves_hold_each_primitive_once(const Geometry& geometry, int max_leaf_size) {
     BuildOptions options;
-    options.bvh.max_leaf_size = max_leaf_size;
-    options.bvh.spatial_splits = true;
+    options.group<BvhOptions>().max_leaf_size = max_leaf_size;
+    options.group<BvhOptions>().spatial_splits = true;
     WideBvhAccel<W> bvh;
     bvh.build(geometry, options);
     std::vector<int> leaves_of(geometry.size(), 0);
@@ -217,7 +217,7 @@ void check_multi_block_leaves(TriangleTest test) {
         {{0, 0, 0}, 0.3f, 0}, {{1, 1, 0}, 0.1f, 0}, {{-1, 0, 0.5f}, 0.2f, 0}};
     const Geometry geometry{triangles, spheres};
     BuildOptions options = build_options(test);
-    options.bvh.max_leaf_size = 16;
+    options.group<BvhOptions>().max_leaf_size = 16;
     WideBvhAccel<W> wide;
     wide.build(geometry, options);
     ASSERT_GT(wide.stats().max_refs_per_leaf, static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));

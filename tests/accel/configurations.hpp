@@ -9,6 +9,7 @@
 #include <string_view>
 #include <vector>
 
+#include "accel/bvh/bvh.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer::testing {
@@ -28,7 +29,7 @@ struct Configuration {
     }
     [[nodiscard]] BuildOptions options(TriangleTest test) const {
         BuildOptions options = build_options(test);
-        options.bvh.spatial_splits = spatial_splits;
+        options.group<BvhOptions>().spatial_splits = spatial_splits;
         options.isa = isa;
         return options;
     }

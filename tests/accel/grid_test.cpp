@@ -46,7 +46,7 @@ std::size_t expect_agreement_with_brute(const Geometry& geometry, std::span<cons
     std::size_t hits_found = 0;
     for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
         BuildOptions options = build_options(test);
-        options.grid.density = density;
+        options.group<GridOptions>().density = density;
         BruteAccel brute;
         GridAccel grid;
         brute.build(geometry, options);
@@ -130,7 +130,7 @@ TEST(Grid, DensityMustBePositiveAndFinite) {
     const std::vector<Triangle> triangles = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}};
     for (float density : {0.0f, -1.0f, std::numeric_limits<float>::quiet_NaN(), kInfinity}) {
         BuildOptions options;
-        options.grid.density = density;
+        options.group<GridOptions>().density = density;
         GridAccel grid;
         EXPECT_THROW(grid.build({triangles, {}}, options), std::invalid_argument) << density;
     }
@@ -190,7 +190,7 @@ TEST(Grid, EveryPrimitiveIsListedByEveryCellItOverlapsAndNoOther) {
          {Geometry{knot, {}}, Geometry{soup, spheres}, Geometry{with_sliver, {}}}) {
         for (float density : {0.5f, 1.0f, 2.0f}) {
             BuildOptions options;
-            options.grid.density = density;
+            options.group<GridOptions>().density = density;
             GridAccel grid;
             grid.build(geometry, options);
             expect_valid_grid(grid, geometry);
@@ -277,7 +277,7 @@ TEST(Grid, LargeCrossingTrianglesCoarsenTheGridInsteadOfExhaustingMemory) {
         triangles.push_back({{-1, -1, a}, {3, -1, b}, {-1, 3, c}});
     }
     BuildOptions options;
-    options.grid.density = 4.0f;
+    options.group<GridOptions>().density = 4.0f;
     GridAccel grid;
     grid.build({triangles, {}}, options);
     EXPECT_LE(grid.stats().references, GridAccel::max_references(triangles.size()));
@@ -331,7 +331,7 @@ int cell_along_x(const GridAccel& grid, float x) {
 
 TEST(Grid, HitBeyondItsCellDoesNotEndTheWalk) {
     BuildOptions options;
-    options.grid.density = 2.0f;
+    options.group<GridOptions>().density = 2.0f;
     const LongTriangleScene scene(true);
     GridAccel grid;
     grid.build({scene.triangles, {}}, options);
@@ -365,7 +365,7 @@ TEST(Grid, HitBeyondItsCellDoesNotEndTheWalk) {
 
 TEST(Grid, HitFoundEarlyEndsTheWalkInItsOwnCell) {
     BuildOptions options;
-    options.grid.density = 2.0f;
+    options.group<GridOptions>().density = 2.0f;
     const LongTriangleScene scene(false);
     GridAccel grid;
     grid.build({scene.triangles, {}}, options);

@@ -96,8 +96,8 @@ TestScene coincident_scene() {
 
 BuildOptions with_cost(KdTreeCost cost, int max_depth = 0) {
     BuildOptions options;
-    options.kdtree.cost = cost;
-    options.kdtree.max_depth = max_depth;
+    options.group<KdTreeOptions>().cost = cost;
+    options.group<KdTreeOptions>().max_depth = max_depth;
     return options;
 }
 
@@ -345,11 +345,13 @@ TEST(KdTree, RootSplitHasTheMinimalCostOfANaiveSearch) {
             accel.build(scene.geometry(), with_cost(cost));
             const KdNode& root = accel.tree().nodes[0];
             ASSERT_FALSE(root.is_leaf());
-            const NaiveSah naive{scene.geometry(), with_cost(cost).kdtree, accel.tree().bounds};
+            const NaiveSah naive{scene.geometry(), with_cost(cost).group<KdTreeOptions>(),
+                                 accel.tree().bounds};
             const double chosen = naive.cost_at(root.axis(), root.split());
             const double minimum = naive.minimum();
             EXPECT_NEAR(chosen, minimum, 1e-9 * minimum) << "axis " << root.axis() << " at " << root.split();
-            EXPECT_LT(minimum, kdtree_leaf_cost(with_cost(cost).kdtree, scene.geometry().size()));
+            EXPECT_LT(minimum,
+                      kdtree_leaf_cost(with_cost(cost).group<KdTreeOptions>(), scene.geometry().size()));
         }
     }
 }

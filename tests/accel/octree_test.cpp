@@ -64,7 +64,7 @@ OctreeOptions octree_options(int max_depth, int leaf_size) {
 
 BuildOptions build_options_with(OctreeOptions octree, TriangleTest test = TriangleTest::MollerTrumbore) {
     BuildOptions options = build_options(test);
-    options.octree = octree;
+    options.group<OctreeOptions>() = octree;
     return options;
 }
 

@@ -40,7 +40,7 @@ struct Pair {
     }
     [[nodiscard]] BuildOptions options(TriangleTest test) const {
         BuildOptions options = build_options(test);
-        options.bvh.spatial_splits = spatial_splits;
+        options.group<BvhOptions>().spatial_splits = spatial_splits;
         options.isa = isa;
         return options;
     }

@@ -11,6 +11,7 @@
 #include <memory>
 #include <random>
 
+#include "accel/bvh/bvh.hpp"
 #include "accel/grid.hpp"
 #include "accel/kdtree.hpp"
 #include "accel/octree_build.hpp"
@@ -139,7 +140,7 @@ INSTANTIATE_TEST_SUITE_P(Structures, ParallelBuild,
 
 TEST(ParallelBuildArrays, BvhWithSpatialSplitsIsTheSame) {
     BuildOptions options;
-    options.bvh.spatial_splits = true;
+    options.group<BvhOptions>().spatial_splits = true;
     expect_same_structure("bvh", mixed_scene(), options);
     expect_same_structure("bvh8", mixed_scene(), options);
 }
@@ -148,11 +149,11 @@ TEST(ParallelBuildArrays, GridCoarsenedPastItsBudgetIsTheSame) {
     const TestScene scene = overlapping_scene();
     const Geometry geometry = scene.geometry();
     BuildOptions options;
-    options.grid.density = 3.0f;  // 81000 cells, each triangle crossing hundreds of them
+    options.group<GridOptions>().density = 3.0f;  // 81000 cells, each triangle crossing hundreds of them
     GridAccel grid;
     grid.build(geometry, options);
-    const auto first_try =
-        GridAccel::choose_resolution(geometry.bounds(), geometry.size(), options.grid.density);
+    const auto first_try = GridAccel::choose_resolution(geometry.bounds(), geometry.size(),
+                                                        options.group<GridOptions>().density);
     ASSERT_LT(grid.resolution()[0] * grid.resolution()[1] * grid.resolution()[2],
               first_try[0] * first_try[1] * first_try[2]);  // the budget was exceeded, the grid coarsened
     expect_same_structure("grid", scene, options);

@@ -77,11 +77,11 @@ TEST_F(PluckerFileTest, RoundTripGivesTheSameHitsForEveryLayout) {
         rays.insert(rays.end(), extra.rays.begin(), extra.rays.end());
     for (int variant = 0; variant < 8; ++variant) {
         BuildOptions options = build_options(TriangleTest::Watertight);
-        options.plucker.max_depth = 7;
-        options.plucker.leaf_size = 3;
-        options.plucker.stored_boxes = variant & 1;
-        options.plucker.balanced = variant & 2;
-        options.plucker.morton = variant & 4;
+        options.group<PluckerOptions>().max_depth = 7;
+        options.group<PluckerOptions>().leaf_size = 3;
+        options.group<PluckerOptions>().stored_boxes = variant & 1;
+        options.group<PluckerOptions>().balanced = variant & 2;
+        options.group<PluckerOptions>().morton = variant & 4;
         PluckerAccel built;
         built.build(fixture_.geometry(), options);
         const PluckerFile read = read_plucker_file(built_file(built));
@@ -169,8 +169,8 @@ TEST_F(PluckerFileTest, RefusesACorruptedPayloadByItsChecksum) {
 // would be. Each must be refused by the structural checks.
 TEST_F(PluckerFileTest, RefusesOutOfRangeAndInconsistentStructures) {
     BuildOptions options;
-    options.plucker.max_depth = 6;
-    options.plucker.leaf_size = 3;
+    options.group<PluckerOptions>().max_depth = 6;
+    options.group<PluckerOptions>().leaf_size = 3;
     PluckerAccel accel;
     accel.build(fixture_.geometry(), options);
     const PluckerLayout& good = accel.layout();

@@ -37,17 +37,18 @@ TEST_P(PluckerStanford, EveryLayoutAgreesWithTheBvh) {
 
     for (int variant = 1; variant < 8; ++variant) {  // variant 0 is the default, in stanford_test.cpp
         BuildOptions options;
-        options.plucker.balanced = (variant & 1) == 0;
-        options.plucker.stored_boxes = (variant & 2) == 0;
-        options.plucker.morton = (variant & 4) != 0;
+        options.group<PluckerOptions>().balanced = (variant & 1) == 0;
+        options.group<PluckerOptions>().stored_boxes = (variant & 2) == 0;
+        options.group<PluckerOptions>().morton = (variant & 4) != 0;
         PluckerAccel accel;
         accel.build(geometry.view(), options);
         for (std::size_t s = 0; s < sets.size(); ++s) {
             const Agreement agreement =
                 compare_hits(sets[s].rays, expected[s], testing::trace_in_parallel(accel, sets[s].rays));
             std::printf("%s, %s: plucker balanced=%d stored_boxes=%d morton=%d vs bvh: %s\n", GetParam(),
-                        sets[s].name.c_str(), options.plucker.balanced, options.plucker.stored_boxes,
-                        options.plucker.morton, agreement.summary().c_str());
+                        sets[s].name.c_str(), options.group<PluckerOptions>().balanced,
+                        options.group<PluckerOptions>().stored_boxes, options.group<PluckerOptions>().morton,
+                        agreement.summary().c_str());
             EXPECT_EQ(agreement.mismatches, 0u) << "variant " << variant << ": " << agreement.summary();
         }
     }

@@ -81,11 +81,11 @@ const std::vector<TestScene>& scenes() {
 BuildOptions plucker_options(int max_depth, int leaf_size, bool balanced = true, bool stored_boxes = true,
                              bool morton = false, TriangleTest test = TriangleTest::MollerTrumbore) {
     BuildOptions options = build_options(test);
-    options.plucker.max_depth = max_depth;
-    options.plucker.leaf_size = leaf_size;
-    options.plucker.balanced = balanced;
-    options.plucker.stored_boxes = stored_boxes;
-    options.plucker.morton = morton;
+    options.group<PluckerOptions>().max_depth = max_depth;
+    options.group<PluckerOptions>().leaf_size = leaf_size;
+    options.group<PluckerOptions>().balanced = balanced;
+    options.group<PluckerOptions>().stored_boxes = stored_boxes;
+    options.group<PluckerOptions>().morton = morton;
     return options;
 }
 

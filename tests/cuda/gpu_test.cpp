@@ -6,6 +6,7 @@
 
 #include <cstring>
 #include <filesystem>
+#include <string>
 
 #include "accel/ray_sets.hpp"
 #include "accel/test_scenes.hpp"
@@ -52,8 +53,9 @@ void expect_kernels_agree(const Geometry& geometry, std::span<const Ray> batch, 
         for (const auto& [kernel, balanced, stored_boxes] : kConfigurations) {
             const std::unique_ptr<Accel> accel = make_accel(structure_of(kernel));
             BuildOptions options = build_options(test);
-            options.plucker.balanced = balanced;
-            options.plucker.stored_boxes = stored_boxes;
+            set_build_option(options, std::string("plucker.balanced=") + (balanced ? "true" : "false"));
+            set_build_option(options,
+                             std::string("plucker.stored_boxes=") + (stored_boxes ? "true" : "false"));
             accel->build(geometry, options);
             CudaTracer tracer(*accel, geometry, test, kernel);
             const std::string name = std::string(cuda_kernel_name(kernel)) +
@@ -101,7 +103,7 @@ TEST(CudaGpu, PluckerStepsAreTheCpuWalksLeaves) {
     // Without the 2:1 rule the steps take in the inner cells the links descend, as on the CPU.
     for (const bool balanced : {true, false}) {
         BuildOptions options;
-        options.plucker.balanced = balanced;
+        set_build_option(options, std::string("plucker.balanced=") + (balanced ? "true" : "false"));
         const std::unique_ptr<Accel> accel = make_accel("plucker");
         accel->build(geometry, options);
         CudaTracer tracer(*accel, geometry, TriangleTest::MollerTrumbore, CudaKernel::Plucker);

@@ -147,7 +147,7 @@ template <class TriangleTestT>
 void expect_ports_agree(const Geometry& geometry, TriangleTest test, std::span<const testing::RaySet> sets,
                         const std::string& scene_name, std::size_t& hits_seen, bool spatial_splits = false) {
     BuildOptions options = build_options(test);
-    options.bvh.spatial_splits = spatial_splits;
+    options.group<BvhOptions>().spatial_splits = spatial_splits;
     BvhAccel bvh;
     bvh.build(geometry, options);
     const gpu::FlatBvh flat = gpu::flatten_bvh(bvh, geometry);
@@ -157,8 +157,8 @@ void expect_ports_agree(const Geometry& geometry, TriangleTest test, std::span<c
     PluckerAccel octrees[4];
     for (int variant = 0; variant < 4; ++variant) {
         BuildOptions layout = options;
-        layout.plucker.balanced = variant < 2;
-        layout.plucker.stored_boxes = variant % 2 == 0;
+        layout.group<PluckerOptions>().balanced = variant < 2;
+        layout.group<PluckerOptions>().stored_boxes = variant % 2 == 0;
         octrees[variant].build(geometry, layout);
     }
     const char* test_name = test == TriangleTest::Watertight ? "watertight" : "moller";
@@ -236,7 +236,7 @@ TEST(CudaPorts, StepCountsAreTheCpuWalksLeaves) {
     const testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 2000, 21);
     // Without the 2:1 rule the count takes in the inner cells a link descends, as the CPU walk counts them.
     BuildOptions unconstrained;
-    unconstrained.plucker.balanced = false;
+    unconstrained.group<PluckerOptions>().balanced = false;
     PluckerAccel unconstrained_plucker;
     unconstrained_plucker.build(scene.geometry(), unconstrained);
     const plucker::PluckerView unconstrained_view = gpu::plucker_view(unconstrained_plucker.layout());
@@ -303,7 +303,7 @@ TEST(CudaPorts, RayValidityIsTheCpuContracts) {
 // several leaves, and the flattened BVH copies it into each.
 void expect_flat_bvh_keeps_every_child_box_and_reference(const TestScene& scene, bool spatial_splits) {
     BuildOptions options;
-    options.bvh.spatial_splits = spatial_splits;
+    options.group<BvhOptions>().spatial_splits = spatial_splits;
     BvhAccel bvh;
     bvh.build(scene.geometry(), options);
     if (spatial_splits) {

@@ -8,7 +8,7 @@
 namespace lancer {
 
 void BvhAccel::build_from(const Geometry& geometry, const BuildOptions& options) {
-    BvhBuildResult built = build_bvh(geometry, options.bvh);
+    BvhBuildResult built = build_bvh(geometry, options.group<BvhOptions>());
     nodes_ = std::move(built.nodes);
     prim_indices_ = std::move(built.prim_indices);
 }
@@ -123,6 +123,17 @@ AccelStats BvhAccel::stats() const {
 
 std::size_t BvhAccel::memory_bytes() const {
     return nodes_.size() * sizeof(BvhNode) + prim_indices_.size() * sizeof(std::uint32_t);
+}
+
+std::vector<BuildOptionRow> BvhAccel::option_rows() {
+    return {choice_option<BvhOptions, BvhBuilder>(
+                "builder", "the SAH builder: binned, or a full sweep (seed 002)", &BvhOptions::builder,
+                {{"binned", BvhBuilder::BinnedSah}, {"sweep", BvhBuilder::SweepSah}}),
+            number_option("max_leaf_size", "primitives a leaf may hold (also bvh4, bvh8)",
+                          &BvhOptions::max_leaf_size, 1, 64),
+            number_option("bins", "bins of the binned builder", &BvhOptions::bins, 2, 256),
+            flag_option("spatial_splits", "spatial splits in the binned builder (the SBVH)",
+                        &BvhOptions::spatial_splits)};
 }
 
 }  // namespace lancer

@@ -5,11 +5,30 @@
 #pragma once
 
 #include <cstdint>
+#include <string_view>
 #include <vector>
 
+#include "accel/options.hpp"
 #include "accel/single_ray.hpp"
 
 namespace lancer {
+
+enum class BvhBuilder {
+    SweepSah,   // seed 002: full sweep over centroids sorted on each axis
+    BinnedSah,  // Wald 2007: binned SAH, parallel over oneTBB when available
+};
+
+// The options of the BVH family (`bvh`, `bvh4`, `bvh8` and their packet structures).
+struct BvhOptions {
+    static constexpr std::string_view kGroup = "bvh";
+    BvhBuilder builder = BvhBuilder::BinnedSah;
+    int max_leaf_size = 4;
+    int bins = 32;
+    // Spatial splits (Stich, Friedrich & Dietrich 2009, the SBVH) in the binned builder: a node may also
+    // be split by a plane that cuts references in two, a primitive then appearing in several leaves, within
+    // a budget of references (docs/accel/bvh.md, "Spatial splits"). The sweep builder ignores it.
+    bool spatial_splits = false;
+};
 
 // 32 bytes, two per cache line (pbrt-v4's LinearBVHNode). Depth-first layout: an inner node's first child
 // is the next node, its second child is at `offset`.
@@ -28,6 +47,8 @@ static_assert(sizeof(BvhNode) == 32);
 
 class BvhAccel final : public SingleRayAccel<BvhAccel> {
   public:
+    // The `--set` keys of this structure's option group (accel/options.hpp).
+    [[nodiscard]] static std::vector<BuildOptionRow> option_rows();
     [[nodiscard]] std::string_view name() const override { return "bvh"; }
     [[nodiscard]] AccelStats stats() const override;
     [[nodiscard]] std::size_t memory_bytes() const override;

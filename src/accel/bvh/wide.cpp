@@ -223,7 +223,7 @@ bool traverse(const std::vector<WideBvhNode<W>>& nodes,
 
 template <int W>
 void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& options) {
-    BvhBuildResult binary = build_bvh(geometry, options.bvh);
+    BvhBuildResult binary = build_bvh(geometry, options.group<BvhOptions>());
     nodes_.clear();
     blocks_.clear();
     if (!binary.nodes.empty()) {

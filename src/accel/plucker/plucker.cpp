@@ -22,7 +22,7 @@ void PluckerAccel::build_structure(const Geometry& geometry, const BuildOptions&
     const auto start = std::chrono::steady_clock::now();
     geometry_ = geometry;
     options_ = options;
-    const PluckerOptions& plucker_options = options.plucker;
+    const PluckerOptions& plucker_options = options.group<PluckerOptions>();
     OctreeOptions octree_options;
     octree_options.max_depth =
         plucker_options.max_depth > 0 ? plucker_options.max_depth : automatic_depth(geometry.size());
@@ -40,9 +40,10 @@ void PluckerAccel::adopt(const Geometry& geometry, const BuildOptions& options, 
     accept_geometry(geometry);
     geometry_ = geometry;
     options_ = options;
-    options_.plucker.balanced = layout.options.balanced;
-    options_.plucker.stored_boxes = layout.options.stored_boxes;
-    options_.plucker.morton = layout.options.morton;
+    PluckerOptions& plucker_options = options_.group<PluckerOptions>();
+    plucker_options.balanced = layout.options.balanced;
+    plucker_options.stored_boxes = layout.options.stored_boxes;
+    plucker_options.morton = layout.options.morton;
     layout_ = std::move(layout);
     compute_layout_stats();
 }
@@ -182,6 +183,18 @@ std::vector<std::uint32_t> PluckerAccel::leaves_along(const Ray& ray) const {
             steps);
     });
     return leaves;
+}
+
+std::vector<BuildOptionRow> PluckerAccel::option_rows() {
+    return {number_option("max_depth", "deepest level of the Pluecker octree; 0: round(0.8 log2(N) - 5)",
+                          &PluckerOptions::max_depth, 0, 16),
+            number_option("leaf_size", "references a cell may hold before it is split",
+                          &PluckerOptions::leaf_size, 1, 1 << 20),
+            flag_option("balanced", "the 2:1 rule and links to leaves (the seed's layout)",
+                        &PluckerOptions::balanced),
+            flag_option("stored_boxes", "cell boxes stored, not recomputed from coordinates and level",
+                        &PluckerOptions::stored_boxes),
+            flag_option("morton", "cells in depth-first (Morton) order", &PluckerOptions::morton)};
 }
 
 }  // namespace lancer

@@ -5,15 +5,35 @@
 #pragma once
 
 #include <cstdint>
+#include <string_view>
 #include <vector>
 
+#include "accel/options.hpp"
 #include "accel/plucker/layout.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {
 
+// The options of `plucker` and `plucker_packet` (seed 000, Portalez & Duguet 2016): the octree with the 2:1
+// rule and face-neighbour links, walked leaf to leaf. max_depth 0 = automatic: round(0.8 log2(N) - 5), the
+// depths of the seed's section 5.2 (8 for the bunny's 69k triangles, 10 for the armadillo's 346k, 11 for
+// the dragon's 871k). The other fields are the variants of its section 6 (docs/plucker-octree.md).
+struct PluckerOptions {
+    static constexpr std::string_view kGroup = "plucker";
+    int max_depth = 0;
+    // Split while a cell holds more references. 32, not the seed's 12 ("6 triangles per leaf on average",
+    // 5.1): leaves are tested 8 triangles per block here, so larger leaves cost few extra tests and save
+    // steps, memory and build time (docs/plucker-octree.md, "Leaf size"); the seed's tables use 12.
+    int leaf_size = 32;
+    bool balanced = true;      // false: no 2:1 rule, links to the same-or-larger neighbour and a descent
+    bool stored_boxes = true;  // false: cell planes recomputed from integer coordinates and level
+    bool morton = false;       // true: cells in depth-first (Morton) order instead of the build's order
+};
+
 class PluckerAccel final : public Accel {
   public:
+    // The `--set` keys of this structure's option group (accel/options.hpp).
+    [[nodiscard]] static std::vector<BuildOptionRow> option_rows();
     [[nodiscard]] std::string_view name() const override { return "plucker"; }
     [[nodiscard]] AccelStats stats() const override { return stats_; }
     [[nodiscard]] std::size_t memory_bytes() const override;
