@@ -1,0 +1,60 @@
+#include "files.hpp"
+
+#include <pybind11/numpy.h>
+
+#include <string>
+
+#include "lancer/load_scene.hpp"
+#include "lancer/render.hpp"
+
+namespace lancer::python {
+
+py::tuple load_mesh(const std::string& path) {
+    Scene scene;
+    try {
+        scene = load_scene(path);
+    } catch (const LoadError& error) {
+        throw py::value_error(std::string("path: ") + error.what());
+    }
+    std::size_t vertex_count = 0, triangle_count = 0;
+    for (const TriangleMesh& mesh : scene.meshes)
+        vertex_count += mesh.positions.size(), triangle_count += mesh.triangle_count();
+    if (triangle_count == 0) throw py::value_error("path: " + path + " holds no triangles");
+    py::array_t<float> vertices(std::vector<py::ssize_t>{static_cast<py::ssize_t>(vertex_count), 3});
+    py::array_t<std::uint32_t> triangles(
+        std::vector<py::ssize_t>{static_cast<py::ssize_t>(triangle_count), 3});
+    float* v = vertices.mutable_data();
+    std::uint32_t* t = triangles.mutable_data();
+    std::uint32_t first = 0;
+    for (const TriangleMesh& mesh : scene.meshes) {
+        for (const Vec3f& p : mesh.positions)
+            *v++ = p.x, *v++ = p.y, *v++ = p.z;
+        for (const std::uint32_t index : mesh.indices)
+            *t++ = first + index;
+        first += static_cast<std::uint32_t>(mesh.positions.size());
+    }
+    return py::make_tuple(vertices, triangles);
+}
+
+void save_png(const std::string& path, const py::object& image) {
+    if (!py::isinstance<py::array>(image)) throw py::type_error("image: expected a numpy array");
+    const auto array = py::reinterpret_borrow<py::array>(image);
+    const bool grey = array.ndim() == 2, colour = array.ndim() == 3 && array.shape(2) == 3;
+    if (!grey && !colour) throw py::value_error("image: expected shape (H, W) or (H, W, 3)");
+    if (array.dtype().kind() != 'f')
+        throw py::type_error("image: expected a float array (linear values in [0, 1])");
+    const auto pixels = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(array);
+    Image out(static_cast<int>(array.shape(1)), static_cast<int>(array.shape(0)));
+    const float* p = pixels.data();
+    for (Vec3f& pixel : out.pixels) {
+        pixel = grey ? Vec3f(p[0]) : Vec3f(p[0], p[1], p[2]);
+        p += grey ? 1 : 3;
+    }
+    try {
+        write_png(out, path);
+    } catch (const std::runtime_error& error) {
+        throw py::value_error(std::string("path: ") + error.what());
+    }
+}
+
+}  // namespace lancer::python

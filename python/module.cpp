@@ -1,0 +1,54 @@
+// The `lancer` Python module (docs/python.md): RaycastingScene with Open3D's signatures and defaults.
+#include <pybind11/pybind11.h>
+
+#include <limits>
+
+#include "files.hpp"
+#include "raycasting_scene.hpp"
+
+namespace py = pybind11;
+using lancer::python::RaycastingScene;
+
+PYBIND11_MODULE(lancer, module) {
+    module.doc() = "lancer: exact ray queries over triangle meshes (Open3D's RaycastingScene API)";
+    module.attr("__version__") = "0.1.0";
+    py::class_<RaycastingScene>(module, "RaycastingScene")
+        .def(
+            py::init<std::string, bool>(), py::arg("accel") = "bvh8", py::arg("watertight") = true,
+            "A scene traced by lancer structure `accel` (lancer.accel_names()), with the watertight triangle "
+            "test (Woop et al. 2013) or Moller-Trumbore")
+        .def_readonly_static("INVALID_ID", &lancer::python::kInvalidId)
+        .def("add_triangles", &RaycastingScene::add_triangles, py::arg("vertices"), py::arg("triangles"),
+             "Adds a mesh: vertices float32 (N, 3), triangles integer (M, 3). Returns its geometry id.")
+        .def("cast_rays", &RaycastingScene::cast_rays, py::arg("rays"), py::arg("nthreads") = 0,
+             "Closest hits of rays float32 (..., 6): t_hit, geometry_ids, primitive_ids, primitive_uvs, "
+             "primitive_normals")
+        .def("test_occlusions", &RaycastingScene::test_occlusions, py::arg("rays"), py::arg("tnear") = 0.0f,
+             py::arg("tfar") = std::numeric_limits<float>::infinity(), py::arg("nthreads") = 0,
+             "Whether each ray hits anything within [tnear, tfar]")
+        .def("count_intersections", &RaycastingScene::count_intersections, py::arg("rays"),
+             py::arg("nthreads") = 0, "The number of hits along each ray")
+        .def("list_intersections", &RaycastingScene::list_intersections, py::arg("rays"),
+             py::arg("nthreads") = 0,
+             "Every hit along each ray, by increasing t: ray_splits, ray_ids, geometry_ids, primitive_ids, "
+             "primitive_uvs, t_hit")
+        .def_static("create_rays_pinhole", &RaycastingScene::create_rays_pinhole, py::arg("fov_deg"),
+                    py::arg("center"), py::arg("eye"), py::arg("up"), py::arg("width_px"),
+                    py::arg("height_px"),
+                    "Rays (height_px, width_px, 6) of a pinhole camera at `eye` looking at `center`")
+        .def_property_readonly("accel", &RaycastingScene::accel)
+        .def("stats", &RaycastingScene::stats, "The structure's build statistics");
+    module.def(
+        "accel_names",
+        [] {
+            py::list names;
+            for (const std::string_view name : lancer::accel_names())
+                names.append(std::string(name));
+            return names;
+        },
+        "The structures RaycastingScene(accel=...) takes");
+    module.def("load_mesh", &lancer::python::load_mesh, py::arg("path"),
+               "(vertices float32 (N, 3), triangles uint32 (M, 3)) of a mesh file (OFF, PLY, OBJ, NFF, ...)");
+    module.def("save_png", &lancer::python::save_png, py::arg("path"), py::arg("image"),
+               "Writes linear values in [0, 1], (H, W) or (H, W, 3), as an 8-bit sRGB PNG");
+}

@@ -1,0 +1,319 @@
+#include "raycasting_scene.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+namespace lancer::python {
+
+using namespace pybind11::literals;
+
+namespace {
+
+std::string shape_text(const py::array& array) {
+    std::string text = "(";
+    for (py::ssize_t axis = 0; axis < array.ndim(); ++axis)
+        text.append(axis == 0 ? "" : ", ").append(std::to_string(array.shape(axis)));
+    return text + (array.ndim() == 1 ? ",)" : ")");
+}
+
+// A float32 array of shape (..., width), C-contiguous (read in place when it already is). Throws TypeError
+// or ValueError naming `name`; with `finite`, also for a NaN or infinite value.
+py::array_t<float, py::array::c_style> float_rows(const py::object& object, const char* name,
+                                                  py::ssize_t width, bool finite = true) {
+    if (!py::isinstance<py::array>(object))
+        throw py::type_error(std::string(name) + ": expected a numpy array of float32, got " +
+                             std::string(py::str(py::type::of(object).attr("__name__"))));
+    const auto array = py::reinterpret_borrow<py::array>(object);
+    if (array.dtype().kind() != 'f' || array.itemsize() != 4)
+        throw py::type_error(std::string(name) + ": expected dtype float32, got " +
+                             std::string(py::str(array.dtype())));
+    if (array.ndim() < 1 || array.shape(array.ndim() - 1) != width)
+        throw py::value_error(std::string(name) + ": expected shape (..., " + std::to_string(width) +
+                              "), got " + shape_text(array));
+    auto rows = py::array_t<float, py::array::c_style>::ensure(array);
+    if (finite) {
+        const float* data = rows.data();
+        for (py::ssize_t i = 0; i < rows.size(); ++i) {
+            if (!std::isfinite(data[i]))
+                throw py::value_error(std::string(name) + ": row " + std::to_string(i / width) +
+                                      " holds a NaN or infinite value");
+        }
+    }
+    return rows;
+}
+
+// The shape of `rows` without its last axis, then `extra` (the shape of one answer, empty for a scalar).
+std::vector<py::ssize_t> answer_shape(const py::array& rows, std::initializer_list<py::ssize_t> extra = {}) {
+    std::vector<py::ssize_t> shape(rows.shape(), rows.shape() + rows.ndim() - 1);
+    shape.insert(shape.end(), extra);
+    return shape;
+}
+
+std::vector<Ray> rays_of(const py::array_t<float, py::array::c_style>& rows, float tnear, float tfar) {
+    const auto count = static_cast<std::size_t>(rows.size() / 6);
+    std::vector<Ray> rays(count);
+    const float* r = rows.data();
+    for (std::size_t i = 0; i < count; ++i, r += 6)
+        rays[i] = {{r[0], r[1], r[2]}, {r[3], r[4], r[5]}, tnear, tfar};
+    return rays;
+}
+
+// body(first, last) over [0, count) on `threads` threads (0: all).
+template <class Body>
+void parallel_ranges(std::size_t count, int threads, Body&& body) {
+    tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+    arena.execute([&] {
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(0, count, 1024),
+            [&](const tbb::blocked_range<std::size_t>& range) { body(range.begin(), range.end()); });
+    });
+}
+
+Vec3f vec3_argument(const py::object& object, const char* name) {
+    const auto rows =
+        float_rows(py::array::ensure(object, py::array::forcecast).attr("astype")("float32"), name, 3);
+    if (rows.size() != 3) throw py::value_error(std::string(name) + ": expected 3 values");
+    return {rows.data()[0], rows.data()[1], rows.data()[2]};
+}
+
+}  // namespace
+
+RaycastingScene::RaycastingScene(std::string accel, bool watertight)
+    : accel_name_(std::move(accel)),
+      test_(watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore),
+      first_triangle_{0} {
+    const std::vector<std::string_view> names = accel_names();
+    if (std::find(names.begin(), names.end(), accel_name_) == names.end()) {
+        std::string known;
+        for (const std::string_view name : names)
+            known.append(known.empty() ? "" : ", ").append(name);
+        throw py::value_error("accel: unknown structure '" + accel_name_ + "' (known: " + known + ")");
+    }
+}
+
+std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const py::object& triangles) {
+    const auto points = float_rows(vertices, "vertices", 3);
+    if (!py::isinstance<py::array>(triangles))
+        throw py::type_error("triangles: expected a numpy array of integers");
+    const auto indices_array = py::reinterpret_borrow<py::array>(triangles);
+    const char kind = indices_array.dtype().kind();
+    if (kind != 'i' && kind != 'u')
+        throw py::type_error("triangles: expected an integer dtype (uint32 as Open3D), got " +
+                             std::string(py::str(indices_array.dtype())));
+    if (indices_array.ndim() != 2 || indices_array.shape(1) != 3)
+        throw py::value_error("triangles: expected shape (M, 3), got " + shape_text(indices_array));
+    if (points.ndim() != 2)
+        throw py::value_error("vertices: expected shape (N, 3), got " + shape_text(points));
+    const auto indices =
+        py::array_t<std::int64_t, py::array::c_style>::ensure(indices_array.attr("astype")("int64"));
+    const auto vertex_count = static_cast<std::int64_t>(points.shape(0));
+    const float* p = points.data();
+    for (py::ssize_t i = 0; i < points.shape(0); ++i) {
+        if (!in_coordinate_domain({p[3 * i], p[3 * i + 1], p[3 * i + 2]}))
+            throw py::value_error("vertices: row " + std::to_string(i) +
+                                  " lies outside the coordinate domain [-2^60, 2^60]");
+    }
+    const std::int64_t* index = indices.data();
+    std::vector<Triangle> added;
+    added.reserve(static_cast<std::size_t>(indices.shape(0)));
+    for (py::ssize_t t = 0; t < indices.shape(0); ++t) {
+        Vec3f corners[3];
+        for (int c = 0; c < 3; ++c) {
+            const std::int64_t i = index[3 * t + c];
+            if (i < 0 || i >= vertex_count)
+                throw py::value_error("triangles: row " + std::to_string(t) + " names vertex " +
+                                      std::to_string(i) + ", outside [0, " + std::to_string(vertex_count) +
+                                      ")");
+            corners[c] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
+        }
+        added.push_back({corners[0], corners[1], corners[2]});
+    }
+    if (triangles_.size() + added.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+        throw py::value_error("triangles: more triangles than a hit's 32-bit id can number");
+    triangles_.insert(triangles_.end(), added.begin(), added.end());
+    first_triangle_.push_back(static_cast<std::uint32_t>(triangles_.size()));
+    accel_.reset();
+    queries_.reset();
+    return static_cast<std::uint32_t>(first_triangle_.size() - 2);
+}
+
+const Accel& RaycastingScene::committed() {
+    if (triangles_.empty()) throw py::value_error("the scene is empty: add_triangles first");
+    if (!accel_) {
+        auto accel = make_accel(accel_name_);
+        accel->build({triangles_, {}}, build_options(test_));
+        accel_ = std::move(accel);
+    }
+    return *accel_;
+}
+
+const GeometryQueries& RaycastingScene::queries() {
+    if (triangles_.empty()) throw py::value_error("the scene is empty: add_triangles first");
+    if (!queries_) queries_ = std::make_unique<GeometryQueries>(Geometry{triangles_, {}}, test_);
+    return *queries_;
+}
+
+std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t prim) const {
+    const auto index = static_cast<std::uint32_t>(prim);
+    const auto after = std::upper_bound(first_triangle_.begin(), first_triangle_.end() - 1, index);
+    const auto geometry = static_cast<std::uint32_t>(after - first_triangle_.begin()) - 1;
+    return {geometry, index - first_triangle_[geometry]};
+}
+
+py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
+    const auto rows = float_rows(rays, "rays", 6);
+    const Accel& accel = committed();
+    const std::vector<Ray> batch = rays_of(rows, 0.0f, kInfinity);
+    std::vector<Hit> hits(batch.size());
+    {
+        py::gil_scoped_release released;
+        intersect_parallel(accel, batch, hits, nthreads);
+    }
+    py::array_t<float> t_hit(answer_shape(rows));
+    py::array_t<std::uint32_t> geometry_ids(answer_shape(rows)), primitive_ids(answer_shape(rows));
+    py::array_t<float> uvs(answer_shape(rows, {2})), normals(answer_shape(rows, {3}));
+    float* t = t_hit.mutable_data();
+    std::uint32_t* geometry = geometry_ids.mutable_data();
+    std::uint32_t* primitive = primitive_ids.mutable_data();
+    float* uv = uvs.mutable_data();
+    float* normal = normals.mutable_data();
+    for (std::size_t i = 0; i < hits.size(); ++i) {
+        const Hit& hit = hits[i];
+        t[i] = hit.t;
+        uv[2 * i] = hit.hit() ? hit.u : 0.0f;
+        uv[2 * i + 1] = hit.hit() ? hit.v : 0.0f;
+        Vec3f n(0.0f);
+        if (hit.hit()) {
+            std::tie(geometry[i], primitive[i]) = locate(hit.prim);
+            const Triangle& tri = triangles_[static_cast<std::size_t>(hit.prim)];
+            n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+        } else {
+            geometry[i] = primitive[i] = kInvalidId;
+        }
+        normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
+    }
+    return py::dict("t_hit"_a = t_hit, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,
+                    "primitive_uvs"_a = uvs, "primitive_normals"_a = normals);
+}
+
+py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads) {
+    const auto rows = float_rows(rays, "rays", 6);
+    if (std::isnan(tnear) || std::isnan(tfar) || tnear > tfar)
+        throw py::value_error("tnear, tfar: expected tnear <= tfar, neither NaN");
+    const Accel& accel = committed();
+    const std::vector<Ray> batch = rays_of(rows, tnear, tfar);
+    std::vector<std::uint8_t> occluded(batch.size());
+    {
+        py::gil_scoped_release released;
+        occluded_parallel(accel, batch, occluded, nthreads);
+    }
+    py::array_t<bool> result(answer_shape(rows));
+    std::copy(occluded.begin(), occluded.end(), result.mutable_data());
+    return result;
+}
+
+py::array RaycastingScene::count_intersections(const py::object& rays, int nthreads) {
+    const auto rows = float_rows(rays, "rays", 6);
+    const GeometryQueries& all = queries();
+    const std::vector<Ray> batch = rays_of(rows, 0.0f, kInfinity);
+    py::array_t<std::int32_t> counts(answer_shape(rows));
+    std::int32_t* count = counts.mutable_data();
+    {
+        py::gil_scoped_release released;
+        parallel_ranges(batch.size(), nthreads, [&](std::size_t first, std::size_t last) {
+            std::vector<Hit> hits;
+            for (std::size_t i = first; i < last; ++i) {
+                hits.clear();
+                all.all_hits(batch[i], hits);
+                count[i] = static_cast<std::int32_t>(hits.size());
+            }
+        });
+    }
+    return counts;
+}
+
+py::dict RaycastingScene::list_intersections(const py::object& rays, int nthreads) {
+    const auto rows = float_rows(rays, "rays", 6);
+    const GeometryQueries& all = queries();
+    const std::vector<Ray> batch = rays_of(rows, 0.0f, kInfinity);
+    std::vector<std::vector<Hit>> per_ray(batch.size());
+    {
+        py::gil_scoped_release released;
+        parallel_ranges(batch.size(), nthreads, [&](std::size_t first, std::size_t last) {
+            for (std::size_t i = first; i < last; ++i)
+                all.all_hits(batch[i], per_ray[i]);
+        });
+    }
+    std::size_t total = 0;
+    for (const std::vector<Hit>& hits : per_ray)
+        total += hits.size();
+    const auto size = static_cast<py::ssize_t>(total);
+    py::array_t<std::uint32_t> ray_splits(static_cast<py::ssize_t>(batch.size() + 1)), ray_ids(size),
+        geometry_ids(size), primitive_ids(size);
+    py::array_t<float> t_hit(size), uvs(std::vector<py::ssize_t>{size, 2});
+    std::size_t k = 0;
+    ray_splits.mutable_data()[0] = 0;
+    for (std::size_t i = 0; i < per_ray.size(); ++i) {
+        for (const Hit& hit : per_ray[i]) {
+            ray_ids.mutable_data()[k] = static_cast<std::uint32_t>(i);
+            std::tie(geometry_ids.mutable_data()[k], primitive_ids.mutable_data()[k]) = locate(hit.prim);
+            t_hit.mutable_data()[k] = hit.t;
+            uvs.mutable_data()[2 * k] = hit.u;
+            uvs.mutable_data()[2 * k + 1] = hit.v;
+            ++k;
+        }
+        ray_splits.mutable_data()[i + 1] = static_cast<std::uint32_t>(k);
+    }
+    return py::dict("ray_splits"_a = ray_splits, "ray_ids"_a = ray_ids, "geometry_ids"_a = geometry_ids,
+                    "primitive_ids"_a = primitive_ids, "primitive_uvs"_a = uvs, "t_hit"_a = t_hit);
+}
+
+py::array RaycastingScene::create_rays_pinhole(double fov_deg, const py::object& center,
+                                               const py::object& eye, const py::object& up, int width_px,
+                                               int height_px) {
+    if (!(fov_deg > 0.0 && fov_deg < 180.0)) throw py::value_error("fov_deg: expected a value in (0, 180)");
+    if (width_px <= 0 || height_px <= 0 || width_px > 1 << 16 || height_px > 1 << 16)
+        throw py::value_error("width_px, height_px: expected sizes in [1, 65536]");
+    const Vec3f target = vec3_argument(center, "center"), origin = vec3_argument(eye, "eye");
+    const Vec3f up_vector = vec3_argument(up, "up");
+    // Open3D's look-at frame, which it builds as x = up x forward and y = forward x x: pixel (0, 0) lies
+    // towards -x and +y of the usual camera.
+    const Vec3f forward = normalize(target - origin);
+    const Vec3f x_axis = normalize(cross(up_vector, forward));
+    if (!std::isfinite(forward.x) || !std::isfinite(x_axis.x))
+        throw py::value_error(
+            "center, eye, up: the eye must differ from the centre and up must not be along the view");
+    const Vec3f y_axis = cross(forward, x_axis);
+    // Open3D's pinhole: focal length 0.5 width / tan(fov / 2) in pixels, the principal point at the image's
+    // centre, rays through pixel centres, directions not normalised (forward component 1).
+    const double focal = 0.5 * width_px / std::tan(0.5 * fov_deg * std::numbers::pi / 180.0);
+    py::array_t<float> rays(std::vector<py::ssize_t>{height_px, width_px, 6});
+    float* out = rays.mutable_data();
+    for (int y = 0; y < height_px; ++y) {
+        for (int x = 0; x < width_px; ++x, out += 6) {
+            const auto a = static_cast<float>((x + 0.5 - 0.5 * width_px) / focal);
+            const auto b = static_cast<float>((y + 0.5 - 0.5 * height_px) / focal);
+            const Vec3f direction = forward + a * x_axis + b * y_axis;
+            out[0] = origin.x, out[1] = origin.y, out[2] = origin.z;
+            out[3] = direction.x, out[4] = direction.y, out[5] = direction.z;
+        }
+    }
+    return rays;
+}
+
+py::dict RaycastingScene::stats() {
+    const Accel& accel = committed();
+    const AccelStats stats = accel.stats();
+    return py::dict("accel"_a = accel_name_, "primitives"_a = stats.primitives, "nodes"_a = stats.nodes,
+                    "leaves"_a = stats.leaves, "references"_a = stats.references,
+                    "max_depth"_a = stats.max_depth, "build_ms"_a = stats.build_ms,
+                    "memory_bytes"_a = accel.memory_bytes());
+}
+
+}  // namespace lancer::python

@@ -1,0 +1,56 @@
+// lancer.RaycastingScene: the API of Open3D's open3d.t.geometry.RaycastingScene (0.16, with 0.17's
+// list_intersections) over lancer's structures, so that its users switch by changing one import
+// (docs/python.md). Arrays are NumPy's: float32 rays (..., 6) and points (..., 3), read in place when
+// C-contiguous; results keep the leading shape. The GIL is released while C++ traces.
+#pragma once
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lancer/accel.hpp"
+#include "lancer/queries.hpp"
+#include "lancer/scene.hpp"
+
+namespace lancer::python {
+
+namespace py = pybind11;
+
+// Open3D's RaycastingScene.INVALID_ID: the geometry and primitive id of a miss.
+inline constexpr std::uint32_t kInvalidId = 0xFFFFFFFFu;
+
+class RaycastingScene {
+  public:
+    RaycastingScene(std::string accel, bool watertight);
+
+    std::uint32_t add_triangles(const py::object& vertices, const py::object& triangles);
+    py::dict cast_rays(const py::object& rays, int nthreads);
+    py::array test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads);
+    py::array count_intersections(const py::object& rays, int nthreads);
+    py::dict list_intersections(const py::object& rays, int nthreads);
+    static py::array create_rays_pinhole(double fov_deg, const py::object& center, const py::object& eye,
+                                         const py::object& up, int width_px, int height_px);
+
+    [[nodiscard]] const std::string& accel() const { return accel_name_; }
+    [[nodiscard]] py::dict stats();
+
+  private:
+    // Builds the structure over every geometry added so far, once after each add_triangles.
+    const Accel& committed();
+    const GeometryQueries& queries();
+    // The geometry and primitive ids of a global triangle index.
+    [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) const;
+
+    std::string accel_name_;
+    TriangleTest test_;
+    std::vector<Triangle> triangles_;
+    std::vector<std::uint32_t> first_triangle_;  // of each geometry, then the total
+    std::unique_ptr<Accel> accel_;
+    std::unique_ptr<GeometryQueries> queries_;
+};
+
+}  // namespace lancer::python

@@ -1,0 +1,197 @@
+"""lancer.RaycastingScene against lancer's brute force, Embree through the `embree` structure, and Open3D's
+working queries (docs/python.md). Run by CTest (python_tests) with the built module on PYTHONPATH."""
+import math
+
+import pytest
+
+np = pytest.importorskip("numpy", reason="NumPy is missing: scripts/deps.sh installs python3-numpy")
+lancer = pytest.importorskip("lancer", reason="the lancer module is not built (needs pybind11)")
+
+STRUCTURES = [name for name in lancer.accel_names() if not name.startswith("embree")]
+
+
+def icosphere(subdivisions=2):
+    """A closed unit sphere: vertices (N, 3) float32 and triangles (M, 3) uint32, every edge shared."""
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    vertices = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t), (0, 1, -t),
+                (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
+    vertices = [tuple(c / math.sqrt(1 + t * t) for c in v) for v in vertices]
+    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
+             (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11),
+             (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    for _ in range(subdivisions):
+        midpoint = {}
+
+        def middle(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in midpoint:
+                m = [(vertices[a][i] + vertices[b][i]) / 2 for i in range(3)]
+                norm = math.sqrt(sum(c * c for c in m))
+                vertices.append(tuple(c / norm for c in m))
+                midpoint[key] = len(vertices) - 1
+            return midpoint[key]
+
+        faces = [f for a, b, c in faces for f in
+                 ((a, middle(a, b), middle(c, a)), (b, middle(b, c), middle(a, b)), (c, middle(c, a), middle(b, c)),
+                  (middle(a, b), middle(b, c), middle(c, a)))]
+    return np.array(vertices, dtype=np.float32), np.array(faces, dtype=np.uint32)
+
+
+def scene_of(accel, *meshes, watertight=True):
+    scene = lancer.RaycastingScene(accel=accel, watertight=watertight)
+    for vertices, triangles in meshes:
+        scene.add_triangles(vertices, triangles)
+    return scene
+
+
+def random_rays(count, seed, spread=2.0):
+    rng = np.random.default_rng(seed)
+    origins = rng.uniform(-spread, spread, (count, 3))
+    targets = rng.uniform(-1.0, 1.0, (count, 3))
+    return np.hstack([origins, targets - origins]).astype(np.float32)
+
+
+def adversarial_rays(vertices, triangles):
+    """Rays from outside at every vertex and every edge midpoint, and axis-parallel rays through the box."""
+    points = [vertices]
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        points.append((vertices[triangles[:, a]] + vertices[triangles[:, b]]) / 2)
+    targets = np.vstack(points).astype(np.float32)
+    origins = targets * 3.0 + np.float32(0.25)
+    rays = [np.hstack([origins, targets - origins])]
+    grid = np.linspace(-1.2, 1.2, 9, dtype=np.float32)
+    for axis in range(3):
+        for a in grid:
+            for b in grid:
+                origin = np.zeros(3, np.float32)
+                origin[axis] = -3.0
+                origin[(axis + 1) % 3], origin[(axis + 2) % 3] = a, b
+                direction = np.zeros(3, np.float32)
+                direction[axis] = 1.0
+                rays.append(np.hstack([origin, direction])[None, :])
+    return np.vstack(rays).astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def spheres():
+    """Two closed spheres, the second moved and scaled: two geometry ids."""
+    vertices, triangles = icosphere(2)
+    moved = (vertices * np.float32(0.5) + np.float32([1.5, 0.0, 0.0])).astype(np.float32)
+    return [(vertices, triangles), (moved, triangles)]
+
+
+def test_closest_hits_agree_with_brute_force_bit_for_bit(spheres):
+    rays = np.vstack([random_rays(3000, 1), adversarial_rays(*spheres[0])])
+    expected = scene_of("brute", *spheres).cast_rays(rays)
+    assert np.isfinite(expected["t_hit"]).sum() > 1000
+    for accel in STRUCTURES:
+        for watertight in (True, False):
+            answer = scene_of(accel, *spheres, watertight=watertight).cast_rays(rays)
+            reference = expected if watertight else scene_of("brute", *spheres, watertight=False).cast_rays(rays)
+            for key in ("t_hit", "geometry_ids", "primitive_ids", "primitive_uvs", "primitive_normals"):
+                assert np.array_equal(answer[key], reference[key]), (accel, watertight, key)
+
+
+def test_embree_structure_agrees_within_its_rounding(spheres):
+    if "embree" not in lancer.accel_names():
+        pytest.skip("lancer was built without Embree")
+    rays = random_rays(3000, 2)
+    expected = scene_of("brute", *spheres).cast_rays(rays)
+    answer = scene_of("embree", *spheres).cast_rays(rays)
+    hit = np.isfinite(expected["t_hit"])
+    assert np.array_equal(hit, np.isfinite(answer["t_hit"]))
+    assert np.allclose(answer["t_hit"][hit], expected["t_hit"][hit], rtol=1e-5)
+
+
+def test_result_shapes_follow_the_rays_leading_shape(spheres):
+    rays = random_rays(24, 3).reshape(2, 3, 4, 6)
+    answer = scene_of("bvh8", *spheres).cast_rays(rays)
+    assert answer["t_hit"].shape == (2, 3, 4) and answer["t_hit"].dtype == np.float32
+    assert answer["geometry_ids"].dtype == np.uint32 and answer["primitive_ids"].shape == (2, 3, 4)
+    assert answer["primitive_uvs"].shape == (2, 3, 4, 2) and answer["primitive_normals"].shape == (2, 3, 4, 3)
+    assert scene_of("bvh8", *spheres).count_intersections(rays).shape == (2, 3, 4)
+    assert scene_of("bvh8", *spheres).test_occlusions(rays).shape == (2, 3, 4)
+    misses = ~np.isfinite(answer["t_hit"])
+    assert np.all(answer["geometry_ids"][misses] == lancer.RaycastingScene.INVALID_ID)
+
+
+def test_occlusions_are_hits_within_the_interval(spheres):
+    rays = random_rays(2000, 4)
+    scene = scene_of("bvh8", *spheres)
+    t_hit = scene.cast_rays(rays)["t_hit"]
+    assert np.array_equal(scene.test_occlusions(rays), np.isfinite(t_hit))
+    # A window that ends before the closest hit sees nothing of it.
+    occluded = scene.test_occlusions(rays, tnear=0.0, tfar=0.5)
+    assert np.array_equal(occluded, t_hit <= 0.5)
+
+
+def test_every_hit_is_listed_in_order_and_counted(spheres):
+    rays = np.vstack([random_rays(1000, 5), adversarial_rays(*spheres[0])[:500]])
+    scene = scene_of("bvh", *spheres)
+    listed = scene.list_intersections(rays)
+    counts = scene.count_intersections(rays)
+    splits = listed["ray_splits"]
+    assert splits[0] == 0 and splits[-1] == len(listed["t_hit"])
+    assert np.array_equal(np.diff(splits), counts)
+    closest = scene_of("brute", *spheres).cast_rays(rays)
+    for i in range(len(rays)):
+        t = listed["t_hit"][splits[i]:splits[i + 1]]
+        assert np.all(np.diff(t) >= 0), i
+        if counts[i] > 0:
+            assert t[0] == closest["t_hit"][i]
+            assert listed["primitive_ids"][splits[i]] == closest["primitive_ids"][i]
+            assert listed["geometry_ids"][splits[i]] == closest["geometry_ids"][i]
+        else:
+            assert not np.isfinite(closest["t_hit"][i])
+    # A ray from inside a closed sphere, away from its edges, leaves it once.
+    inside = np.array([[0.01, 0.02, 0.03, 0.3, 0.5, 0.7]], dtype=np.float32)
+    assert scene_of("bvh", spheres[0]).count_intersections(inside)[0] == 1
+
+
+def test_rays_at_shared_vertices_and_edges_never_pass_through(spheres, capsys):
+    vertices, triangles = spheres[0]
+    rays = adversarial_rays(vertices, triangles)[: len(vertices) + 3 * len(triangles)]
+    for accel in STRUCTURES:
+        answer = scene_of(accel, spheres[0]).cast_rays(rays)
+        assert np.all(np.isfinite(answer["t_hit"])), accel
+    with capsys.disabled():
+        print(f"\nwatertight: {len(rays)} rays at vertices and edge midpoints, none passed, on {len(STRUCTURES)} structures")
+
+
+def test_pinhole_rays_are_open3ds():
+    rays = lancer.RaycastingScene.create_rays_pinhole(45.0, [1, 2, 3], [4, -1, 7], [0, 0, 1], 64, 48)
+    assert rays.shape == (48, 64, 6) and rays.dtype == np.float32
+    o3d = pytest.importorskip("open3d", reason="Open3D is missing: scripts/deps.sh installs python3-open3d")
+    theirs = o3d.t.geometry.RaycastingScene.create_rays_pinhole(45.0, [1, 2, 3], [4, -1, 7], [0, 0, 1], 64, 48)
+    assert np.allclose(rays, theirs.numpy(), atol=1e-6)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda s, v, t: s.add_triangles(v.astype(np.float64), t), "vertices: expected dtype float32"),
+    (lambda s, v, t: s.add_triangles(v[:, :2], t), "vertices: expected shape (..., 3)"),
+    (lambda s, v, t: s.add_triangles(v, t.astype(np.float32)), "triangles: expected an integer dtype"),
+    (lambda s, v, t: s.add_triangles(v, t + np.uint32(len(v))), "triangles: row 0 names vertex"),
+    (lambda s, v, t: s.add_triangles(np.where(np.arange(len(v))[:, None] == 3, np.nan, v).astype(np.float32), t),
+     "vertices: row 3 holds a NaN"),
+    (lambda s, v, t: s.add_triangles("not an array", t), "vertices: expected a numpy array"),
+])
+def test_bad_geometry_raises_naming_the_argument(spheres, call, message):
+    vertices, triangles = spheres[0]
+    with pytest.raises((TypeError, ValueError), match=message.replace("(", r"\(").replace(")", r"\)")):
+        call(lancer.RaycastingScene(), vertices, triangles)
+
+
+def test_bad_rays_and_scenes_raise_naming_the_argument(spheres):
+    scene = scene_of("bvh8", *spheres)
+    with pytest.raises(TypeError, match="rays: expected dtype float32"):
+        scene.cast_rays(random_rays(4, 6).astype(np.float64))
+    with pytest.raises(ValueError, match="rays: expected shape"):
+        scene.cast_rays(np.zeros((4, 5), np.float32))
+    bad = random_rays(4, 6)
+    bad[2, 4] = np.nan
+    with pytest.raises(ValueError, match="rays: row 2 holds a NaN"):
+        scene.test_occlusions(bad)
+    with pytest.raises(ValueError, match="the scene is empty"):
+        lancer.RaycastingScene().cast_rays(random_rays(4, 6))
+    with pytest.raises(ValueError, match="accel: unknown structure 'nope'"):
+        lancer.RaycastingScene(accel="nope")
