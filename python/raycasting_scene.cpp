@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <numbers>
 #include <stdexcept>
 
@@ -75,6 +76,12 @@ void parallel_ranges(std::size_t count, int threads, Body&& body) {
     });
 }
 
+void check_threads(int nthreads) {
+    if (nthreads < 0)
+        throw py::value_error("nthreads: expected 0 (all) or a thread count, got " +
+                              std::to_string(nthreads));
+}
+
 Vec3f vec3_argument(const py::object& object, const char* name) {
     const auto rows =
         float_rows(py::array::ensure(object, py::array::forcecast).attr("astype")("float32"), name, 3);
@@ -134,8 +141,10 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
         }
         added.push_back({corners[0], corners[1], corners[2]});
     }
+    py::gil_scoped_release released;
+    const std::lock_guard lock(mutex_);
     if (triangles_.size() + added.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
-        throw py::value_error("triangles: more triangles than a hit's 32-bit id can number");
+        throw std::invalid_argument("triangles: more triangles than a hit's 32-bit id can number");
     triangles_.insert(triangles_.end(), added.begin(), added.end());
     first_triangle_.push_back(static_cast<std::uint32_t>(triangles_.size()));
     accel_.reset();
@@ -144,7 +153,7 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
 }
 
 const Accel& RaycastingScene::committed() {
-    if (triangles_.empty()) throw py::value_error("the scene is empty: add_triangles first");
+    if (triangles_.empty()) throw std::invalid_argument("the scene is empty: add_triangles first");
     if (!accel_) {
         auto accel = make_accel(accel_name_);
         accel->build({triangles_, {}}, build_options(test_));
@@ -154,7 +163,7 @@ const Accel& RaycastingScene::committed() {
 }
 
 const GeometryQueries& RaycastingScene::queries() {
-    if (triangles_.empty()) throw py::value_error("the scene is empty: add_triangles first");
+    if (triangles_.empty()) throw std::invalid_argument("the scene is empty: add_triangles first");
     if (!queries_) queries_ = std::make_unique<GeometryQueries>(Geometry{triangles_, {}}, test_);
     return *queries_;
 }
@@ -168,13 +177,8 @@ std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t pri
 
 py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
     const auto rows = float_rows(rays, "rays", 6);
-    const Accel& accel = committed();
+    check_threads(nthreads);
     const std::vector<Ray> batch = rays_of(rows, 0.0f, kInfinity);
-    std::vector<Hit> hits(batch.size());
-    {
-        py::gil_scoped_release released;
-        intersect_parallel(accel, batch, hits, nthreads);
-    }
     py::array_t<float> t_hit(answer_shape(rows));
     py::array_t<std::uint32_t> geometry_ids(answer_shape(rows)), primitive_ids(answer_shape(rows));
     py::array_t<float> uvs(answer_shape(rows, {2})), normals(answer_shape(rows, {3}));
@@ -183,20 +187,27 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
     std::uint32_t* primitive = primitive_ids.mutable_data();
     float* uv = uvs.mutable_data();
     float* normal = normals.mutable_data();
-    for (std::size_t i = 0; i < hits.size(); ++i) {
-        const Hit& hit = hits[i];
-        t[i] = hit.t;
-        uv[2 * i] = hit.hit() ? hit.u : 0.0f;
-        uv[2 * i + 1] = hit.hit() ? hit.v : 0.0f;
-        Vec3f n(0.0f);
-        if (hit.hit()) {
-            std::tie(geometry[i], primitive[i]) = locate(hit.prim);
-            const Triangle& tri = triangles_[static_cast<std::size_t>(hit.prim)];
-            n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
-        } else {
-            geometry[i] = primitive[i] = kInvalidId;
+    {
+        // The buffers are filled without the GIL; the lock keeps another thread's add_triangles out.
+        py::gil_scoped_release released;
+        const std::lock_guard lock(mutex_);
+        std::vector<Hit> hits(batch.size());
+        intersect_parallel(committed(), batch, hits, nthreads);
+        for (std::size_t i = 0; i < hits.size(); ++i) {
+            const Hit& hit = hits[i];
+            t[i] = hit.t;
+            uv[2 * i] = hit.hit() ? hit.u : 0.0f;
+            uv[2 * i + 1] = hit.hit() ? hit.v : 0.0f;
+            Vec3f n(0.0f);
+            if (hit.hit()) {
+                std::tie(geometry[i], primitive[i]) = locate(hit.prim);
+                const Triangle& tri = triangles_[static_cast<std::size_t>(hit.prim)];
+                n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+            } else {
+                geometry[i] = primitive[i] = kInvalidId;
+            }
+            normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
         }
-        normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
     }
     return py::dict("t_hit"_a = t_hit, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,
                     "primitive_uvs"_a = uvs, "primitive_normals"_a = normals);
@@ -204,28 +215,32 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
 
 py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads) {
     const auto rows = float_rows(rays, "rays", 6);
+    check_threads(nthreads);
     if (std::isnan(tnear) || std::isnan(tfar) || tnear > tfar)
         throw py::value_error("tnear, tfar: expected tnear <= tfar, neither NaN");
-    const Accel& accel = committed();
     const std::vector<Ray> batch = rays_of(rows, tnear, tfar);
-    std::vector<std::uint8_t> occluded(batch.size());
+    py::array_t<bool> result(answer_shape(rows));
+    bool* out = result.mutable_data();
     {
         py::gil_scoped_release released;
-        occluded_parallel(accel, batch, occluded, nthreads);
+        const std::lock_guard lock(mutex_);
+        std::vector<std::uint8_t> occluded(batch.size());
+        occluded_parallel(committed(), batch, occluded, nthreads);
+        std::copy(occluded.begin(), occluded.end(), out);
     }
-    py::array_t<bool> result(answer_shape(rows));
-    std::copy(occluded.begin(), occluded.end(), result.mutable_data());
     return result;
 }
 
 py::array RaycastingScene::count_intersections(const py::object& rays, int nthreads) {
     const auto rows = float_rows(rays, "rays", 6);
-    const GeometryQueries& all = queries();
+    check_threads(nthreads);
     const std::vector<Ray> batch = rays_of(rows, 0.0f, kInfinity);
     py::array_t<std::int32_t> counts(answer_shape(rows));
     std::int32_t* count = counts.mutable_data();
     {
         py::gil_scoped_release released;
+        const std::lock_guard lock(mutex_);
+        const GeometryQueries& all = queries();
         parallel_ranges(batch.size(), nthreads, [&](std::size_t first, std::size_t last) {
             std::vector<Hit> hits;
             for (std::size_t i = first; i < last; ++i) {
@@ -240,20 +255,24 @@ py::array RaycastingScene::count_intersections(const py::object& rays, int nthre
 
 py::dict RaycastingScene::list_intersections(const py::object& rays, int nthreads) {
     const auto rows = float_rows(rays, "rays", 6);
-    const GeometryQueries& all = queries();
+    check_threads(nthreads);
     const std::vector<Ray> batch = rays_of(rows, 0.0f, kInfinity);
     std::vector<std::vector<Hit>> per_ray(batch.size());
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> ids;  // geometry and primitive of each hit, in order
     {
         py::gil_scoped_release released;
+        const std::lock_guard lock(mutex_);
+        const GeometryQueries& all = queries();
         parallel_ranges(batch.size(), nthreads, [&](std::size_t first, std::size_t last) {
             for (std::size_t i = first; i < last; ++i)
                 all.all_hits(batch[i], per_ray[i]);
         });
+        for (const std::vector<Hit>& hits : per_ray) {
+            for (const Hit& hit : hits)
+                ids.push_back(locate(hit.prim));
+        }
     }
-    std::size_t total = 0;
-    for (const std::vector<Hit>& hits : per_ray)
-        total += hits.size();
-    const auto size = static_cast<py::ssize_t>(total);
+    const auto size = static_cast<py::ssize_t>(ids.size());
     py::array_t<std::uint32_t> ray_splits(static_cast<py::ssize_t>(batch.size() + 1)), ray_ids(size),
         geometry_ids(size), primitive_ids(size);
     py::array_t<float> t_hit(size), uvs(std::vector<py::ssize_t>{size, 2});
@@ -262,7 +281,7 @@ py::dict RaycastingScene::list_intersections(const py::object& rays, int nthread
     for (std::size_t i = 0; i < per_ray.size(); ++i) {
         for (const Hit& hit : per_ray[i]) {
             ray_ids.mutable_data()[k] = static_cast<std::uint32_t>(i);
-            std::tie(geometry_ids.mutable_data()[k], primitive_ids.mutable_data()[k]) = locate(hit.prim);
+            std::tie(geometry_ids.mutable_data()[k], primitive_ids.mutable_data()[k]) = ids[k];
             t_hit.mutable_data()[k] = hit.t;
             uvs.mutable_data()[2 * k] = hit.u;
             uvs.mutable_data()[2 * k + 1] = hit.v;
@@ -308,12 +327,18 @@ py::array RaycastingScene::create_rays_pinhole(double fov_deg, const py::object&
 }
 
 py::dict RaycastingScene::stats() {
-    const Accel& accel = committed();
-    const AccelStats stats = accel.stats();
+    AccelStats stats;
+    std::size_t memory_bytes = 0;
+    {
+        py::gil_scoped_release released;
+        const std::lock_guard lock(mutex_);
+        stats = committed().stats();
+        memory_bytes = committed().memory_bytes();
+    }
     return py::dict("accel"_a = accel_name_, "primitives"_a = stats.primitives, "nodes"_a = stats.nodes,
                     "leaves"_a = stats.leaves, "references"_a = stats.references,
                     "max_depth"_a = stats.max_depth, "build_ms"_a = stats.build_ms,
-                    "memory_bytes"_a = accel.memory_bytes());
+                    "memory_bytes"_a = memory_bytes);
 }
 
 }  // namespace lancer::python

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -39,7 +40,9 @@ class RaycastingScene {
     [[nodiscard]] py::dict stats();
 
   private:
-    // Builds the structure over every geometry added so far, once after each add_triangles.
+    // Builds the structure over every geometry added so far, once after each add_triangles. These and
+    // the members below are used under mutex_, taken with the GIL released: queries trace without the GIL,
+    // and another Python thread's add_triangles must not move the triangles under them.
     const Accel& committed();
     const GeometryQueries& queries();
     // The geometry and primitive ids of a global triangle index.
@@ -51,6 +54,7 @@ class RaycastingScene {
     std::vector<std::uint32_t> first_triangle_;  // of each geometry, then the total
     std::unique_ptr<Accel> accel_;
     std::unique_ptr<GeometryQueries> queries_;
+    std::mutex mutex_;
 };
 
 }  // namespace lancer::python

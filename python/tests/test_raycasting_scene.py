@@ -195,3 +195,35 @@ def test_bad_rays_and_scenes_raise_naming_the_argument(spheres):
         lancer.RaycastingScene().cast_rays(random_rays(4, 6))
     with pytest.raises(ValueError, match="accel: unknown structure 'nope'"):
         lancer.RaycastingScene(accel="nope")
+
+
+def test_adding_geometry_while_other_threads_trace_is_safe(spheres):
+    """Queries trace without the GIL: a mesh added meanwhile from another thread waits for them."""
+    import threading
+    scene = scene_of("bvh8", spheres[0])
+    rays = random_rays(20000, 7)
+    errors = []
+
+    def trace():
+        try:
+            for _ in range(5):
+                hits = scene.cast_rays(rays)["geometry_ids"]
+                assert np.all((hits == 0) | (hits == 1) | (hits == lancer.RaycastingScene.INVALID_ID))
+                scene.count_intersections(rays[:2000])
+        except Exception as error:  # noqa: BLE001 - reported below
+            errors.append(error)
+
+    threads = [threading.Thread(target=trace) for _ in range(3)]
+    for thread in threads:
+        thread.start()
+    for _ in range(5):
+        scene.add_triangles(*spheres[1])
+    for thread in threads:
+        thread.join()
+    assert not errors, errors
+    assert scene.add_triangles(*spheres[1]) == 6
+
+
+def test_nthreads_must_not_be_negative(spheres):
+    with pytest.raises(ValueError, match="nthreads: expected 0"):
+        scene_of("bvh8", *spheres).cast_rays(random_rays(4, 8), nthreads=-1)

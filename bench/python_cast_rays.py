@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""cast_rays from Python on the canonical view (../shared/bench/VIEWS.md: 1024 x 1024 primary rays as one
+float32 array, all threads): lancer's RaycastingScene for the structures asked for, and Open3D's, in
+Mrays/s, the median of --frames calls after one warm-up. docs/python.md has the figures and the command.
+
+    PYTHONPATH=build/python /usr/bin/python3 bench/python_cast_rays.py [--mesh FILE ...] [--accel bvh8,...]
+"""
+import argparse
+import math
+import os
+import pathlib
+import platform
+import statistics
+import time
+
+import numpy as np
+
+import lancer
+
+SHARED = pathlib.Path(__file__).resolve().parent.parent.parent / "shared"
+
+
+def canonical_rays(vertices, size):
+    """VIEWS.md's primary rays of a mesh: origin (6 floats per ray) and unit direction, row by row."""
+    lo, hi = vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64)
+    center, half_diagonal = (lo + hi) / 2, np.linalg.norm(hi - lo) / 2
+    half_fov = math.radians(45.0) / 2
+    eye = center + [0.0, 0.0, 1.05 * half_diagonal / math.sin(half_fov)]
+    forward = (center - eye) / np.linalg.norm(center - eye)
+    x_axis = np.cross(forward, [0.0, 1.0, 0.0])
+    x_axis /= np.linalg.norm(x_axis)
+    y_axis = np.cross(x_axis, forward)
+    pixel = (np.arange(size) + 0.5) / size
+    u = (2 * pixel - 1) * math.tan(half_fov)
+    v = (1 - 2 * pixel) * math.tan(half_fov)
+    directions = forward + u[None, :, None] * x_axis + v[:, None, None] * y_axis
+    directions /= np.linalg.norm(directions, axis=2, keepdims=True)
+    origins = np.broadcast_to(eye, directions.shape)
+    return np.concatenate([origins, directions], axis=2).reshape(-1, 6).astype(np.float32)
+
+
+def median_mrays(call, ray_count, frames):
+    call()  # warm-up
+    seconds = []
+    for _ in range(frames):
+        start = time.perf_counter()
+        call()
+        seconds.append(time.perf_counter() - start)
+    return ray_count / statistics.median(seconds) / 1e6
+
+
+def cpu_name():
+    for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
+        if line.startswith("model name"):
+            return line.split(":", 1)[1].strip()
+    return platform.processor()
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    meshes = [SHARED / "data" / "meshes" / name for name in ("bunny.obj", "armadillo.off", "dragon.ply")]
+    parser.add_argument("--mesh", action="append", type=pathlib.Path, help="mesh file (repeatable)")
+    parser.add_argument("--accel", default="bvh8,bvh8_packet,plucker,embree16",
+                        help="comma-separated lancer structures")
+    parser.add_argument("--size", type=int, default=1024, help="image side in pixels")
+    parser.add_argument("--frames", type=int, default=5, help="timed calls (median)")
+    parser.add_argument("--no-open3d", action="store_true", help="skip Open3D")
+    args = parser.parse_args()
+    print(f"python_cast_rays: {cpu_name()}, {os.cpu_count()} hardware threads, all used; "
+          f"{args.size}x{args.size} canonical view, median of {args.frames} after 1 warm-up")
+    print(f"{'mesh':<16} {'engine':<24} {'Mrays/s':>8} {'hits':>7}")
+    try:
+        import open3d as o3d
+    except ImportError:
+        o3d = None
+    for mesh in args.mesh or meshes:
+        vertices, triangles = lancer.load_mesh(str(mesh))
+        rays = canonical_rays(vertices, args.size)
+        for accel in args.accel.split(","):
+            if accel not in lancer.accel_names():
+                continue
+            scene = lancer.RaycastingScene(accel=accel)
+            scene.add_triangles(vertices, triangles)
+            hits = np.isfinite(scene.cast_rays(rays)["t_hit"]).mean()
+            mrays = median_mrays(lambda: scene.cast_rays(rays), len(rays), args.frames)
+            print(f"{mesh.name:<16} {'lancer ' + accel:<24} {mrays:8.2f} {hits:7.1%}")
+        if o3d is not None and not args.no_open3d:
+            scene = o3d.t.geometry.RaycastingScene()
+            scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(triangles))
+            tensor = o3d.core.Tensor(rays)
+            hits = np.isfinite(scene.cast_rays(tensor)["t_hit"].numpy()).mean()
+            mrays = median_mrays(lambda: scene.cast_rays(tensor), len(rays), args.frames)
+            print(f"{mesh.name:<16} {'open3d ' + o3d.__version__:<24} {mrays:8.2f} {hits:7.1%}")
+
+
+if __name__ == "__main__":
+    main()
