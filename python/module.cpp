@@ -32,6 +32,19 @@ PYBIND11_MODULE(lancer, module) {
              py::arg("nthreads") = 0,
              "Every hit along each ray, by increasing t: ray_splits, ray_ids, geometry_ids, primitive_ids, "
              "primitive_uvs, t_hit")
+        .def("compute_closest_points", &RaycastingScene::compute_closest_points, py::arg("query_points"),
+             py::arg("nthreads") = 0,
+             "The nearest surface point of each query point (..., 3): points, geometry_ids, primitive_ids, "
+             "primitive_uvs, primitive_normals")
+        .def("compute_distance", &RaycastingScene::compute_distance, py::arg("query_points"),
+             py::arg("nthreads") = 0, "The distance from each query point to the surface")
+        .def("compute_occupancy", &RaycastingScene::compute_occupancy, py::arg("query_points"),
+             py::arg("nthreads") = 0, py::arg("nsamples") = 1,
+             "1 inside the closed meshes, 0 outside: the parity of ray crossings, by majority of nsamples "
+             "rays")
+        .def("compute_signed_distance", &RaycastingScene::compute_signed_distance, py::arg("query_points"),
+             py::arg("nthreads") = 0, py::arg("nsamples") = 1,
+             "The distance to the surface, negative inside the closed meshes (compute_occupancy's rule)")
         .def_static("create_rays_pinhole", &RaycastingScene::create_rays_pinhole, py::arg("fov_deg"),
                     py::arg("center"), py::arg("eye"), py::arg("up"), py::arg("width_px"),
                     py::arg("height_px"),

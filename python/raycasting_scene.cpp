@@ -82,6 +82,11 @@ void check_threads(int nthreads) {
                               std::to_string(nthreads));
 }
 
+void check_samples(int nsamples) {
+    if (nsamples < 1 || nsamples > 1024)
+        throw py::value_error("nsamples: expected a count in [1, 1024], got " + std::to_string(nsamples));
+}
+
 Vec3f vec3_argument(const py::object& object, const char* name) {
     const auto rows =
         float_rows(py::array::ensure(object, py::array::forcecast).attr("astype")("float32"), name, 3);
@@ -291,6 +296,106 @@ py::dict RaycastingScene::list_intersections(const py::object& rays, int nthread
     }
     return py::dict("ray_splits"_a = ray_splits, "ray_ids"_a = ray_ids, "geometry_ids"_a = geometry_ids,
                     "primitive_ids"_a = primitive_ids, "primitive_uvs"_a = uvs, "t_hit"_a = t_hit);
+}
+
+py::dict RaycastingScene::compute_closest_points(const py::object& query_points, int nthreads) {
+    const auto rows = float_rows(query_points, "query_points", 3);
+    check_threads(nthreads);
+    py::array_t<float> points(answer_shape(rows, {3})), uvs(answer_shape(rows, {2})),
+        normals(answer_shape(rows, {3}));
+    py::array_t<std::uint32_t> geometry_ids(answer_shape(rows)), primitive_ids(answer_shape(rows));
+    const float* q = rows.data();
+    float* point = points.mutable_data();
+    float* uv = uvs.mutable_data();
+    float* normal = normals.mutable_data();
+    std::uint32_t* geometry = geometry_ids.mutable_data();
+    std::uint32_t* primitive = primitive_ids.mutable_data();
+    {
+        py::gil_scoped_release released;
+        const std::lock_guard lock(mutex_);
+        const GeometryQueries& all = queries();
+        parallel_ranges(
+            static_cast<std::size_t>(rows.size() / 3), nthreads, [&](std::size_t first, std::size_t last) {
+                for (std::size_t i = first; i < last; ++i) {
+                    const NearestPoint nearest = all.nearest_point({q[3 * i], q[3 * i + 1], q[3 * i + 2]});
+                    const Triangle& tri = triangles_[static_cast<std::size_t>(nearest.prim)];
+                    const Vec3f n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+                    point[3 * i] = nearest.point.x, point[3 * i + 1] = nearest.point.y,
+                              point[3 * i + 2] = nearest.point.z;
+                    normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
+                    uv[2 * i] = nearest.u, uv[2 * i + 1] = nearest.v;
+                    std::tie(geometry[i], primitive[i]) = locate(nearest.prim);
+                }
+            });
+    }
+    return py::dict("points"_a = points, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,
+                    "primitive_uvs"_a = uvs, "primitive_normals"_a = normals);
+}
+
+bool RaycastingScene::inside(const GeometryQueries& all, const Vec3f& p, int samples) const {
+    int odd = 0;
+    std::vector<Hit> hits;
+    for (int k = 0; k < samples; ++k) {
+        // Fixed directions in no plane of the axes, so that axis-aligned meshes do not put their edges on the
+        // ray: the fractional parts of multiples of three irrationals, centred.
+        const auto component = [&](double irrational, double offset) {
+            const double x = (k + 1) * irrational + offset;
+            return static_cast<float>(x - std::floor(x) - 0.5);
+        };
+        const Vec3f direction = normalize(
+            Vec3f(component(0.6180339887, 0.1), component(0.4142135623, 0.3), component(0.7320508075, 0.7)));
+        hits.clear();
+        all.all_hits({p, direction, 0.0f, kInfinity}, hits);
+        // A crossing through a shared vertex or edge is hit on each triangle that holds it, at the same t:
+        // one crossing.
+        std::size_t crossings = 0;
+        for (std::size_t h = 0; h < hits.size(); ++h)
+            crossings += (h == 0 || hits[h].t != hits[h - 1].t) ? 1 : 0;
+        odd += static_cast<int>(crossings % 2);
+    }
+    return 2 * odd > samples;
+}
+
+template <class PerPoint>
+py::array RaycastingScene::map_points(const py::object& query_points, int nthreads, PerPoint&& per_point) {
+    const auto rows = float_rows(query_points, "query_points", 3);
+    check_threads(nthreads);
+    py::array_t<float> answers(answer_shape(rows));
+    float* out = answers.mutable_data();
+    const float* q = rows.data();
+    {
+        py::gil_scoped_release released;
+        const std::lock_guard lock(mutex_);
+        const GeometryQueries& all = queries();
+        parallel_ranges(static_cast<std::size_t>(rows.size() / 3), nthreads,
+                        [&](std::size_t first, std::size_t last) {
+                            for (std::size_t i = first; i < last; ++i)
+                                out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]));
+                        });
+    }
+    return answers;
+}
+
+py::array RaycastingScene::compute_distance(const py::object& query_points, int nthreads) {
+    return map_points(query_points, nthreads, [](const GeometryQueries& all, const Vec3f& p) {
+        return all.nearest_point(p).distance;
+    });
+}
+
+py::array RaycastingScene::compute_occupancy(const py::object& query_points, int nthreads, int nsamples) {
+    check_samples(nsamples);
+    return map_points(query_points, nthreads, [&](const GeometryQueries& all, const Vec3f& p) {
+        return inside(all, p, nsamples) ? 1.0f : 0.0f;
+    });
+}
+
+py::array RaycastingScene::compute_signed_distance(const py::object& query_points, int nthreads,
+                                                   int nsamples) {
+    check_samples(nsamples);
+    return map_points(query_points, nthreads, [&](const GeometryQueries& all, const Vec3f& p) {
+        const float distance = all.nearest_point(p).distance;
+        return inside(all, p, nsamples) ? -distance : distance;
+    });
 }
 
 py::array RaycastingScene::create_rays_pinhole(double fov_deg, const py::object& center,

@@ -33,6 +33,10 @@ class RaycastingScene {
     py::array test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads);
     py::array count_intersections(const py::object& rays, int nthreads);
     py::dict list_intersections(const py::object& rays, int nthreads);
+    py::dict compute_closest_points(const py::object& query_points, int nthreads);
+    py::array compute_distance(const py::object& query_points, int nthreads);
+    py::array compute_occupancy(const py::object& query_points, int nthreads, int nsamples);
+    py::array compute_signed_distance(const py::object& query_points, int nthreads, int nsamples);
     static py::array create_rays_pinhole(double fov_deg, const py::object& center, const py::object& eye,
                                          const py::object& up, int width_px, int height_px);
 
@@ -45,6 +49,12 @@ class RaycastingScene {
     // and another Python thread's add_triangles must not move the triangles under them.
     const Accel& committed();
     const GeometryQueries& queries();
+    // A float per query point (..., 3): per_point(queries, p) on nthreads threads, under the lock.
+    template <class PerPoint>
+    py::array map_points(const py::object& query_points, int nthreads, PerPoint&& per_point);
+    // Whether p lies inside the closed meshes: the parity of the surface crossings of rays from p in
+    // `samples` fixed directions, by majority.
+    [[nodiscard]] bool inside(const GeometryQueries& all, const Vec3f& p, int samples) const;
     // The geometry and primitive ids of a global triangle index.
     [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) const;
 

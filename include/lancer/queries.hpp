@@ -1,5 +1,5 @@
 // Queries beyond the closest hit, for the Python module's Open3D-style API (docs/python.md): every hit
-// along a ray, over a binary SAH BVH of the geometry built once.
+// along a ray and the nearest point of the geometry, over a binary SAH BVH of the geometry built once.
 #pragma once
 
 #include <memory>
@@ -10,6 +10,14 @@
 #include "lancer/scene.hpp"
 
 namespace lancer {
+
+// The point of the geometry nearest to a query point.
+struct NearestPoint {
+    Vec3f point;
+    std::int32_t prim = -1;  // global primitive index, -1 for an empty geometry
+    float distance = kInfinity;
+    float u = 0.0f, v = 0.0f;  // a triangle's barycentric coordinates of `point` (weights of v1 and v2)
+};
 
 class GeometryQueries {
   public:
@@ -24,6 +32,10 @@ class GeometryQueries {
     // Two triangles that share an edge the ray crosses may both be hit (the watertight test guarantees at
     // least one).
     void all_hits(const Ray& ray, std::vector<Hit>& hits) const;
+
+    // The nearest point of any primitive to `p` (ties by primitive index), computed in double and rounded
+    // once; a sphere's is on its surface along the direction from its centre (its centre itself for p there).
+    [[nodiscard]] NearestPoint nearest_point(const Vec3f& p) const;
 
   private:
     struct Impl;

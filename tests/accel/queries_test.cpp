@@ -4,6 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <random>
 #include <vector>
 
 #include "accel/primitive_test.hpp"
@@ -68,6 +72,71 @@ TEST(GeometryQueries, AppendsAndIgnoresInvalidRays) {
     EXPECT_EQ(hits[1].t, 1.0f);
     queries.all_hits({{0.2f, 0.2f, 1}, {0, 0, 0}, 0.0f, kInfinity}, hits);  // zero direction: invalid
     EXPECT_EQ(hits.size(), 2u);
+}
+
+// The distance from p to a triangle by another route: to the plane when p projects inside, else to the
+// nearest of the three edges as segments.
+double distance_to_triangle(const Triangle& tri, const Vec3f& point) {
+    const auto to_d = [](const Vec3f& a) { return std::array<double, 3>{a.x, a.y, a.z}; };
+    const auto sub = [](std::array<double, 3> a, std::array<double, 3> b) {
+        return std::array<double, 3>{a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+    };
+    const auto dot3 = [](std::array<double, 3> a, std::array<double, 3> b) {
+        return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    };
+    const auto cross3 = [](std::array<double, 3> a, std::array<double, 3> b) {
+        return std::array<double, 3>{a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                                     a[0] * b[1] - a[1] * b[0]};
+    };
+    const auto p = to_d(point);
+    const std::array<std::array<double, 3>, 3> v = {to_d(tri.v0), to_d(tri.v1), to_d(tri.v2)};
+    double best = std::numeric_limits<double>::infinity();
+    for (int e = 0; e < 3; ++e) {
+        const auto a = v[e], b = v[(e + 1) % 3];
+        const auto ab = sub(b, a);
+        const double length2 = dot3(ab, ab);
+        const double t = length2 > 0.0 ? std::clamp(dot3(sub(p, a), ab) / length2, 0.0, 1.0) : 0.0;
+        const auto d = sub(p, {a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]});
+        best = std::min(best, std::sqrt(dot3(d, d)));
+    }
+    const auto n = cross3(sub(v[1], v[0]), sub(v[2], v[0]));
+    const double n2 = dot3(n, n);
+    if (n2 > 0.0) {
+        bool inside = true;
+        for (int e = 0; e < 3; ++e)
+            inside = inside && dot3(cross3(sub(v[(e + 1) % 3], v[e]), sub(p, v[e])), n) >= 0.0;
+        if (inside) best = std::min(best, std::fabs(dot3(sub(p, v[0]), n)) / std::sqrt(n2));
+    }
+    return best;
+}
+
+TEST(GeometryQueries, NearestPointIsTheNearestOfEveryTriangle) {
+    const std::vector<Triangle> triangles = testing::knot_triangles(48);
+    const Geometry geometry{triangles, {}};
+    const GeometryQueries queries(geometry, TriangleTest::Watertight);
+    const Box3f bounds = geometry.bounds();
+    std::mt19937 rng(41);
+    std::uniform_real_distribution<float> unit(-0.5f, 1.5f);
+    for (int n = 0; n < 2000; ++n) {
+        // Points around the knot and, one in four, exactly on one of its vertices.
+        Vec3f p = bounds.lo + Vec3f(unit(rng), unit(rng), unit(rng)) * bounds.extent();
+        if (n % 4 == 0) p = triangles[static_cast<std::size_t>(rng()) % triangles.size()].v1;
+        double expected = std::numeric_limits<double>::infinity();
+        for (const Triangle& tri : triangles)
+            expected = std::min(expected, distance_to_triangle(tri, p));
+        const NearestPoint nearest = queries.nearest_point(p);
+        ASSERT_GE(nearest.prim, 0);
+        EXPECT_NEAR(nearest.distance, expected, 1e-5 * (1.0 + expected)) << n;
+        EXPECT_NEAR(length(nearest.point - p), nearest.distance, 1e-5 * (1.0 + expected)) << n;
+        // The point lies on its triangle: its barycentric weights rebuild it.
+        const Triangle& tri = triangles[static_cast<std::size_t>(nearest.prim)];
+        const Vec3f rebuilt = tri.v0 + nearest.u * (tri.v1 - tri.v0) + nearest.v * (tri.v2 - tri.v0);
+        EXPECT_LT(length(rebuilt - nearest.point), 1e-5f * (1.0f + length(bounds.extent()))) << n;
+        EXPECT_GE(nearest.u, 0.0f);
+        EXPECT_GE(nearest.v, 0.0f);
+        EXPECT_LE(nearest.u + nearest.v, 1.0f + 1e-6f);
+    }
+    EXPECT_EQ(GeometryQueries({}, TriangleTest::Watertight).nearest_point({0, 0, 0}).prim, -1);
 }
 
 }  // namespace
