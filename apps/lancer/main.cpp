@@ -41,6 +41,7 @@ int main(int argc, char** argv) {
     lancer::cli::add_render_command(app);
     lancer::cli::add_info_command(app);
     lancer::cli::add_rays_command(app);
+    lancer::cli::add_nearest_command(app);
     lancer::cli::add_stats_command(app);
     lancer::cli::add_bench_command(app);
     lancer::cli::add_convert_command(app);

@@ -14,8 +14,8 @@ namespace lancer {
 // The point of the geometry nearest to a query point.
 struct NearestPoint {
     Vec3f point;
-    std::int32_t prim = -1;  // global primitive index, -1 for an empty geometry
     float distance = kInfinity;
+    std::int32_t prim = -1;    // global primitive index, -1 for an empty geometry
     float u = 0.0f, v = 0.0f;  // a triangle's barycentric coordinates of `point` (weights of v1 and v2)
 };
 

@@ -62,6 +62,44 @@ const char* kMesh =
     "4 0 1 2 3\n"
     "3 4 5 6\n";
 
+// lancer nearest: the nearest point of the quad or of the triangle behind it, read back from the binary file.
+TEST_F(Cli, NearestWritesTheNearestSurfacePoints) {
+    const fs::path mesh = write("mesh.off", kMesh);
+    const std::vector<Vec3f> points = {{0.7f, 0.2f, 0.5f}, {0.5f, 1.5f, 0.0f}, {1.5f, 0.2f, -2.0f}};
+    const fs::path points_file = dir_ / "points.bin";
+    std::ofstream(points_file, std::ios::binary)
+        .write(reinterpret_cast<const char*>(points.data()),
+               static_cast<std::streamsize>(points.size() * sizeof(Vec3f)));
+    const fs::path nearest_file = dir_ / "nearest.bin";
+    const Result result = run("nearest " + mesh.string() + " --points " + points_file.string() +
+                              " --nearest " + nearest_file.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    struct Record {
+        float x, y, z, distance;
+        std::int32_t prim;
+        float u, v;
+    };
+    std::vector<Record> nearest(points.size());
+    std::ifstream in(nearest_file, std::ios::binary);
+    in.read(reinterpret_cast<char*>(nearest.data()),
+            static_cast<std::streamsize>(nearest.size() * sizeof(Record)));
+    ASSERT_EQ(in.gcount(), static_cast<std::streamsize>(nearest.size() * sizeof(Record)));
+    EXPECT_EQ(nearest[0].prim, 0);  // above triangle 0 of the quad
+    EXPECT_FLOAT_EQ(nearest[0].distance, 0.5f);
+    EXPECT_FLOAT_EQ(nearest[0].z, 0.0f);
+    EXPECT_FLOAT_EQ(nearest[1].distance, 0.5f);  // beside the quad's upper edge y = 1
+    EXPECT_FLOAT_EQ(nearest[1].y, 1.0f);
+    EXPECT_EQ(nearest[2].prim, 2);  // below the triangle at z = -1
+    EXPECT_FLOAT_EQ(nearest[2].distance, 1.0f);
+    // A points file that is not whole points is refused with the file named.
+    const fs::path broken = write("broken.bin", "12345");
+    const Result refused = run("nearest " + mesh.string() + " --points " + broken.string() + " --nearest " +
+                               nearest_file.string());
+    EXPECT_EQ(refused.exit_code, 2);
+    EXPECT_NE(refused.output.find("not a whole number of 12-byte points"), std::string::npos)
+        << refused.output;
+}
+
 TEST_F(Cli, RaysRoundTripMatchesTheLibrary) {
     const fs::path mesh = write("mesh.off", kMesh);
     std::vector<Ray> rays = {
