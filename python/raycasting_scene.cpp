@@ -24,9 +24,9 @@ std::string shape_text(const py::array& array) {
 }
 
 // A float32 array of shape (..., width), C-contiguous (read in place when it already is). Throws TypeError
-// or ValueError naming `name`; with `finite`, also for a NaN or infinite value.
+// or ValueError naming `name`, also for a NaN or infinite value.
 py::array_t<float, py::array::c_style> float_rows(const py::object& object, const char* name,
-                                                  py::ssize_t width, bool finite = true) {
+                                                  py::ssize_t width) {
     if (!py::isinstance<py::array>(object))
         throw py::type_error(std::string(name) + ": expected a numpy array of float32, got " +
                              std::string(py::str(py::type::of(object).attr("__name__"))));
@@ -38,13 +38,11 @@ py::array_t<float, py::array::c_style> float_rows(const py::object& object, cons
         throw py::value_error(std::string(name) + ": expected shape (..., " + std::to_string(width) +
                               "), got " + shape_text(array));
     auto rows = py::array_t<float, py::array::c_style>::ensure(array);
-    if (finite) {
-        const float* data = rows.data();
-        for (py::ssize_t i = 0; i < rows.size(); ++i) {
-            if (!std::isfinite(data[i]))
-                throw py::value_error(std::string(name) + ": row " + std::to_string(i / width) +
-                                      " holds a NaN or infinite value");
-        }
+    const float* data = rows.data();
+    for (py::ssize_t i = 0; i < rows.size(); ++i) {
+        if (!std::isfinite(data[i]))
+            throw py::value_error(std::string(name) + ": row " + std::to_string(i / width) +
+                                  " holds a NaN or infinite value");
     }
     return rows;
 }
@@ -88,8 +86,8 @@ void check_samples(int nsamples) {
 }
 
 Vec3f vec3_argument(const py::object& object, const char* name) {
-    const auto rows =
-        float_rows(py::array::ensure(object, py::array::forcecast).attr("astype")("float32"), name, 3);
+    // Any sequence of 3 numbers, as Open3D takes them; NumPy's own error for what is not one.
+    const auto rows = float_rows(py::module_::import("numpy").attr("asarray")(object, "float32"), name, 3);
     if (rows.size() != 3) throw py::value_error(std::string(name) + ": expected 3 values");
     return {rows.data()[0], rows.data()[1], rows.data()[2]};
 }

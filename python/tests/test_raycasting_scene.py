@@ -274,3 +274,16 @@ def test_occupancy_and_signed_distance_are_right_on_closed_spheres(spheres):
         assert np.allclose(np.abs(signed), scene.compute_distance(points), atol=0)
     # The centre of a sphere, the case Debian's Open3D gets wrong (docs/python.md).
     assert scene.compute_signed_distance(np.zeros((1, 3), np.float32))[0] < 0
+
+
+def test_pinhole_arguments_are_checked():
+    make = lancer.RaycastingScene.create_rays_pinhole
+    assert make(60, (0, 0, 0), [0, 0, 5], np.array([0, 1, 0]), 2, 2).shape == (2, 2, 6)
+    with pytest.raises(ValueError, match="center: expected 3 values|center: expected shape"):
+        make(60, [0, 0], [0, 0, 5], [0, 1, 0], 2, 2)
+    with pytest.raises((ValueError, TypeError)):
+        make(60, "not a point", [0, 0, 5], [0, 1, 0], 2, 2)
+    with pytest.raises(ValueError, match="the eye must differ from the centre"):
+        make(60, [0, 0, 0], [0, 0, 0], [0, 1, 0], 2, 2)
+    with pytest.raises(ValueError, match="fov_deg"):
+        make(180, [0, 0, 0], [0, 0, 5], [0, 1, 0], 2, 2)
