@@ -49,6 +49,13 @@ PYBIND11_MODULE(lancer, module) {
                     py::arg("center"), py::arg("eye"), py::arg("up"), py::arg("width_px"),
                     py::arg("height_px"),
                     "Rays (height_px, width_px, 6) of a pinhole camera at `eye` looking at `center`")
+        .def("save_structure", &RaycastingScene::save_structure, py::arg("path"),
+             "lancer's own: writes the `plucker` structure and its triangles as a .plo file")
+        .def_static(
+            "load_structure", &RaycastingScene::load_structure, py::arg("path"),
+            py::arg("watertight") = py::none(),
+            "lancer's own: a `plucker` scene read from a .plo file (lancer convert's), its triangles one "
+            "geometry; watertight None keeps the file's triangle test")
         .def_property_readonly("accel", &RaycastingScene::accel)
         .def("stats", &RaycastingScene::stats, "The structure's build statistics");
     module.def(

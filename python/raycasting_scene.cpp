@@ -8,6 +8,7 @@
 #include <cmath>
 #include <mutex>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
 namespace lancer::python {
@@ -98,6 +99,7 @@ RaycastingScene::RaycastingScene(std::string accel, bool watertight)
     : accel_name_(std::move(accel)),
       test_(watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore),
       first_triangle_{0} {
+    scene_.materials.emplace_back();  // the meshes' material 0: a World renders what it holds
     const std::vector<std::string_view> names = accel_names();
     if (std::find(names.begin(), names.end(), accel_name_) == names.end()) {
         std::string known;
@@ -129,6 +131,11 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
             throw py::value_error("vertices: row " + std::to_string(i) +
                                   " lies outside the coordinate domain [-2^60, 2^60]");
     }
+    TriangleMesh mesh;
+    mesh.name = "geometry " + std::to_string(first_triangle_.size() - 1);
+    mesh.positions.reserve(static_cast<std::size_t>(points.shape(0)));
+    for (py::ssize_t i = 0; i < points.shape(0); ++i)
+        mesh.positions.emplace_back(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
     const std::int64_t* index = indices.data();
     std::vector<Triangle> added;
     added.reserve(static_cast<std::size_t>(indices.shape(0)));
@@ -141,6 +148,7 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
                                       std::to_string(i) + ", outside [0, " + std::to_string(vertex_count) +
                                       ")");
             corners[c] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
+            mesh.indices.push_back(static_cast<std::uint32_t>(i));
         }
         added.push_back({corners[0], corners[1], corners[2]});
     }
@@ -150,19 +158,16 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
         throw std::invalid_argument("triangles: more triangles than a hit's 32-bit id can number");
     triangles_.insert(triangles_.end(), added.begin(), added.end());
     first_triangle_.push_back(static_cast<std::uint32_t>(triangles_.size()));
-    accel_.reset();
+    scene_.meshes.push_back(std::move(mesh));
+    world_.reset();
     queries_.reset();
     return static_cast<std::uint32_t>(first_triangle_.size() - 2);
 }
 
 const Accel& RaycastingScene::committed() {
     if (triangles_.empty()) throw std::invalid_argument("the scene is empty: add_triangles first");
-    if (!accel_) {
-        auto accel = make_accel(accel_name_);
-        accel->build({triangles_, {}}, build_options(test_));
-        accel_ = std::move(accel);
-    }
-    return *accel_;
+    if (!world_) world_ = std::make_unique<World>(scene_, accel_name_, build_options(test_));
+    return world_->accel();
 }
 
 const GeometryQueries& RaycastingScene::queries() {
@@ -427,6 +432,41 @@ py::array RaycastingScene::create_rays_pinhole(double fov_deg, const py::object&
         }
     }
     return rays;
+}
+
+void RaycastingScene::save_structure(const std::string& path) {
+    py::gil_scoped_release released;
+    const std::lock_guard lock(mutex_);
+    committed();
+    try {
+        world_->save_structure(path);
+    } catch (const StructureFileError& error) {
+        throw std::invalid_argument(std::string("path: ") + error.what());
+    }
+}
+
+std::unique_ptr<RaycastingScene> RaycastingScene::load_structure(const std::string& path,
+                                                                 const py::object& watertight) {
+    std::optional<TriangleTest> test;
+    if (!watertight.is_none())
+        test = watertight.cast<bool>() ? TriangleTest::Watertight : TriangleTest::MollerTrumbore;
+    std::unique_ptr<World> world;
+    {
+        py::gil_scoped_release released;
+        try {
+            world = std::make_unique<World>(World::load_structure(path, test));
+        } catch (const StructureFileError& error) {
+            throw std::invalid_argument(std::string("path: ") + error.what());
+        }
+    }
+    auto scene = std::make_unique<RaycastingScene>(
+        "plucker", world->options().triangle_test == TriangleTest::Watertight);
+    scene->scene_ = world->scene();
+    const Geometry geometry = world->geometry().view();
+    scene->triangles_.assign(geometry.triangles.begin(), geometry.triangles.end());
+    scene->first_triangle_.push_back(static_cast<std::uint32_t>(scene->triangles_.size()));
+    scene->world_ = std::move(world);
+    return scene;
 }
 
 py::dict RaycastingScene::stats() {

@@ -16,6 +16,7 @@
 #include "lancer/accel.hpp"
 #include "lancer/queries.hpp"
 #include "lancer/scene.hpp"
+#include "lancer/world.hpp"
 
 namespace lancer::python {
 
@@ -40,6 +41,12 @@ class RaycastingScene {
     static py::array create_rays_pinhole(double fov_deg, const py::object& center, const py::object& eye,
                                          const py::object& up, int width_px, int height_px);
 
+    // lancer's own: the `plucker` structure and its geometry as a `.plo` file (lancer convert's), and a scene
+    // made from one, its triangles one geometry.
+    void save_structure(const std::string& path);
+    static std::unique_ptr<RaycastingScene> load_structure(const std::string& path,
+                                                           const py::object& watertight);
+
     [[nodiscard]] const std::string& accel() const { return accel_name_; }
     [[nodiscard]] py::dict stats();
 
@@ -60,9 +67,10 @@ class RaycastingScene {
 
     std::string accel_name_;
     TriangleTest test_;
-    std::vector<Triangle> triangles_;
+    Scene scene_;                                // a mesh per geometry
+    std::vector<Triangle> triangles_;            // the meshes' triangles, in order
     std::vector<std::uint32_t> first_triangle_;  // of each geometry, then the total
-    std::unique_ptr<Accel> accel_;
+    std::unique_ptr<World> world_;               // the structure over scene_, once built
     std::unique_ptr<GeometryQueries> queries_;
     std::mutex mutex_;
 };

@@ -287,3 +287,24 @@ def test_pinhole_arguments_are_checked():
         make(60, [0, 0, 0], [0, 0, 0], [0, 1, 0], 2, 2)
     with pytest.raises(ValueError, match="fov_deg"):
         make(180, [0, 0, 0], [0, 0, 5], [0, 1, 0], 2, 2)
+
+
+def test_plucker_structure_files_load_back_with_the_same_answers(spheres, tmp_path):
+    rays = random_rays(2000, 11)
+    scene = scene_of("plucker", *spheres)
+    expected = scene.cast_rays(rays)
+    scene.save_structure(str(tmp_path / "spheres.plo"))
+    loaded = lancer.RaycastingScene.load_structure(str(tmp_path / "spheres.plo"))
+    assert loaded.accel == "plucker"
+    answer = loaded.cast_rays(rays)
+    # One geometry now: the same triangles, numbered across both meshes.
+    first_of = np.array([0, len(spheres[0][1])], dtype=np.uint32)
+    hit = expected["geometry_ids"] != lancer.RaycastingScene.INVALID_ID
+    assert np.array_equal(answer["t_hit"], expected["t_hit"])
+    assert np.array_equal(answer["primitive_ids"][hit],
+                          first_of[expected["geometry_ids"][hit]] + expected["primitive_ids"][hit])
+    with pytest.raises(ValueError, match="path: .*only the plucker structure can be saved"):
+        scene_of("bvh", *spheres).save_structure(str(tmp_path / "bvh.plo"))
+    (tmp_path / "broken.plo").write_bytes(b"not a structure")
+    with pytest.raises(ValueError, match="path: "):
+        lancer.RaycastingScene.load_structure(str(tmp_path / "broken.plo"))
