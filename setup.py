@@ -29,4 +29,8 @@ class CMakeBuild(build_ext):
         shutil.copyfile(built, target)
 
 
-setup(ext_modules=[Extension("lancer", sources=[])], cmdclass={"build_ext": CMakeBuild})
+(ROOT / "build-python").mkdir(exist_ok=True)
+# The module alone: no Python packages to discover (src/ holds C++). setuptools' files go under
+# build-python/, not build/, CMake's release tree (the README's).
+setup(ext_modules=[Extension("lancer", sources=[])], cmdclass={"build_ext": CMakeBuild}, packages=[],
+      py_modules=[], options={"build": {"build_base": "build-python"}, "egg_info": {"egg_base": "build-python"}})
