@@ -14,7 +14,7 @@ PYBIND11_MODULE(lancer, module) {
     module.attr("__version__") = "0.1.0";
     py::class_<RaycastingScene>(module, "RaycastingScene")
         .def(
-            py::init<std::string, bool>(), py::arg("accel") = "bvh8", py::arg("watertight") = true,
+            py::init<std::string, bool>(), py::arg("accel") = "bvh", py::arg("watertight") = true,
             "A scene traced by lancer structure `accel` (lancer.accel_names()), with the watertight triangle "
             "test (Woop et al. 2013) or Moller-Trumbore")
         .def_readonly_static("INVALID_ID", &lancer::python::kInvalidId)

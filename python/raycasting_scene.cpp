@@ -64,14 +64,30 @@ std::vector<Ray> rays_of(const py::array_t<float, py::array::c_style>& rows, flo
     return rays;
 }
 
-// body(first, last) over [0, count) on `threads` threads (0: all).
+// Rays first to last of the (..., 6) rows, with the interval [tnear, tfar].
+void rays_of(const float* rows, std::size_t first, std::size_t last, float tnear, float tfar,
+             std::vector<Ray>& rays) {
+    rays.clear();
+    for (const float* r = rows + 6 * first; r < rows + 6 * last; r += 6)
+        rays.push_back({{r[0], r[1], r[2]}, {r[3], r[4], r[5]}, tnear, tfar});
+}
+
+// body(first, last) over [0, count) on `threads` threads (0: all), in chunks of kChunk consecutive items
+// (the last one shorter): a chunk of rays is one batch call, as intersect_parallel makes them, and its
+// packets of 64 start at multiples of 64.
+constexpr std::size_t kChunk = 4096;
 template <class Body>
 void parallel_ranges(std::size_t count, int threads, Body&& body) {
+    const std::size_t chunks = (count + kChunk - 1) / kChunk;
     tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
     arena.execute([&] {
         tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, count, 1024),
-            [&](const tbb::blocked_range<std::size_t>& range) { body(range.begin(), range.end()); });
+            tbb::blocked_range<std::size_t>(0, chunks, 1),
+            [&](const tbb::blocked_range<std::size_t>& range) {
+                for (std::size_t chunk = range.begin(); chunk < range.end(); ++chunk)
+                    body(chunk * kChunk, std::min(count, (chunk + 1) * kChunk));
+            },
+            tbb::simple_partitioner());
     });
 }
 
@@ -186,36 +202,45 @@ std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t pri
 py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
     const auto rows = float_rows(rays, "rays", 6);
     check_threads(nthreads);
-    const std::vector<Ray> batch = rays_of(rows, 0.0f, kInfinity);
     py::array_t<float> t_hit(answer_shape(rows));
     py::array_t<std::uint32_t> geometry_ids(answer_shape(rows)), primitive_ids(answer_shape(rows));
     py::array_t<float> uvs(answer_shape(rows, {2})), normals(answer_shape(rows, {3}));
+    const float* input = rows.data();
     float* t = t_hit.mutable_data();
     std::uint32_t* geometry = geometry_ids.mutable_data();
     std::uint32_t* primitive = primitive_ids.mutable_data();
     float* uv = uvs.mutable_data();
     float* normal = normals.mutable_data();
     {
-        // The buffers are filled without the GIL; the lock keeps another thread's add_triangles out.
+        // The buffers are filled without the GIL; the lock keeps another thread's add_triangles out. Each
+        // chunk of rays is made, traced and answered by one task, so that the conversions run in parallel
+        // too.
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
-        std::vector<Hit> hits(batch.size());
-        intersect_parallel(committed(), batch, hits, nthreads);
-        for (std::size_t i = 0; i < hits.size(); ++i) {
-            const Hit& hit = hits[i];
-            t[i] = hit.t;
-            uv[2 * i] = hit.hit() ? hit.u : 0.0f;
-            uv[2 * i + 1] = hit.hit() ? hit.v : 0.0f;
-            Vec3f n(0.0f);
-            if (hit.hit()) {
-                std::tie(geometry[i], primitive[i]) = locate(hit.prim);
-                const Triangle& tri = triangles_[static_cast<std::size_t>(hit.prim)];
-                n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
-            } else {
-                geometry[i] = primitive[i] = kInvalidId;
-            }
-            normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
-        }
+        const Accel& accel = committed();
+        parallel_ranges(static_cast<std::size_t>(rows.size() / 6), nthreads,
+                        [&](std::size_t first, std::size_t last) {
+                            std::vector<Ray> chunk;
+                            rays_of(input, first, last, 0.0f, kInfinity, chunk);
+                            std::vector<Hit> hits(chunk.size());
+                            accel.intersect(chunk, hits);
+                            for (std::size_t k = 0; k < hits.size(); ++k) {
+                                const std::size_t i = first + k;
+                                const Hit& hit = hits[k];
+                                t[i] = hit.t;
+                                uv[2 * i] = hit.hit() ? hit.u : 0.0f;
+                                uv[2 * i + 1] = hit.hit() ? hit.v : 0.0f;
+                                Vec3f n(0.0f);
+                                if (hit.hit()) {
+                                    std::tie(geometry[i], primitive[i]) = locate(hit.prim);
+                                    const Triangle& tri = triangles_[static_cast<std::size_t>(hit.prim)];
+                                    n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+                                } else {
+                                    geometry[i] = primitive[i] = kInvalidId;
+                                }
+                                normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
+                            }
+                        });
     }
     return py::dict("t_hit"_a = t_hit, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,
                     "primitive_uvs"_a = uvs, "primitive_normals"_a = normals);
@@ -226,15 +251,21 @@ py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, 
     check_threads(nthreads);
     if (std::isnan(tnear) || std::isnan(tfar) || tnear > tfar)
         throw py::value_error("tnear, tfar: expected tnear <= tfar, neither NaN");
-    const std::vector<Ray> batch = rays_of(rows, tnear, tfar);
     py::array_t<bool> result(answer_shape(rows));
+    const float* input = rows.data();
     bool* out = result.mutable_data();
     {
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
-        std::vector<std::uint8_t> occluded(batch.size());
-        occluded_parallel(committed(), batch, occluded, nthreads);
-        std::copy(occluded.begin(), occluded.end(), out);
+        const Accel& accel = committed();
+        parallel_ranges(static_cast<std::size_t>(rows.size() / 6), nthreads,
+                        [&](std::size_t first, std::size_t last) {
+                            std::vector<Ray> chunk;
+                            rays_of(input, first, last, tnear, tfar, chunk);
+                            std::vector<std::uint8_t> occluded(chunk.size());
+                            accel.occluded(chunk, occluded);
+                            std::copy(occluded.begin(), occluded.end(), out + first);
+                        });
     }
     return result;
 }
