@@ -25,9 +25,10 @@ std::string shape_text(const py::array& array) {
 }
 
 // A float32 array of shape (..., width), C-contiguous (read in place when it already is). Throws TypeError
-// or ValueError naming `name`, also for a NaN or infinite value.
+// or ValueError naming `name`, and with `check_finite` for a NaN or infinite value (the ray queries check
+// their rows as they convert them, in parallel: rays_of).
 py::array_t<float, py::array::c_style> float_rows(const py::object& object, const char* name,
-                                                  py::ssize_t width) {
+                                                  py::ssize_t width, bool check_finite = true) {
     if (!py::isinstance<py::array>(object))
         throw py::type_error(std::string(name) + ": expected a numpy array of float32, got " +
                              std::string(py::str(py::type::of(object).attr("__name__"))));
@@ -40,7 +41,7 @@ py::array_t<float, py::array::c_style> float_rows(const py::object& object, cons
                               "), got " + shape_text(array));
     auto rows = py::array_t<float, py::array::c_style>::ensure(array);
     const float* data = rows.data();
-    for (py::ssize_t i = 0; i < rows.size(); ++i) {
+    for (py::ssize_t i = 0; check_finite && i < rows.size(); ++i) {
         if (!std::isfinite(data[i]))
             throw py::value_error(std::string(name) + ": row " + std::to_string(i / width) +
                                   " holds a NaN or infinite value");
@@ -64,12 +65,18 @@ std::vector<Ray> rays_of(const py::array_t<float, py::array::c_style>& rows, flo
     return rays;
 }
 
-// Rays first to last of the (..., 6) rows, with the interval [tnear, tfar].
+// Rays first to last of the (..., 6) rows, with the interval [tnear, tfar]. Throws std::invalid_argument
+// (ValueError) for a row with a NaN or infinite value, as float_rows does.
 void rays_of(const float* rows, std::size_t first, std::size_t last, float tnear, float tfar,
              std::vector<Ray>& rays) {
     rays.clear();
-    for (const float* r = rows + 6 * first; r < rows + 6 * last; r += 6)
+    for (std::size_t i = first; i < last; ++i) {
+        const float* r = rows + 6 * i;
+        if (!(std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2]) && std::isfinite(r[3]) &&
+              std::isfinite(r[4]) && std::isfinite(r[5])))
+            throw std::invalid_argument("rays: row " + std::to_string(i) + " holds a NaN or infinite value");
         rays.push_back({{r[0], r[1], r[2]}, {r[3], r[4], r[5]}, tnear, tfar});
+    }
 }
 
 // body(first, last) over [0, count) on `threads` threads (0: all), in chunks of kChunk consecutive items
@@ -200,7 +207,7 @@ std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t pri
 }
 
 py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
-    const auto rows = float_rows(rays, "rays", 6);
+    const auto rows = float_rows(rays, "rays", 6, false);
     check_threads(nthreads);
     py::array_t<float> t_hit(answer_shape(rows));
     py::array_t<std::uint32_t> geometry_ids(answer_shape(rows)), primitive_ids(answer_shape(rows));
@@ -247,7 +254,7 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
 }
 
 py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads) {
-    const auto rows = float_rows(rays, "rays", 6);
+    const auto rows = float_rows(rays, "rays", 6, false);
     check_threads(nthreads);
     if (std::isnan(tnear) || std::isnan(tfar) || tnear > tfar)
         throw py::value_error("tnear, tfar: expected tnear <= tfar, neither NaN");
