@@ -24,11 +24,11 @@ int main(int argc, char** argv) {
         for (int variant = 0; variant < 4; ++variant) {
             BuildOptions options =
                 build_options(variant % 2 == 0 ? TriangleTest::MollerTrumbore : TriangleTest::Watertight);
-            options.plucker.max_depth = 3;
-            options.plucker.leaf_size = 4;
-            options.plucker.balanced = variant != 1;
-            options.plucker.stored_boxes = variant != 2;
-            options.plucker.morton = variant == 3;
+            options.group<PluckerOptions>().max_depth = 3;
+            options.group<PluckerOptions>().leaf_size = 4;
+            options.group<PluckerOptions>().balanced = variant != 1;
+            options.group<PluckerOptions>().stored_boxes = variant != 2;
+            options.group<PluckerOptions>().morton = variant == 3;
             PluckerAccel accel;
             accel.build(geometry, options);
             plucker::write_plucker_file(folder / ("seed" + std::to_string(written++) + ".plo"), geometry,

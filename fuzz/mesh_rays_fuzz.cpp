@@ -27,6 +27,9 @@
 #include <string_view>
 #include <vector>
 
+#include "accel/bvh/bvh.hpp"
+#include "accel/octree_build.hpp"
+#include "accel/plucker/plucker.hpp"
 #include "accel_check.hpp"
 #include "fuzz_support.hpp"
 #include "fuzzed_floats.hpp"
@@ -104,14 +107,14 @@ DeepScene clutter() {
 // section 6 variants (no 2:1 rule, planes recomputed, Morton order) instead of the defaults.
 BuildOptions deep_options(TriangleTest test, int octree_depth, bool variants) {
     BuildOptions options = build_options(test);
-    options.octree.max_depth = octree_depth;
-    options.octree.leaf_size = 2;
-    options.plucker.max_depth = octree_depth;
-    options.plucker.leaf_size = 2;
-    options.plucker.balanced = !variants;
-    options.plucker.stored_boxes = !variants;
-    options.plucker.morton = variants;
-    options.bvh.max_leaf_size = 1;
+    options.group<OctreeOptions>().max_depth = octree_depth;
+    options.group<OctreeOptions>().leaf_size = 2;
+    options.group<PluckerOptions>().max_depth = octree_depth;
+    options.group<PluckerOptions>().leaf_size = 2;
+    options.group<PluckerOptions>().balanced = !variants;
+    options.group<PluckerOptions>().stored_boxes = !variants;
+    options.group<PluckerOptions>().morton = variants;
+    options.group<BvhOptions>().max_leaf_size = 1;
     return options;
 }
 
