@@ -26,7 +26,7 @@ std::string shape_text(const py::array& array) {
 
 // A float32 array of shape (..., width), C-contiguous (read in place when it already is). Throws TypeError
 // or ValueError naming `name`, and with `check_finite` for a NaN or infinite value (the ray queries check
-// their rows as they convert them, in parallel: rays_of).
+// their rows as each task converts them instead: rays_of).
 py::array_t<float, py::array::c_style> float_rows(const py::object& object, const char* name,
                                                   py::ssize_t width, bool check_finite = true) {
     if (!py::isinstance<py::array>(object))
@@ -54,15 +54,6 @@ std::vector<py::ssize_t> answer_shape(const py::array& rows, std::initializer_li
     std::vector<py::ssize_t> shape(rows.shape(), rows.shape() + rows.ndim() - 1);
     shape.insert(shape.end(), extra);
     return shape;
-}
-
-std::vector<Ray> rays_of(const py::array_t<float, py::array::c_style>& rows, float tnear, float tfar) {
-    const auto count = static_cast<std::size_t>(rows.size() / 6);
-    std::vector<Ray> rays(count);
-    const float* r = rows.data();
-    for (std::size_t i = 0; i < count; ++i, r += 6)
-        rays[i] = {{r[0], r[1], r[2]}, {r[3], r[4], r[5]}, tnear, tfar};
-    return rays;
 }
 
 // Rays first to last of the (..., 6) rows, with the interval [tnear, tfar]. Throws std::invalid_argument
@@ -96,6 +87,34 @@ void parallel_ranges(std::size_t count, int threads, Body&& body) {
             },
             tbb::simple_partitioner());
     });
+}
+
+// body(first, rays) for each chunk of the (..., 6) rows, on `threads` threads: the rays first to
+// first + rays.size(), made by the task that traces them (rays_of).
+template <class Body>
+void for_each_ray_chunk(const py::array_t<float, py::array::c_style>& rows, int threads, float tnear,
+                        float tfar, Body&& body) {
+    parallel_ranges(static_cast<std::size_t>(rows.size() / 6), threads,
+                    [&](std::size_t first, std::size_t last) {
+                        std::vector<Ray> rays;
+                        rays_of(rows.data(), first, last, tnear, tfar, rays);
+                        body(first, rays);
+                    });
+}
+
+// `samples` fixed directions in no plane of the axes, so that axis-aligned meshes do not put their edges on
+// the occupancy rays: the fractional parts of multiples of three irrationals, centred.
+std::vector<Vec3f> sample_directions(int samples) {
+    std::vector<Vec3f> directions;
+    for (int k = 0; k < samples; ++k) {
+        const auto component = [&](double irrational, double offset) {
+            const double x = (k + 1) * irrational + offset;
+            return static_cast<float>(x - std::floor(x) - 0.5);
+        };
+        directions.push_back(normalize(
+            Vec3f(component(0.6180339887, 0.1), component(0.4142135623, 0.3), component(0.7320508075, 0.7))));
+    }
+    return directions;
 }
 
 void check_threads(int nthreads) {
@@ -160,43 +179,41 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
     for (py::ssize_t i = 0; i < points.shape(0); ++i)
         mesh.positions.emplace_back(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
     const std::int64_t* index = indices.data();
-    std::vector<Triangle> added;
-    added.reserve(static_cast<std::size_t>(indices.shape(0)));
-    for (py::ssize_t t = 0; t < indices.shape(0); ++t) {
-        Vec3f corners[3];
-        for (int c = 0; c < 3; ++c) {
-            const std::int64_t i = index[3 * t + c];
-            if (i < 0 || i >= vertex_count)
-                throw py::value_error("triangles: row " + std::to_string(t) + " names vertex " +
-                                      std::to_string(i) + ", outside [0, " + std::to_string(vertex_count) +
-                                      ")");
-            corners[c] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
-            mesh.indices.push_back(static_cast<std::uint32_t>(i));
-        }
-        added.push_back({corners[0], corners[1], corners[2]});
+    mesh.indices.reserve(static_cast<std::size_t>(indices.size()));
+    for (py::ssize_t k = 0; k < indices.size(); ++k) {
+        if (index[k] < 0 || index[k] >= vertex_count)
+            throw py::value_error("triangles: row " + std::to_string(k / 3) + " names vertex " +
+                                  std::to_string(index[k]) + ", outside [0, " + std::to_string(vertex_count) +
+                                  ")");
+        mesh.indices.push_back(static_cast<std::uint32_t>(index[k]));
     }
     py::gil_scoped_release released;
     const std::lock_guard lock(mutex_);
-    if (triangles_.size() + added.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    const std::size_t total = first_triangle_.back() + mesh.triangle_count();
+    if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         throw std::invalid_argument("triangles: more triangles than a hit's 32-bit id can number");
-    triangles_.insert(triangles_.end(), added.begin(), added.end());
-    first_triangle_.push_back(static_cast<std::uint32_t>(triangles_.size()));
+    first_triangle_.push_back(static_cast<std::uint32_t>(total));
     scene_.meshes.push_back(std::move(mesh));
+    queries_.reset();  // first: it reads the World's triangles
     world_.reset();
-    queries_.reset();
     return static_cast<std::uint32_t>(first_triangle_.size() - 2);
 }
 
 const Accel& RaycastingScene::committed() {
-    if (triangles_.empty()) throw std::invalid_argument("the scene is empty: add_triangles first");
+    if (first_triangle_.back() == 0) throw std::invalid_argument("the scene is empty: add_triangles first");
     if (!world_) world_ = std::make_unique<World>(scene_, accel_name_, build_options(test_));
     return world_->accel();
 }
 
 const GeometryQueries& RaycastingScene::queries() {
-    if (triangles_.empty()) throw std::invalid_argument("the scene is empty: add_triangles first");
-    if (!queries_) queries_ = std::make_unique<GeometryQueries>(Geometry{triangles_, {}}, test_);
+    committed();
+    if (!queries_) queries_ = std::make_unique<GeometryQueries>(world_->geometry().view(), test_);
     return *queries_;
+}
+
+Vec3f RaycastingScene::unit_normal(std::int32_t prim) const {
+    const Triangle& tri = world_->geometry().view().triangles[static_cast<std::size_t>(prim)];
+    return normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
 }
 
 std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t prim) const {
@@ -212,7 +229,6 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
     py::array_t<float> t_hit(answer_shape(rows));
     py::array_t<std::uint32_t> geometry_ids(answer_shape(rows)), primitive_ids(answer_shape(rows));
     py::array_t<float> uvs(answer_shape(rows, {2})), normals(answer_shape(rows, {3}));
-    const float* input = rows.data();
     float* t = t_hit.mutable_data();
     std::uint32_t* geometry = geometry_ids.mutable_data();
     std::uint32_t* primitive = primitive_ids.mutable_data();
@@ -225,29 +241,26 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const Accel& accel = committed();
-        parallel_ranges(static_cast<std::size_t>(rows.size() / 6), nthreads,
-                        [&](std::size_t first, std::size_t last) {
-                            std::vector<Ray> chunk;
-                            rays_of(input, first, last, 0.0f, kInfinity, chunk);
-                            std::vector<Hit> hits(chunk.size());
-                            accel.intersect(chunk, hits);
-                            for (std::size_t k = 0; k < hits.size(); ++k) {
-                                const std::size_t i = first + k;
-                                const Hit& hit = hits[k];
-                                t[i] = hit.t;
-                                uv[2 * i] = hit.hit() ? hit.u : 0.0f;
-                                uv[2 * i + 1] = hit.hit() ? hit.v : 0.0f;
-                                Vec3f n(0.0f);
-                                if (hit.hit()) {
-                                    std::tie(geometry[i], primitive[i]) = locate(hit.prim);
-                                    const Triangle& tri = triangles_[static_cast<std::size_t>(hit.prim)];
-                                    n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
-                                } else {
-                                    geometry[i] = primitive[i] = kInvalidId;
-                                }
-                                normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
-                            }
-                        });
+        for_each_ray_chunk(rows, nthreads, 0.0f, kInfinity,
+                           [&](std::size_t first, const std::vector<Ray>& chunk) {
+                               std::vector<Hit> hits(chunk.size());
+                               accel.intersect(chunk, hits);
+                               for (std::size_t k = 0; k < hits.size(); ++k) {
+                                   const std::size_t i = first + k;
+                                   const Hit& hit = hits[k];
+                                   t[i] = hit.t;
+                                   uv[2 * i] = hit.hit() ? hit.u : 0.0f;
+                                   uv[2 * i + 1] = hit.hit() ? hit.v : 0.0f;
+                                   Vec3f n(0.0f);
+                                   if (hit.hit()) {
+                                       std::tie(geometry[i], primitive[i]) = locate(hit.prim);
+                                       n = unit_normal(hit.prim);
+                                   } else {
+                                       geometry[i] = primitive[i] = kInvalidId;
+                                   }
+                                   normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
+                               }
+                           });
     }
     return py::dict("t_hit"_a = t_hit, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,
                     "primitive_uvs"_a = uvs, "primitive_normals"_a = normals);
@@ -259,67 +272,64 @@ py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, 
     if (std::isnan(tnear) || std::isnan(tfar) || tnear > tfar)
         throw py::value_error("tnear, tfar: expected tnear <= tfar, neither NaN");
     py::array_t<bool> result(answer_shape(rows));
-    const float* input = rows.data();
     bool* out = result.mutable_data();
     {
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const Accel& accel = committed();
-        parallel_ranges(static_cast<std::size_t>(rows.size() / 6), nthreads,
-                        [&](std::size_t first, std::size_t last) {
-                            std::vector<Ray> chunk;
-                            rays_of(input, first, last, tnear, tfar, chunk);
-                            std::vector<std::uint8_t> occluded(chunk.size());
-                            accel.occluded(chunk, occluded);
-                            std::copy(occluded.begin(), occluded.end(), out + first);
-                        });
+        for_each_ray_chunk(rows, nthreads, tnear, tfar,
+                           [&](std::size_t first, const std::vector<Ray>& chunk) {
+                               std::vector<std::uint8_t> occluded(chunk.size());
+                               accel.occluded(chunk, occluded);
+                               std::copy(occluded.begin(), occluded.end(), out + first);
+                           });
     }
     return result;
 }
 
 py::array RaycastingScene::count_intersections(const py::object& rays, int nthreads) {
-    const auto rows = float_rows(rays, "rays", 6);
+    const auto rows = float_rows(rays, "rays", 6, false);
     check_threads(nthreads);
-    const std::vector<Ray> batch = rays_of(rows, 0.0f, kInfinity);
     py::array_t<std::int32_t> counts(answer_shape(rows));
     std::int32_t* count = counts.mutable_data();
     {
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const GeometryQueries& all = queries();
-        parallel_ranges(batch.size(), nthreads, [&](std::size_t first, std::size_t last) {
-            std::vector<Hit> hits;
-            for (std::size_t i = first; i < last; ++i) {
-                hits.clear();
-                all.all_hits(batch[i], hits);
-                count[i] = static_cast<std::int32_t>(hits.size());
-            }
-        });
+        for_each_ray_chunk(rows, nthreads, 0.0f, kInfinity,
+                           [&](std::size_t first, const std::vector<Ray>& chunk) {
+                               std::vector<Hit> hits;
+                               for (std::size_t k = 0; k < chunk.size(); ++k) {
+                                   hits.clear();
+                                   all.all_hits(chunk[k], hits);
+                                   count[first + k] = static_cast<std::int32_t>(hits.size());
+                               }
+                           });
     }
     return counts;
 }
 
 py::dict RaycastingScene::list_intersections(const py::object& rays, int nthreads) {
-    const auto rows = float_rows(rays, "rays", 6);
+    const auto rows = float_rows(rays, "rays", 6, false);
     check_threads(nthreads);
-    const std::vector<Ray> batch = rays_of(rows, 0.0f, kInfinity);
-    std::vector<std::vector<Hit>> per_ray(batch.size());
+    std::vector<std::vector<Hit>> per_ray(static_cast<std::size_t>(rows.size() / 6));
     std::vector<std::pair<std::uint32_t, std::uint32_t>> ids;  // geometry and primitive of each hit, in order
     {
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const GeometryQueries& all = queries();
-        parallel_ranges(batch.size(), nthreads, [&](std::size_t first, std::size_t last) {
-            for (std::size_t i = first; i < last; ++i)
-                all.all_hits(batch[i], per_ray[i]);
-        });
+        for_each_ray_chunk(rows, nthreads, 0.0f, kInfinity,
+                           [&](std::size_t first, const std::vector<Ray>& chunk) {
+                               for (std::size_t k = 0; k < chunk.size(); ++k)
+                                   all.all_hits(chunk[k], per_ray[first + k]);
+                           });
         for (const std::vector<Hit>& hits : per_ray) {
             for (const Hit& hit : hits)
                 ids.push_back(locate(hit.prim));
         }
     }
     const auto size = static_cast<py::ssize_t>(ids.size());
-    py::array_t<std::uint32_t> ray_splits(static_cast<py::ssize_t>(batch.size() + 1)), ray_ids(size),
+    py::array_t<std::uint32_t> ray_splits(static_cast<py::ssize_t>(per_ray.size() + 1)), ray_ids(size),
         geometry_ids(size), primitive_ids(size);
     py::array_t<float> t_hit(size), uvs(std::vector<py::ssize_t>{size, 2});
     std::size_t k = 0;
@@ -359,8 +369,7 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
             static_cast<std::size_t>(rows.size() / 3), nthreads, [&](std::size_t first, std::size_t last) {
                 for (std::size_t i = first; i < last; ++i) {
                     const NearestPoint nearest = all.nearest_point({q[3 * i], q[3 * i + 1], q[3 * i + 2]});
-                    const Triangle& tri = triangles_[static_cast<std::size_t>(nearest.prim)];
-                    const Vec3f n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+                    const Vec3f n = unit_normal(nearest.prim);
                     point[3 * i] = nearest.point.x, point[3 * i + 1] = nearest.point.y,
                               point[3 * i + 2] = nearest.point.z;
                     normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
@@ -373,18 +382,11 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
                     "primitive_uvs"_a = uvs, "primitive_normals"_a = normals);
 }
 
-bool RaycastingScene::inside(const GeometryQueries& all, const Vec3f& p, int samples) const {
-    int odd = 0;
+bool RaycastingScene::inside(const GeometryQueries& all, const Vec3f& p,
+                             std::span<const Vec3f> directions) const {
+    std::size_t odd = 0;
     std::vector<Hit> hits;
-    for (int k = 0; k < samples; ++k) {
-        // Fixed directions in no plane of the axes, so that axis-aligned meshes do not put their edges on the
-        // ray: the fractional parts of multiples of three irrationals, centred.
-        const auto component = [&](double irrational, double offset) {
-            const double x = (k + 1) * irrational + offset;
-            return static_cast<float>(x - std::floor(x) - 0.5);
-        };
-        const Vec3f direction = normalize(
-            Vec3f(component(0.6180339887, 0.1), component(0.4142135623, 0.3), component(0.7320508075, 0.7)));
+    for (const Vec3f& direction : directions) {
         hits.clear();
         all.all_hits({p, direction, 0.0f, kInfinity}, hits);
         // A crossing through a shared vertex or edge is hit on each triangle that holds it, at the same t:
@@ -392,9 +394,9 @@ bool RaycastingScene::inside(const GeometryQueries& all, const Vec3f& p, int sam
         std::size_t crossings = 0;
         for (std::size_t h = 0; h < hits.size(); ++h)
             crossings += (h == 0 || hits[h].t != hits[h - 1].t) ? 1 : 0;
-        odd += static_cast<int>(crossings % 2);
+        odd += crossings % 2;
     }
-    return 2 * odd > samples;
+    return 2 * odd > directions.size();
 }
 
 template <class PerPoint>
@@ -425,17 +427,19 @@ py::array RaycastingScene::compute_distance(const py::object& query_points, int 
 
 py::array RaycastingScene::compute_occupancy(const py::object& query_points, int nthreads, int nsamples) {
     check_samples(nsamples);
+    const std::vector<Vec3f> directions = sample_directions(nsamples);
     return map_points(query_points, nthreads, [&](const GeometryQueries& all, const Vec3f& p) {
-        return inside(all, p, nsamples) ? 1.0f : 0.0f;
+        return inside(all, p, directions) ? 1.0f : 0.0f;
     });
 }
 
 py::array RaycastingScene::compute_signed_distance(const py::object& query_points, int nthreads,
                                                    int nsamples) {
     check_samples(nsamples);
+    const std::vector<Vec3f> directions = sample_directions(nsamples);
     return map_points(query_points, nthreads, [&](const GeometryQueries& all, const Vec3f& p) {
         const float distance = all.nearest_point(p).distance;
-        return inside(all, p, nsamples) ? -distance : distance;
+        return inside(all, p, directions) ? -distance : distance;
     });
 }
 
@@ -500,9 +504,7 @@ std::unique_ptr<RaycastingScene> RaycastingScene::load_structure(const std::stri
     auto scene = std::make_unique<RaycastingScene>(
         "plucker", world->options().triangle_test == TriangleTest::Watertight);
     scene->scene_ = world->scene();
-    const Geometry geometry = world->geometry().view();
-    scene->triangles_.assign(geometry.triangles.begin(), geometry.triangles.end());
-    scene->first_triangle_.push_back(static_cast<std::uint32_t>(scene->triangles_.size()));
+    scene->first_triangle_.push_back(static_cast<std::uint32_t>(world->geometry().triangle_count()));
     scene->world_ = std::move(world);
     return scene;
 }

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -60,17 +61,19 @@ class RaycastingScene {
     template <class PerPoint>
     py::array map_points(const py::object& query_points, int nthreads, PerPoint&& per_point);
     // Whether p lies inside the closed meshes: the parity of the surface crossings of rays from p in
-    // `samples` fixed directions, by majority.
-    [[nodiscard]] bool inside(const GeometryQueries& all, const Vec3f& p, int samples) const;
+    // `directions` (sample_directions), by majority.
+    [[nodiscard]] bool inside(const GeometryQueries& all, const Vec3f& p,
+                              std::span<const Vec3f> directions) const;
+    // The unit geometric normal of a global triangle index, (v1 - v0) x (v2 - v0) as Embree's.
+    [[nodiscard]] Vec3f unit_normal(std::int32_t prim) const;
     // The geometry and primitive ids of a global triangle index.
     [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) const;
 
     std::string accel_name_;
     TriangleTest test_;
     Scene scene_;                                // a mesh per geometry
-    std::vector<Triangle> triangles_;            // the meshes' triangles, in order
     std::vector<std::uint32_t> first_triangle_;  // of each geometry, then the total
-    std::unique_ptr<World> world_;               // the structure over scene_, once built
+    std::unique_ptr<World> world_;               // scene_ flattened and its structure, once built
     std::unique_ptr<GeometryQueries> queries_;
     std::mutex mutex_;
 };

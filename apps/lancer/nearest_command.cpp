@@ -3,6 +3,9 @@
 // NEAREST: 28 bytes per point: float32 x, y, z (the nearest point), float32 distance, int32 primitive (-1
 // for an empty scene), float32 u, v (its barycentric coordinates on that triangle) = lancer::NearestPoint.
 #include <fmt/core.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <bit>
 #include <cmath>
@@ -24,6 +27,7 @@ struct NearestOptions {
     std::string scene_file;
     std::string points_file;
     std::string nearest_file;
+    int threads = 0;
 };
 
 std::vector<Vec3f> read_points(const std::string& path) {
@@ -53,8 +57,14 @@ void run(const NearestOptions& options) {
     const std::vector<Vec3f> points = read_points(options.points_file);
     Stopwatch watch;
     std::vector<NearestPoint> nearest(points.size());
-    for (std::size_t i = 0; i < points.size(); ++i)
-        nearest[i] = queries.nearest_point(points[i]);
+    tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 1024),
+                          [&](const tbb::blocked_range<std::size_t>& range) {
+                              for (std::size_t i = range.begin(); i < range.end(); ++i)
+                                  nearest[i] = queries.nearest_point(points[i]);
+                          });
+    });
     const double query_ms = watch.elapsed_ms();
     std::ofstream out(options.nearest_file, std::ios::binary);
     out.write(reinterpret_cast<const char*>(nearest.data()),
@@ -73,6 +83,7 @@ void add_nearest_command(CLI::App& app) {
     command->add_option("scene", options->scene_file, "Mesh or scene file")->required();
     command->add_option("--points", options->points_file, "Input: float32 x 3 per point")->required();
     command->add_option("--nearest", options->nearest_file, "Output: 28 bytes per point")->required();
+    command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
     add_memory_limit_option(*command);
     command->callback([options] { run(*options); });
 }

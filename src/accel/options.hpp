@@ -35,12 +35,18 @@ template <class Number>
     return std::string(text, end);
 }
 
-// A number field of Group, in [lowest, highest]; its key is Group::kGroup + "." + name.
+// "group.name": a key of Group's.
+template <class Group>
+[[nodiscard]] std::string group_key(std::string_view name) {
+    std::string key(Group::kGroup);
+    return key.append(".").append(name);
+}
+
+// A number field of Group, in [lowest, highest]; its key is group_key<Group>(name).
 template <class Group, class Number>
 [[nodiscard]] BuildOptionRow number_option(std::string_view name, std::string_view help, Number Group::*field,
                                            Number lowest, Number highest) {
-    std::string key(Group::kGroup);
-    key.append(".").append(name);
+    const std::string key = group_key<Group>(name);
     // Appended, not concatenated: GCC 12's -Wrestrict misreads `"[" + a + ...` here (GCC bug 105329).
     std::string range = "[";
     range.append(number_text(lowest)).append(", ").append(number_text(highest)).append("]");
@@ -60,8 +66,7 @@ template <class Group, class Number>
 // A true/false field of Group.
 template <class Group>
 [[nodiscard]] BuildOptionRow flag_option(std::string_view name, std::string_view help, bool Group::*field) {
-    std::string key(Group::kGroup);
-    key.append(".").append(name);
+    const std::string key = group_key<Group>(name);
     return {key, std::string(help), "true, false",
             [=](const BuildOptions& o) { return std::string(o.group<Group>().*field ? "true" : "false"); },
             [=](BuildOptions& o, std::string_view value) {
@@ -79,8 +84,7 @@ template <class Group>
 template <class Group, class Value>
 [[nodiscard]] BuildOptionRow choice_option(std::string_view name, std::string_view help, Value Group::*field,
                                            std::vector<std::pair<std::string_view, Value>> names) {
-    std::string key(Group::kGroup);
-    key.append(".").append(name);
+    const std::string key = group_key<Group>(name);
     std::string accepted;
     for (const auto& [value_name, value] : names)
         accepted.append(accepted.empty() ? "" : ", ").append(value_name);
