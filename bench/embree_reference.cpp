@@ -6,13 +6,17 @@
 //   - flush-to-zero and denormals-are-zero set once per tracing thread;
 //   - the HIGH build quality (spatial splits), or MEDIUM; the robust flag only for --watertight.
 // A frame is timed as VIEWS.md says: generate every ray, trace it, store its closest hit (16 bytes).
+// --animate N times, per frame of lancer's sine wave (lancer/animate.hpp, written again here: this program
+// uses no lancer code), the update Embree's dynamic_scene tutorial makes: a dynamic scene of LOW quality
+// whose geometry has the REFIT quality, the new vertices written into its buffer, rtcUpdateGeometryBuffer,
+// rtcCommitGeometry, rtcCommitScene; then one frame of the canonical view (the first of --calls).
 // --view diffuse or shadow times VIEWS.md's secondary sets instead, made here from this program's own
 // canonical-view hits and traced from an array in memory, 4096 consecutive rays a task, as `lancer bench
 // --view` does: rtcIntersect1/8/16 (closest hit) or rtcOccluded1/8/16 (any hit, one byte stored) on
 // consecutive rays, without the COHERENT flag, as the tutorials trace secondary rays.
 //
 //   embree_reference MESH [--size 1024] [--frames 5] [--threads 1,2] [--calls 1,8,16] [--quality high]
-//                         [--view primary|diffuse|shadow] [--watertight] [--json FILE]
+//                         [--view primary|diffuse|shadow] [--watertight] [--json FILE] [--animate N]
 #include <assimp/cimport.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -316,6 +320,60 @@ void trace_array(RTCScene scene, const std::vector<SecondaryRay>& rays, bool sha
     });
 }
 
+// lancer's animation (lancer/animate.hpp's SineWave): y lifted by 5% of the largest extent times
+// sin(2 pi (x - lo.x) / extent.x - 2 pi frame / frames), in double, rounded once.
+void wave_frame(const Mesh& mesh, int frame, int frames, float* out) {
+    const Float3 extent = mesh.hi - mesh.lo;
+    const double lift = static_cast<double>(0.05f) * std::max({extent.x, extent.y, extent.z, 0.0f});
+    const double wavenumber = extent.x > 0.0f ? 2.0 * std::numbers::pi / extent.x : 0.0;
+    const double phase = 2.0 * std::numbers::pi * (frame % frames) / frames;
+    for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+        const Float3 p = mesh.vertices[v];
+        out[3 * v] = p.x;
+        out[3 * v + 1] = static_cast<float>(p.y + lift * std::sin(wavenumber * (p.x - mesh.lo.x) - phase));
+        out[3 * v + 2] = p.z;
+    }
+}
+
+double milliseconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+// --animate: per frame, Embree's refit of the moved vertices and one frame of the canonical view.
+template <int kLanes>
+void run_animation(const Mesh& mesh, RTCScene scene, RTCGeometry geometry, const Camera& camera, int frames,
+                   int threads) {
+    tbb::task_arena arena(threads);
+    std::vector<PixelHit> hits(static_cast<std::size_t>(camera.size) * static_cast<std::size_t>(camera.size));
+    std::vector<float> moved(3 * mesh.vertices.size());
+    auto* buffer = static_cast<float*>(rtcGetGeometryBufferData(geometry, RTC_BUFFER_TYPE_VERTEX, 0));
+    std::vector<double> update_ms, trace_ms, frame_ms;
+    for (int frame = 1; frame <= frames; ++frame) {
+        wave_frame(mesh, frame, frames, moved.data());  // the application's work, not timed
+        const auto start = std::chrono::steady_clock::now();
+        arena.execute([&] {
+            std::copy(moved.begin(), moved.end(), buffer);
+            rtcUpdateGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+            rtcCommitGeometry(geometry);
+            rtcCommitScene(scene);
+        });
+        update_ms.push_back(milliseconds_since(start));
+        const auto trace_start = std::chrono::steady_clock::now();
+        trace_frame<kLanes>(scene, camera, hits, arena);
+        trace_ms.push_back(milliseconds_since(trace_start));
+        frame_ms.push_back(update_ms.back() + trace_ms.back());
+        std::printf("frame %3d threads %d: update %8.2f ms, trace %8.2f ms (rtcIntersect%d)\n", frame,
+                    threads, update_ms.back(), trace_ms.back(), kLanes);
+    }
+    auto median = [](std::vector<double> values) {
+        std::sort(values.begin(), values.end());
+        return values[values.size() / 2];
+    };
+    std::printf("medians over %d frames, threads %d: update %.2f ms, trace %.2f ms, update + trace %.2f ms\n",
+                frames, threads, median(update_ms), median(trace_ms), median(frame_ms));
+    std::fflush(stdout);
+}
+
 std::vector<int> parse_list(const std::string& text) {
     std::vector<int> values;
     std::size_t start = 0;
@@ -333,27 +391,38 @@ int main(int argc, char** argv) {
     CLI::App app("Embree on VIEWS.md's canonical view, called as its tutorials do (no lancer code)");
     std::string file, thread_list = "1,2", call_list = "1,8,16", quality = "high", view = "primary",
                       json_file;
-    int size = 1024, frames = 5;
+    int size = 1024, frames = 5, animate = 0;
     bool watertight = false;
     app.add_option("mesh", file, "Mesh file (OBJ, OFF, PLY: read by assimp)")->required();
     app.add_option("--size", size, "Image side")->check(CLI::Range(1, 16384));
     app.add_option("--frames", frames, "Timed frames after one warm-up")->check(CLI::Range(1, 1000));
     app.add_option("--threads", thread_list, "Comma-separated thread counts");
     app.add_option("--calls", call_list, "Comma-separated calls: 1 (rtcIntersect1), 8, 16");
-    app.add_option("--quality", quality, "Build quality")->check(CLI::IsMember({"high", "medium"}));
+    app.add_option("--quality", quality, "Build quality")->check(CLI::IsMember({"high", "medium", "refit"}));
     app.add_option("--view", view, "VIEWS.md's view")->check(CLI::IsMember({"primary", "diffuse", "shadow"}));
     app.add_flag("--watertight", watertight, "Embree's robust mode (RTC_SCENE_FLAG_ROBUST)");
     app.add_option("--json", json_file, "Write one record per call and thread count");
+    app.add_option("--animate", animate,
+                   "Frames of lancer's sine wave: time Embree's update of each (the refit quality unless "
+                   "--quality says otherwise) and a trace of the canonical view")
+        ->check(CLI::Range(1, 10000));
     CLI11_PARSE(app, argc, argv);
+    // Embree's dynamic_scene tutorial: refitted geometry in a dynamic scene of LOW quality.
+    const bool refit = quality == "refit" || (animate > 0 && app.count("--quality") == 0);
+    if (refit) quality = "refit";
 
     const Mesh mesh = load_mesh(file);
     const std::size_t triangles = mesh.indices.size() / 3;
     const RTCDevice device = rtcNewDevice(nullptr);
     const auto build_start = std::chrono::steady_clock::now();
     const RTCScene scene = rtcNewScene(device);
-    rtcSetSceneBuildQuality(scene, quality == "high" ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM);
-    if (watertight) rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(scene, refit               ? RTC_BUILD_QUALITY_LOW
+                                   : quality == "high" ? RTC_BUILD_QUALITY_HIGH
+                                                       : RTC_BUILD_QUALITY_MEDIUM);
+    rtcSetSceneFlags(scene, (refit ? RTC_SCENE_FLAG_DYNAMIC : RTC_SCENE_FLAG_NONE) |
+                                (watertight ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE));
     const RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    if (refit) rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_REFIT);
     auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
         geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.vertices.size()));
     std::copy_n(&mesh.vertices[0].x, 3 * mesh.vertices.size(), vertices);
@@ -362,12 +431,30 @@ int main(int argc, char** argv) {
     std::copy(mesh.indices.begin(), mesh.indices.end(), indices);
     rtcCommitGeometry(geometry);
     rtcAttachGeometry(scene, geometry);
-    rtcReleaseGeometry(geometry);
     rtcCommitScene(scene);
     const double build_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - build_start).count();
 
     const Camera camera(mesh, size);
+    if (animate > 0) {
+        std::printf("embree_reference --animate: %s, %zu triangles, %s build %.1f ms%s\n",
+                    std::filesystem::path(file).filename().string().c_str(), triangles, quality.c_str(),
+                    build_ms, watertight ? ", robust" : "");
+        const int calls = parse_list(call_list).front();
+        for (const int threads : parse_list(thread_list)) {
+            if (calls == 16)
+                run_animation<16>(mesh, scene, geometry, camera, animate, threads);
+            else if (calls == 8)
+                run_animation<8>(mesh, scene, geometry, camera, animate, threads);
+            else
+                run_animation<1>(mesh, scene, geometry, camera, animate, threads);
+        }
+        rtcReleaseGeometry(geometry);
+        rtcReleaseScene(scene);
+        rtcReleaseDevice(device);
+        return 0;
+    }
+    rtcReleaseGeometry(geometry);
     const std::string mesh_name = std::filesystem::path(file).filename().string();
     std::vector<PixelHit> hits(static_cast<std::size_t>(size) * static_cast<std::size_t>(size));
     std::vector<SecondaryRay> secondary;

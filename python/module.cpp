@@ -20,6 +20,10 @@ PYBIND11_MODULE(lancer, module) {
         .def_readonly_static("INVALID_ID", &lancer::python::kInvalidId)
         .def("add_triangles", &RaycastingScene::add_triangles, py::arg("vertices"), py::arg("triangles"),
              "Adds a mesh: vertices float32 (N, 3), triangles integer (M, 3). Returns its geometry id.")
+        .def("update_vertices", &RaycastingScene::update_vertices, py::arg("geometry_id"),
+             py::arg("vertices"),
+             "Moves a geometry's vertices, float32 (N, 3) with N its vertex count, its triangles kept; the "
+             "BVHs refit, the other structures rebuild. Returns {method, ms, sah_ratio}.")
         .def("cast_rays", &RaycastingScene::cast_rays, py::arg("rays"), py::arg("nthreads") = 0,
              "Closest hits of rays float32 (..., 6): t_hit, geometry_ids, primitive_ids, primitive_uvs, "
              "primitive_normals")

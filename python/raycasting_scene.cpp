@@ -199,6 +199,44 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
     return static_cast<std::uint32_t>(first_triangle_.size() - 2);
 }
 
+py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::object& vertices) {
+    const auto points = float_rows(vertices, "vertices", 3);
+    if (points.ndim() != 2)
+        throw py::value_error("vertices: expected shape (N, 3), got " + shape_text(points));
+    UpdateReport report;
+    {
+        py::gil_scoped_release released;
+        const std::lock_guard lock(mutex_);
+        if (geometry_id >= scene_.meshes.size()) {
+            throw py::value_error("geometry_id: " + std::to_string(geometry_id) + ", the scene has " +
+                                  std::to_string(scene_.meshes.size()) + " geometries");
+        }
+        TriangleMesh& mesh = scene_.meshes[geometry_id];
+        const auto count = static_cast<std::size_t>(points.shape(0));
+        if (count != mesh.positions.size()) {
+            throw py::value_error("vertices: " + std::to_string(count) + " rows for geometry " +
+                                  std::to_string(geometry_id) + ", which has " +
+                                  std::to_string(mesh.positions.size()) + " vertices");
+        }
+        const float* p = points.data();
+        std::vector<Vec3f> positions(count);
+        for (std::size_t i = 0; i < count; ++i) {
+            positions[i] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
+            if (!in_coordinate_domain(positions[i]))
+                throw py::value_error("vertices: row " + std::to_string(i) +
+                                      " lies outside the coordinate domain [-2^60, 2^60]");
+        }
+        // The structure follows (a refit for the BVHs) once built; before, the next query builds it.
+        if (world_) {
+            queries_.reset();  // its own tree is over the triangles about to move
+            report = world_->update_vertices(geometry_id, positions);
+        }
+        mesh.positions = std::move(positions);
+    }
+    return py::dict("method"_a = report.method == UpdateMethod::Refit ? "refit" : "rebuild",
+                    "ms"_a = report.ms, "sah_ratio"_a = report.sah_ratio);
+}
+
 const Accel& RaycastingScene::committed() {
     if (first_triangle_.back() == 0) throw std::invalid_argument("the scene is empty: add_triangles first");
     if (!world_) world_ = std::make_unique<World>(scene_, accel_name_, build_options(test_));
@@ -521,6 +559,7 @@ py::dict RaycastingScene::stats() {
     return py::dict("accel"_a = accel_name_, "primitives"_a = stats.primitives, "nodes"_a = stats.nodes,
                     "leaves"_a = stats.leaves, "references"_a = stats.references,
                     "max_depth"_a = stats.max_depth, "build_ms"_a = stats.build_ms,
+                    "sah_cost"_a = stats.sah_cost, "sah_ratio"_a = stats.sah_ratio,
                     "memory_bytes"_a = memory_bytes);
 }
 

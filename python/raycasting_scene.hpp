@@ -31,6 +31,9 @@ class RaycastingScene {
     RaycastingScene(std::string accel, bool watertight);
 
     std::uint32_t add_triangles(const py::object& vertices, const py::object& triangles);
+    // lancer's own: new positions for a geometry's vertices, its triangles kept (World::update_vertices: the
+    // BVHs refit). Returns what the update did.
+    py::dict update_vertices(std::uint32_t geometry_id, const py::object& vertices);
     py::dict cast_rays(const py::object& rays, int nthreads);
     py::array test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads);
     py::array count_intersections(const py::object& rays, int nthreads);

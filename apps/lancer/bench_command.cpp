@@ -15,6 +15,7 @@
 #include <sstream>
 #include <thread>
 
+#include "bench_animate.hpp"
 #include "bench_report.hpp"
 #include "bench_trace.hpp"
 #include "commands.hpp"
@@ -43,6 +44,7 @@ struct BenchOptions {
     std::string json_file;
     std::string svg_file;
     bool mpi = false;
+    int animate = 0;
     DeviceChoice device;
 };
 
@@ -145,7 +147,19 @@ void run(const BenchOptions& options) {
     options.device.require_available();
     const std::vector<int> thread_counts = parse_int_list(options.thread_list, "--threads");
     const std::vector<std::string> accels = parse_accels(options.accel_list);
+    if (options.animate > 0 && (options.view_list != "primary" || options.device.cuda()))
+        throw InputError("--animate times the primary view on the CPU: leave out --view and --device");
     const std::vector<BenchMesh> meshes = load_meshes(options);
+    if (options.animate > 0) {
+        fmt::print("lancer bench --animate: {}, {} hardware threads; {} {}\n", cpu_name(),
+                   std::thread::hardware_concurrency(), LANCER_COMPILER, LANCER_BUILD_FLAGS);
+        std::vector<AnimatedBenchMesh> animated;
+        for (const BenchMesh& mesh : meshes)
+            animated.push_back({mesh.name, &mesh.scene});
+        run_animated_bench(animated, {options.animate, thread_counts, accels, options.size,
+                                      !options.moller_trumbore, options.settings, options.json_file});
+        return;
+    }
     if (options.device.cuda()) {
         std::vector<CudaBenchMesh> gpu_meshes;
         for (const BenchMesh& mesh : meshes)
@@ -422,6 +436,13 @@ void add_bench_command(CLI::App& app) {
     command->add_flag("--mpi", options->mpi,
                       "Under mpirun: the canonical view by rank 0 alone and by every rank, with the parallel "
                       "efficiency (docs/distributed.md)");
+    command
+        ->add_option(
+            "--animate", options->animate,
+            "Deform each mesh over N frames (a travelling sine wave, docs/accel/refit.md) and time, per "
+            "frame and structure, its update (Accel::update: the BVHs refit; Embree rows use Embree's "
+            "refit quality) and a full rebuild, each with a trace of the canonical view")
+        ->check(CLI::Range(1, 10000));
     options->device.add_options(*command);
     command->callback([options] { options->mpi ? run_mpi(*options) : run(*options); });
 }

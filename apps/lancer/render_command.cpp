@@ -15,7 +15,9 @@
 #include "common.hpp"
 #include "cuda_device.hpp"
 #include "distributed.hpp"
+#include "lancer/animate.hpp"
 #include "lancer/render.hpp"
+#include "lancer/world.hpp"
 
 namespace lancer::cli {
 namespace {
@@ -33,6 +35,7 @@ struct RenderCommandOptions {
     int max_depth = 5;
     float min_weight = 1.0f / 512.0f;
     bool fresnel = false;
+    int animate = 0;  // frames of the animation; 0: one still image
 };
 
 enum class ImageFormat { Png, Exr };
@@ -46,6 +49,74 @@ std::optional<ImageFormat> image_format(const std::filesystem::path& file) {
     if (extension == ".png") return ImageFormat::Png;
     if (extension == ".exr") return ImageFormat::Exr;
     return std::nullopt;
+}
+
+// The file of frame `frame` of an animation: `pattern` with its one printf conversion for the frame number,
+// %d or a zero-padded %0Nd, replaced. Throws InputError for a pattern without exactly one.
+std::string frame_file(const std::string& pattern, int frame) {
+    std::string file;
+    int conversions = 0;
+    for (std::size_t i = 0; i < pattern.size(); ++i) {
+        if (pattern[i] != '%') {
+            file += pattern[i];
+            continue;
+        }
+        std::size_t end = i + 1;
+        const bool zero_padded = end < pattern.size() && pattern[end] == '0';
+        int width = 0;
+        while (end < pattern.size() && std::isdigit(static_cast<unsigned char>(pattern[end])) != 0 &&
+               width < 100)
+            width = 10 * width + (pattern[end++] - '0');
+        if (end >= pattern.size() || pattern[end] != 'd' || width > 16) {
+            throw InputError("--animate: -o '" + pattern +
+                             "' must name each frame with one %d or %0Nd (N up to 16), as frame_%04d.png");
+        }
+        const std::string number = std::to_string(frame);
+        if (static_cast<int>(number.size()) < width)
+            file.append(static_cast<std::size_t>(width) - number.size(), zero_padded ? '0' : ' ');
+        file += number;
+        ++conversions;
+        i = end;
+    }
+    if (conversions != 1) {
+        throw InputError("--animate: -o '" + pattern +
+                         "' must name each frame with one %d or %0Nd, as frame_%04d.png");
+    }
+    return file;
+}
+
+void write_image(const Image& image, const std::string& file) {
+    try {
+        if (image_format(file) == ImageFormat::Exr)
+            write_exr(image, file);
+        else
+            write_png(image, file);
+    } catch (const std::runtime_error& error) {
+        throw InputError(error.what());
+    }
+}
+
+// lancer render --animate N: the scene's meshes deformed by the sine wave of `lancer bench --animate`
+// (lancer/animate.hpp) over N frames, frame f of the period written to -o's pattern; the structure updated
+// (Accel::update) between frames, the camera that of the rest pose.
+void render_animation(const RenderCommandOptions& options, World& world, const Camera& camera,
+                      const RenderOptions& render_options) {
+    const Scene rest = world.scene();
+    const SineWave wave{rest.bounds(), options.animate};
+    for (int frame = 0; frame < options.animate; ++frame) {
+        const std::vector<std::vector<Vec3f>> moved = deformed_meshes(rest, wave, frame);
+        std::vector<MeshVertices> moves;
+        for (std::size_t mesh = 0; mesh < moved.size(); ++mesh)
+            moves.push_back({mesh, moved[mesh]});
+        const UpdateReport report = world.update_vertices(moves);
+        RenderStats stats;
+        const Image image = render(world, camera, render_options, &stats);
+        const std::string file = frame_file(options.output, frame);
+        write_image(image, file);
+        fmt::print("frame {}: update {:.1f} ms ({}), render {:.1f} ms, wrote {}\n", frame, report.ms,
+                   report.method == UpdateMethod::Refit ? "refit" : "rebuild", stats.trace_ms, file);
+        std::fflush(stdout);
+    }
 }
 
 void print_summary(const RenderCommandOptions& options, const PreparedScene& prepared, const Image& image,
@@ -115,14 +186,19 @@ void run(RenderCommandOptions options) {
         }
     }
     const Job& job = Job::get();
-    if (job.distributed() && (options.device.cuda() || !options.beside.empty()))
+    if (job.distributed() && (options.device.cuda() || !options.beside.empty() || options.animate > 0))
         throw InputError(
-            "under mpirun, lancer render runs on the CPU alone: leave out --device and --beside");
+            "under mpirun, lancer render runs on the CPU alone: leave out --device, --beside and --animate");
+    if (options.animate > 0) {
+        if (options.device.cuda() || !options.beside.empty())
+            throw InputError("--animate renders on the CPU alone: leave out --device and --beside");
+        static_cast<void>(frame_file(options.output, 0));  // a bad pattern before the scene is loaded
+    }
     // Every rank loads the scene and builds its structure (docs/distributed.md).
     std::optional<PreparedScene> prepared;
     job.on_every_rank("loading the scene",
                       [&] { prepared = prepare_scene(options.scene_file, options.accel); });
-    const World& world = prepared->world;
+    World& world = prepared->world;
     const Scene& scene = world.scene();
 
     Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds());
@@ -136,6 +212,10 @@ void run(RenderCommandOptions options) {
     render_options.max_depth = options.max_depth;
     render_options.min_weight = options.min_weight;
     render_options.fresnel = options.fresnel;
+    if (options.animate > 0) {
+        render_animation(options, world, camera, render_options);
+        return;
+    }
     RenderStats stats;
     Image image;
     if (options.device.cuda()) {
@@ -152,14 +232,7 @@ void run(RenderCommandOptions options) {
         image = job.render(scene, world.geometry(), world.accel(), camera, render_options, stats);
     }
     if (!job.is_root()) return;  // rank 0 writes the picture and the summary
-    try {
-        if (image_format(options.output) == ImageFormat::Exr)
-            write_exr(image, options.output);
-        else
-            write_png(image, options.output);
-    } catch (const std::runtime_error& error) {
-        throw InputError(error.what());
-    }
+    write_image(image, options.output);
     print_summary(options, *prepared, image, stats);
     if (!options.beside.empty()) render_beside(options, world, camera, render_options, stats);
 }
@@ -219,6 +292,12 @@ void add_render_command(CLI::App& app) {
                         "Mrays/s beside the first's");
     options->device.add_options(*command);
     command->add_option("--threads", options->threads, "Threads (0 = all)")->check(CLI::NonNegativeNumber);
+    command
+        ->add_option("--animate", options->animate,
+                     "Render N frames of the scene's meshes deformed by a travelling sine wave (lancer bench "
+                     "--animate's), the structure updated between frames; -o names each frame with %d or "
+                     "%0Nd (frame_%04d.png)")
+        ->check(CLI::Range(1, 100000));
     command->callback([options] { run(*options); });
 }
 

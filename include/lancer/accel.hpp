@@ -94,6 +94,8 @@ struct AccelStats {
     double mean_refs_per_leaf = 0.0;
     std::size_t max_refs_per_leaf = 0;
     double sah_cost = 0.0;
+    // A refitted BVH's sah_cost over its cost when last built (UpdateReport::sah_ratio); 1 otherwise.
+    double sah_ratio = 1.0;
     std::vector<std::pair<std::string, std::size_t>> memory_by_array;  // bytes, trace-time arrays only
 };
 
@@ -110,6 +112,24 @@ struct TraversalCounters {
     }
 };
 
+// How a structure follows its triangles when they move (Accel::update).
+enum class UpdateMethod {
+    Rebuild,  // builds itself again on the moved triangles
+    // Keeps its tree and recomputes its boxes bottom-up (Wald, Boulos & Shirley 2007, "Ray tracing
+    // deformable scenes using dynamic bounding volume hierarchies"), rebuilding when the tree has degraded
+    // past a threshold (docs/accel/refit.md).
+    Refit,
+};
+
+// What one Accel::update did.
+struct UpdateReport {
+    UpdateMethod method = UpdateMethod::Rebuild;  // a refitting structure rebuilds past its threshold
+    double ms = 0.0;
+    // SAH cost of the tree as it now is over its cost when it was last built (AccelStats::sah_ratio): 1 after
+    // a rebuild, and for the structures without an SAH cost.
+    double sah_ratio = 1.0;
+};
+
 class Accel {
   public:
     virtual ~Accel() = default;
@@ -118,6 +138,14 @@ class Accel {
     // The structure may keep the spans of `geometry`: the caller keeps them alive and unchanged. Throws
     // std::invalid_argument when a coordinate lies outside the contract's domain (kCoordinateLimit).
     void build(const Geometry& geometry, const BuildOptions& options);
+    // Follows triangles that moved while the primitives stayed the same: `geometry` has as many triangles
+    // and spheres as the geometry of the last build, in the same order, and replaces it (the same spans
+    // rewritten in place, or others). The BVHs refit, the other structures rebuild (update_method). Throws
+    // std::invalid_argument, the structure left as it was, for other counts or a coordinate outside the
+    // contract's domain; the caller then restores the geometry the structure was built on before tracing.
+    UpdateReport update(const Geometry& geometry);
+    // What update does with this structure as built.
+    [[nodiscard]] virtual UpdateMethod update_method() const { return UpdateMethod::Rebuild; }
     // Closest hit of each ray in [tnear, tfar]; hits.size() == rays.size(). Invalid rays miss (is_valid).
     // Rays are first conditioned the same way for every structure (docs/numerical-contract.md, "Ray
     // conditioning"): extreme directions scaled by a power of two, far rays moved near the scene.
@@ -146,6 +174,8 @@ class Accel {
 
   protected:
     virtual void build_structure(const Geometry& geometry, const BuildOptions& options) = 0;
+    // update's work once the geometry is checked.
+    virtual UpdateReport update_structure(const Geometry& geometry) = 0;
     virtual void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                  TraversalCounters* counters) const = 0;
     virtual void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
@@ -159,11 +189,19 @@ class Accel {
     virtual void intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                                        TraversalCounters* counters) const;
     // What build does before build_structure, for a structure that gets its arrays another way (a file):
-    // checks the domain and records the scene's box for far rays.
+    // checks the domain and records the scene's box for far rays and the primitive counts for update.
     void accept_geometry(const Geometry& geometry);
+    // update() of a structure this one is made of (a packet structure's single-ray one), on geometry that
+    // update() has checked.
+    UpdateReport update_held(Accel& held, const Geometry& geometry) const;
 
   private:
+    // The box of `geometry`'s primitives that can be hit; throws std::invalid_argument for a coordinate
+    // outside the contract's domain.
+    [[nodiscard]] static Box3f checked_bounds(const Geometry& geometry);
+
     Box3f bounds_;
+    std::size_t triangle_count_ = 0, sphere_count_ = 0;
 };
 
 // intersect() and occluded() on `threads` threads (0: all, or those of the oneTBB arena the caller runs in),

@@ -155,6 +155,8 @@ class SceneGeometry {
     // Mesh index and triangle index inside that mesh of a global triangle index (< triangle count).
     [[nodiscard]] std::pair<std::size_t, std::size_t> locate_triangle(std::size_t global_index) const;
     [[nodiscard]] std::size_t triangle_count() const { return triangles_.size(); }
+    // Flattens mesh `mesh_index` again after its positions moved; `mesh` has the triangle count it had.
+    void refresh_mesh(std::size_t mesh_index, const TriangleMesh& mesh);
 
   private:
     std::vector<Triangle> triangles_;

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <string_view>
 
@@ -19,6 +20,12 @@ namespace lancer {
 class StructureFileError : public std::runtime_error {
   public:
     using std::runtime_error::runtime_error;
+};
+
+// New positions for the vertices of one mesh of a World's scene: as many as the mesh has, in its order.
+struct MeshVertices {
+    std::size_t mesh = 0;
+    std::span<const Vec3f> positions;
 };
 
 class World {
@@ -36,6 +43,17 @@ class World {
     // Writes the structure and its geometry as a `.plo` file; only the `plucker` structure can be written.
     // Throws StructureFileError.
     void save_structure(const std::filesystem::path& file) const;
+
+    // Moves the vertices of the meshes named in `moves` (their connectivity stays) and updates the structure
+    // once for all of them (Accel::update: the BVHs refit, the others rebuild). A mesh with vertex normals
+    // gets them recomputed from its moved triangles (area-weighted). Throws std::invalid_argument
+    // naming the first problem, the world left as it was: a mesh index out of range or named twice, another
+    // vertex count, a coordinate that is NaN, infinite or outside the contract's domain.
+    UpdateReport update_vertices(std::span<const MeshVertices> moves);
+    UpdateReport update_vertices(std::size_t mesh, std::span<const Vec3f> positions) {
+        const MeshVertices move{mesh, positions};
+        return update_vertices(std::span(&move, 1));
+    }
 
     [[nodiscard]] const Scene& scene() const { return *scene_; }
     [[nodiscard]] const SceneGeometry& geometry() const { return *geometry_; }

@@ -317,3 +317,57 @@ def test_plucker_structure_files_load_back_with_the_same_answers(spheres, tmp_pa
     (tmp_path / "broken.plo").write_bytes(b"not a structure")
     with pytest.raises(ValueError, match="path: "):
         lancer.RaycastingScene.load_structure(str(tmp_path / "broken.plo"))
+
+
+def waved(vertices, phase, amplitude=0.3):
+    """Vertices lifted along y by a sine of x: every triangle moves, the triangles stay."""
+    moved = vertices.copy()
+    moved[:, 1] += np.float32(amplitude) * np.sin(np.float32(2.0) * vertices[:, 0] + np.float32(phase))
+    return moved.astype(np.float32)
+
+
+def test_updated_vertices_give_the_answers_of_a_scene_built_on_them(spheres):
+    rays = np.vstack([random_rays(3000, 7), adversarial_rays(*spheres[0])])
+    points = np.random.default_rng(9).uniform(-2.0, 2.0, (500, 3)).astype(np.float32)
+    for accel in STRUCTURES:
+        scene = scene_of(accel, *spheres)
+        scene.compute_distance(points[:1])  # builds the structure and the queries, which must follow
+        for phase in (0.5, 1.5):
+            moved = [(waved(vertices, phase), triangles) for vertices, triangles in spheres]
+            for geometry_id, (vertices, _) in enumerate(moved):
+                report = scene.update_vertices(geometry_id, vertices)
+                assert report["method"] == ("refit" if "bvh" in accel else "rebuild"), accel
+            fresh = scene_of("brute", *moved)
+            expected, answer = fresh.cast_rays(rays), scene.cast_rays(rays)
+            for key in ("t_hit", "geometry_ids", "primitive_ids", "primitive_uvs", "primitive_normals"):
+                assert np.array_equal(answer[key], expected[key]), (accel, phase, key)
+            assert np.array_equal(scene.compute_distance(points), fresh.compute_distance(points)), accel
+    # Before the first query nothing is built: the structure is then built on the moved vertices.
+    scene = scene_of("bvh8", *spheres)
+    scene.update_vertices(1, waved(spheres[1][0], 0.5))
+    assert np.array_equal(scene.cast_rays(rays)["t_hit"],
+                          scene_of("brute", spheres[0], (waved(spheres[1][0], 0.5), spheres[1][1])).cast_rays(rays)[
+                              "t_hit"])
+
+
+def test_bad_updates_raise_naming_the_argument_and_change_nothing(spheres):
+    scene = scene_of("bvh8", *spheres)
+    rays = random_rays(500, 8)
+    before = scene.cast_rays(rays)["t_hit"]
+    vertices = spheres[0][0]
+    with pytest.raises(ValueError, match="geometry_id: 2, the scene has 2 geometries"):
+        scene.update_vertices(2, vertices)
+    with pytest.raises(ValueError, match=f"vertices: {len(vertices) - 1} rows for geometry 0, which has "
+                                         f"{len(vertices)} vertices"):
+        scene.update_vertices(0, vertices[:-1])
+    with pytest.raises(TypeError, match="vertices: expected dtype float32"):
+        scene.update_vertices(0, vertices.astype(np.float64))
+    bad = vertices.copy()
+    for value in (np.nan, np.inf):
+        bad[3, 0] = value
+        with pytest.raises(ValueError, match="vertices: row 3 holds a NaN or infinite value"):
+            scene.update_vertices(0, bad)
+    bad[3, 0] = np.float32(2.0 ** 61)
+    with pytest.raises(ValueError, match=r"vertices: row 3 lies outside the coordinate domain \[-2\^60, 2\^60\]"):
+        scene.update_vertices(0, bad)
+    assert np.array_equal(scene.cast_rays(rays)["t_hit"], before, equal_nan=True)

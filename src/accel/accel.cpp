@@ -1,5 +1,7 @@
 // The non-virtual half of the Accel interface: the checks and the ray conditioning every structure shares
 // (src/core/ray_conditioning.hpp), done once per batch around the structure's own batch loop.
+#include <algorithm>
+#include <chrono>
 #include <string>
 
 #include "accel/packet_batch.hpp"
@@ -27,33 +29,93 @@ void intersect_conditioned(std::span<const Ray> rays, std::span<Hit> hits, const
 
 }  // namespace
 
-void Accel::accept_geometry(const Geometry& geometry) {
-    Box3f bounds;
-    for (std::size_t i = 0; i < geometry.triangles.size(); ++i) {
-        const Triangle& triangle = geometry.triangles[i];
-        if (!in_coordinate_domain(triangle.v0) || !in_coordinate_domain(triangle.v1) ||
-            !in_coordinate_domain(triangle.v2)) {
-            throw std::invalid_argument("Accel::build: triangle " + std::to_string(i) +
-                                        " has a vertex outside the coordinate domain [-2^60, 2^60]");
-        }
-        bounds.extend(triangle.bounds());
+namespace {
+
+// The box of a range of primitives, and the first one outside the coordinate domain (or none).
+struct CheckedRange {
+    static constexpr std::size_t kNone = static_cast<std::size_t>(-1);
+    Box3f box;
+    std::size_t first_outside = kNone;
+
+    void merge(const CheckedRange& other) {
+        box.extend(other.box);
+        first_outside = std::min(first_outside, other.first_outside);
     }
+};
+
+// Triangles per task of the check: large enough that a task costs more than its scheduling.
+constexpr std::size_t kCheckGrain = 1 << 14;
+
+}  // namespace
+
+Box3f Accel::checked_bounds(const Geometry& geometry) {
+    // In parallel: update checks every vertex of every frame, which would otherwise cost a good part of a
+    // refit. Box extents and the least index are exact whatever the chunks.
+    const CheckedRange triangles = parallel::reduce(
+        0, geometry.triangles.size(), kCheckGrain, CheckedRange{},
+        [&](std::size_t from, std::size_t to, CheckedRange range) {
+            for (std::size_t i = from; i < to; ++i) {
+                const Triangle& triangle = geometry.triangles[i];
+                if (!in_coordinate_domain(triangle.v0) || !in_coordinate_domain(triangle.v1) ||
+                    !in_coordinate_domain(triangle.v2)) {
+                    range.first_outside = std::min(range.first_outside, i);
+                }
+                range.box.extend(triangle.bounds());
+            }
+            return range;
+        },
+        [](CheckedRange a, const CheckedRange& b) {
+            a.merge(b);
+            return a;
+        });
+    if (triangles.first_outside != CheckedRange::kNone) {
+        throw std::invalid_argument("Accel: triangle " + std::to_string(triangles.first_outside) +
+                                    " has a vertex outside the coordinate domain [-2^60, 2^60]");
+    }
+    Box3f bounds = triangles.box;
     for (std::size_t i = 0; i < geometry.spheres.size(); ++i) {
         const Sphere& sphere = geometry.spheres[i];
         if (!(sphere.radius > 0.0f)) continue;  // never hit (docs/numerical-contract.md, "Spheres")
         const Box3f box = sphere.bounds();
         if (!in_coordinate_domain(box.lo) || !in_coordinate_domain(box.hi)) {
-            throw std::invalid_argument("Accel::build: sphere " + std::to_string(i) +
+            throw std::invalid_argument("Accel: sphere " + std::to_string(i) +
                                         " reaches outside the coordinate domain [-2^60, 2^60]");
         }
         bounds.extend(box);
     }
-    bounds_ = bounds;
+    return bounds;
+}
+
+void Accel::accept_geometry(const Geometry& geometry) {
+    bounds_ = checked_bounds(geometry);
+    triangle_count_ = geometry.triangles.size();
+    sphere_count_ = geometry.spheres.size();
 }
 
 void Accel::build(const Geometry& geometry, const BuildOptions& options) {
     accept_geometry(geometry);
     build_structure(geometry, options);
+}
+
+UpdateReport Accel::update(const Geometry& geometry) {
+    if (geometry.triangles.size() != triangle_count_ || geometry.spheres.size() != sphere_count_) {
+        throw std::invalid_argument("Accel::update: " + std::to_string(geometry.triangles.size()) +
+                                    " triangles and " + std::to_string(geometry.spheres.size()) +
+                                    " spheres, expected the " + std::to_string(triangle_count_) + " and " +
+                                    std::to_string(sphere_count_) + " it was built on");
+    }
+    const Box3f bounds = checked_bounds(geometry);
+    const auto start = std::chrono::steady_clock::now();
+    // The box first: a structure that rebuilds reads it (embree's scale, the octrees' root cube).
+    bounds_ = bounds;
+    UpdateReport report = update_structure(geometry);
+    report.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return report;
+}
+
+UpdateReport Accel::update_held(Accel& held, const Geometry& geometry) const {
+    held.bounds_ = bounds_;
+    return held.update_structure(geometry);
 }
 
 void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters) const {

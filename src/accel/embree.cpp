@@ -15,11 +15,13 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <utility>
 
 #include "accel/build_util.hpp"
 #include "accel/simd_float.hpp"
 #include "core/intersect.hpp"
 #include "core/memory_limit.hpp"
+#include "core/parallel.hpp"
 #include "lancer/denormals.hpp"
 
 namespace lancer {
@@ -375,23 +377,62 @@ void EmbreeAccel::release_scene() {
     scene_ = nullptr;
 }
 
+namespace {
+
+// Triangles per task when the vertex buffer is written.
+constexpr std::size_t kVertexGrain = 1 << 14;
+
+// Embree's copy of the geometry, scaled (scene_scale): three vertices per triangle, and each sphere as a
+// point with its radius.
+void write_vertices(const Geometry& geometry, float scale, float* vertices) {
+    parallel::for_each_chunk(0, geometry.triangles.size(), kVertexGrain,
+                             [&](std::size_t from, std::size_t to) {
+                                 float* out = vertices + 9 * from;
+                                 for (std::size_t i = from; i < to; ++i) {
+                                     const Triangle& triangle = geometry.triangles[i];
+                                     for (const Vec3f vertex : {triangle.v0, triangle.v1, triangle.v2}) {
+                                         const Vec3f scaled = vertex * scale;
+                                         *out++ = scaled.x, *out++ = scaled.y, *out++ = scaled.z;
+                                     }
+                                 }
+                             });
+}
+
+void write_spheres(const Geometry& geometry, float scale, float* points) {
+    for (std::size_t i = 0; i < geometry.spheres.size(); ++i) {
+        const Vec3f center = geometry.spheres[i].center * scale;
+        points[4 * i] = center.x, points[4 * i + 1] = center.y, points[4 * i + 2] = center.z;
+        points[4 * i + 3] = geometry.spheres[i].radius * scale;
+    }
+}
+
+}  // namespace
+
 void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     release_scene();
+    quality_ = options.group<EmbreeOptions>().quality;
+    triangle_test_ = options.triangle_test;
     triangle_count_ = static_cast<unsigned int>(geometry.triangles.size());
     scene_box_ = bounds().grown(geometric_tolerance(bounds()));
     scene_scale_ = scene_scale(bounds());
     primitive_count_ = geometry.size();
     buffer_bytes_ = 0;
     scene_ = rtcNewScene(device_);
-    rtcSetSceneBuildQuality(scene_, options.group<EmbreeOptions>().quality == EmbreeQuality::High
-                                        ? RTC_BUILD_QUALITY_HIGH
-                                        : RTC_BUILD_QUALITY_MEDIUM);
-    if (options.triangle_test == TriangleTest::Watertight) rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);
+    // Refit as Embree's dynamic_scene tutorial sets it up: a dynamic scene of low build quality, whose
+    // geometries are refitted when their vertices change.
+    const bool refit = quality_ == EmbreeQuality::Refit;
+    rtcSetSceneBuildQuality(scene_, refit                             ? RTC_BUILD_QUALITY_LOW
+                                    : quality_ == EmbreeQuality::High ? RTC_BUILD_QUALITY_HIGH
+                                                                      : RTC_BUILD_QUALITY_MEDIUM);
+    rtcSetSceneFlags(scene_, (refit ? RTC_SCENE_FLAG_DYNAMIC : RTC_SCENE_FLAG_NONE) |
+                                 (options.triangle_test == TriangleTest::Watertight ? RTC_SCENE_FLAG_ROBUST
+                                                                                    : RTC_SCENE_FLAG_NONE));
 
     if (!geometry.triangles.empty()) {
         // Embree's own buffers: it pads them for its vector loads, which a shared std::vector would not be.
         const RTCGeometry mesh = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+        if (refit) rtcSetGeometryBuildQuality(mesh, RTC_BUILD_QUALITY_REFIT);
         const std::size_t vertex_count = 3 * geometry.triangles.size();
         auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
             mesh, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertex_count));
@@ -399,13 +440,7 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
             rtcSetNewGeometryBuffer(mesh, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
                                     3 * sizeof(unsigned int), geometry.triangles.size()));
         check(device_, "allocating the triangle buffers");
-        for (std::size_t i = 0; i < geometry.triangles.size(); ++i) {
-            const Triangle& triangle = geometry.triangles[i];
-            for (const Vec3f vertex : {triangle.v0, triangle.v1, triangle.v2}) {
-                const Vec3f scaled = vertex * scene_scale_;
-                *vertices++ = scaled.x, *vertices++ = scaled.y, *vertices++ = scaled.z;
-            }
-        }
+        write_vertices(geometry, scene_scale_, vertices);
         for (unsigned int i = 0; i < vertex_count; ++i)
             indices[i] = i;
         buffer_bytes_ += vertex_count * (3 * sizeof(float) + sizeof(unsigned int));
@@ -415,15 +450,12 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
     }
     if (!geometry.spheres.empty()) {
         const RTCGeometry spheres = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+        if (refit) rtcSetGeometryBuildQuality(spheres, RTC_BUILD_QUALITY_REFIT);
         auto* points =
             static_cast<float*>(rtcSetNewGeometryBuffer(spheres, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
                                                         4 * sizeof(float), geometry.spheres.size()));
         check(device_, "allocating the sphere buffer");
-        for (std::size_t i = 0; i < geometry.spheres.size(); ++i) {
-            const Vec3f center = geometry.spheres[i].center * scene_scale_;
-            points[4 * i] = center.x, points[4 * i + 1] = center.y, points[4 * i + 2] = center.z;
-            points[4 * i + 3] = geometry.spheres[i].radius * scene_scale_;
-        }
+        write_spheres(geometry, scene_scale_, points);
         buffer_bytes_ += geometry.spheres.size() * 4 * sizeof(float);
         rtcCommitGeometry(spheres);
         rtcAttachGeometryByID(scene_, spheres, kSphereGeometry);
@@ -432,6 +464,36 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
     rtcCommitScene(scene_);
     check(device_, "building the scene");
     build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+UpdateReport EmbreeAccel::update_structure(const Geometry& geometry) {
+    scene_box_ = bounds().grown(geometric_tolerance(bounds()));
+    if (scene_scale(bounds()) != scene_scale_) {
+        // The scale the scene's copy was made with no longer fits its coordinates: a new copy.
+        BuildOptions options = build_options(triangle_test_);
+        options.group<EmbreeOptions>().quality = quality_;
+        build_structure(geometry, options);
+        return {};
+    }
+    // Embree's way to move vertices: rewrite the buffers, mark them changed, commit. With the refit quality
+    // Embree refits its BVH, otherwise it rebuilds it.
+    const std::pair<unsigned int, bool> parts[] = {{kTriangleGeometry, !geometry.triangles.empty()},
+                                                   {kSphereGeometry, !geometry.spheres.empty()}};
+    for (const auto& [id, present] : parts) {
+        if (!present) continue;
+        const RTCGeometry part = rtcGetGeometry(scene_, id);
+        auto* data = static_cast<float*>(rtcGetGeometryBufferData(part, RTC_BUFFER_TYPE_VERTEX, 0));
+        if (id == kTriangleGeometry) {
+            write_vertices(geometry, scene_scale_, data);
+        } else {
+            write_spheres(geometry, scene_scale_, data);
+        }
+        rtcUpdateGeometryBuffer(part, RTC_BUFFER_TYPE_VERTEX, 0);
+        rtcCommitGeometry(part);
+    }
+    rtcCommitScene(scene_);
+    check(device_, "updating the scene");
+    return {quality_ == EmbreeQuality::Refit ? UpdateMethod::Refit : UpdateMethod::Rebuild, 0.0, 1.0};
 }
 
 void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
@@ -545,8 +607,10 @@ AccelStats EmbreeAccel::stats() const {
 std::vector<BuildOptionRow> EmbreeAccel::option_rows() {
     return {choice_option<EmbreeOptions, EmbreeQuality>(
         "quality",
-        "Embree's build quality (its robust mode, the watertight test, builds without spatial splits)",
-        &EmbreeOptions::quality, {{"high", EmbreeQuality::High}, {"medium", EmbreeQuality::Medium}})};
+        "Embree's build quality; refit: a dynamic scene whose updates Embree refits (its robust mode, the "
+        "watertight test, builds without spatial splits)",
+        &EmbreeOptions::quality,
+        {{"high", EmbreeQuality::High}, {"medium", EmbreeQuality::Medium}, {"refit", EmbreeQuality::Refit}})};
 }
 
 }  // namespace lancer

@@ -18,8 +18,8 @@
 namespace lancer {
 
 // The options of the `embree` structures: Embree's build quality, HIGH (with spatial splits, its best trace
-// speed) or MEDIUM (the faster build).
-enum class EmbreeQuality { High, Medium };
+// speed), MEDIUM (the faster build), or REFIT (a LOW-quality dynamic scene whose BVH Accel::update refits).
+enum class EmbreeQuality { High, Medium, Refit };
 struct EmbreeOptions {
     static constexpr std::string_view kGroup = "embree";
     EmbreeQuality quality = EmbreeQuality::High;
@@ -39,9 +39,13 @@ class EmbreeAccel final : public Accel {
     [[nodiscard]] AccelStats stats() const override;
     // Embree does not expose its node memory; this counts the vertex and index buffers it was given.
     [[nodiscard]] std::size_t memory_bytes() const override { return buffer_bytes_; }
+    [[nodiscard]] UpdateMethod update_method() const override {
+        return quality_ == EmbreeQuality::Refit ? UpdateMethod::Refit : UpdateMethod::Rebuild;
+    }
 
   private:
     void build_structure(const Geometry& geometry, const BuildOptions& options) override;
+    UpdateReport update_structure(const Geometry& geometry) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
@@ -63,6 +67,8 @@ class EmbreeAccel final : public Accel {
     std::size_t buffer_bytes_ = 0;
     double build_ms_ = 0.0;
     int packet_width_ = 1;
+    EmbreeQuality quality_ = EmbreeQuality::High;
+    TriangleTest triangle_test_ = TriangleTest::MollerTrumbore;
 };
 
 }  // namespace lancer

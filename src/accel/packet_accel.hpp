@@ -13,12 +13,17 @@ class PacketAccel : public Accel {
     // The build of the single-ray structure.
     [[nodiscard]] AccelStats stats() const override { return single_ray_.stats(); }
     [[nodiscard]] std::size_t memory_bytes() const override { return single_ray_.memory_bytes(); }
+    [[nodiscard]] UpdateMethod update_method() const override { return single_ray_.update_method(); }
 
   protected:
     void build_structure(const Geometry& geometry, const BuildOptions& options) override {
         single_ray_.build(geometry, options);
         geometry_ = geometry;
         triangle_test_ = options.triangle_test;
+    }
+    UpdateReport update_structure(const Geometry& geometry) override {
+        geometry_ = geometry;
+        return update_held(single_ray_, geometry);
     }
 
     SingleRay single_ray_;

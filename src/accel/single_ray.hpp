@@ -6,7 +6,8 @@
 //
 // Closest hit (kAnyHit false): the answer is left in `best`. Any hit: returns whether one was found.
 // kCount: add the nodes and primitives visited to `counts`. The structure builds in
-// build_from(geometry, options), which this class times.
+// build_from(geometry, options), which this class times. Accel::update rebuilds, unless the structure
+// declares its own `UpdateReport update_from(const Geometry&)` (the BVHs' refit).
 #pragma once
 
 #include <chrono>
@@ -26,6 +27,13 @@ class SingleRayAccel : public Accel {
                          TraversalCounters* counters) const final;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                         TraversalCounters* counters) const final;
+    UpdateReport update_structure(const Geometry& geometry) final;
+    // The update of a structure that declares none: a build with the same options.
+    UpdateReport update_from(const Geometry& geometry) {
+        const BuildOptions options = options_;
+        build_structure(geometry, options);
+        return {};
+    }
 
     Geometry geometry_;
     BuildOptions options_;
@@ -42,6 +50,12 @@ void SingleRayAccel<Derived>::build_structure(const Geometry& geometry, const Bu
     options_ = options;
     static_cast<Derived*>(this)->build_from(geometry, options);
     build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+template <class Derived>
+UpdateReport SingleRayAccel<Derived>::update_structure(const Geometry& geometry) {
+    // Derived's update_from where it declares one, this class's otherwise.
+    return static_cast<Derived*>(this)->update_from(geometry);
 }
 
 template <class Derived>

@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/parallel.hpp"
 #include "lancer/scene.hpp"
 
 namespace lancer {
@@ -96,6 +97,18 @@ SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
         mesh.append_triangles(triangles_);
     }
     mesh_first_triangle_.push_back(triangles_.size());
+}
+
+void SceneGeometry::refresh_mesh(std::size_t mesh_index, const TriangleMesh& mesh) {
+    const std::size_t first = mesh_first_triangle_.at(mesh_index);
+    if (mesh.triangle_count() != mesh_first_triangle_.at(mesh_index + 1) - first)
+        throw std::invalid_argument("SceneGeometry::refresh_mesh: the mesh's triangle count changed");
+    // In parallel: an animation flattens its meshes every frame.
+    constexpr std::size_t kGrain = 1 << 14;
+    parallel::for_each_chunk(0, mesh.triangle_count(), kGrain, [&](std::size_t from, std::size_t to) {
+        for (std::size_t i = from; i < to; ++i)
+            triangles_[first + i] = mesh.triangle(i);
+    });
 }
 
 std::pair<std::size_t, std::size_t> SceneGeometry::locate_triangle(std::size_t global_index) const {

@@ -1,6 +1,10 @@
 #include "lancer/world.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "accel/plucker/plucker.hpp"
 #include "accel/plucker/serialise.hpp"
@@ -13,6 +17,59 @@ World::World(Scene scene, std::string_view accel_name, const BuildOptions& optio
       accel_(make_accel(accel_name)),
       options_(options) {
     accel_->build(geometry_->view(), options_);
+}
+
+namespace {
+
+// A moved mesh's vertex normals: the sum of its triangles' normals around each vertex, weighted by their
+// areas (the cross products' lengths), made unit; a vertex whose sum is zero keeps its old normal.
+void recompute_normals(TriangleMesh& mesh) {
+    std::vector<Vec3f> sums(mesh.positions.size(), Vec3f(0.0f));
+    for (std::size_t i = 0; i < mesh.triangle_count(); ++i) {
+        const Vec3f normal = mesh.triangle(i).geometric_normal();
+        for (int corner = 0; corner < 3; ++corner)
+            sums[mesh.indices[3 * i + static_cast<std::size_t>(corner)]] += normal;
+    }
+    for (std::size_t v = 0; v < sums.size(); ++v) {
+        const float norm = length(sums[v]);
+        if (norm > 0.0f && std::isfinite(norm)) mesh.normals[v] = sums[v] / norm;
+    }
+}
+
+}  // namespace
+
+UpdateReport World::update_vertices(std::span<const MeshVertices> moves) {
+    std::vector<bool> named(scene_->meshes.size(), false);
+    for (const MeshVertices& move : moves) {
+        if (move.mesh >= scene_->meshes.size()) {
+            throw std::invalid_argument("update_vertices: mesh " + std::to_string(move.mesh) +
+                                        ", the scene has " + std::to_string(scene_->meshes.size()));
+        }
+        if (named[move.mesh])
+            throw std::invalid_argument("update_vertices: mesh " + std::to_string(move.mesh) +
+                                        " named twice");
+        named[move.mesh] = true;
+        const TriangleMesh& mesh = scene_->meshes[move.mesh];
+        if (move.positions.size() != mesh.positions.size()) {
+            throw std::invalid_argument("update_vertices: " + std::to_string(move.positions.size()) +
+                                        " positions for mesh " + std::to_string(move.mesh) + ", which has " +
+                                        std::to_string(mesh.positions.size()) + " vertices");
+        }
+        for (std::size_t i = 0; i < move.positions.size(); ++i) {
+            if (!in_coordinate_domain(move.positions[i])) {
+                throw std::invalid_argument(
+                    "update_vertices: vertex " + std::to_string(i) + " of mesh " + std::to_string(move.mesh) +
+                    " is NaN, infinite or outside the coordinate domain [-2^60, 2^60]");
+            }
+        }
+    }
+    for (const MeshVertices& move : moves) {
+        TriangleMesh& mesh = scene_->meshes[move.mesh];
+        std::copy(move.positions.begin(), move.positions.end(), mesh.positions.begin());
+        if (!mesh.normals.empty()) recompute_normals(mesh);
+        geometry_->refresh_mesh(move.mesh, mesh);
+    }
+    return accel_->update(geometry_->view());
 }
 
 namespace {

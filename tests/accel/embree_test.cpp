@@ -168,5 +168,48 @@ TEST(Embree, QualityOptionSelectsTheBuild) {
     }
 }
 
+// Embree's refit quality through Accel::update, and its other qualities (which rebuild on commit): after each
+// move of the vertices, the answers of brute force on the moved scene, within Embree's rounding.
+TEST(Embree, UpdatesFollowMovedTriangles) {
+    if (!has_embree()) GTEST_SKIP() << "built without Embree";
+    const TestScene rest = mixed_scene();
+    TestScene moved = rest;
+    const float scale = length(rest.geometry().bounds().extent());
+    for (const char* quality : {"refit", "high"}) {
+        BuildOptions options = build_options(TriangleTest::Watertight);
+        set_build_option(options, std::string("embree.quality=") + quality);
+        const std::unique_ptr<Accel> accel = make_accel("embree16");
+        accel->build(rest.geometry(), options);
+        EXPECT_EQ(accel->update_method(),
+                  quality == std::string("refit") ? UpdateMethod::Refit : UpdateMethod::Rebuild);
+        for (int step = 1; step <= 3; ++step) {
+            for (std::size_t i = 0; i < rest.triangles.size(); ++i) {
+                for (auto [from, to] : {std::pair{&rest.triangles[i].v0, &moved.triangles[i].v0},
+                                        {&rest.triangles[i].v1, &moved.triangles[i].v1},
+                                        {&rest.triangles[i].v2, &moved.triangles[i].v2}})
+                    *to =
+                        *from + Vec3f(0.0f, 0.3f * std::sin(2.0f * from->x + static_cast<float>(step)), 0.0f);
+            }
+            EXPECT_EQ(accel->update(moved.geometry()).method, accel->update_method());
+            const testing::RaySet set = testing::random_rays(moved.geometry().bounds(), 4000, 20 + step);
+            const std::vector<Hit> expected =
+                trace("brute", moved.geometry(), build_options(TriangleTest::Watertight), set.rays);
+            std::vector<Hit> actual(set.rays.size());
+            accel->intersect(set.rays, actual);
+            std::size_t mismatches = 0, hits = 0;
+            for (std::size_t i = 0; i < set.rays.size(); ++i) {
+                hits += expected[i].hit() ? 1 : 0;
+                mismatches += expected[i].hit() == actual[i].hit() &&
+                                      (!expected[i].hit() || std::fabs(expected[i].t - actual[i].t) <=
+                                                                 1e-5f * (std::fabs(expected[i].t) + scale))
+                                  ? 0
+                                  : 1;
+            }
+            EXPECT_EQ(mismatches, 0u) << quality << ", step " << step;
+            EXPECT_GT(hits, 400u) << quality << ", step " << step;
+        }
+    }
+}
+
 }  // namespace
 }  // namespace lancer

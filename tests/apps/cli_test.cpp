@@ -297,6 +297,46 @@ TEST_F(Cli, BenchWritesOneRecordPerStructureAndThreadCount) {
     EXPECT_EQ(run("bench --mesh " + mesh.string() + " --accel nope").exit_code, 2);
 }
 
+// --animate: per frame an update row and a rebuild row for each structure, refits for the BVHs, and a JSON
+// record for each; render --animate writes one picture per frame under its pattern, the same bits on a
+// second run.
+TEST_F(Cli, AnimationsTimeUpdatesAndWriteOneFramePerFile) {
+    const fs::path mesh = write("mesh.off", kMesh);
+    const fs::path json = dir_ / "animate.json";
+    Result result = run("bench --mesh " + mesh.string() +
+                        " --animate 3 --accel bvh8,grid --threads 2 --size 32 " + "--json " + json.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("bvh8 update          refit"), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find("grid update          rebuild"), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find("medians over 3 frames"), std::string::npos) << result.output;
+    std::ostringstream text;
+    text << std::ifstream(json).rdbuf();
+    std::size_t records = 0;
+    for (std::size_t at = text.str().find("\"update_ms\""); at != std::string::npos;
+         at = text.str().find("\"update_ms\"", at + 1)) {
+        ++records;
+    }
+    EXPECT_EQ(records, 12u) << text.str();  // 3 frames x 2 structures x (update, rebuild)
+    EXPECT_EQ(run("bench --mesh " + mesh.string() + " --animate 3 --view diffuse").exit_code, 2);
+    EXPECT_EQ(run("bench --mesh " + mesh.string() + " --animate 0").exit_code, 2);
+
+    for (const char* run_name : {"a", "b"}) {
+        result = run("render " + mesh.string() + " --animate 2 --size 16x16 --mode depth -o " +
+                     (dir_ / (std::string(run_name) + "_%03d.png")).string());
+        ASSERT_EQ(result.exit_code, 0) << result.output;
+    }
+    for (const char* frame : {"_000.png", "_001.png"}) {
+        std::ostringstream a, b;
+        a << std::ifstream(dir_ / (std::string("a") + frame), std::ios::binary).rdbuf();
+        b << std::ifstream(dir_ / (std::string("b") + frame), std::ios::binary).rdbuf();
+        EXPECT_FALSE(a.str().empty()) << frame;
+        EXPECT_EQ(a.str(), b.str()) << frame;
+    }
+    result = run("render " + mesh.string() + " --animate 2 -o " + (dir_ / "still.png").string());
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.output.find("must name each frame with one %d"), std::string::npos) << result.output;
+}
+
 // --view adds the secondary sets of VIEWS.md, one record per view; their answers are checked across
 // structures like the camera rays'. A floor under a floating triangle: some diffuse rays come back to the
 // scene and some shadow rays are blocked.

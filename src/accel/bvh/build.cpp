@@ -21,8 +21,6 @@ namespace lancer {
 namespace {
 
 // The SAH of seed 002: T(child) = T_box + A(child) / A(node) N(child) T_object, with T_box = T_object = 1.
-constexpr float kNodeCost = 1.0f;
-constexpr float kPrimitiveCost = 1.0f;
 // Past this depth every split is an object median, so the depth stays below kMaxDepth for any input:
 // 64 + log2(2^32) <= 96.
 constexpr int kMedianSplitDepth = 64;
@@ -154,7 +152,7 @@ bool stays_leaf(std::size_t count, float node_area, const Split& split, int max_
     if (count > static_cast<std::size_t>(max_leaf)) return false;
     // A node without area (references on a line or a point): no split can be told apart by the SAH.
     if (split.axis < 0 || !(node_area > 0.0f)) return true;
-    return kNodeCost + split.cost / node_area >= static_cast<float>(count) * kPrimitiveCost;
+    return kSahNodeCost + split.cost / node_area >= static_cast<float>(count) * kSahPrimitiveCost;
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -1128,13 +1126,15 @@ BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
 double bvh_sah_cost(const std::vector<BvhNode>& nodes) {
     if (nodes.empty()) return 0.0;
     const double root_area = nodes[0].bounds().surface_area();
-    if (!(root_area > 0.0)) return static_cast<double>(nodes[0].prim_count);
-    double cost = 0.0;
+    double weighted_area = 0.0;
+    std::size_t references = 0;
     for (const BvhNode& node : nodes) {
-        const double relative_area = node.bounds().surface_area() / root_area;
-        cost += node.is_leaf() ? relative_area * node.prim_count * kPrimitiveCost : relative_area * kNodeCost;
+        const double area = node.bounds().surface_area();
+        weighted_area += node.is_leaf() ? area * node.prim_count * kSahPrimitiveCost : area * kSahNodeCost;
+        references += node.prim_count;
     }
-    return cost;
+    // A tree whose root has no area costs its primitive references.
+    return root_area > 0.0 ? weighted_area / root_area : static_cast<double>(references);
 }
 
 }  // namespace lancer

@@ -13,11 +13,16 @@ struct BvhBuildResult {
     std::vector<std::uint32_t> prim_indices;
 };
 
+// The unit costs of the SAH (MacDonald & Booth 1990) the builders minimise and the costs below report.
+inline constexpr float kSahNodeCost = 1.0f;
+inline constexpr float kSahPrimitiveCost = 1.0f;
+
 // Deterministic: the same geometry and options give the same nodes, whatever the thread count.
 [[nodiscard]] BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options);
 
 // SAH cost of a built hierarchy, normalised by the root's area, with unit node and primitive costs:
-// sum over inner nodes of A(node) / A(root) + sum over leaves of A(leaf) / A(root) * primitives.
+// sum over inner nodes of A(node) / A(root) + sum over leaves of A(leaf) / A(root) * primitives; a tree
+// whose root has no area costs its primitive references.
 [[nodiscard]] double bvh_sah_cost(const std::vector<BvhNode>& nodes);
 
 }  // namespace lancer

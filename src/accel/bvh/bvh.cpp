@@ -3,6 +3,7 @@
 #include <array>
 
 #include "accel/bvh/build.hpp"
+#include "accel/bvh/refit.hpp"
 #include "accel/primitive_test.hpp"
 
 namespace lancer {
@@ -11,6 +12,22 @@ void BvhAccel::build_from(const Geometry& geometry, const BuildOptions& options)
     BvhBuildResult built = build_bvh(geometry, options.group<BvhOptions>());
     nodes_ = std::move(built.nodes);
     prim_indices_ = std::move(built.prim_indices);
+    built_sah_cost_ = bvh_sah_cost(nodes_);
+    sah_ratio_ = 1.0;
+}
+
+UpdateMethod BvhAccel::update_method() const {
+    return options_.group<BvhOptions>().spatial_splits ? UpdateMethod::Rebuild : UpdateMethod::Refit;
+}
+
+UpdateReport BvhAccel::update_from(const Geometry& geometry) {
+    if (update_method() == UpdateMethod::Rebuild) return SingleRayAccel::update_from(geometry);
+    geometry_ = geometry;
+    sah_ratio_ = refit_sah_ratio(refit_bvh(geometry, prim_indices_, nodes_, refit_margin(geometry, bounds())),
+                                 built_sah_cost_);
+    if (sah_ratio_ > options_.group<BvhOptions>().refit_threshold)
+        return SingleRayAccel::update_from(geometry);
+    return {UpdateMethod::Refit, 0.0, sah_ratio_};
 }
 
 namespace {
@@ -93,6 +110,7 @@ AccelStats BvhAccel::stats() const {
     stats.nodes = nodes_.size();
     stats.references = prim_indices_.size();
     stats.sah_cost = bvh_sah_cost(nodes_);
+    stats.sah_ratio = sah_ratio_;
     // Leaf depths by walking the depth-first layout with an explicit stack.
     std::vector<std::pair<std::uint32_t, int>> pending;
     if (!nodes_.empty()) pending.push_back({0, 0});
@@ -126,14 +144,19 @@ std::size_t BvhAccel::memory_bytes() const {
 }
 
 std::vector<BuildOptionRow> BvhAccel::option_rows() {
-    return {choice_option<BvhOptions, BvhBuilder>(
-                "builder", "the SAH builder: binned, or a full sweep (seed 002)", &BvhOptions::builder,
-                {{"binned", BvhBuilder::BinnedSah}, {"sweep", BvhBuilder::SweepSah}}),
-            number_option("max_leaf_size", "primitives a leaf may hold (also bvh4, bvh8)",
-                          &BvhOptions::max_leaf_size, 1, 64),
-            number_option("bins", "bins of the binned builder", &BvhOptions::bins, 2, 256),
-            flag_option("spatial_splits", "spatial splits in the binned builder (the SBVH)",
-                        &BvhOptions::spatial_splits)};
+    return {
+        choice_option<BvhOptions, BvhBuilder>(
+            "builder", "the SAH builder: binned, or a full sweep (seed 002)", &BvhOptions::builder,
+            {{"binned", BvhBuilder::BinnedSah}, {"sweep", BvhBuilder::SweepSah}}),
+        number_option("max_leaf_size", "primitives a leaf may hold (also bvh4, bvh8)",
+                      &BvhOptions::max_leaf_size, 1, 64),
+        number_option("bins", "bins of the binned builder", &BvhOptions::bins, 2, 256),
+        flag_option("spatial_splits", "spatial splits in the binned builder (the SBVH)",
+                    &BvhOptions::spatial_splits),
+        number_option("refit_threshold",
+                      "an update rebuilds once the refitted tree's SAH cost passes this many times its cost "
+                      "as built",
+                      &BvhOptions::refit_threshold, 1.0, 1e9)};
 }
 
 }  // namespace lancer

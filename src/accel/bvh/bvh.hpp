@@ -28,6 +28,10 @@ struct BvhOptions {
     // be split by a plane that cuts references in two, a primitive then appearing in several leaves, within
     // a budget of references (docs/accel/bvh.md, "Spatial splits"). The sweep builder ignores it.
     bool spatial_splits = false;
+    // Accel::update refits the tree, and rebuilds it once its SAH cost has grown past this many times the
+    // cost it was built with (docs/accel/refit.md, "When to rebuild"). A tree with spatial splits always
+    // rebuilds: a refit would widen its split references' clipped boxes to their whole triangles.
+    double refit_threshold = 1.5;
 };
 
 // 32 bytes, two per cache line (pbrt-v4's LinearBVHNode). Depth-first layout: an inner node's first child
@@ -52,6 +56,7 @@ class BvhAccel final : public SingleRayAccel<BvhAccel> {
     [[nodiscard]] std::string_view name() const override { return "bvh"; }
     [[nodiscard]] AccelStats stats() const override;
     [[nodiscard]] std::size_t memory_bytes() const override;
+    [[nodiscard]] UpdateMethod update_method() const override;
 
     // The built hierarchy, for tests and for the structures derived from it (wide BVH, GPU).
     [[nodiscard]] const std::vector<BvhNode>& nodes() const { return nodes_; }
@@ -65,12 +70,15 @@ class BvhAccel final : public SingleRayAccel<BvhAccel> {
     friend SingleRayAccel<BvhAccel>;
 
     void build_from(const Geometry& geometry, const BuildOptions& options);
+    UpdateReport update_from(const Geometry& geometry);
     // SingleRayAccel's contract.
     template <bool kAnyHit, bool kCount, class TriangleTestT>
     bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;
 
     std::vector<BvhNode> nodes_;
     std::vector<std::uint32_t> prim_indices_;  // leaf ranges point here; entries are global primitive indices
+    double built_sah_cost_ = 0.0;              // the SAH cost as last built
+    double sah_ratio_ = 1.0;                   // the present SAH cost over built_sah_cost_
 };
 
 extern template class SingleRayAccel<BvhAccel>;

@@ -44,23 +44,31 @@ struct alignas(K * 4) TriangleBlock {
 };
 static_assert(sizeof(TriangleBlock<4>) == 160 && sizeof(TriangleBlock<8>) == 320);
 
+// Writes `prim`'s vertices into `lane` of `block`: a triangle's corners, NaN for a sphere or padding
+// (kNoPrimitive).
+template <int K>
+void write_block_lane(const Geometry& geometry, std::uint32_t prim, int lane, TriangleBlock<K>& block) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    block.prim[lane] = prim;
+    const bool is_triangle = prim < geometry.triangles.size();
+    const Triangle tri = is_triangle ? geometry.triangles[prim] : Triangle{};
+    const Vec3f corners[3] = {tri.v0, tri.v1, tri.v2};
+    for (int v = 0; v < 3; ++v) {
+        for (int axis = 0; axis < 3; ++axis)
+            block.vertex[v][axis][lane] = is_triangle ? corners[v][axis] : nan;
+    }
+}
+
 // Appends the blocks of one leaf: its primitives in order, K per block, the last block padded.
 template <int K>
 void append_leaf_blocks(const Geometry& geometry, std::span<const std::uint32_t> prims,
                         std::vector<TriangleBlock<K>>& blocks) {
-    const float nan = std::numeric_limits<float>::quiet_NaN();
     for (std::size_t first = 0; first < prims.size(); first += K) {
         TriangleBlock<K>& block = blocks.emplace_back();
         for (int lane = 0; lane < K; ++lane) {
             const std::size_t i = first + static_cast<std::size_t>(lane);
-            block.prim[lane] = i < prims.size() ? prims[i] : TriangleBlock<K>::kNoPrimitive;
-            const bool is_triangle = i < prims.size() && prims[i] < geometry.triangles.size();
-            const Triangle tri = is_triangle ? geometry.triangles[prims[i]] : Triangle{};
-            const Vec3f corners[3] = {tri.v0, tri.v1, tri.v2};
-            for (int v = 0; v < 3; ++v) {
-                for (int axis = 0; axis < 3; ++axis)
-                    block.vertex[v][axis][lane] = is_triangle ? corners[v][axis] : nan;
-            }
+            write_block_lane(geometry, i < prims.size() ? prims[i] : TriangleBlock<K>::kNoPrimitive, lane,
+                             block);
         }
     }
 }

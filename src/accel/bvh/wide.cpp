@@ -5,14 +5,11 @@
 #include <bit>
 
 #include "accel/bvh/build.hpp"
+#include "accel/bvh/refit.hpp"
 #include "accel/primitive_test.hpp"
 
 namespace lancer {
 namespace {
-
-// The same unit costs as bvh_sah_cost, so that the two SAH costs compare.
-constexpr double kNodeCost = 1.0;
-constexpr double kPrimitiveCost = 1.0;
 
 // The primitives under a binary node: the range [first, first + count) of prim_indices (depth first layout)
 // and whether the collapse keeps the whole subtree as one leaf: a binary leaf, or a subtree of at most
@@ -230,6 +227,25 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
         const std::vector<SubtreeRange> ranges = subtree_ranges(binary.nodes, kBlockLanes);
         collapse<W>({binary.nodes, ranges, binary.prim_indices, geometry}, 0, nodes_, blocks_);
     }
+    built_sah_cost_ = wide_bvh_sah_cost(nodes_);
+    sah_ratio_ = 1.0;
+}
+
+template <int W>
+UpdateMethod WideBvhAccel<W>::update_method() const {
+    return options_.template group<BvhOptions>().spatial_splits ? UpdateMethod::Rebuild : UpdateMethod::Refit;
+}
+
+template <int W>
+UpdateReport WideBvhAccel<W>::update_from(const Geometry& geometry) {
+    using Base = SingleRayAccel<WideBvhAccel<W>>;
+    if (update_method() == UpdateMethod::Rebuild) return Base::update_from(geometry);
+    geometry_ = geometry;
+    sah_ratio_ = refit_sah_ratio(
+        refit_wide_bvh(geometry, nodes_, blocks_, refit_margin(geometry, this->bounds())), built_sah_cost_);
+    if (sah_ratio_ > options_.template group<BvhOptions>().refit_threshold)
+        return Base::update_from(geometry);
+    return {UpdateMethod::Refit, 0.0, sah_ratio_};
 }
 
 template <int W>
@@ -248,23 +264,13 @@ AccelStats WideBvhAccel<W>::stats() const {
                              {"blocks", blocks_.size() * sizeof(Block)}};
     if (nodes_.empty()) return stats;
 
-    // Areas, depths and counts in one walk; leaves live in their parents' slots, at the parent's depth + 1.
-    auto node_bounds = [](const WideBvhNode<W>& node) {
-        Box3f box;
-        for (int slot = 0; slot < W; ++slot) {
-            if (!node.is_empty(slot)) box.extend(node.child_bounds(slot));
-        }
-        return box;
-    };
-    const double root_area = node_bounds(nodes_[0]).surface_area();
-    double weighted_area = 0.0;  // SAH sum before the division by the root's area
+    // Depths and counts in one walk; leaves live in their parents' slots, at the parent's depth + 1.
     double depth_sum = 0.0;
     std::vector<std::pair<std::uint32_t, int>> pending = {{0, 0}};
     while (!pending.empty()) {
         const auto [index, depth] = pending.back();
         pending.pop_back();
         const WideBvhNode<W>& node = nodes_[index];
-        weighted_area += node_bounds(node).surface_area() * kNodeCost;
         for (int slot = 0; slot < W; ++slot) {
             if (node.is_empty(slot)) continue;
             if (node.prim_count[slot] == 0) {
@@ -276,15 +282,13 @@ AccelStats WideBvhAccel<W>::stats() const {
             depth_sum += depth + 1;
             stats.max_depth = std::max(stats.max_depth, depth + 1);
             stats.max_refs_per_leaf = std::max<std::size_t>(stats.max_refs_per_leaf, node.prim_count[slot]);
-            weighted_area += static_cast<double>(node.child_bounds(slot).surface_area()) *
-                             node.prim_count[slot] * kPrimitiveCost;
         }
     }
     stats.nodes = nodes_.size() + stats.leaves;
     stats.mean_depth = depth_sum / static_cast<double>(stats.leaves);
     stats.mean_refs_per_leaf = static_cast<double>(stats.references) / static_cast<double>(stats.leaves);
-    // A point-like scene has no area to normalise by: its cost is then its primitive count.
-    stats.sah_cost = root_area > 0.0 ? weighted_area / root_area : static_cast<double>(stats.references);
+    stats.sah_cost = wide_bvh_sah_cost(nodes_);
+    stats.sah_ratio = sah_ratio_;
     return stats;
 }
 

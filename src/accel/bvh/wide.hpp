@@ -190,6 +190,7 @@ class WideBvhAccel final : public SingleRayAccel<WideBvhAccel<W>> {
     [[nodiscard]] std::string_view name() const override { return W == 4 ? "bvh4" : "bvh8"; }
     [[nodiscard]] AccelStats stats() const override;
     [[nodiscard]] std::size_t memory_bytes() const override;
+    [[nodiscard]] UpdateMethod update_method() const override;
 
     // The built hierarchy, for tests. The root is node 0 whenever the geometry is not empty.
     [[nodiscard]] const std::vector<WideBvhNode<W>>& nodes() const { return nodes_; }
@@ -202,12 +203,16 @@ class WideBvhAccel final : public SingleRayAccel<WideBvhAccel<W>> {
     using SingleRayAccel<WideBvhAccel<W>>::options_;
 
     void build_from(const Geometry& geometry, const BuildOptions& options);
+    // The binary BVH's update: a refit, or a rebuild past bvh.refit_threshold or with spatial splits.
+    UpdateReport update_from(const Geometry& geometry);
     // SingleRayAccel's contract.
     template <bool kAnyHit, bool kCount, class TriangleTestT>
     bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;
 
     std::vector<WideBvhNode<W>> nodes_;
     std::vector<Block> blocks_;
+    double built_sah_cost_ = 0.0;  // the SAH cost as last built
+    double sah_ratio_ = 1.0;       // the present SAH cost over built_sah_cost_
 };
 
 extern template class SingleRayAccel<WideBvhAccel<4>>;

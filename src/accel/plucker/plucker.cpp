@@ -36,6 +36,13 @@ void PluckerAccel::build_structure(const Geometry& geometry, const BuildOptions&
     stats_.build_ms = std::chrono::duration<double, std::milli>(stop - start).count();
 }
 
+UpdateReport PluckerAccel::update_structure(const Geometry& geometry) {
+    // A structure read from a file rebuilds with the options it was written with (adopt keeps them).
+    const BuildOptions options = options_;
+    build_structure(geometry, options);
+    return {};
+}
+
 void PluckerAccel::adopt(const Geometry& geometry, const BuildOptions& options, PluckerLayout layout) {
     accept_geometry(geometry);
     geometry_ = geometry;

@@ -51,6 +51,8 @@ class PluckerAccel final : public Accel {
 
   private:
     void build_structure(const Geometry& geometry, const BuildOptions& options) override;
+    // A rebuild: the octree's cells, links and leaf lists all depend on where the triangles are.
+    UpdateReport update_structure(const Geometry& geometry) override;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,

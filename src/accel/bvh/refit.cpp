@@ -1,0 +1,198 @@
+#include "accel/bvh/refit.hpp"
+
+#include <algorithm>
+#include <array>
+
+#include "accel/build_util.hpp"
+#include "accel/bvh/build.hpp"
+#include "core/parallel.hpp"
+
+namespace lancer {
+namespace {
+
+// A refitted subtree: its box, the sum of the SAH terms of its nodes before the division by the root's
+// area, and its primitive references.
+struct Refitted {
+    Box3f box;
+    double weighted_area = 0.0;
+    std::size_t references = 0;
+};
+
+// Subtrees of at least this many nodes refit their two children as two tasks: below it a task would cost
+// about as much as the nodes it refits.
+constexpr std::uint32_t kParallelNodes = 2048;
+
+// A node's box as the builders store it: the tight box of what it holds grown by the scene's geometric
+// tolerance (build.cpp, "compact"; docs/numerical-contract.md, "Boxes").
+Box3f grown(const Box3f& tight, const Vec3f& margin) {
+    return tight.empty() ? tight : Box3f{tight.lo - margin, tight.hi + margin};
+}
+
+struct BinaryRefit {
+    const Geometry& geometry;
+    std::span<const std::uint32_t> prim_indices;
+    std::vector<BvhNode>& nodes;
+    Vec3f margin;
+
+    // The subtree of node `index`, which ends before node `end` (depth first: a node, its first subtree, its
+    // second).
+    Refitted subtree(std::uint32_t index, std::uint32_t end) const {
+        BvhNode& node = nodes[index];
+        Refitted refitted;
+        if (node.is_leaf()) {
+            Box3f tight;
+            for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i)
+                tight.extend(primitive_bounds(geometry, prim_indices[i]));
+            refitted.box = grown(tight, margin);
+            refitted.weighted_area =
+                static_cast<double>(refitted.box.surface_area()) * node.prim_count * kSahPrimitiveCost;
+            refitted.references = node.prim_count;
+        } else {
+            const std::uint32_t second = node.offset;
+            Refitted first_child, second_child;
+            auto refit_first = [&] { first_child = subtree(index + 1, second); };
+            auto refit_second = [&] { second_child = subtree(second, end); };
+            if (end - index >= kParallelNodes) {
+                parallel::invoke(refit_first, refit_second);
+            } else {
+                refit_first(), refit_second();
+            }
+            // The union of grown boxes is the grown union: lo - margin rounds monotonically in lo.
+            refitted.box = first_child.box;
+            refitted.box.extend(second_child.box);
+            refitted.weighted_area = static_cast<double>(refitted.box.surface_area()) * kSahNodeCost +
+                                     first_child.weighted_area + second_child.weighted_area;
+            refitted.references = first_child.references + second_child.references;
+        }
+        node.lo = refitted.box.lo;
+        node.hi = refitted.box.hi;
+        return refitted;
+    }
+};
+
+// The SAH cost of a refitted tree; a tree whose root has no area costs its primitive references.
+double normalised_cost(const Refitted& root) {
+    const double root_area = root.box.surface_area();
+    return root_area > 0.0 ? root.weighted_area / root_area : static_cast<double>(root.references);
+}
+
+template <int W>
+struct WideRefit {
+    const Geometry& geometry;
+    std::vector<WideBvhNode<W>>& nodes;
+    std::vector<TriangleBlock<W>>& blocks;
+    Vec3f margin;
+
+    // Nodes of these first levels refit their children as tasks: W at the root, W^2 below it, enough to
+    // balance any core count lancer runs on; deeper, a subtree is too small to be worth a task.
+    static constexpr int kParallelLevels = 2;
+
+    // A leaf child's blocks, rewritten from the geometry; returns their primitives' box, grown.
+    Box3f leaf(std::uint32_t first_block, std::uint32_t prim_count) const {
+        Box3f box;
+        const std::uint32_t end = first_block + block_count(prim_count, W);
+        for (std::uint32_t b = first_block; b < end; ++b) {
+            TriangleBlock<W>& block = blocks[b];
+            for (int lane = 0; lane < W; ++lane) {
+                const std::uint32_t prim = block.prim[lane];
+                if (prim == TriangleBlock<W>::kNoPrimitive) continue;
+                write_block_lane(geometry, prim, lane, block);
+                box.extend(primitive_bounds(geometry, prim));
+            }
+        }
+        return grown(box, margin);
+    }
+
+    Refitted node(std::uint32_t index, int level) const {
+        WideBvhNode<W>& wide = nodes[index];
+        std::array<Refitted, W> children;
+        auto refit_child = [&](std::size_t slot) {
+            if (wide.prim_count[slot] > 0) {
+                children[slot].box = leaf(wide.child[slot], wide.prim_count[slot]);
+                children[slot].weighted_area = static_cast<double>(children[slot].box.surface_area()) *
+                                               wide.prim_count[slot] * kSahPrimitiveCost;
+                children[slot].references = wide.prim_count[slot];
+            } else if (wide.child[slot] != 0) {  // node 0 is the root, never a child: 0 marks an empty slot
+                children[slot] = node(wide.child[slot], level + 1);
+            }
+        };
+        if (level < kParallelLevels) {
+            parallel::for_each_index(0, W, refit_child);
+        } else {
+            for (std::size_t slot = 0; slot < W; ++slot)
+                refit_child(slot);
+        }
+        Refitted refitted;
+        for (int slot = 0; slot < W; ++slot) {
+            // An empty slot keeps its inverted box, and so does a leaf of spheres that cannot be hit.
+            const Box3f& box = children[static_cast<std::size_t>(slot)].box;
+            for (int axis = 0; axis < 3; ++axis) {
+                wide.bounds[WideBvhNode<W>::kLo][axis][slot] = box.lo[axis];
+                wide.bounds[WideBvhNode<W>::kHi][axis][slot] = box.hi[axis];
+            }
+            refitted.box.extend(box);
+            refitted.weighted_area += children[static_cast<std::size_t>(slot)].weighted_area;
+            refitted.references += children[static_cast<std::size_t>(slot)].references;
+        }
+        refitted.weighted_area += static_cast<double>(refitted.box.surface_area()) * kSahNodeCost;
+        return refitted;
+    }
+};
+
+}  // namespace
+
+float refit_margin(const Geometry& geometry, const Box3f& hit_bounds) {
+    // The builders grow by the tolerance of their root's tight box, the union of every primitive's box: the
+    // box of what can be hit, and the spheres that cannot.
+    Box3f tree_box = hit_bounds;
+    for (const Sphere& sphere : geometry.spheres) {
+        if (!(sphere.radius > 0.0f)) tree_box.extend(sphere.bounds());
+    }
+    return geometric_tolerance(tree_box);
+}
+
+double refit_bvh(const Geometry& geometry, std::span<const std::uint32_t> prim_indices,
+                 std::vector<BvhNode>& nodes, float margin) {
+    if (nodes.empty()) return 0.0;
+    return normalised_cost(BinaryRefit{geometry, prim_indices, nodes, Vec3f(margin)}.subtree(
+        0, static_cast<std::uint32_t>(nodes.size())));
+}
+
+template <int W>
+double refit_wide_bvh(const Geometry& geometry, std::vector<WideBvhNode<W>>& nodes,
+                      std::vector<TriangleBlock<W>>& blocks, float margin) {
+    if (nodes.empty()) return 0.0;
+    return normalised_cost(WideRefit<W>{geometry, nodes, blocks, Vec3f(margin)}.node(0, 0));
+}
+
+template <int W>
+double wide_bvh_sah_cost(const std::vector<WideBvhNode<W>>& nodes) {
+    if (nodes.empty()) return 0.0;
+    double weighted_area = 0.0;
+    std::size_t references = 0;
+    Box3f root_box;
+    for (std::size_t index = 0; index < nodes.size(); ++index) {
+        const WideBvhNode<W>& node = nodes[index];
+        Box3f node_box;
+        for (int slot = 0; slot < W; ++slot) {
+            if (node.is_empty(slot)) continue;
+            node_box.extend(node.child_bounds(slot));
+            references += node.prim_count[slot];
+            weighted_area += static_cast<double>(node.child_bounds(slot).surface_area()) *
+                             node.prim_count[slot] * kSahPrimitiveCost;
+        }
+        weighted_area += static_cast<double>(node_box.surface_area()) * kSahNodeCost;
+        if (index == 0) root_box = node_box;
+    }
+    const double root_area = root_box.surface_area();
+    return root_area > 0.0 ? weighted_area / root_area : static_cast<double>(references);
+}
+
+template double refit_wide_bvh<4>(const Geometry&, std::vector<WideBvhNode<4>>&,
+                                  std::vector<TriangleBlock<4>>&, float);
+template double refit_wide_bvh<8>(const Geometry&, std::vector<WideBvhNode<8>>&,
+                                  std::vector<TriangleBlock<8>>&, float);
+template double wide_bvh_sah_cost<4>(const std::vector<WideBvhNode<4>>&);
+template double wide_bvh_sah_cost<8>(const std::vector<WideBvhNode<8>>&);
+
+}  // namespace lancer
