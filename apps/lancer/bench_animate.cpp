@@ -156,9 +156,10 @@ void run_animated_bench(const std::vector<AnimatedBenchMesh>& meshes, const Anim
                     row.trace_ms.push_back(trace_ms);
                     const bool has_cost = row.world->accel().stats().sah_cost > 0.0;
                     row.sah_ratio.push_back(has_cost ? report.sah_ratio : 0.0);
-                    frame_records.push_back(
-                        {mesh.name, row.label(), row.rebuild ? "build" : method_name(report.method), threads,
-                         frame, update_ms, trace_ms, ray_count / (trace_ms * 1e3), row.sah_ratio.back(), 0.0});
+                    frame_records.push_back({mesh.name, row.label(),
+                                             row.rebuild ? "build" : method_name(report.method), threads,
+                                             frame, update_ms, trace_ms, ray_count / (trace_ms * 1e3),
+                                             row.sah_ratio.back(), 0.0});
                 }
                 // An updated tree's SAH cost over the one its rebuild row built afresh on the same frame.
                 for (std::size_t r = 0; r + 1 < rows.size(); ++r) {
