@@ -130,6 +130,8 @@ struct UpdateReport {
     double sah_ratio = 1.0;
 };
 
+class World;
+
 class Accel {
   public:
     virtual ~Accel() = default;
@@ -196,9 +198,16 @@ class Accel {
     UpdateReport update_held(Accel& held, const Geometry& geometry) const;
 
   private:
+    // World::update_vertices checks the positions it is given and takes the box of the triangles it flattens
+    // from them, so it updates through update_within instead of going over every triangle again.
+    friend class World;
+
     // The box of `geometry`'s primitives that can be hit; throws std::invalid_argument for a coordinate
     // outside the contract's domain.
     [[nodiscard]] static Box3f checked_bounds(const Geometry& geometry);
+    // update() once `geometry` is known to have the built counts, coordinates inside the domain, and
+    // `bounds` as the box of its primitives that can be hit.
+    UpdateReport update_within(const Geometry& geometry, const Box3f& bounds);
 
     Box3f bounds_;
     std::size_t triangle_count_ = 0, sphere_count_ = 0;

@@ -157,11 +157,15 @@ class SceneGeometry {
     [[nodiscard]] std::size_t triangle_count() const { return triangles_.size(); }
     // Flattens mesh `mesh_index` again after its positions moved; `mesh` has the triangle count it had.
     void refresh_mesh(std::size_t mesh_index, const TriangleMesh& mesh);
+    // The box of the primitives that can be hit: every triangle, and the spheres of positive radius (what
+    // Accel::bounds holds once built on view()).
+    [[nodiscard]] Box3f hit_bounds() const;
 
   private:
     std::vector<Triangle> triangles_;
     std::vector<Sphere> spheres_;
     std::vector<std::size_t> mesh_first_triangle_;  // prefix offsets, one per mesh plus the total
+    std::vector<Box3f> mesh_bounds_;                // the box of each mesh's triangles
 };
 
 // The camera of shared/bench/VIEWS.md for a mesh alone: 45 degrees, looking down -z at the box centre from

@@ -7,11 +7,6 @@
 
 namespace lancer {
 
-Box3f primitive_bounds(const Geometry& geometry, std::uint32_t prim) {
-    if (prim < geometry.triangles.size()) return geometry.triangles[prim].bounds();
-    return geometry.spheres[prim - geometry.triangles.size()].bounds();
-}
-
 Box3f grown_for_overlap(const Box3f& box) {
     const Vec3f magnitude = max(abs(box.lo), abs(box.hi));
     const Vec3f margin = 1e-6f * (box.extent() + magnitude) + Vec3f(1e-30f);

@@ -10,7 +10,11 @@
 
 namespace lancer {
 
-[[nodiscard]] Box3f primitive_bounds(const Geometry& geometry, std::uint32_t prim);
+// Inline: the refits call it for every primitive of every frame.
+[[nodiscard]] inline Box3f primitive_bounds(const Geometry& geometry, std::uint32_t prim) {
+    if (prim < geometry.triangles.size()) return geometry.triangles[prim].bounds();
+    return geometry.spheres[prim - geometry.triangles.size()].bounds();
+}
 
 // The box grown by a relative margin of its own size (plus an absolute one for flat boxes), so that
 // rounding in an overlap or clipping test never drops a primitive that touches the box: an extra

@@ -89,26 +89,58 @@ Box3f Scene::bounds() const {
     return box;
 }
 
+namespace {
+
+// Triangles per task when a mesh is flattened again.
+constexpr std::size_t kFlattenGrain = 1 << 14;
+
+}  // namespace
+
 SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
     triangles_.reserve(scene.triangle_count());
     mesh_first_triangle_.reserve(scene.meshes.size() + 1);
+    mesh_bounds_.reserve(scene.meshes.size());
     for (const TriangleMesh& mesh : scene.meshes) {
         mesh_first_triangle_.push_back(triangles_.size());
         mesh.append_triangles(triangles_);
+        Box3f box;
+        for (std::size_t i = mesh_first_triangle_.back(); i < triangles_.size(); ++i)
+            box.extend(triangles_[i].bounds());
+        mesh_bounds_.push_back(box);
     }
     mesh_first_triangle_.push_back(triangles_.size());
+}
+
+Box3f SceneGeometry::hit_bounds() const {
+    Box3f box;
+    for (const Box3f& mesh : mesh_bounds_)
+        box.extend(mesh);
+    for (const Sphere& sphere : spheres_) {
+        if (sphere.radius > 0.0f) box.extend(sphere.bounds());
+    }
+    return box;
 }
 
 void SceneGeometry::refresh_mesh(std::size_t mesh_index, const TriangleMesh& mesh) {
     const std::size_t first = mesh_first_triangle_.at(mesh_index);
     if (mesh.triangle_count() != mesh_first_triangle_.at(mesh_index + 1) - first)
         throw std::invalid_argument("SceneGeometry::refresh_mesh: the mesh's triangle count changed");
-    // In parallel: an animation flattens its meshes every frame.
-    constexpr std::size_t kGrain = 1 << 14;
-    parallel::for_each_chunk(0, mesh.triangle_count(), kGrain, [&](std::size_t from, std::size_t to) {
-        for (std::size_t i = from; i < to; ++i)
-            triangles_[first + i] = mesh.triangle(i);
-    });
+    // In parallel, the box taken while the triangles are written: an animation flattens its meshes every
+    // frame. Box extents are exact whatever the chunks.
+    mesh_bounds_[mesh_index] = parallel::reduce(
+        0, mesh.triangle_count(), kFlattenGrain, Box3f{},
+        [&](std::size_t from, std::size_t to, Box3f box) {
+            for (std::size_t i = from; i < to; ++i) {
+                const Triangle triangle = mesh.triangle(i);
+                triangles_[first + i] = triangle;
+                box.extend(triangle.bounds());
+            }
+            return box;
+        },
+        [](Box3f a, const Box3f& b) {
+            a.extend(b);
+            return a;
+        });
 }
 
 std::pair<std::size_t, std::size_t> SceneGeometry::locate_triangle(std::size_t global_index) const {

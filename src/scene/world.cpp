@@ -1,6 +1,7 @@
 #include "lancer/world.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <string>
 #include <utility>
@@ -8,6 +9,7 @@
 
 #include "accel/plucker/plucker.hpp"
 #include "accel/plucker/serialise.hpp"
+#include "core/parallel.hpp"
 
 namespace lancer {
 
@@ -20,6 +22,22 @@ World::World(Scene scene, std::string_view accel_name, const BuildOptions& optio
 }
 
 namespace {
+
+// Vertices per task of the checks and copies of update_vertices: every frame of an animation makes them.
+constexpr std::size_t kVertexGrain = 1 << 15;
+
+// The index of the first point that is NaN, infinite or outside the coordinate domain; points.size() if none.
+std::size_t first_outside_domain(std::span<const Vec3f> points) {
+    return parallel::reduce(
+        0, points.size(), kVertexGrain, points.size(),
+        [&](std::size_t from, std::size_t to, std::size_t first) {
+            for (std::size_t i = from; i < to && i < first; ++i) {
+                if (!in_coordinate_domain(points[i])) return i;
+            }
+            return first;
+        },
+        [](std::size_t a, std::size_t b) { return std::min(a, b); });
+}
 
 // A moved mesh's vertex normals: the sum of its triangles' normals around each vertex, weighted by their
 // areas (the cross products' lengths), made unit; a vertex whose sum is zero keeps its old normal.
@@ -39,6 +57,7 @@ void recompute_normals(TriangleMesh& mesh) {
 }  // namespace
 
 UpdateReport World::update_vertices(std::span<const MeshVertices> moves) {
+    const auto start = std::chrono::steady_clock::now();
     std::vector<bool> named(scene_->meshes.size(), false);
     for (const MeshVertices& move : moves) {
         if (move.mesh >= scene_->meshes.size()) {
@@ -55,21 +74,29 @@ UpdateReport World::update_vertices(std::span<const MeshVertices> moves) {
                                         " positions for mesh " + std::to_string(move.mesh) + ", which has " +
                                         std::to_string(mesh.positions.size()) + " vertices");
         }
-        for (std::size_t i = 0; i < move.positions.size(); ++i) {
-            if (!in_coordinate_domain(move.positions[i])) {
-                throw std::invalid_argument(
-                    "update_vertices: vertex " + std::to_string(i) + " of mesh " + std::to_string(move.mesh) +
-                    " is NaN, infinite or outside the coordinate domain [-2^60, 2^60]");
-            }
+        const std::size_t outside = first_outside_domain(move.positions);
+        if (outside < move.positions.size()) {
+            throw std::invalid_argument("update_vertices: vertex " + std::to_string(outside) + " of mesh " +
+                                        std::to_string(move.mesh) +
+                                        " is NaN, infinite or outside the coordinate domain [-2^60, 2^60]");
         }
     }
     for (const MeshVertices& move : moves) {
         TriangleMesh& mesh = scene_->meshes[move.mesh];
-        std::copy(move.positions.begin(), move.positions.end(), mesh.positions.begin());
+        parallel::for_each_chunk(0, move.positions.size(), kVertexGrain,
+                                 [&](std::size_t from, std::size_t to) {
+                                     std::copy(move.positions.begin() + static_cast<std::ptrdiff_t>(from),
+                                               move.positions.begin() + static_cast<std::ptrdiff_t>(to),
+                                               mesh.positions.begin() + static_cast<std::ptrdiff_t>(from));
+                                 });
         if (!mesh.normals.empty()) recompute_normals(mesh);
         geometry_->refresh_mesh(move.mesh, mesh);
     }
-    return accel_->update(geometry_->view());
+    // The positions were checked above, and the flattening took the box: the structure need not read every
+    // triangle again to check it (Accel::update_within).
+    UpdateReport report = accel_->update_within(geometry_->view(), geometry_->hit_bounds());
+    report.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return report;
 }
 
 namespace {

@@ -5,6 +5,7 @@
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
+#include "core/host_device.hpp"
 #include "core/parallel.hpp"
 
 namespace lancer {
@@ -21,6 +22,17 @@ struct Refitted {
 // Subtrees of at least this many nodes refit their two children as two tasks: below it a task would cost
 // about as much as the nodes it refits.
 constexpr std::uint32_t kParallelNodes = 2048;
+// A subtree of at most this many nodes asks for all its triangles before it refits them: the leaves hold
+// triangles from anywhere in the array, and fetching one at a time left the refit waiting on memory.
+constexpr std::uint32_t kPrefetchNodes = 32;
+
+// Asks for the lines of a primitive's triangle (36 bytes, which may straddle two lines).
+void prefetch_primitive(const Geometry& geometry, std::uint32_t prim) {
+    if (prim >= geometry.triangles.size()) return;
+    const Triangle* triangle = &geometry.triangles[prim];
+    prefetch_line(triangle);
+    prefetch_line(reinterpret_cast<const char*>(triangle + 1) - 1);
+}
 
 // A node's box as the builders store it: the tight box of what it holds grown by the scene's geometric
 // tolerance (build.cpp, "compact"; docs/numerical-contract.md, "Boxes").
@@ -35,8 +47,15 @@ struct BinaryRefit {
     Vec3f margin;
 
     // The subtree of node `index`, which ends before node `end` (depth first: a node, its first subtree, its
-    // second).
-    Refitted subtree(std::uint32_t index, std::uint32_t end) const {
+    // second). `prefetched`: an enclosing subtree has asked for its triangles already.
+    Refitted subtree(std::uint32_t index, std::uint32_t end, bool prefetched = false) const {
+        if (!prefetched && end - index <= kPrefetchNodes) {
+            for (std::uint32_t n = index; n < end; ++n) {
+                for (std::uint32_t i = nodes[n].offset; i < nodes[n].offset + nodes[n].prim_count; ++i)
+                    prefetch_primitive(geometry, prim_indices[i]);
+            }
+            prefetched = true;
+        }
         BvhNode& node = nodes[index];
         Refitted refitted;
         if (node.is_leaf()) {
@@ -50,8 +69,8 @@ struct BinaryRefit {
         } else {
             const std::uint32_t second = node.offset;
             Refitted first_child, second_child;
-            auto refit_first = [&] { first_child = subtree(index + 1, second); };
-            auto refit_second = [&] { second_child = subtree(second, end); };
+            auto refit_first = [&] { first_child = subtree(index + 1, second, prefetched); };
+            auto refit_second = [&] { second_child = subtree(second, end, prefetched); };
             if (end - index >= kParallelNodes) {
                 parallel::invoke(refit_first, refit_second);
             } else {
@@ -93,11 +112,17 @@ struct WideRefit {
         const std::uint32_t end = first_block + block_count(prim_count, W);
         for (std::uint32_t b = first_block; b < end; ++b) {
             TriangleBlock<W>& block = blocks[b];
+            bool spheres = false;
             for (int lane = 0; lane < W; ++lane) {
+                write_block_lane(geometry, block.prim[lane], lane, block);
+                spheres |= block.prim[lane] >= geometry.triangles.size() &&
+                           block.prim[lane] != TriangleBlock<W>::kNoPrimitive;
+            }
+            box.extend(block_triangle_bounds(block));
+            for (int lane = 0; spheres && lane < W; ++lane) {
                 const std::uint32_t prim = block.prim[lane];
-                if (prim == TriangleBlock<W>::kNoPrimitive) continue;
-                write_block_lane(geometry, prim, lane, block);
-                box.extend(primitive_bounds(geometry, prim));
+                if (prim >= geometry.triangles.size() && prim != TriangleBlock<W>::kNoPrimitive)
+                    box.extend(primitive_bounds(geometry, prim));
             }
         }
         return grown(box, margin);
@@ -105,6 +130,15 @@ struct WideRefit {
 
     Refitted node(std::uint32_t index, int level) const {
         WideBvhNode<W>& wide = nodes[index];
+        // The triangles of every leaf child asked for at once, before any is read: they lie anywhere in the
+        // array, and fetching them one at a time left the refit waiting on memory.
+        for (int slot = 0; slot < W; ++slot) {
+            const std::uint32_t end = wide.child[slot] + block_count(wide.prim_count[slot], W);
+            for (std::uint32_t b = wide.child[slot]; wide.prim_count[slot] > 0 && b < end; ++b) {
+                for (int lane = 0; lane < W; ++lane)
+                    prefetch_primitive(geometry, blocks[b].prim[lane]);
+            }
+        }
         std::array<Refitted, W> children;
         auto refit_child = [&](std::size_t slot) {
             if (wide.prim_count[slot] > 0) {

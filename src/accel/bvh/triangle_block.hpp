@@ -48,15 +48,39 @@ static_assert(sizeof(TriangleBlock<4>) == 160 && sizeof(TriangleBlock<8>) == 320
 // (kNoPrimitive).
 template <int K>
 void write_block_lane(const Geometry& geometry, std::uint32_t prim, int lane, TriangleBlock<K>& block) {
-    const float nan = std::numeric_limits<float>::quiet_NaN();
     block.prim[lane] = prim;
     const bool is_triangle = prim < geometry.triangles.size();
+    const float nan = std::numeric_limits<float>::quiet_NaN();
     const Triangle tri = is_triangle ? geometry.triangles[prim] : Triangle{};
-    const Vec3f corners[3] = {tri.v0, tri.v1, tri.v2};
-    for (int v = 0; v < 3; ++v) {
-        for (int axis = 0; axis < 3; ++axis)
-            block.vertex[v][axis][lane] = is_triangle ? corners[v][axis] : nan;
+    for (int axis = 0; axis < 3; ++axis) {
+        block.vertex[0][axis][lane] = is_triangle ? tri.v0[axis] : nan;
+        block.vertex[1][axis][lane] = is_triangle ? tri.v1[axis] : nan;
+        block.vertex[2][axis][lane] = is_triangle ? tri.v2[axis] : nan;
     }
+}
+
+// The box of a block's triangles, read from its lanes: a lane without a triangle (NaN vertices) drops out,
+// since `x < y ? x : y` keeps y whenever x is NaN (the form minps and maxps compute, so the lane loops
+// vectorise).
+template <int K>
+[[nodiscard]] Box3f block_triangle_bounds(const TriangleBlock<K>& block) {
+    Box3f box;
+    for (int axis = 0; axis < 3; ++axis) {
+        float lo[K], hi[K];
+        for (int lane = 0; lane < K; ++lane) {
+            lo[lane] = kInfinity, hi[lane] = -kInfinity;
+            for (int v = 0; v < 3; ++v) {
+                const float x = block.vertex[v][axis][lane];
+                lo[lane] = x < lo[lane] ? x : lo[lane];
+                hi[lane] = x > hi[lane] ? x : hi[lane];
+            }
+        }
+        for (int lane = 0; lane < K; ++lane) {
+            box.lo[axis] = lo[lane] < box.lo[axis] ? lo[lane] : box.lo[axis];
+            box.hi[axis] = hi[lane] > box.hi[axis] ? hi[lane] : box.hi[axis];
+        }
+    }
+    return box;
 }
 
 // Appends the blocks of one leaf: its primitives in order, K per block, the last block padded.
