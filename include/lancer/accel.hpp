@@ -124,7 +124,8 @@ enum class UpdateMethod {
 // What one Accel::update did.
 struct UpdateReport {
     UpdateMethod method = UpdateMethod::Rebuild;  // a refitting structure rebuilds past its threshold
-    double ms = 0.0;
+    double ms = 0.0;  // the whole update: the checks, and World::update_vertices's copy and flattening
+    double structure_ms = 0.0;  // the structure's own part of it: the refit or the rebuild
     // SAH cost of the tree as it now is over its cost when it was last built (AccelStats::sah_ratio): 1 after
     // a rebuild, and for the structures without an SAH cost.
     double sah_ratio = 1.0;

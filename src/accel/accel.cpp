@@ -158,9 +158,13 @@ UpdateReport Accel::update(const Geometry& geometry) {
 }
 
 UpdateReport Accel::update_within(const Geometry& geometry, const Box3f& bounds) {
+    const auto start = std::chrono::steady_clock::now();
     // The box first: a structure that rebuilds reads it (embree's scale, the octrees' root cube).
     bounds_ = bounds;
-    return update_structure(geometry);
+    UpdateReport report = update_structure(geometry);
+    report.structure_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return report;
 }
 
 UpdateReport Accel::update_held(Accel& held, const Geometry& geometry) const {

@@ -493,7 +493,7 @@ UpdateReport EmbreeAccel::update_structure(const Geometry& geometry) {
     }
     rtcCommitScene(scene_);
     check(device_, "updating the scene");
-    return {quality_ == EmbreeQuality::Refit ? UpdateMethod::Refit : UpdateMethod::Rebuild, 0.0, 1.0};
+    return {.method = update_method()};
 }
 
 void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,

@@ -27,7 +27,7 @@ UpdateReport BvhAccel::update_from(const Geometry& geometry) {
                                  built_sah_cost_);
     if (sah_ratio_ > options_.group<BvhOptions>().refit_threshold)
         return SingleRayAccel::update_from(geometry);
-    return {UpdateMethod::Refit, 0.0, sah_ratio_};
+    return {.method = UpdateMethod::Refit, .sah_ratio = sah_ratio_};
 }
 
 namespace {

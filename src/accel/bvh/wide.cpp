@@ -245,7 +245,7 @@ UpdateReport WideBvhAccel<W>::update_from(const Geometry& geometry) {
         refit_wide_bvh(geometry, nodes_, blocks_, refit_margin(geometry, this->bounds())), built_sah_cost_);
     if (sah_ratio_ > options_.template group<BvhOptions>().refit_threshold)
         return Base::update_from(geometry);
-    return {UpdateMethod::Refit, 0.0, sah_ratio_};
+    return {.method = UpdateMethod::Refit, .sah_ratio = sah_ratio_};
 }
 
 template <int W>
