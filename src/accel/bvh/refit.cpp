@@ -35,9 +35,9 @@ void prefetch_primitive(const Geometry& geometry, std::uint32_t prim) {
 }
 
 // A node's box as the builders store it: the tight box of what it holds grown by the scene's geometric
-// tolerance (build.cpp, "compact"; docs/numerical-contract.md, "Boxes").
+// tolerance (build.cpp, "compact"; docs/numerical-contract.md, "Boxes"). The empty box stays empty.
 Box3f grown(const Box3f& tight, const Vec3f& margin) {
-    return tight.empty() ? tight : Box3f{tight.lo - margin, tight.hi + margin};
+    return {tight.lo - margin, tight.hi + margin};
 }
 
 struct BinaryRefit {
