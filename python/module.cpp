@@ -22,8 +22,9 @@ PYBIND11_MODULE(lancer, module) {
              "Adds a mesh: vertices float32 (N, 3), triangles integer (M, 3). Returns its geometry id.")
         .def("update_vertices", &RaycastingScene::update_vertices, py::arg("geometry_id"),
              py::arg("vertices"),
-             "Moves a geometry's vertices, float32 (N, 3) with N its vertex count, its triangles kept; the "
-             "BVHs refit, the other structures rebuild. Returns {method, ms, sah_ratio}.")
+             "Moves a geometry's vertices, float32 (N, 3) with N its vertex count, its triangles kept;\n"
+             "the BVHs refit, the other structures rebuild (deferred before the first query).\n"
+             "Returns {method, ms, sah_ratio}.")
         .def("cast_rays", &RaycastingScene::cast_rays, py::arg("rays"), py::arg("nthreads") = 0,
              "Closest hits of rays float32 (..., 6): t_hit, geometry_ids, primitive_ids, primitive_uvs, "
              "primitive_normals")

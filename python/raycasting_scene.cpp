@@ -203,7 +203,7 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
     const auto points = float_rows(vertices, "vertices", 3);
     if (points.ndim() != 2)
         throw py::value_error("vertices: expected shape (N, 3), got " + shape_text(points));
-    UpdateReport report;
+    std::optional<UpdateReport> report;  // none while the structure is not built yet
     {
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
@@ -233,8 +233,9 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
         }
         mesh.positions = std::move(positions);
     }
-    return py::dict("method"_a = report.method == UpdateMethod::Refit ? "refit" : "rebuild",
-                    "ms"_a = report.ms, "sah_ratio"_a = report.sah_ratio);
+    if (!report) return py::dict("method"_a = "deferred", "ms"_a = 0.0, "sah_ratio"_a = 1.0);
+    return py::dict("method"_a = report->method == UpdateMethod::Refit ? "refit" : "rebuild",
+                    "ms"_a = report->ms, "sah_ratio"_a = report->sah_ratio);
 }
 
 const Accel& RaycastingScene::committed() {

@@ -89,12 +89,18 @@ void write_json(const std::string& file, const std::vector<AnimatedRecord>& reco
 }  // namespace
 
 void run_animated_bench(const std::vector<AnimatedBenchMesh>& meshes, const AnimatedBenchOptions& options) {
+    // Unknown names before anything is built.
+    for (const std::string& accel : options.accels) {
+        try {
+            static_cast<void>(make_accel(accel));
+        } catch (const std::invalid_argument& error) {
+            throw InputError(std::string("--accel: ") + error.what());
+        }
+    }
     fmt::print(
-        "animation: a sine wave along x lifting y by 5% of the largest extent, one wavelength across the "
-        "box, "
-        "{} frames per period (lancer/animate.hpp); per frame the update (or rebuild) and one {}x{} "
-        "canonical "
-        "view of the rest pose's box\n",
+        "animation: a sine wave along x lifting y by 5% of the largest extent, one wavelength across\n"
+        "the box, {} frames per period (lancer/animate.hpp); per frame the update (or rebuild) and one\n"
+        "{}x{} canonical view of the rest pose's box\n",
         options.frames, options.size, options.size);
     fmt::print("{:<16} {:>3} {:>5} {:<20} {:<8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9}\n", "mesh", "thr",
                "frame", "row", "method", "update ms", "struct ms", "trace ms", "Mrays/s", "SAH ratio",

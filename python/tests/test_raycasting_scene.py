@@ -344,7 +344,7 @@ def test_updated_vertices_give_the_answers_of_a_scene_built_on_them(spheres):
             assert np.array_equal(scene.compute_distance(points), fresh.compute_distance(points)), accel
     # Before the first query nothing is built: the structure is then built on the moved vertices.
     scene = scene_of("bvh8", *spheres)
-    scene.update_vertices(1, waved(spheres[1][0], 0.5))
+    assert scene.update_vertices(1, waved(spheres[1][0], 0.5))["method"] == "deferred"
     assert np.array_equal(scene.cast_rays(rays)["t_hit"],
                           scene_of("brute", spheres[0], (waved(spheres[1][0], 0.5), spheres[1][1])).cast_rays(rays)[
                               "t_hit"])

@@ -319,6 +319,7 @@ TEST_F(Cli, AnimationsTimeUpdatesAndWriteOneFramePerFile) {
     EXPECT_EQ(records, 12u) << text.str();  // 3 frames x 2 structures x (update, rebuild)
     EXPECT_EQ(run("bench --mesh " + mesh.string() + " --animate 3 --view diffuse").exit_code, 2);
     EXPECT_EQ(run("bench --mesh " + mesh.string() + " --animate 0").exit_code, 2);
+    EXPECT_EQ(run("bench --mesh " + mesh.string() + " --animate 2 --accel nope").exit_code, 2);
 
     for (const char* run_name : {"a", "b"}) {
         result = run("render " + mesh.string() + " --animate 2 --size 16x16 --mode depth -o " +
