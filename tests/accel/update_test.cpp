@@ -209,32 +209,39 @@ TEST(Update, TheBvhsRefitAndTheOthersRebuild) {
     EXPECT_EQ(World(scene, "bvh8", spatial).accel().update_method(), UpdateMethod::Rebuild);
 }
 
+BuildOptions with_refit_threshold(double threshold) {
+    BuildOptions options;
+    options.group<BvhOptions>().refit_threshold = threshold;
+    return options;
+}
+
+// `rest` with its meshes moved to `positions`.
+Scene posed(const Scene& rest, const std::vector<std::vector<Vec3f>>& positions) {
+    Scene scene = rest;
+    for (std::size_t mesh = 0; mesh < positions.size(); ++mesh)
+        scene.meshes[mesh].positions = positions[mesh];
+    return scene;
+}
+
 TEST(Update, TheSahWatchRebuildsPastItsThreshold) {
     const Scene rest = moving_scene();
     const std::vector<std::vector<Vec3f>> moved = deformed_meshes(rest, strong_wave(rest), 1);
     for (const std::string_view name : {"bvh", "bvh8"}) {
-        BuildOptions never;
-        never.group<BvhOptions>().refit_threshold = 1e9;
-        World refitted(rest, name, never);
+        World refitted(rest, name, with_refit_threshold(1e9));
         const UpdateReport refit = refitted.update_vertices(moves_of(moved));
         EXPECT_EQ(refit.method, UpdateMethod::Refit) << name;
         // The wave stretches the boxes of the triangles it tilts: the refitted tree costs more.
         EXPECT_GT(refit.sah_ratio, 1.0) << name;
         EXPECT_EQ(refitted.accel().stats().sah_ratio, refit.sah_ratio) << name;
 
-        BuildOptions always;
-        always.group<BvhOptions>().refit_threshold = 1.0;
-        World rebuilt(rest, name, always);
+        World rebuilt(rest, name, with_refit_threshold(1.0));
         const UpdateReport rebuild = rebuilt.update_vertices(moves_of(moved));
         EXPECT_EQ(rebuild.method, UpdateMethod::Rebuild) << name;
         EXPECT_EQ(rebuild.sah_ratio, 1.0) << name;
         EXPECT_EQ(rebuilt.accel().stats().sah_ratio, 1.0) << name;
         // A rebuilt tree costs what a fresh build on the moved mesh costs.
-        Scene moved_scene = rest;
-        for (std::size_t mesh = 0; mesh < moved.size(); ++mesh)
-            moved_scene.meshes[mesh].positions = moved[mesh];
         EXPECT_EQ(rebuilt.accel().stats().sah_cost,
-                  World(moved_scene, name, always).accel().stats().sah_cost);
+                  World(posed(rest, moved), name, with_refit_threshold(1.0)).accel().stats().sah_cost);
     }
 }
 
@@ -246,13 +253,9 @@ std::vector<unsigned char> bytes_of(const std::vector<T>& array) {
 
 TEST(Update, RefitToTheBuiltPositionsGivesTheBuiltTreeByteForByte) {
     const Scene rest = moving_scene();
-    Scene moved = rest;
-    const std::vector<std::vector<Vec3f>> positions = deformed_meshes(rest, strong_wave(rest), 1);
-    for (std::size_t mesh = 0; mesh < positions.size(); ++mesh)
-        moved.meshes[mesh].positions = positions[mesh];
+    const Scene moved = posed(rest, deformed_meshes(rest, strong_wave(rest), 1));
     const SceneGeometry rest_geometry(rest), moved_geometry(moved);
-    BuildOptions never;
-    never.group<BvhOptions>().refit_threshold = 1e9;
+    const BuildOptions never = with_refit_threshold(1e9);
 
     BvhAccel bvh;
     bvh.build(rest_geometry.view(), never);
