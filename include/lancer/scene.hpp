@@ -155,8 +155,9 @@ class SceneGeometry {
     // Mesh index and triangle index inside that mesh of a global triangle index (< triangle count).
     [[nodiscard]] std::pair<std::size_t, std::size_t> locate_triangle(std::size_t global_index) const;
     [[nodiscard]] std::size_t triangle_count() const { return triangles_.size(); }
-    // Flattens mesh `mesh_index` again after its positions moved; `mesh` has the triangle count it had.
-    void refresh_mesh(std::size_t mesh_index, const TriangleMesh& mesh);
+    // Flattens mesh `mesh_index` again after its positions moved; `mesh` has the triangle count it had, and
+    // `positions_box` is the box of its positions (which the caller takes while it checks them).
+    void refresh_mesh(std::size_t mesh_index, const TriangleMesh& mesh, const Box3f& positions_box);
     // The box of the primitives that can be hit: every triangle, and the spheres of positive radius (what
     // Accel::bounds holds once built on view()).
     [[nodiscard]] Box3f hit_bounds() const;
@@ -166,6 +167,7 @@ class SceneGeometry {
     std::vector<Sphere> spheres_;
     std::vector<std::size_t> mesh_first_triangle_;  // prefix offsets, one per mesh plus the total
     std::vector<Box3f> mesh_bounds_;                // the box of each mesh's triangles
+    std::vector<bool> mesh_uses_every_vertex_;      // every vertex is a triangle's corner
 };
 
 // The camera of shared/bench/VIEWS.md for a mesh alone: 45 degrees, looking down -z at the box centre from

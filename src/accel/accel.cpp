@@ -7,6 +7,7 @@
 #include <type_traits>
 
 #include "accel/packet_batch.hpp"
+#include "core/checked_points.hpp"
 #include "core/parallel.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/accel.hpp"
@@ -31,91 +32,11 @@ void intersect_conditioned(std::span<const Ray> rays, std::span<Hit> hits, const
 
 }  // namespace
 
-namespace {
-
-// The box of a range of primitives, and the first one outside the coordinate domain (or none).
-struct CheckedRange {
-    static constexpr std::size_t kNone = static_cast<std::size_t>(-1);
-    Box3f box;
-    std::size_t first_outside = kNone;
-
-    void merge(const CheckedRange& other) {
-        box.extend(other.box);
-        first_outside = std::min(first_outside, other.first_outside);
-    }
-};
-
-// Triangles per task of the check: large enough that a task costs more than its scheduling.
-constexpr std::size_t kCheckGrain = 1 << 14;
-
-// The box of the points xyz... in [first, last) (a float array, three per point), and whether a coordinate is
-// NaN or outside the coordinate domain. 48 floats (16 points) a step, so that each lane of the accumulators
-// always holds one axis and the loop vectorises; `x < y ? x : y` keeps y for a NaN x, which the domain test
-// reports anyway.
-struct CheckedPoints {
-    Box3f box;
-    bool outside = false;
-};
-
-CheckedPoints check_points(const float* first, const float* last) {
-    constexpr std::size_t kStep = 48;
-    float lo[kStep], hi[kStep];
-    std::fill_n(lo, kStep, kInfinity);
-    std::fill_n(hi, kStep, -kInfinity);
-    unsigned outside = 0;
-    auto visit = [&](std::size_t slot, float x) {
-        lo[slot] = x < lo[slot] ? x : lo[slot];
-        hi[slot] = x > hi[slot] ? x : hi[slot];
-        outside |= std::fabs(x) <= kCoordinateLimit ? 0u : 1u;
-    };
-    const auto count = static_cast<std::size_t>(last - first);
-    std::size_t i = 0;
-    for (; i + kStep <= count; i += kStep) {
-        for (std::size_t slot = 0; slot < kStep; ++slot)
-            visit(slot, first[i + slot]);
-    }
-    for (std::size_t slot = 0; i + slot < count; ++slot)
-        visit(slot, first[i + slot]);
-    CheckedPoints points;
-    for (std::size_t slot = 0; slot < kStep; ++slot) {
-        const int axis = static_cast<int>(slot % 3);
-        points.box.lo[axis] = std::min(points.box.lo[axis], lo[slot]);
-        points.box.hi[axis] = std::max(points.box.hi[axis], hi[slot]);
-    }
-    points.outside = outside != 0;
-    return points;
-}
-
-}  // namespace
-
 Box3f Accel::checked_bounds(const Geometry& geometry) {
-    // In parallel and vectorised: update checks every vertex of every frame, which a plain loop made cost
-    // a good part of a refit. Box extents and the least index are exact whatever the chunks.
     static_assert(sizeof(Triangle) == 9 * sizeof(float) && std::is_standard_layout_v<Triangle>);
-    const auto* coordinates = reinterpret_cast<const float*>(geometry.triangles.data());
-    const CheckedRange triangles = parallel::reduce(
-        0, geometry.triangles.size(), kCheckGrain, CheckedRange{},
-        [&](std::size_t from, std::size_t to, CheckedRange range) {
-            const CheckedPoints points = check_points(coordinates + 9 * from, coordinates + 9 * to);
-            CheckedRange chunk{points.box, CheckedRange::kNone};
-            if (points.outside) {
-                // Which triangle: a second look at this chunk only.
-                for (std::size_t i = from; i < to && chunk.first_outside == CheckedRange::kNone; ++i) {
-                    const Triangle& triangle = geometry.triangles[i];
-                    if (!in_coordinate_domain(triangle.v0) || !in_coordinate_domain(triangle.v1) ||
-                        !in_coordinate_domain(triangle.v2)) {
-                        chunk.first_outside = i;
-                    }
-                }
-            }
-            range.merge(chunk);
-            return range;
-        },
-        [](CheckedRange a, const CheckedRange& b) {
-            a.merge(b);
-            return a;
-        });
-    if (triangles.first_outside != CheckedRange::kNone) {
+    const CheckedPoints triangles = check_points(
+        {reinterpret_cast<const float*>(geometry.triangles.data()), 9 * geometry.triangles.size()}, 3);
+    if (triangles.first_outside != CheckedPoints::kNone) {
         throw std::invalid_argument("Accel: triangle " + std::to_string(triangles.first_outside) +
                                     " has a vertex outside the coordinate domain [-2^60, 2^60]");
     }

@@ -96,10 +96,25 @@ constexpr std::size_t kFlattenGrain = 1 << 14;
 
 }  // namespace
 
+namespace {
+
+// Whether every vertex of `mesh` is a corner of one of its triangles: then the box of its positions is the
+// box of its triangles.
+bool uses_every_vertex(const TriangleMesh& mesh) {
+    std::vector<bool> used(mesh.positions.size(), false);
+    for (std::uint32_t index : mesh.indices) {
+        if (index < used.size()) used[index] = true;
+    }
+    return std::find(used.begin(), used.end(), false) == used.end();
+}
+
+}  // namespace
+
 SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
     triangles_.reserve(scene.triangle_count());
     mesh_first_triangle_.reserve(scene.meshes.size() + 1);
     mesh_bounds_.reserve(scene.meshes.size());
+    mesh_uses_every_vertex_.reserve(scene.meshes.size());
     for (const TriangleMesh& mesh : scene.meshes) {
         mesh_first_triangle_.push_back(triangles_.size());
         mesh.append_triangles(triangles_);
@@ -107,6 +122,7 @@ SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
         for (std::size_t i = mesh_first_triangle_.back(); i < triangles_.size(); ++i)
             box.extend(triangles_[i].bounds());
         mesh_bounds_.push_back(box);
+        mesh_uses_every_vertex_.push_back(uses_every_vertex(mesh));
     }
     mesh_first_triangle_.push_back(triangles_.size());
 }
@@ -121,12 +137,23 @@ Box3f SceneGeometry::hit_bounds() const {
     return box;
 }
 
-void SceneGeometry::refresh_mesh(std::size_t mesh_index, const TriangleMesh& mesh) {
+void SceneGeometry::refresh_mesh(std::size_t mesh_index, const TriangleMesh& mesh,
+                                 const Box3f& positions_box) {
     const std::size_t first = mesh_first_triangle_.at(mesh_index);
     if (mesh.triangle_count() != mesh_first_triangle_.at(mesh_index + 1) - first)
         throw std::invalid_argument("SceneGeometry::refresh_mesh: the mesh's triangle count changed");
-    // In parallel, the box taken while the triangles are written: an animation flattens its meshes every
-    // frame. Box extents are exact whatever the chunks.
+    // In parallel: an animation flattens its meshes every frame. The box of the triangles is that of the
+    // positions when every vertex is a corner, and otherwise is taken while the triangles are written (box
+    // extents are exact whatever the chunks); taking it per triangle doubled the time of the flattening.
+    if (mesh_uses_every_vertex_[mesh_index]) {
+        parallel::for_each_chunk(0, mesh.triangle_count(), kFlattenGrain,
+                                 [&](std::size_t from, std::size_t to) {
+                                     for (std::size_t i = from; i < to; ++i)
+                                         triangles_[first + i] = mesh.triangle(i);
+                                 });
+        mesh_bounds_[mesh_index] = positions_box;
+        return;
+    }
     mesh_bounds_[mesh_index] = parallel::reduce(
         0, mesh.triangle_count(), kFlattenGrain, Box3f{},
         [&](std::size_t from, std::size_t to, Box3f box) {

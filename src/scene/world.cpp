@@ -4,11 +4,13 @@
 #include <chrono>
 #include <cmath>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
 #include "accel/plucker/plucker.hpp"
 #include "accel/plucker/serialise.hpp"
+#include "core/checked_points.hpp"
 #include "core/parallel.hpp"
 
 namespace lancer {
@@ -25,19 +27,6 @@ namespace {
 
 // Vertices per task of the checks and copies of update_vertices: every frame of an animation makes them.
 constexpr std::size_t kVertexGrain = 1 << 15;
-
-// The index of the first point that is NaN, infinite or outside the coordinate domain; points.size() if none.
-std::size_t first_outside_domain(std::span<const Vec3f> points) {
-    return parallel::reduce(
-        0, points.size(), kVertexGrain, points.size(),
-        [&](std::size_t from, std::size_t to, std::size_t first) {
-            for (std::size_t i = from; i < to && i < first; ++i) {
-                if (!in_coordinate_domain(points[i])) return i;
-            }
-            return first;
-        },
-        [](std::size_t a, std::size_t b) { return std::min(a, b); });
-}
 
 // A moved mesh's vertex normals: the sum of its triangles' normals around each vertex, weighted by their
 // areas (the cross products' lengths), made unit; a vertex whose sum is zero keeps its old normal.
@@ -59,6 +48,8 @@ void recompute_normals(TriangleMesh& mesh) {
 UpdateReport World::update_vertices(std::span<const MeshVertices> moves) {
     const auto start = std::chrono::steady_clock::now();
     std::vector<bool> named(scene_->meshes.size(), false);
+    std::vector<Box3f> positions_boxes;
+    positions_boxes.reserve(moves.size());
     for (const MeshVertices& move : moves) {
         if (move.mesh >= scene_->meshes.size()) {
             throw std::invalid_argument("update_vertices: mesh " + std::to_string(move.mesh) +
@@ -74,14 +65,18 @@ UpdateReport World::update_vertices(std::span<const MeshVertices> moves) {
                                         " positions for mesh " + std::to_string(move.mesh) + ", which has " +
                                         std::to_string(mesh.positions.size()) + " vertices");
         }
-        const std::size_t outside = first_outside_domain(move.positions);
-        if (outside < move.positions.size()) {
-            throw std::invalid_argument("update_vertices: vertex " + std::to_string(outside) + " of mesh " +
-                                        std::to_string(move.mesh) +
+        static_assert(sizeof(Vec3f) == 3 * sizeof(float) && std::is_standard_layout_v<Vec3f>);
+        const CheckedPoints checked = check_points(
+            {reinterpret_cast<const float*>(move.positions.data()), 3 * move.positions.size()}, 1);
+        if (checked.first_outside != CheckedPoints::kNone) {
+            throw std::invalid_argument("update_vertices: vertex " + std::to_string(checked.first_outside) +
+                                        " of mesh " + std::to_string(move.mesh) +
                                         " is NaN, infinite or outside the coordinate domain [-2^60, 2^60]");
         }
+        positions_boxes.push_back(checked.box);
     }
-    for (const MeshVertices& move : moves) {
+    for (std::size_t m = 0; m < moves.size(); ++m) {
+        const MeshVertices& move = moves[m];
         TriangleMesh& mesh = scene_->meshes[move.mesh];
         parallel::for_each_chunk(0, move.positions.size(), kVertexGrain,
                                  [&](std::size_t from, std::size_t to) {
@@ -90,7 +85,7 @@ UpdateReport World::update_vertices(std::span<const MeshVertices> moves) {
                                                mesh.positions.begin() + static_cast<std::ptrdiff_t>(from));
                                  });
         if (!mesh.normals.empty()) recompute_normals(mesh);
-        geometry_->refresh_mesh(move.mesh, mesh);
+        geometry_->refresh_mesh(move.mesh, mesh, positions_boxes[m]);
     }
     // The positions were checked above, and the flattening took the box: the structure need not read every
     // triangle again to check it (Accel::update_within).

@@ -306,6 +306,31 @@ TEST(Update, BadInputLeavesTheWorldAsItWas) {
     expect_refused(std::vector<MeshVertices>{{1, positions}, {1, positions}}, "named twice");
 }
 
+// The box an update hands the structure is the box of the moved triangles and spheres: taken from the
+// positions where every vertex is a corner (the sphere), from the triangles where one is not (the knot, whose
+// stray vertex is moved far away and must not widen it).
+TEST(Update, TheBoxFollowsTheTrianglesAndNotAStrayVertex) {
+    Scene rest = moving_scene();
+    rest.meshes[1].positions.push_back({50.0f, 50.0f, 50.0f});  // no triangle's corner
+    World world(rest, "bvh8", BuildOptions{});
+    const SineWave wave = strong_wave(rest);
+    for (int frame = 1; frame <= 2; ++frame) {
+        std::vector<std::vector<Vec3f>> moved = deformed_meshes(rest, wave, frame);
+        moved[1].back() = {-60.0f, 70.0f, 80.0f * static_cast<float>(frame)};
+        world.update_vertices(moves_of(moved));
+        Box3f expected;
+        for (const Triangle& triangle : world.geometry().view().triangles)
+            expected.extend(triangle.bounds());
+        for (const Sphere& sphere : rest.spheres)
+            expected.extend(sphere.bounds());
+        EXPECT_EQ(world.geometry().hit_bounds().lo, expected.lo) << "frame " << frame;
+        EXPECT_EQ(world.geometry().hit_bounds().hi, expected.hi) << "frame " << frame;
+        EXPECT_EQ(world.accel().bounds().lo, expected.lo) << "frame " << frame;
+        EXPECT_EQ(world.accel().bounds().hi, expected.hi) << "frame " << frame;
+        EXPECT_LT(expected.hi.x, 10.0f) << "frame " << frame;
+    }
+}
+
 // Spheres are primitives too: moved between updates (same count), every structure follows them; and an empty
 // geometry updates to itself.
 TEST(Update, MovedSpheresAndEmptyGeometryAreFollowed) {

@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <array>
+#include <limits>
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
+#include "accel/simd_float.hpp"
 #include "core/host_device.hpp"
 #include "core/parallel.hpp"
 
@@ -95,6 +97,74 @@ double normalised_cost(const Refitted& root) {
     return root_area > 0.0 ? root.weighted_area / root_area : static_cast<double>(root.references);
 }
 
+// A block's lanes rewritten from the moved triangles; returns the tight box of its primitives. Sphere and
+// padding lanes keep the NaN vertices the build wrote.
+template <int W>
+Box3f rewrite_block(const Geometry& geometry, TriangleBlock<W>& block) {
+    Box3f box;
+    for (int lane = 0; lane < W; ++lane) {
+        const std::uint32_t prim = block.prim[lane];
+        if (prim < geometry.triangles.size()) {
+            const Triangle& triangle = geometry.triangles[prim];
+            for (int axis = 0; axis < 3; ++axis) {
+                block.vertex[0][axis][lane] = triangle.v0[axis];
+                block.vertex[1][axis][lane] = triangle.v1[axis];
+                block.vertex[2][axis][lane] = triangle.v2[axis];
+            }
+            box.extend(triangle.bounds());
+        } else if (prim != TriangleBlock<W>::kNoPrimitive) {
+            box.extend(primitive_bounds(geometry, prim));
+        }
+    }
+    return box;
+}
+
+#if defined(__AVX2__)
+// Eight lanes at once: the first eight floats of each triangle (v0, v1, v2.x, v2.y; the block's fields are
+// the Triangle's floats in order) transposed in registers, v2.z set lane by lane, the box taken from the
+// registers. A block written lane by lane and read back as vectors waited on its scalar stores.
+template <>
+Box3f rewrite_block<8>(const Geometry& geometry, TriangleBlock<8>& block) {
+    using Ops = simd::Avx2;
+    static_assert(sizeof(Triangle) == 9 * sizeof(float) && sizeof(block.vertex) == 9 * 8 * sizeof(float));
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    Ops::Float rows[8];
+    std::array<float, 8> last;  // v2.z of each lane
+    Box3f box;
+    for (int lane = 0; lane < 8; ++lane) {
+        const std::uint32_t prim = block.prim[lane];
+        if (prim < geometry.triangles.size()) {
+            const Triangle& triangle = geometry.triangles[prim];
+            rows[lane] = _mm256_loadu_ps(&triangle.v0.x);
+            last[static_cast<std::size_t>(lane)] = triangle.v2.z;
+        } else {
+            rows[lane] = Ops::broadcast(nan);
+            last[static_cast<std::size_t>(lane)] = nan;
+            if (prim != TriangleBlock<8>::kNoPrimitive) box.extend(primitive_bounds(geometry, prim));
+        }
+    }
+    Ops::Float fields[8];
+    Ops::transpose8(rows, fields);
+    const Ops::Float v2z =
+        _mm256_setr_ps(last[0], last[1], last[2], last[3], last[4], last[5], last[6], last[7]);
+    auto field = [&](int f) { return f < 8 ? fields[f] : v2z; };
+    float* out = &block.vertex[0][0][0];
+    for (int f = 0; f < 9; ++f)
+        Ops::store(out + 8 * f, field(f));
+    // minps(x, y) is y where x is NaN: lanes without a triangle drop out.
+    for (int axis = 0; axis < 3; ++axis) {
+        Ops::Float lo = Ops::broadcast(kInfinity), hi = Ops::broadcast(-kInfinity);
+        for (int v = 0; v < 3; ++v) {
+            lo = Ops::min(field(3 * v + axis), lo);
+            hi = Ops::max(field(3 * v + axis), hi);
+        }
+        box.lo[axis] = std::min(box.lo[axis], Ops::reduce_min(lo));
+        box.hi[axis] = std::max(box.hi[axis], Ops::reduce_max(hi));
+    }
+    return box;
+}
+#endif
+
 template <int W>
 struct WideRefit {
     const Geometry& geometry;
@@ -110,21 +180,8 @@ struct WideRefit {
     Box3f leaf(std::uint32_t first_block, std::uint32_t prim_count) const {
         Box3f box;
         const std::uint32_t end = first_block + block_count(prim_count, W);
-        for (std::uint32_t b = first_block; b < end; ++b) {
-            TriangleBlock<W>& block = blocks[b];
-            bool spheres = false;
-            for (int lane = 0; lane < W; ++lane) {
-                write_block_lane(geometry, block.prim[lane], lane, block);
-                spheres |= block.prim[lane] >= geometry.triangles.size() &&
-                           block.prim[lane] != TriangleBlock<W>::kNoPrimitive;
-            }
-            box.extend(block_triangle_bounds(block));
-            for (int lane = 0; spheres && lane < W; ++lane) {
-                const std::uint32_t prim = block.prim[lane];
-                if (prim >= geometry.triangles.size() && prim != TriangleBlock<W>::kNoPrimitive)
-                    box.extend(primitive_bounds(geometry, prim));
-            }
-        }
+        for (std::uint32_t b = first_block; b < end; ++b)
+            box.extend(rewrite_block(geometry, blocks[b]));
         return grown(box, margin);
     }
 

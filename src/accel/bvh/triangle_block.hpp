@@ -59,30 +59,6 @@ void write_block_lane(const Geometry& geometry, std::uint32_t prim, int lane, Tr
     }
 }
 
-// The box of a block's triangles, read from its lanes: a lane without a triangle (NaN vertices) drops out,
-// since `x < y ? x : y` keeps y whenever x is NaN (the form minps and maxps compute, so the lane loops
-// vectorise).
-template <int K>
-[[nodiscard]] Box3f block_triangle_bounds(const TriangleBlock<K>& block) {
-    Box3f box;
-    for (int axis = 0; axis < 3; ++axis) {
-        float lo[K], hi[K];
-        for (int lane = 0; lane < K; ++lane) {
-            lo[lane] = kInfinity, hi[lane] = -kInfinity;
-            for (int v = 0; v < 3; ++v) {
-                const float x = block.vertex[v][axis][lane];
-                lo[lane] = x < lo[lane] ? x : lo[lane];
-                hi[lane] = x > hi[lane] ? x : hi[lane];
-            }
-        }
-        for (int lane = 0; lane < K; ++lane) {
-            box.lo[axis] = lo[lane] < box.lo[axis] ? lo[lane] : box.lo[axis];
-            box.hi[axis] = hi[lane] > box.hi[axis] ? hi[lane] : box.hi[axis];
-        }
-    }
-    return box;
-}
-
 // Appends the blocks of one leaf: its primitives in order, K per block, the last block padded.
 template <int K>
 void append_leaf_blocks(const Geometry& geometry, std::span<const std::uint32_t> prims,
