@@ -132,6 +132,19 @@ struct UpdateReport {
 };
 
 class World;
+class CudaTracer;
+class BvhAccel;
+namespace plucker {
+struct PluckerLayout;
+}
+
+// The arrays of a structure that other code reads as they are: the GPU tracer uploads a binary BVH or a
+// Pluecker octree (CudaTracer), a `.plo` file stores a Pluecker octree (World::save_structure). A structure
+// names the ones it has; the others are null.
+struct ExportedLayout {
+    const BvhAccel* bvh = nullptr;
+    const plucker::PluckerLayout* plucker = nullptr;
+};
 
 class Accel {
   public:
@@ -197,11 +210,17 @@ class Accel {
     // update() of a structure this one is made of (a packet structure's single-ray one), on geometry that
     // update() has checked.
     UpdateReport update_held(Accel& held, const Geometry& geometry) const;
+    // The layout of a structure this one is made of, which it traces as it is.
+    [[nodiscard]] static ExportedLayout layout_of(const Accel& held) { return held.exported_layout(); }
 
   private:
     // World::update_vertices checks the positions it is given and takes the box of the triangles it flattens
     // from them, so it updates through update_within instead of going over every triangle again.
     friend class World;
+    friend class CudaTracer;
+
+    // The arrays this structure lends as they are; none by default.
+    [[nodiscard]] virtual ExportedLayout exported_layout() const { return {}; }
 
     // The box of `geometry`'s primitives that can be hit; throws std::invalid_argument for a coordinate
     // outside the contract's domain.

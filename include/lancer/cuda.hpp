@@ -50,8 +50,9 @@ struct CudaTrace {
 
 class CudaTracer {
   public:
-    // `accel` is a built `plucker` (kernel Plucker) or `bvh` (the others) on `geometry`, with `test` its
-    // triangle test. Uploads the arrays once. Throws CudaError (no device, a CUDA call failed) or
+    // `accel` is a built `plucker` or `plucker_packet` (kernel Plucker), or a `bvh` or `bvh_packet` (the
+    // others) on `geometry`, with `test` its triangle test: the packet structures lend their single-ray
+    // structure's arrays. Uploads the arrays once. Throws CudaError (no device, a CUDA call failed) or
     // std::invalid_argument (a structure or scene the kernels do not trace: another structure, spheres).
     CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTest test, CudaKernel kernel);
     ~CudaTracer();

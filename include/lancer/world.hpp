@@ -40,7 +40,8 @@ class World {
     // replaces the test the file was built with. Throws StructureFileError, std::bad_alloc.
     [[nodiscard]] static World load_structure(const std::filesystem::path& file,
                                               std::optional<TriangleTest> triangle_test = std::nullopt);
-    // Writes the structure and its geometry as a `.plo` file; only the `plucker` structure can be written.
+    // Writes the structure and its geometry as a `.plo` file; only the Pluecker octree (`plucker`,
+    // `plucker_packet`) can be written.
     // Throws StructureFileError.
     void save_structure(const std::filesystem::path& file) const;
 

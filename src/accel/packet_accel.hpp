@@ -25,6 +25,8 @@ class PacketAccel : public Accel {
         geometry_ = geometry;
         return update_held(single_ray_, geometry);
     }
+    // The single-ray structure's arrays, which the packets trace untouched.
+    [[nodiscard]] ExportedLayout exported_layout() const override { return layout_of(single_ray_); }
 
     SingleRay single_ray_;
     Geometry geometry_;

@@ -104,11 +104,12 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTes
     impl_->kernel = kernel;
     impl_->bounds = accel.bounds();
     impl_->scene.watertight = test == TriangleTest::Watertight;
+    const ExportedLayout exported = accel.exported_layout();
     if (kernel == CudaKernel::Plucker) {
-        const auto* plucker = dynamic_cast<const PluckerAccel*>(&accel);
-        if (plucker == nullptr)
-            throw std::invalid_argument("cuda: the plucker kernel traces a `plucker` structure");
-        const plucker::PluckerLayout& layout = plucker->layout();
+        if (exported.plucker == nullptr)
+            throw std::invalid_argument(
+                "cuda: the plucker kernel traces a `plucker` or `plucker_packet` structure");
+        const plucker::PluckerLayout& layout = *exported.plucker;
         plucker::PluckerView view = gpu::plucker_view(layout);  // checks the primitives
         view.cells = impl_->cells.upload(layout.cells);
         view.primitives = impl_->primitives.upload(layout.primitives);
@@ -119,11 +120,10 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTes
         gpu::upload_plucker_tables(plucker::kTables);
         return;
     }
-    const auto* bvh = dynamic_cast<const BvhAccel*>(&accel);
-    if (bvh == nullptr)
+    if (exported.bvh == nullptr)
         throw std::invalid_argument("cuda: the " + std::string(cuda_kernel_name(kernel)) +
-                                    " kernel traces a `bvh` structure");
-    const gpu::FlatBvh flat = gpu::flatten_bvh(*bvh, geometry);
+                                    " kernel traces a `bvh` or `bvh_packet` structure");
+    const gpu::FlatBvh flat = gpu::flatten_bvh(*exported.bvh, geometry);
     impl_->scene.bvh = {impl_->nodes.upload(flat.nodes), static_cast<std::uint32_t>(flat.nodes.size()),
                         impl_->triangles.upload(flat.triangles)};
 }

@@ -137,13 +137,14 @@ World World::load_structure(const std::filesystem::path& file, std::optional<Tri
 }
 
 void World::save_structure(const std::filesystem::path& file) const {
-    const auto* plucker = dynamic_cast<const PluckerAccel*>(accel_.get());
-    if (plucker == nullptr) {
+    const plucker::PluckerLayout* layout = accel_->exported_layout().plucker;
+    if (layout == nullptr) {
         throw StructureFileError(file.string() +
-                                 ": only the plucker structure can be saved (this world's is " +
+                                 ": only the plucker structures (plucker, plucker_packet) can be saved (this "
+                                 "world's is " +
                                  std::string(accel_->name()) + ")");
     }
-    plucker::write_plucker_file(file, geometry_->view(), plucker->layout(), options_.triangle_test);
+    plucker::write_plucker_file(file, geometry_->view(), *layout, options_.triangle_test);
 }
 
 }  // namespace lancer

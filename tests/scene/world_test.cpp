@@ -109,16 +109,30 @@ TEST_F(WorldTest, SavedStructureLoadsBackWithTheSameAnswers) {
               TriangleTest::MollerTrumbore);
 }
 
-TEST_F(WorldTest, OnlyThePluckerStructureIsSaved) {
-    const World world(test_scene(), "bvh", {});
-    try {
-        world.save_structure(dir_ / "bvh.plo");
-        FAIL() << "a bvh was saved";
-    } catch (const StructureFileError& error) {
-        EXPECT_NE(std::string(error.what()).find("only the plucker structure"), std::string::npos)
-            << error.what();
+// The packet walk traces the plucker structure's arrays as they are, so it saves them too.
+TEST_F(WorldTest, APluckerPacketWorldSavesItsOctree) {
+    const World world(test_scene(), "plucker_packet", build_options(TriangleTest::Watertight));
+    const std::filesystem::path file = dir_ / "packet.plo";
+    world.save_structure(file);
+    const World loaded = World::load_structure(file);
+    EXPECT_EQ(loaded.accel().name(), "plucker");
+    const std::vector<Ray> rays = test_rays(world);
+    expect_same_hits(trace(world, rays), trace(loaded, rays));
+}
+
+TEST_F(WorldTest, OnlyThePluckerStructuresAreSaved) {
+    for (const std::string_view name : {"bvh", "bvh_packet", "bvh8", "grid"}) {
+        const World world(test_scene(), name, {});
+        const std::filesystem::path file = dir_ / (std::string(name) + ".plo");
+        try {
+            world.save_structure(file);
+            ADD_FAILURE() << name << " was saved";
+        } catch (const StructureFileError& error) {
+            EXPECT_NE(std::string(error.what()).find("only the plucker structures"), std::string::npos)
+                << error.what();
+        }
+        EXPECT_FALSE(std::filesystem::exists(file)) << name;
     }
-    EXPECT_FALSE(std::filesystem::exists(dir_ / "bvh.plo"));
 }
 
 TEST_F(WorldTest, ADamagedFileIsAStructureFileError) {

@@ -71,6 +71,7 @@ class BvhAccel final : public SingleRayAccel<BvhAccel> {
 
     void build_from(const Geometry& geometry, const BuildOptions& options);
     UpdateReport update_from(const Geometry& geometry);
+    [[nodiscard]] ExportedLayout exported_layout() const override { return {.bvh = this}; }
     // SingleRayAccel's contract.
     template <bool kAnyHit, bool kCount, class TriangleTestT>
     bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;

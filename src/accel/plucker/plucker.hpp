@@ -58,6 +58,7 @@ class PluckerAccel final : public Accel {
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                         TraversalCounters* counters) const override;
 
+    [[nodiscard]] ExportedLayout exported_layout() const override { return {.plucker = &layout_}; }
     void compute_layout_stats();
 
     Geometry geometry_;
