@@ -4,7 +4,9 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
+#include "core/checked_points.hpp"
 #include "core/parallel.hpp"
 #include "lancer/scene.hpp"
 
@@ -94,10 +96,6 @@ namespace {
 // Triangles per task when a mesh is flattened again.
 constexpr std::size_t kFlattenGrain = 1 << 14;
 
-}  // namespace
-
-namespace {
-
 // Whether every vertex of `mesh` is a corner of one of its triangles: then the box of its positions is the
 // box of its triangles.
 bool uses_every_vertex(const TriangleMesh& mesh) {
@@ -143,31 +141,20 @@ void SceneGeometry::refresh_mesh(std::size_t mesh_index, const TriangleMesh& mes
     if (mesh.triangle_count() != mesh_first_triangle_.at(mesh_index + 1) - first)
         throw std::invalid_argument("SceneGeometry::refresh_mesh: the mesh's triangle count changed");
     // In parallel: an animation flattens its meshes every frame. The box of the triangles is that of the
-    // positions when every vertex is a corner, and otherwise is taken while the triangles are written (box
-    // extents are exact whatever the chunks); taking it per triangle doubled the time of the flattening.
-    if (mesh_uses_every_vertex_[mesh_index]) {
-        parallel::for_each_chunk(0, mesh.triangle_count(), kFlattenGrain,
-                                 [&](std::size_t from, std::size_t to) {
-                                     for (std::size_t i = from; i < to; ++i)
-                                         triangles_[first + i] = mesh.triangle(i);
-                                 });
-        mesh_bounds_[mesh_index] = positions_box;
-        return;
-    }
-    mesh_bounds_[mesh_index] = parallel::reduce(
-        0, mesh.triangle_count(), kFlattenGrain, Box3f{},
-        [&](std::size_t from, std::size_t to, Box3f box) {
-            for (std::size_t i = from; i < to; ++i) {
-                const Triangle triangle = mesh.triangle(i);
-                triangles_[first + i] = triangle;
-                box.extend(triangle.bounds());
-            }
-            return box;
-        },
-        [](Box3f a, const Box3f& b) {
-            a.extend(b);
-            return a;
-        });
+    // positions when every vertex is a corner; otherwise it is taken from the triangles just written, with
+    // the vectorised check the structures use. Taken triangle by triangle as they were written, it doubled
+    // the time of the flattening.
+    parallel::for_each_chunk(0, mesh.triangle_count(), kFlattenGrain, [&](std::size_t from, std::size_t to) {
+        for (std::size_t i = from; i < to; ++i)
+            triangles_[first + i] = mesh.triangle(i);
+    });
+    static_assert(sizeof(Triangle) == 9 * sizeof(float) && std::is_standard_layout_v<Triangle>);
+    mesh_bounds_[mesh_index] =
+        mesh_uses_every_vertex_[mesh_index]
+            ? positions_box
+            : check_points(
+                  {reinterpret_cast<const float*>(triangles_.data() + first), 9 * mesh.triangle_count()}, 3)
+                  .box;
 }
 
 std::pair<std::size_t, std::size_t> SceneGeometry::locate_triangle(std::size_t global_index) const {

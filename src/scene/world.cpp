@@ -139,10 +139,9 @@ World World::load_structure(const std::filesystem::path& file, std::optional<Tri
 void World::save_structure(const std::filesystem::path& file) const {
     const plucker::PluckerLayout* layout = accel_->exported_layout().plucker;
     if (layout == nullptr) {
-        throw StructureFileError(file.string() +
-                                 ": only the plucker structures (plucker, plucker_packet) can be saved (this "
-                                 "world's is " +
-                                 std::string(accel_->name()) + ")");
+        const std::string accel_name(accel_->name());
+        throw StructureFileError(file.string() + ": only the plucker structures (plucker, plucker_packet) " +
+                                 "can be saved (this world's is " + accel_name + ")");
     }
     plucker::write_plucker_file(file, geometry_->view(), *layout, options_.triangle_test);
 }

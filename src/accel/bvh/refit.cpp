@@ -97,24 +97,15 @@ double normalised_cost(const Refitted& root) {
     return root_area > 0.0 ? root.weighted_area / root_area : static_cast<double>(root.references);
 }
 
-// A block's lanes rewritten from the moved triangles; returns the tight box of its primitives. Sphere and
-// padding lanes keep the NaN vertices the build wrote.
+// A block's lanes rewritten from the moved triangles, as the build writes them (write_block_lane); returns
+// the tight box of its primitives.
 template <int W>
 Box3f rewrite_block(const Geometry& geometry, TriangleBlock<W>& block) {
     Box3f box;
     for (int lane = 0; lane < W; ++lane) {
         const std::uint32_t prim = block.prim[lane];
-        if (prim < geometry.triangles.size()) {
-            const Triangle& triangle = geometry.triangles[prim];
-            for (int axis = 0; axis < 3; ++axis) {
-                block.vertex[0][axis][lane] = triangle.v0[axis];
-                block.vertex[1][axis][lane] = triangle.v1[axis];
-                block.vertex[2][axis][lane] = triangle.v2[axis];
-            }
-            box.extend(triangle.bounds());
-        } else if (prim != TriangleBlock<W>::kNoPrimitive) {
-            box.extend(primitive_bounds(geometry, prim));
-        }
+        write_block_lane(geometry, prim, lane, block);
+        if (prim != TriangleBlock<W>::kNoPrimitive) box.extend(primitive_bounds(geometry, prim));
     }
     return box;
 }
