@@ -557,11 +557,17 @@ py::dict RaycastingScene::stats() {
         stats = committed().stats();
         memory_bytes = committed().memory_bytes();
     }
-    return py::dict("accel"_a = accel_name_, "primitives"_a = stats.primitives, "nodes"_a = stats.nodes,
-                    "leaves"_a = stats.leaves, "references"_a = stats.references,
-                    "max_depth"_a = stats.max_depth, "build_ms"_a = stats.build_ms,
-                    "sah_cost"_a = stats.sah_cost, "sah_ratio"_a = stats.sah_ratio,
-                    "memory_bytes"_a = memory_bytes);
+    // The structure's own figures (`lancer stats`'), counts as ints.
+    py::dict answer("accel"_a = accel_name_, "primitives"_a = stats.primitives,
+                    "build_ms"_a = stats.build_ms);
+    for (const AccelFigure& figure : stats.figures) {
+        if (figure.whole)
+            answer[figure.key.c_str()] = static_cast<std::uint64_t>(figure.value);
+        else
+            answer[figure.key.c_str()] = figure.value;
+    }
+    answer["memory_bytes"] = memory_bytes;
+    return answer;
 }
 
 }  // namespace lancer::python

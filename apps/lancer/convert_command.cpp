@@ -30,7 +30,8 @@ void run(const ConvertOptions& options) {
     }
     const AccelStats stats = world.accel().stats();
     fmt::print("{}: {} primitives, {} leaves (max depth {}), build {:.1f} ms\n", options.scene_file,
-               world.geometry().view().size(), stats.leaves, stats.max_depth, prepared.build_ms);
+               world.geometry().view().size(), stats.count("leaves"), stats.count("max_depth"),
+               prepared.build_ms);
     fmt::print("wrote {} ({:.2f} MB structure) in {:.1f} ms\n", options.output,
                static_cast<double>(world.accel().memory_bytes()) / (1024.0 * 1024.0), watch.elapsed_ms());
 }

@@ -26,6 +26,20 @@ struct RayCost {
     double trace_ms = 0.0;
 };
 
+// The width of the key column of the printed statistics: the longest figure key and then some.
+constexpr int kKeyWidth = 20;
+
+std::string figure_text(const AccelFigure& figure) {
+    if (figure.whole) return fmt::format("{}", static_cast<std::uint64_t>(figure.value));
+    return fmt::format("{:.3f}", figure.value);
+}
+
+// A count as a JSON integer, any other value in the shortest form that reads back the same.
+std::string figure_json(const AccelFigure& figure) {
+    if (figure.whole) return fmt::format("{}", static_cast<std::uint64_t>(figure.value));
+    return fmt::format("{}", figure.value);
+}
+
 // The canonical view of shared/bench/VIEWS.md (or the scene's camera), traced once with counters on.
 RayCost trace_view(const Accel& accel, const Scene& scene, int width, int height) {
     Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds(), width, height);
@@ -56,18 +70,15 @@ void run(const StatsOptions& options) {
     const std::size_t primitives = prepared.world.geometry().view().size();
     const double memory_mb = static_cast<double>(accel.memory_bytes()) / (1024.0 * 1024.0);
 
-    fmt::print("scene        {} ({} primitives), load {:.1f} ms\n", options.scene_file, primitives,
-               prepared.load_ms);
-    fmt::print("accel        {}\n", accel.name());
-    fmt::print("build        {:.1f} ms ({:.2f} Mprims/s)\n", prepared.build_ms,
+    fmt::print("{:<{}} {} ({} primitives), load {:.1f} ms\n", "scene", kKeyWidth, options.scene_file,
+               primitives, prepared.load_ms);
+    fmt::print("{:<{}} {}\n", "accel", kKeyWidth, accel.name());
+    fmt::print("{:<{}} {:.1f} ms ({:.2f} Mprims/s)\n", "build", kKeyWidth, prepared.build_ms,
                prepared.build_ms > 0.0 ? static_cast<double>(primitives) / (prepared.build_ms * 1e3) : 0.0);
-    fmt::print("nodes        {} ({} leaves, {} empty)\n", stats.nodes, stats.leaves, stats.empty_leaves);
-    fmt::print("depth        max {}, mean leaf depth {:.2f}\n", stats.max_depth, stats.mean_depth);
-    fmt::print("refs/leaf    mean {:.2f}, max {}\n", stats.mean_refs_per_leaf, stats.max_refs_per_leaf);
-    fmt::print("references   {} ({} duplicates)\n", stats.references,
-               stats.references > primitives ? stats.references - primitives : 0);
-    fmt::print("SAH cost     {:.3f}\n", stats.sah_cost);
-    fmt::print("memory       {:.3f} MB", memory_mb);
+    // The structure's own figures, as it names and explains them.
+    for (const AccelFigure& figure : stats.figures)
+        fmt::print("{:<{}} {:>12}  {}\n", figure.key, kKeyWidth, figure_text(figure), figure.help);
+    fmt::print("{:<{}} {:.3f} MB", "memory", kKeyWidth, memory_mb);
     for (const auto& [array, bytes] : stats.memory_by_array) {
         fmt::print(", {} {:.3f} MB", array, static_cast<double>(bytes) / (1024.0 * 1024.0));
     }
@@ -78,11 +89,10 @@ void run(const StatsOptions& options) {
         const auto [width, height] = parse_size(options.size);
         cost = trace_view(accel, prepared.world.scene(), width, height);
         const double rays = static_cast<double>(cost.rays);
-        fmt::print(
-            "view         {}x{}, {:.1f}% hits, {:.2f} nodes/ray, {:.2f} prims/ray (one thread, counting)\n",
-            width, height, 100.0 * static_cast<double>(cost.hits) / rays,
-            static_cast<double>(cost.counters.nodes_visited) / rays,
-            static_cast<double>(cost.counters.prims_tested) / rays);
+        fmt::print("{:<{}} {}x{}, {:.1f}% hits, {:.2f} nodes/ray, {:.2f} prims/ray (one thread, counting)\n",
+                   "view", kKeyWidth, width, height, 100.0 * static_cast<double>(cost.hits) / rays,
+                   static_cast<double>(cost.counters.nodes_visited) / rays,
+                   static_cast<double>(cost.counters.prims_tested) / rays);
     }
 
     if (!options.json_file.empty()) {
@@ -90,16 +100,13 @@ void run(const StatsOptions& options) {
         for (const auto& [array, bytes] : stats.memory_by_array) {
             memory_json += fmt::format("{}\"{}\": {}", memory_json.empty() ? "" : ", ", array, bytes);
         }
-        std::string json = fmt::format(
-            "{{\"scene\": \"{}\", \"accel\": \"{}\", \"primitives\": {}, \"build_ms\": {:.3f}, \"nodes\": "
-            "{}, "
-            "\"leaves\": {}, \"empty_leaves\": {}, \"max_depth\": {}, \"mean_depth\": {:.4f}, "
-            "\"mean_refs_per_leaf\": {:.4f}, \"max_refs_per_leaf\": {}, \"references\": {}, \"sah_cost\": "
-            "{:.6f}, "
-            "\"memory_bytes\": {}, \"memory_by_array\": {{{}}}",
-            options.scene_file, accel.name(), primitives, prepared.build_ms, stats.nodes, stats.leaves,
-            stats.empty_leaves, stats.max_depth, stats.mean_depth, stats.mean_refs_per_leaf,
-            stats.max_refs_per_leaf, stats.references, stats.sah_cost, accel.memory_bytes(), memory_json);
+        std::string json =
+            fmt::format("{{\"scene\": \"{}\", \"accel\": \"{}\", \"primitives\": {}, \"build_ms\": {:.3f}",
+                        options.scene_file, accel.name(), primitives, prepared.build_ms);
+        for (const AccelFigure& figure : stats.figures)
+            json += fmt::format(", \"{}\": {}", figure.key, figure_json(figure));
+        json += fmt::format(", \"memory_bytes\": {}, \"memory_by_array\": {{{}}}", accel.memory_bytes(),
+                            memory_json);
         if (options.rays) {
             const double rays = static_cast<double>(cost.rays);
             json += fmt::format(

@@ -81,22 +81,29 @@ struct BuildOptionInfo {
     return options;
 }
 
-// Statistics of a built structure (seed 003's counts; every field a structure does not have stays 0).
+// One figure of a built structure's statistics, named and explained by the structure itself: `lancer stats`,
+// its JSON and the Python module's stats() list a structure's figures as it gives them, so that a structure
+// reports what it has (a grid its cells, a tree its depth, Embree none) without a field here for each.
+struct AccelFigure {
+    std::string key;  // snake_case: the JSON's and Python's key
+    double value = 0.0;
+    bool whole = false;  // a count, printed without decimals
+    std::string help;    // what it measures, one phrase
+};
+
+// Statistics of a built structure (seed 003's counts).
 struct AccelStats {
     double build_ms = 0.0;
     std::size_t primitives = 0;
-    std::size_t nodes = 0;  // inner nodes and leaves, or cells
-    std::size_t leaves = 0;
-    std::size_t empty_leaves = 0;
-    std::size_t references = 0;  // primitive references stored in leaves (duplicates included)
-    int max_depth = 0;
-    double mean_depth = 0.0;
-    double mean_refs_per_leaf = 0.0;
-    std::size_t max_refs_per_leaf = 0;
-    double sah_cost = 0.0;
-    // A refitted BVH's sah_cost over its cost when last built (UpdateReport::sah_ratio); 1 otherwise.
-    double sah_ratio = 1.0;
+    std::vector<AccelFigure> figures;                                  // the structure's own, in its order
     std::vector<std::pair<std::string, std::size_t>> memory_by_array;  // bytes, trace-time arrays only
+
+    // The figure named `key`, or null where the structure has none.
+    [[nodiscard]] const AccelFigure* find(std::string_view key) const;
+    // The figure's value; throws std::out_of_range naming the key where the structure has no such figure.
+    [[nodiscard]] double value(std::string_view key) const;
+    // The same for a count.
+    [[nodiscard]] std::size_t count(std::string_view key) const;
 };
 
 // Per-ray work counters, summed over a batch. Structures count only when handed a non-null pointer, and the
@@ -126,8 +133,8 @@ struct UpdateReport {
     UpdateMethod method = UpdateMethod::Rebuild;  // a refitting structure rebuilds past its threshold
     double ms = 0.0;  // the whole update: the checks, and World::update_vertices's copy and flattening
     double structure_ms = 0.0;  // the structure's own part of it: the refit or the rebuild
-    // SAH cost of the tree as it now is over its cost when it was last built (AccelStats::sah_ratio): 1 after
-    // a rebuild, and for the structures without an SAH cost.
+    // SAH cost of the tree as it now is over its cost when it was last built (the `sah_ratio` figure): 1
+    // after a rebuild, and for the structures without an SAH cost.
     double sah_ratio = 1.0;
 };
 

@@ -319,6 +319,17 @@ def test_plucker_structure_files_load_back_with_the_same_answers(spheres, tmp_pa
         lancer.RaycastingScene.load_structure(str(tmp_path / "broken.plo"))
 
 
+def test_stats_are_the_structures_own_figures(spheres):
+    triangle_count = len(spheres[0][1]) + len(spheres[1][1])
+    bvh = scene_of("bvh", *spheres).stats()
+    assert bvh["accel"] == "bvh" and bvh["primitives"] == triangle_count
+    assert isinstance(bvh["leaves"], int) and 1 < bvh["leaves"] < bvh["nodes"]
+    assert bvh["references"] == triangle_count and bvh["sah_ratio"] == 1.0 and bvh["sah_cost"] > 0
+    assert bvh["memory_bytes"] > 0
+    grid = scene_of("grid", *spheres).stats()
+    assert grid["cells"] > 0 and "max_depth" not in grid and "leaves" not in grid
+
+
 def waved(vertices, phase, amplitude=0.3):
     """Vertices lifted along y by a sine of x: every triangle moves, the triangles stay."""
     moved = vertices.copy()

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 
@@ -141,6 +142,22 @@ namespace {
 constexpr std::size_t kRayChunk = 4096;
 
 }  // namespace
+
+const AccelFigure* AccelStats::find(std::string_view key) const {
+    const auto figure = std::find_if(figures.begin(), figures.end(),
+                                     [&](const AccelFigure& candidate) { return candidate.key == key; });
+    return figure == figures.end() ? nullptr : &*figure;
+}
+
+double AccelStats::value(std::string_view key) const {
+    const AccelFigure* figure = find(key);
+    if (figure == nullptr) throw std::out_of_range("the structure has no figure '" + std::string(key) + "'");
+    return figure->value;
+}
+
+std::size_t AccelStats::count(std::string_view key) const {
+    return static_cast<std::size_t>(value(key));
+}
 
 void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads) {
     check_batch(rays.size(), hits.size());

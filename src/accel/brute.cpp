@@ -1,5 +1,7 @@
 #include "accel/brute.hpp"
 
+#include "accel/tree_shape.hpp"
+
 namespace lancer {
 
 template class SingleRayAccel<BruteAccel>;
@@ -7,12 +9,7 @@ template class SingleRayAccel<BruteAccel>;
 AccelStats BruteAccel::stats() const {
     AccelStats stats;
     stats.primitives = geometry_.size();
-    stats.nodes = 1;
-    stats.leaves = 1;
-    stats.empty_leaves = geometry_.size() == 0 ? 1 : 0;
-    stats.references = geometry_.size();
-    stats.mean_refs_per_leaf = static_cast<double>(geometry_.size());
-    stats.max_refs_per_leaf = geometry_.size();
+    stats.figures = {count_figure("references", geometry_.size(), "primitives each ray is tested against")};
     return stats;
 }
 

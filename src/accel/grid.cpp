@@ -8,6 +8,7 @@
 
 #include "accel/build_util.hpp"
 #include "accel/kdtree_build.hpp"
+#include "accel/tree_shape.hpp"
 #include "core/parallel.hpp"
 
 namespace lancer {
@@ -323,33 +324,40 @@ AccelStats GridAccel::stats() const {
     stats.build_ms = build_ms_;
     stats.primitives = geometry_.size();
     const std::size_t cells = cell_count();
-    stats.nodes = cells;
-    stats.leaves = cells;
-    stats.references = references_.size();
+    std::size_t empty_cells = 0, max_refs = 0;
     for (std::size_t cell = 0; cell < cells; ++cell) {
         const std::size_t count = cell_begin_[cell + 1] - cell_begin_[cell];
-        if (count == 0) ++stats.empty_leaves;
-        stats.max_refs_per_leaf = std::max(stats.max_refs_per_leaf, count);
+        if (count == 0) ++empty_cells;
+        max_refs = std::max(max_refs, count);
     }
     // Over non-empty cells: what a ray pays in a cell where it has anything to test.
-    const std::size_t full_cells = cells - stats.empty_leaves;
-    if (full_cells > 0)
-        stats.mean_refs_per_leaf = static_cast<double>(references_.size()) / static_cast<double>(full_cells);
-    // max_depth and mean_depth stay 0: a grid has no hierarchy.
+    const std::size_t full_cells = cells - empty_cells;
+    const double mean_refs =
+        full_cells > 0 ? static_cast<double>(references_.size()) / static_cast<double>(full_cells) : 0.0;
     // SAH cost of the grid seen as a one-level tree (MacDonald & Booth 1990): a ray crossing the box enters
     // cell c with probability SA(c) / SA(box), then steps once and tests its references:
     //   C = sum_c SA(c) / SA(box) (C_step + C_isect n_c) = SA(cell) / SA(box) (C_step cells + C_isect refs),
     // with the kd-tree's default constants (C_step = traversal_cost 15, C_isect = intersection_cost 20) so
     // that the two figures compare. 0 when the box has no area (a segment or a point).
     const double box_area = bounds_.surface_area();
+    double sah_cost = 0.0;
     if (cells > 0 && box_area > 0.0) {
         const KdTreeOptions constants;
         const double cx = cell_size_[0], cy = cell_size_[1], cz = cell_size_[2];
         const double cell_area = 2.0 * (cx * cy + cy * cz + cz * cx);
-        stats.sah_cost = cell_area / box_area *
-                         (constants.traversal_cost * static_cast<double>(cells) +
-                          constants.intersection_cost * static_cast<double>(references_.size()));
+        sah_cost = cell_area / box_area *
+                   (constants.traversal_cost * static_cast<double>(cells) +
+                    constants.intersection_cost * static_cast<double>(references_.size()));
     }
+    stats.figures = {
+        count_figure("cells", cells, "cells of the grid"),
+        count_figure("empty_cells", empty_cells, "cells that hold no primitive"),
+        count_figure("references", references_.size(),
+                     "primitive references in the cells, duplicates included"),
+        value_figure("mean_refs_per_cell", mean_refs, "mean references of the cells that hold any"),
+        count_figure("max_refs_per_cell", max_refs, "most references in one cell"),
+        value_figure("sah_cost", sah_cost,
+                     "the grid as a one-level tree (MacDonald & Booth), the kd-tree's step and test costs")};
     stats.memory_by_array = memory_by_array();
     return stats;
 }

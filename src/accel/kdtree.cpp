@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "accel/primitive_test.hpp"
+#include "accel/tree_shape.hpp"
 
 namespace lancer {
 namespace {
@@ -180,17 +181,18 @@ AccelStats KdTreeAccel::stats() const {
     AccelStats stats;
     stats.build_ms = build_ms_;
     stats.primitives = geometry_.size();
-    stats.nodes = tree_.nodes.size();
-    stats.leaves = built.leaves;
-    stats.empty_leaves = built.empty_leaves;
-    stats.references = built.references;
-    stats.max_depth = built.max_depth;
-    stats.mean_depth = built.mean_depth;
-    stats.mean_refs_per_leaf = built.mean_refs_per_leaf;  // over the non-empty leaves
-    stats.max_refs_per_leaf = built.max_refs_per_leaf;
-    // Ct SA(inner) + Ci N SA(leaf) summed and divided by SA(root), with the options' traversal_cost and
-    // intersection_cost and no empty bonus, whichever cost model built the tree, so that trees compare.
-    stats.sah_cost = built.sah_cost;
+    stats.figures = tree_figures({.nodes = tree_.nodes.size(),
+                                  .leaves = built.leaves,
+                                  .empty_leaves = built.empty_leaves,
+                                  .references = built.references,
+                                  .max_depth = built.max_depth,
+                                  .mean_depth = built.mean_depth,
+                                  .mean_refs_per_leaf = built.mean_refs_per_leaf,
+                                  .max_refs_per_leaf = built.max_refs_per_leaf});
+    // Whichever cost model built the tree, so that trees compare.
+    stats.figures.push_back(value_figure("sah_cost", built.sah_cost,
+                                         "Ct SA(inner) + Ci N SA(leaf) over SA(root), the options' costs, no "
+                                         "empty bonus"));
     stats.memory_by_array = {{"nodes", tree_.nodes.size() * sizeof(KdNode)},
                              {"references", tree_.references.size() * sizeof(std::uint32_t)}};
     return stats;

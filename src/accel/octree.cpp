@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "accel/primitive_test.hpp"
+#include "accel/tree_shape.hpp"
 
 namespace lancer {
 namespace {
@@ -87,8 +88,8 @@ void OctreeAccel::build_from(const Geometry& geometry, const BuildOptions& optio
 
     stats_ = AccelStats{};
     stats_.primitives = geometry.size();
-    stats_.nodes = nodes_.size();
-    stats_.references = references_.size();
+    TreeShape shape{.nodes = nodes_.size(), .references = references_.size()};
+    double sah_cost = 0.0;
     std::size_t depth_sum = 0, non_empty_leaves = 0;
     // SAH with unit costs, as the BVH's (docs/accel/bvh.md), so that the figures compare: the sum over inner
     // cells of A / A_root plus the sum over leaves of A / A_root times their references, where a level-l
@@ -96,24 +97,28 @@ void OctreeAccel::build_from(const Geometry& geometry, const BuildOptions& optio
     for (const OctreeCell& cell : octree.cells) {
         const double area_ratio = std::ldexp(1.0, -2 * cell.level);
         if (!cell.is_leaf()) {
-            stats_.sah_cost += area_ratio;
+            sah_cost += area_ratio;
             continue;
         }
-        ++stats_.leaves;
+        ++shape.leaves;
         depth_sum += cell.level;
-        stats_.max_depth = std::max(stats_.max_depth, static_cast<int>(cell.level));
-        stats_.max_refs_per_leaf = std::max<std::size_t>(stats_.max_refs_per_leaf, cell.ref_count());
-        stats_.sah_cost += area_ratio * cell.ref_count();
+        shape.max_depth = std::max(shape.max_depth, static_cast<int>(cell.level));
+        shape.max_refs_per_leaf = std::max<std::size_t>(shape.max_refs_per_leaf, cell.ref_count());
+        sah_cost += area_ratio * cell.ref_count();
         if (cell.ref_count() == 0)
-            ++stats_.empty_leaves;
+            ++shape.empty_leaves;
         else
             ++non_empty_leaves;
     }
-    stats_.mean_depth = static_cast<double>(depth_sum) / static_cast<double>(stats_.leaves);
+    shape.mean_depth = static_cast<double>(depth_sum) / static_cast<double>(shape.leaves);
     // Over the non-empty leaves: what a ray pays in a leaf it has to test (empty leaves cost no test).
-    stats_.mean_refs_per_leaf = non_empty_leaves == 0 ? 0.0
-                                                      : static_cast<double>(stats_.references) /
-                                                            static_cast<double>(non_empty_leaves);
+    shape.mean_refs_per_leaf =
+        non_empty_leaves == 0 ? 0.0
+                              : static_cast<double>(shape.references) / static_cast<double>(non_empty_leaves);
+    stats_.figures = tree_figures(shape);
+    stats_.figures.push_back(value_figure("sah_cost", sah_cost,
+                                          "unit costs, as the BVH's: inner cells' areas plus leaves' areas "
+                                          "times their references, over the root's"));
     stats_.memory_by_array = {{"nodes", nodes_.size() * sizeof(OctreeNode)},
                               {"references", references_.size() * sizeof(std::uint32_t)}};
 }

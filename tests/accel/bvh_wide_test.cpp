@@ -101,8 +101,8 @@ void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geo
     for (std::size_t prim = 0; prim < seen.size(); ++prim)
         ASSERT_EQ(seen[prim], 1) << "primitive " << prim;
     const AccelStats stats = bvh.stats();
-    EXPECT_EQ(stats.references, geometry.size());
-    EXPECT_EQ(stats.nodes, nodes.size() + stats.leaves);
+    EXPECT_EQ(stats.count("references"), geometry.size());
+    EXPECT_EQ(stats.count("nodes"), nodes.size() + stats.count("leaves"));
     EXPECT_EQ(bvh.memory_bytes(), nodes.size() * sizeof(WideBvhNode<W>) +
                                       bvh.blocks().size() * sizeof(typename WideBvhAccel<W>::Block));
 }
@@ -117,7 +117,8 @@ void check_structure(const Geometry& geometry) {
         expect_valid_wide_hierarchy(wide, geometry, leaf);
         // Binary leaves of one primitive: the subtrees of up to one block were merged into leaves.
         if (leaf == 1) {
-            EXPECT_EQ(wide.stats().max_refs_per_leaf, static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));
+            EXPECT_EQ(wide.stats().count("max_refs_per_leaf"),
+                      static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));
         }
     }
 }
@@ -157,7 +158,7 @@ void expect_leaves_hold_each_primitive_once(const Geometry& geometry, int max_le
         }
     }
     EXPECT_EQ(std::count(leaves_of.begin(), leaves_of.end(), 0), 0);
-    EXPECT_EQ(bvh.stats().references, references);
+    EXPECT_EQ(bvh.stats().count("references"), references);
     EXPECT_GT(references, geometry.size());  // the spatial splits did cut
 }
 
@@ -180,7 +181,7 @@ TEST(WideBvh, TinyScenesHaveOneRootNode) {
     Bvh4Accel empty;
     empty.build({}, {});
     EXPECT_TRUE(empty.nodes().empty());
-    EXPECT_EQ(empty.stats().leaves, 0u);
+    EXPECT_EQ(empty.stats().count("leaves"), 0u);
 }
 
 TEST(WideBvh, FewerNodesAndShallowerThanTheBinaryTree) {
@@ -195,15 +196,15 @@ TEST(WideBvh, FewerNodesAndShallowerThanTheBinaryTree) {
     const AccelStats b = binary.stats(), s4 = bvh4.stats(), s8 = bvh8.stats();
     // The binary leaves, fewer where subtrees of one block (4 or 8 primitives) were merged; collapsed inner
     // levels.
-    EXPECT_LT(s4.leaves, b.leaves);
-    EXPECT_LT(s8.leaves, s4.leaves);
-    EXPECT_LT(s4.nodes, b.nodes);
-    EXPECT_LT(s8.nodes, s4.nodes);
-    EXPECT_LT(s4.max_depth, b.max_depth);
-    EXPECT_LT(s8.max_depth, s4.max_depth);
-    EXPECT_LT(s4.mean_depth, b.mean_depth);
-    EXPECT_LT(s8.mean_depth, s4.mean_depth);
-    EXPECT_GT(s8.sah_cost, 0.0);
+    EXPECT_LT(s4.count("leaves"), b.count("leaves"));
+    EXPECT_LT(s8.count("leaves"), s4.count("leaves"));
+    EXPECT_LT(s4.count("nodes"), b.count("nodes"));
+    EXPECT_LT(s8.count("nodes"), s4.count("nodes"));
+    EXPECT_LT(s4.value("max_depth"), b.value("max_depth"));
+    EXPECT_LT(s8.value("max_depth"), s4.value("max_depth"));
+    EXPECT_LT(s4.value("mean_depth"), b.value("mean_depth"));
+    EXPECT_LT(s8.value("mean_depth"), s4.value("mean_depth"));
+    EXPECT_GT(s8.value("sah_cost"), 0.0);
 }
 
 // Binary leaves larger than a block (max_leaf_size 16) take several blocks, in a scene mixing spheres among
@@ -220,7 +221,8 @@ void check_multi_block_leaves(TriangleTest test) {
     options.group<BvhOptions>().max_leaf_size = 16;
     WideBvhAccel<W> wide;
     wide.build(geometry, options);
-    ASSERT_GT(wide.stats().max_refs_per_leaf, static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));
+    ASSERT_GT(wide.stats().count("max_refs_per_leaf"),
+              static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));
     BruteAccel brute;
     brute.build(geometry, options);
     for (const testing::RaySet& set : {testing::random_rays(geometry.bounds(), 4000, 5),

@@ -453,9 +453,9 @@ TEST(OctreeAccel, MaxDepthZeroIsOneLeafThatAgreesWithBruteForce) {
             OctreeAccel accel;
             accel.build(geometry, build_options_with(octree_options(0, 8), test));
             const AccelStats stats = accel.stats();
-            EXPECT_EQ(stats.nodes, 1u);
-            EXPECT_EQ(stats.leaves, 1u);
-            EXPECT_EQ(stats.references, geometry.size());
+            EXPECT_EQ(stats.count("nodes"), 1u);
+            EXPECT_EQ(stats.count("leaves"), 1u);
+            EXPECT_EQ(stats.count("references"), geometry.size());
             BruteAccel brute;
             brute.build(geometry, build_options(test));
             const Box3f bounds = geometry.bounds();
@@ -496,17 +496,18 @@ TEST(OctreeAccel, StatsMatchTheArrays) {
             max_depth = std::max<int>(max_depth, cell.level);
         }
         EXPECT_EQ(stats.primitives, scene.geometry().size());
-        EXPECT_EQ(stats.nodes, octree.cells.size());
-        EXPECT_EQ(stats.leaves, leaves);
-        EXPECT_EQ(stats.empty_leaves, empty);
-        EXPECT_EQ(stats.references, octree.references.size());
-        EXPECT_EQ(stats.references, references);
-        EXPECT_EQ(stats.max_refs_per_leaf, max_refs);
-        EXPECT_EQ(stats.max_depth, max_depth);
-        EXPECT_DOUBLE_EQ(stats.mean_depth, static_cast<double>(depth_sum) / static_cast<double>(leaves));
-        EXPECT_DOUBLE_EQ(stats.mean_refs_per_leaf,
+        EXPECT_EQ(stats.count("nodes"), octree.cells.size());
+        EXPECT_EQ(stats.count("leaves"), leaves);
+        EXPECT_EQ(stats.count("empty_leaves"), empty);
+        EXPECT_EQ(stats.count("references"), octree.references.size());
+        EXPECT_EQ(stats.count("references"), references);
+        EXPECT_EQ(stats.count("max_refs_per_leaf"), max_refs);
+        EXPECT_EQ(stats.value("max_depth"), max_depth);
+        EXPECT_DOUBLE_EQ(stats.value("mean_depth"),
+                         static_cast<double>(depth_sum) / static_cast<double>(leaves));
+        EXPECT_DOUBLE_EQ(stats.value("mean_refs_per_leaf"),
                          static_cast<double>(references) / static_cast<double>(leaves - empty));
-        EXPECT_NEAR(stats.sah_cost, sah, 1e-9 * sah);
+        EXPECT_NEAR(stats.value("sah_cost"), sah, 1e-9 * sah);
         EXPECT_GT(stats.build_ms, 0.0);
         std::size_t bytes = 0;
         for (const auto& [name, size] : stats.memory_by_array)

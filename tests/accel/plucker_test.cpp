@@ -306,7 +306,7 @@ TEST(PluckerBuild, IsDeterministicAndFollowsTheAutomaticDepth) {
     PluckerAccel a, b;
     a.build(scene.geometry(), {});
     b.build(scene.geometry(), {});
-    EXPECT_EQ(a.stats().max_depth, PluckerAccel::automatic_depth(scene.geometry().size()));
+    EXPECT_EQ(a.stats().value("max_depth"), PluckerAccel::automatic_depth(scene.geometry().size()));
     EXPECT_EQ(a.layout().cells, b.layout().cells);
     EXPECT_EQ(a.layout().locate, b.layout().locate);
     EXPECT_EQ(a.layout().cube_map.texels, b.layout().cube_map.texels);
@@ -318,13 +318,13 @@ TEST(PluckerBuild, TheUnconstrainedOctreeHasFewerLeavesAndTheSameStatistics) {
     PluckerAccel balanced, unconstrained;
     balanced.build(scene.geometry(), plucker_options(8, 2, true));
     unconstrained.build(scene.geometry(), plucker_options(8, 2, false));
-    EXPECT_GT(balanced.stats().leaves, unconstrained.stats().leaves);
+    EXPECT_GT(balanced.stats().count("leaves"), unconstrained.stats().count("leaves"));
     const Octree octree = plucker::recover_octree(balanced.layout());
     const auto leaf_count = static_cast<std::size_t>(std::count_if(
         octree.cells.begin(), octree.cells.end(), [](const OctreeCell& c) { return c.is_leaf(); }));
-    EXPECT_EQ(balanced.stats().leaves, leaf_count);
-    EXPECT_EQ(balanced.stats().nodes, octree.cells.size());
-    EXPECT_EQ(balanced.stats().references, balanced.layout().primitives.size());
+    EXPECT_EQ(balanced.stats().count("leaves"), leaf_count);
+    EXPECT_EQ(balanced.stats().count("nodes"), octree.cells.size());
+    EXPECT_EQ(balanced.stats().count("references"), balanced.layout().primitives.size());
     EXPECT_EQ(balanced.memory_bytes(),
               balanced.layout().cells.size() * 4 + balanced.layout().primitives.size() * 40 +
                   balanced.layout().boxes.size() * 36 + balanced.layout().cube_map.texels.size() * 4 +

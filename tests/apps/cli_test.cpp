@@ -484,6 +484,25 @@ TEST_F(Cli, InfoCountsTrianglesAfterFanTriangulation) {
     EXPECT_NE(result.output.find("triangles   3"), std::string::npos) << result.output;
 }
 
+// `lancer stats` prints the figures each structure gives of itself, and its JSON holds the same keys: a tree
+// its depth, a grid its cells and no depth.
+TEST_F(Cli, StatsPrintsEachStructuresOwnFigures) {
+    const fs::path mesh = write("mesh.off", kMesh), json = dir_ / "stats.json";
+    Result result = run("stats " + mesh.string() + " --accel grid --json " + json.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("cells "), std::string::npos) << result.output;
+    EXPECT_EQ(result.output.find("max_depth"), std::string::npos) << result.output;
+    std::stringstream text;
+    text << std::ifstream(json).rdbuf();
+    EXPECT_NE(text.str().find("\"cells\": "), std::string::npos) << text.str();
+    EXPECT_EQ(text.str().find("\"max_depth\""), std::string::npos) << text.str();
+
+    result = run("stats " + mesh.string() + " --accel bvh");
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    for (const char* key : {"leaves ", "max_depth ", "sah_cost ", "sah_ratio "})
+        EXPECT_NE(result.output.find(key), std::string::npos) << key << "\n" << result.output;
+}
+
 // `lancer info --options` prints the registry's structures and `--set` keys; the README holds the same
 // tables. Every printed row must be in the README's block, and every `--set` row of that block must be
 // printed (the structure rows may name Embree's, which a build without Embree does not print).

@@ -107,10 +107,7 @@ AccelStats BvhAccel::stats() const {
     AccelStats stats;
     stats.build_ms = build_ms_;
     stats.primitives = geometry_.size();
-    stats.nodes = nodes_.size();
-    stats.references = prim_indices_.size();
-    stats.sah_cost = bvh_sah_cost(nodes_);
-    stats.sah_ratio = sah_ratio_;
+    TreeShape shape{.nodes = nodes_.size(), .references = prim_indices_.size()};
     // Leaf depths by walking the depth-first layout with an explicit stack.
     std::vector<std::pair<std::uint32_t, int>> pending;
     if (!nodes_.empty()) pending.push_back({0, 0});
@@ -120,20 +117,16 @@ AccelStats BvhAccel::stats() const {
         pending.pop_back();
         const BvhNode& node = nodes_[index];
         if (node.is_leaf()) {
-            ++stats.leaves;
+            ++shape.leaves;
             depth_sum += depth;
-            stats.max_depth = std::max(stats.max_depth, depth);
-            stats.max_refs_per_leaf = std::max<std::size_t>(stats.max_refs_per_leaf, node.prim_count);
+            shape.max_depth = std::max(shape.max_depth, depth);
+            shape.max_refs_per_leaf = std::max<std::size_t>(shape.max_refs_per_leaf, node.prim_count);
         } else {
             pending.push_back({node.offset, depth + 1});
             pending.push_back({index + 1, depth + 1});
         }
     }
-    if (stats.leaves > 0) {
-        stats.mean_depth = depth_sum / static_cast<double>(stats.leaves);
-        // Every leaf holds at least one primitive: a BVH has no empty leaves.
-        stats.mean_refs_per_leaf = static_cast<double>(stats.references) / static_cast<double>(stats.leaves);
-    }
+    stats.figures = bvh_figures(shape, depth_sum, bvh_sah_cost(nodes_), sah_ratio_);
     stats.memory_by_array = {{"nodes", nodes_.size() * sizeof(BvhNode)},
                              {"prim_indices", prim_indices_.size() * sizeof(std::uint32_t)}};
     return stats;

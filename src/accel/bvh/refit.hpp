@@ -11,6 +11,7 @@
 #include "accel/bvh/bvh.hpp"
 #include "accel/bvh/triangle_block.hpp"
 #include "accel/bvh/wide.hpp"
+#include "accel/tree_shape.hpp"
 
 namespace lancer {
 
@@ -34,6 +35,24 @@ double refit_wide_bvh(const Geometry& geometry, std::vector<WideBvhNode<W>>& nod
 // (an empty one).
 [[nodiscard]] inline double refit_sah_ratio(double refitted_cost, double built_cost) {
     return built_cost > 0.0 ? refitted_cost / built_cost : 1.0;
+}
+
+// A BVH's figures (its AccelStats) from its walk's totals: the tree's shape with its means over the leaves
+// (every leaf of a BVH holds a primitive), the SAH cost and, after refits, its ratio to the cost as built.
+[[nodiscard]] inline std::vector<AccelFigure> bvh_figures(TreeShape shape, double depth_sum, double sah_cost,
+                                                          double sah_ratio) {
+    if (shape.leaves > 0) {
+        shape.mean_depth = depth_sum / static_cast<double>(shape.leaves);
+        shape.mean_refs_per_leaf = static_cast<double>(shape.references) / static_cast<double>(shape.leaves);
+    }
+    std::vector<AccelFigure> figures = tree_figures(shape);
+    figures.push_back(
+        value_figure("sah_cost", sah_cost,
+                     "unit node and primitive costs: nodes' areas plus leaves' areas times their "
+                     "primitives, over the root's"));
+    figures.push_back(
+        value_figure("sah_ratio", sah_ratio, "the SAH cost over the cost as last built, after refits"));
+    return figures;
 }
 
 // The SAH cost of a wide BVH: the sum over nodes of the area of the node's box, and over leaves of their

@@ -262,11 +262,11 @@ AccelStats WideBvhAccel<W>::stats() const {
     stats.primitives = geometry_.size();
     stats.memory_by_array = {{"nodes", nodes_.size() * sizeof(WideBvhNode<W>)},
                              {"blocks", blocks_.size() * sizeof(Block)}};
-    if (nodes_.empty()) return stats;
-
+    TreeShape shape;
     // Depths and counts in one walk; leaves live in their parents' slots, at the parent's depth + 1.
     double depth_sum = 0.0;
-    std::vector<std::pair<std::uint32_t, int>> pending = {{0, 0}};
+    std::vector<std::pair<std::uint32_t, int>> pending;
+    if (!nodes_.empty()) pending.push_back({0, 0});
     while (!pending.empty()) {
         const auto [index, depth] = pending.back();
         pending.pop_back();
@@ -277,18 +277,15 @@ AccelStats WideBvhAccel<W>::stats() const {
                 pending.push_back({node.child[slot], depth + 1});
                 continue;
             }
-            ++stats.leaves;
-            stats.references += node.prim_count[slot];
+            ++shape.leaves;
+            shape.references += node.prim_count[slot];
             depth_sum += depth + 1;
-            stats.max_depth = std::max(stats.max_depth, depth + 1);
-            stats.max_refs_per_leaf = std::max<std::size_t>(stats.max_refs_per_leaf, node.prim_count[slot]);
+            shape.max_depth = std::max(shape.max_depth, depth + 1);
+            shape.max_refs_per_leaf = std::max<std::size_t>(shape.max_refs_per_leaf, node.prim_count[slot]);
         }
     }
-    stats.nodes = nodes_.size() + stats.leaves;
-    stats.mean_depth = depth_sum / static_cast<double>(stats.leaves);
-    stats.mean_refs_per_leaf = static_cast<double>(stats.references) / static_cast<double>(stats.leaves);
-    stats.sah_cost = wide_bvh_sah_cost(nodes_);
-    stats.sah_ratio = sah_ratio_;
+    shape.nodes = nodes_.size() + shape.leaves;
+    stats.figures = bvh_figures(shape, depth_sum, wide_bvh_sah_cost(nodes_), sah_ratio_);
     return stats;
 }
 

@@ -8,6 +8,7 @@
 #include "accel/plucker/leaf_block.hpp"
 #include "accel/plucker/walk.hpp"
 #include "accel/primitive_test.hpp"
+#include "accel/tree_shape.hpp"
 
 namespace lancer {
 
@@ -59,8 +60,8 @@ void PluckerAccel::adopt(const Geometry& geometry, const BuildOptions& options, 
 void PluckerAccel::compute_layout_stats() {
     stats_ = AccelStats{};
     stats_.primitives = geometry_.size();
-    stats_.references = layout_.primitives.size();
-    stats_.nodes = layout_.locate.size();
+    TreeShape shape{.nodes = layout_.locate.size(), .references = layout_.primitives.size()};
+    double sah_cost = 0.0;
     std::vector<std::uint8_t> level(layout_.locate.size(), 0);
     std::size_t depth_sum = 0, non_empty = 0;
     for (std::size_t index = 0; index < layout_.locate.size(); ++index) {
@@ -68,24 +69,29 @@ void PluckerAccel::compute_layout_stats() {
         if (word & 1u) {
             for (std::uint32_t child = 0; child < 8; ++child)
                 level[(word >> 1) + child] = static_cast<std::uint8_t>(level[index] + 1);
-            stats_.sah_cost += std::ldexp(1.0, -2 * level[index]);
+            sah_cost += std::ldexp(1.0, -2 * level[index]);
             continue;
         }
         const std::uint32_t count = layout_.cells[(word >> 1) + plucker::kTriangleCount];
-        ++stats_.leaves;
+        ++shape.leaves;
         depth_sum += level[index];
-        stats_.max_depth = std::max<int>(stats_.max_depth, level[index]);
-        stats_.max_refs_per_leaf = std::max<std::size_t>(stats_.max_refs_per_leaf, count);
-        stats_.sah_cost += std::ldexp(1.0, -2 * level[index]) * count;
+        shape.max_depth = std::max<int>(shape.max_depth, level[index]);
+        shape.max_refs_per_leaf = std::max<std::size_t>(shape.max_refs_per_leaf, count);
+        sah_cost += std::ldexp(1.0, -2 * level[index]) * count;
         if (count == 0)
-            ++stats_.empty_leaves;
+            ++shape.empty_leaves;
         else
             ++non_empty;
     }
-    stats_.mean_depth =
-        stats_.leaves == 0 ? 0.0 : static_cast<double>(depth_sum) / static_cast<double>(stats_.leaves);
-    stats_.mean_refs_per_leaf =
-        non_empty == 0 ? 0.0 : static_cast<double>(stats_.references) / static_cast<double>(non_empty);
+    shape.mean_depth =
+        shape.leaves == 0 ? 0.0 : static_cast<double>(depth_sum) / static_cast<double>(shape.leaves);
+    shape.mean_refs_per_leaf =
+        non_empty == 0 ? 0.0 : static_cast<double>(shape.references) / static_cast<double>(non_empty);
+    stats_.figures = tree_figures(shape);
+    stats_.figures.push_back(
+        value_figure("sah_cost", sah_cost,
+                     "unit costs, as the octree's: inner cells' areas plus leaves' areas "
+                     "times their triangles, over the root's"));
     // The seed's four arrays (Table 3), then the point-location tree this implementation adds.
     stats_.memory_by_array = {
         {"cube map", layout_.cube_map.texels.size() * sizeof(std::uint32_t)},
