@@ -15,17 +15,6 @@ inline constexpr std::int32_t kStackEmpty = 0x7FFFFFFF;
 // Depth of the CPU BVH's inner nodes (BvhAccel::kMaxDepth) plus one: the far children pushed at once.
 inline constexpr int kBvhStackSize = 97;
 
-// The numerical contract's validity test (is_valid of lancer/ray.hpp) for host and device.
-LANCER_HOST_DEVICE inline bool is_finite_of(float a) {
-    return magnitude(a) <= 3.40282347e+38f;
-}
-LANCER_HOST_DEVICE inline bool is_valid_ray(const Ray& ray) {
-    return is_finite_of(ray.origin.x) && is_finite_of(ray.origin.y) && is_finite_of(ray.origin.z) &&
-           is_finite_of(ray.direction.x) && is_finite_of(ray.direction.y) && is_finite_of(ray.direction.z) &&
-           (ray.direction.x != 0.0f || ray.direction.y != 0.0f || ray.direction.z != 0.0f) &&
-           is_finite_of(ray.tnear) && !is_nan(ray.tfar) && ray.tnear <= ray.tfar;
-}
-
 // The far children waiting, in local memory on the device (Aila & Laine's per-thread stack), without their
 // entry distance, as in the paper: a popped node is culled by its children's boxes only.
 struct TraversalStack {
@@ -61,7 +50,7 @@ struct CountSteps {
 template <bool kSpeculative, class TriangleTestT, class Vote, class Steps = NoSteps>
 LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote& vote, Steps&& steps = {}) {
     Hit best;
-    if (!is_valid_ray(ray) || bvh.node_count == 0) return best;
+    if (!is_valid(ray) || bvh.node_count == 0) return best;
     const typename TriangleTestT::RayData triangle_ray(ray);
     const SlabRay slab(ray);
     TraversalStack stack;

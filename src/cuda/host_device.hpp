@@ -1,5 +1,5 @@
-// What the BVH traversals of src/cuda/ add to core/host_device.hpp's helpers: the closest-hit order and
-// record loads through the read-only cache.
+// What the BVH traversals of src/cuda/ add to core/host_device.hpp's helpers: record loads through the
+// read-only cache.
 #pragma once
 
 #include <cstdint>
@@ -10,11 +10,6 @@
 #include "lancer/vec.hpp"
 
 namespace lancer::gpu {
-
-// closer() of lancer/ray.hpp: the smaller t, then the smaller primitive index.
-LANCER_HOST_DEVICE inline bool is_closer(float t, std::int32_t prim, const Hit& best) {
-    return t < best.t || (t == best.t && prim < best.prim);
-}
 
 // A record of whole 8-byte words (a 40-byte triangle, a 64-byte node) through the read-only cache, as
 // float2 loads: the arrays come from cudaMalloc (256-byte aligned) and every record size is a multiple of 8.

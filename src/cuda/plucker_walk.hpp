@@ -25,7 +25,7 @@ template <class TriangleTestT, class Layout, class Steps = NoSteps>
 LANCER_HOST_DEVICE Hit trace_plucker(const plucker::PluckerView& octree, const plucker::PluckerTables& tables,
                                      const Ray& ray, Steps&& steps = {}) {
     Hit best;
-    if (!is_valid_ray(ray)) return best;
+    if (!is_valid(ray)) return best;
     const typename TriangleTestT::RayData triangle_ray(ray);
     plucker::walk<Layout::kBalanced, Layout::kStoredBoxes>(
         octree, tables, ray,

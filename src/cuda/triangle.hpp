@@ -23,7 +23,7 @@ LANCER_HOST_DEVICE void intersect_leaf(const Record* records, std::uint32_t coun
         TriangleHit candidate;
         const auto prim = static_cast<std::int32_t>(record.prim);
         if (TriangleTestT::intersect(triangle_ray, record.triangle, ray.tnear, tfar, candidate) &&
-            is_closer(candidate.t, prim, best))
+            closer(candidate.t, prim, best))
             best = {candidate.t, prim, candidate.u, candidate.v};
     }
 }

@@ -282,23 +282,6 @@ TEST(CudaPorts, FrameTilesCoverEveryPixelOnce) {
     }
 }
 
-// The kernels' validity test is the contract's (is_valid of lancer/ray.hpp), each field in turn.
-TEST(CudaPorts, RayValidityIsTheCpuContracts) {
-    const float values[] = {0.0f, -0.0f, 1.5f, -2.0f, 3e38f, kInfinity, -kInfinity, std::nanf("")};
-    for (const float a : values) {
-        EXPECT_EQ(gpu::is_finite_of(a), std::isfinite(a)) << a;
-        const Ray base{{0, 0, 0}, {1, 0, 0}, 0.0f, kInfinity};
-        Ray rays[5] = {base, base, base, base, base};
-        rays[0].origin.y = a;
-        rays[1].direction.z = a;
-        rays[2].direction = {a, 0.0f, 0.0f};
-        rays[3].tnear = a;
-        rays[4].tfar = a;
-        for (const Ray& ray : rays)
-            EXPECT_EQ(gpu::is_valid_ray(ray), is_valid(ray)) << a;
-    }
-}
-
 // Also with spatial splits, on the triangle soup, whose large triangles they cut: a triangle then sits in
 // several leaves, and the flattened BVH copies it into each.
 void expect_flat_bvh_keeps_every_child_box_and_reference(const TestScene& scene, bool spatial_splits) {
