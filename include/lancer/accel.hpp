@@ -102,7 +102,7 @@ struct AccelStats {
     [[nodiscard]] const AccelFigure* find(std::string_view key) const;
     // The figure's value; throws std::out_of_range naming the key where the structure has no such figure.
     [[nodiscard]] double value(std::string_view key) const;
-    // The same for a count.
+    // The same for a count; throws std::invalid_argument naming the key where the figure is not one.
     [[nodiscard]] std::size_t count(std::string_view key) const;
 };
 

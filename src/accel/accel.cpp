@@ -156,7 +156,10 @@ double AccelStats::value(std::string_view key) const {
 }
 
 std::size_t AccelStats::count(std::string_view key) const {
-    return static_cast<std::size_t>(value(key));
+    const double number = value(key);  // refuses an unknown key
+    if (!find(key)->whole)
+        throw std::invalid_argument("the figure '" + std::string(key) + "' is not a count");
+    return static_cast<std::size_t>(number);
 }
 
 void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads) {

@@ -1,7 +1,5 @@
 #include "accel/tree_shape.hpp"
 
-#include <string>
-
 namespace lancer {
 
 std::vector<AccelFigure> tree_figures(const TreeShape& shape) {

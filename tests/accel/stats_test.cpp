@@ -65,7 +65,7 @@ TEST(AccelFigures, EveryStructureNamesAndExplainsItsOwn) {
     }
 }
 
-TEST(AccelFigures, AnUnknownKeyIsRefusedByName) {
+TEST(AccelFigures, AnUnknownKeyOrACountOfAValueIsRefusedByName) {
     AccelStats stats;
     stats.figures = {{"leaves", 3.0, true, "leaves"}};
     EXPECT_EQ(stats.count("leaves"), 3u);
@@ -77,6 +77,9 @@ TEST(AccelFigures, AnUnknownKeyIsRefusedByName) {
         EXPECT_NE(std::string(error.what()).find("'nodes'"), std::string::npos) << error.what();
     }
     EXPECT_THROW(static_cast<void>(stats.count("nodes")), std::out_of_range);
+    stats.figures.push_back({"mean_depth", 2.5, false, "mean depth of the leaves"});
+    EXPECT_EQ(stats.value("mean_depth"), 2.5);
+    EXPECT_THROW(static_cast<void>(stats.count("mean_depth")), std::invalid_argument);
 }
 
 }  // namespace
