@@ -18,9 +18,8 @@
 namespace lancer::cli {
 namespace {
 
-// The structure's SAH cost, 0 for one without (Embree's, the grid's on a flat box).
-double sah_cost_of(const Accel& accel) {
-    const AccelStats stats = accel.stats();
+// The structure's SAH cost, 0 for one without (Embree, the grid on a flat box).
+double sah_cost_in(const AccelStats& stats) {
     const AccelFigure* cost = stats.find("sah_cost");
     return cost != nullptr ? cost->value : 0.0;
 }
@@ -136,6 +135,7 @@ void run_animated_bench(const std::vector<AnimatedBenchMesh>& meshes, const Anim
                 for (std::size_t m = 0; m < moved.size(); ++m)
                     moves.push_back({m, moved[m]});
                 std::vector<AnimatedRecord> frame_records;
+                std::vector<double> sah_costs;  // each row's structure on this frame
                 for (std::size_t r = 0; r < rows.size(); ++r) {
                     AnimatedRow& row = rows[r];
                     UpdateReport report;
@@ -169,13 +169,14 @@ void run_animated_bench(const std::vector<AnimatedBenchMesh>& meshes, const Anim
                             agreement_failed = agreement_failed || !peer;
                         }
                     }
-                    const double structure_ms =
-                        row.rebuild ? row.world->accel().stats().build_ms : report.structure_ms;
+                    // Once a frame: a tree's stats walk the whole tree.
+                    const AccelStats stats = row.world->accel().stats();
+                    sah_costs.push_back(sah_cost_in(stats));
+                    const double structure_ms = row.rebuild ? stats.build_ms : report.structure_ms;
                     row.update_ms.push_back(update_ms);
                     row.structure_ms.push_back(structure_ms);
                     row.trace_ms.push_back(trace_ms);
-                    const bool has_cost = sah_cost_of(row.world->accel()) > 0.0;
-                    row.sah_ratio.push_back(has_cost ? report.sah_ratio : 0.0);
+                    row.sah_ratio.push_back(sah_costs.back() > 0.0 ? report.sah_ratio : 0.0);
                     frame_records.push_back({mesh.name, row.label(),
                                              row.rebuild ? "build" : method_name(report.method), threads,
                                              frame, update_ms, structure_ms, trace_ms,
@@ -185,9 +186,8 @@ void run_animated_bench(const std::vector<AnimatedBenchMesh>& meshes, const Anim
                 for (std::size_t r = 0; r + 1 < rows.size(); ++r) {
                     if (rows[r].rebuild || !rows[r + 1].rebuild || rows[r].accel != rows[r + 1].accel)
                         continue;
-                    const double fresh_cost = sah_cost_of(rows[r + 1].world->accel());
-                    if (fresh_cost > 0.0)
-                        frame_records[r].sah_vs_fresh = sah_cost_of(rows[r].world->accel()) / fresh_cost;
+                    if (sah_costs[r + 1] > 0.0)
+                        frame_records[r].sah_vs_fresh = sah_costs[r] / sah_costs[r + 1];
                 }
                 for (const AnimatedRecord& record : frame_records) {
                     fmt::print(

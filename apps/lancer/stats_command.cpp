@@ -3,7 +3,9 @@
 #include <fmt/core.h>
 #include <fmt/os.h>
 
+#include <algorithm>
 #include <memory>
+#include <string_view>
 
 #include "commands.hpp"
 #include "common.hpp"
@@ -25,9 +27,6 @@ struct RayCost {
     TraversalCounters counters;
     double trace_ms = 0.0;
 };
-
-// The width of the key column of the printed statistics: the longest figure key and then some.
-constexpr int kKeyWidth = 20;
 
 std::string figure_text(const AccelFigure& figure) {
     if (figure.whole) return fmt::format("{}", static_cast<std::uint64_t>(figure.value));
@@ -70,15 +69,19 @@ void run(const StatsOptions& options) {
     const std::size_t primitives = prepared.world.geometry().view().size();
     const double memory_mb = static_cast<double>(accel.memory_bytes()) / (1024.0 * 1024.0);
 
-    fmt::print("{:<{}} {} ({} primitives), load {:.1f} ms\n", "scene", kKeyWidth, options.scene_file,
+    // The key column as wide as the longest key, the structure's figures' or the fixed rows' ("scene").
+    std::size_t key_width = std::string_view("scene").size();
+    for (const AccelFigure& figure : stats.figures)
+        key_width = std::max(key_width, figure.key.size());
+    fmt::print("{:<{}} {} ({} primitives), load {:.1f} ms\n", "scene", key_width, options.scene_file,
                primitives, prepared.load_ms);
-    fmt::print("{:<{}} {}\n", "accel", kKeyWidth, accel.name());
-    fmt::print("{:<{}} {:.1f} ms ({:.2f} Mprims/s)\n", "build", kKeyWidth, prepared.build_ms,
+    fmt::print("{:<{}} {}\n", "accel", key_width, accel.name());
+    fmt::print("{:<{}} {:.1f} ms ({:.2f} Mprims/s)\n", "build", key_width, prepared.build_ms,
                prepared.build_ms > 0.0 ? static_cast<double>(primitives) / (prepared.build_ms * 1e3) : 0.0);
     // The structure's own figures, as it names and explains them.
     for (const AccelFigure& figure : stats.figures)
-        fmt::print("{:<{}} {:>12}  {}\n", figure.key, kKeyWidth, figure_text(figure), figure.help);
-    fmt::print("{:<{}} {:.3f} MB", "memory", kKeyWidth, memory_mb);
+        fmt::print("{:<{}} {:>12}  {}\n", figure.key, key_width, figure_text(figure), figure.help);
+    fmt::print("{:<{}} {:.3f} MB", "memory", key_width, memory_mb);
     for (const auto& [array, bytes] : stats.memory_by_array) {
         fmt::print(", {} {:.3f} MB", array, static_cast<double>(bytes) / (1024.0 * 1024.0));
     }
@@ -90,7 +93,7 @@ void run(const StatsOptions& options) {
         cost = trace_view(accel, prepared.world.scene(), width, height);
         const double rays = static_cast<double>(cost.rays);
         fmt::print("{:<{}} {}x{}, {:.1f}% hits, {:.2f} nodes/ray, {:.2f} prims/ray (one thread, counting)\n",
-                   "view", kKeyWidth, width, height, 100.0 * static_cast<double>(cost.hits) / rays,
+                   "view", key_width, width, height, 100.0 * static_cast<double>(cost.hits) / rays,
                    static_cast<double>(cost.counters.nodes_visited) / rays,
                    static_cast<double>(cost.counters.prims_tested) / rays);
     }

@@ -32,20 +32,12 @@ struct Hit {
 };
 static_assert(sizeof(Hit) == 16);
 
-// Whether `a` is neither infinite nor NaN (which fails both comparisons). By comparisons rather than
-// std::isfinite, so that it, is_valid and closer are constexpr: nvcc compiles them for the device
-// (--expt-relaxed-constexpr), and the GPU kernels test rays by these very functions.
-[[nodiscard]] constexpr bool is_finite_number(float a) {
-    return a >= -std::numeric_limits<float>::max() && a <= std::numeric_limits<float>::max();
-}
-
 // The numerical contract (docs/numerical-contract.md): a ray with a NaN or infinite origin or direction
 // component, a zero direction, a NaN or infinite tnear, a NaN tfar or tnear > tfar finds nothing.
-// tfar may be +infinity. Every structure calls this once per ray, before any traversal.
+// tfar may be +infinity. Every structure calls this once per ray, before any traversal, and so do the GPU
+// kernels: it and closer are constexpr, which nvcc compiles for the device.
 [[nodiscard]] constexpr bool is_valid(const Ray& ray) {
-    return is_finite_number(ray.origin.x) && is_finite_number(ray.origin.y) &&
-           is_finite_number(ray.origin.z) && is_finite_number(ray.direction.x) &&
-           is_finite_number(ray.direction.y) && is_finite_number(ray.direction.z) &&
+    return is_finite(ray.origin) && is_finite(ray.direction) &&
            (ray.direction.x != 0.0f || ray.direction.y != 0.0f || ray.direction.z != 0.0f) &&
            is_finite_number(ray.tnear) && ray.tfar == ray.tfar && ray.tnear <= ray.tfar;
 }

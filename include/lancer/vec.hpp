@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 namespace lancer {
 
@@ -82,8 +83,14 @@ struct Vec3f {
 [[nodiscard]] constexpr int max_axis(Vec3f a) {
     return a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
 }
-[[nodiscard]] inline bool is_finite(Vec3f a) {
-    return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
+// Whether `a` is neither infinite nor NaN (which fails both comparisons). By comparisons rather than
+// std::isfinite, so that these and lancer/ray.hpp's is_valid are constexpr: nvcc compiles them for the
+// device (--expt-relaxed-constexpr), and the GPU kernels test rays by these very functions.
+[[nodiscard]] constexpr bool is_finite_number(float a) {
+    return a >= -std::numeric_limits<float>::max() && a <= std::numeric_limits<float>::max();
+}
+[[nodiscard]] constexpr bool is_finite(Vec3f a) {
+    return is_finite_number(a.x) && is_finite_number(a.y) && is_finite_number(a.z);
 }
 
 }  // namespace lancer

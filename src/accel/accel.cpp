@@ -149,17 +149,24 @@ const AccelFigure* AccelStats::find(std::string_view key) const {
     return figure == figures.end() ? nullptr : &*figure;
 }
 
-double AccelStats::value(std::string_view key) const {
-    const AccelFigure* figure = find(key);
+namespace {
+
+const AccelFigure& required_figure(const AccelStats& stats, std::string_view key) {
+    const AccelFigure* figure = stats.find(key);
     if (figure == nullptr) throw std::out_of_range("the structure has no figure '" + std::string(key) + "'");
-    return figure->value;
+    return *figure;
+}
+
+}  // namespace
+
+double AccelStats::value(std::string_view key) const {
+    return required_figure(*this, key).value;
 }
 
 std::size_t AccelStats::count(std::string_view key) const {
-    const double number = value(key);  // refuses an unknown key
-    if (!find(key)->whole)
-        throw std::invalid_argument("the figure '" + std::string(key) + "' is not a count");
-    return static_cast<std::size_t>(number);
+    const AccelFigure& figure = required_figure(*this, key);
+    if (!figure.whole) throw std::invalid_argument("the figure '" + std::string(key) + "' is not a count");
+    return static_cast<std::size_t>(figure.value);
 }
 
 void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads) {

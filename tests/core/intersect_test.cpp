@@ -347,10 +347,13 @@ TEST(RayTests, ValidityContract) {
     EXPECT_FALSE(is_valid(make_ray({0, 0, 0}, {0, 0, 1}, -kInfinity, 1.0f)));
 }
 
-// is_valid tests by comparisons (constexpr, so that the GPU kernels call it too): it must answer as the
-// contract written with <cmath>, each field in turn over the special values.
+// is_valid and is_finite test by comparisons (constexpr, so that the GPU kernels call them too): they must
+// answer as the contract written with <cmath>, each field in turn over the special values.
 TEST(RayTests, ValidityIsTheContractFieldByField) {
     static_assert(is_valid(Ray{{0, 0, 0}, {1, 0, 0}, 0.0f, kInfinity}) && !is_valid(Ray{}));
+    const auto finite = [](const Vec3f& v) {
+        return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+    };
     const float values[] = {0.0f, -0.0f, 1.5f, -2.0f, 0x1p-149f, 3.4028235e38f, kInfinity, -kInfinity, kNaN};
     for (const float a : values) {
         EXPECT_EQ(is_finite_number(a), std::isfinite(a)) << a;
@@ -362,8 +365,9 @@ TEST(RayTests, ValidityIsTheContractFieldByField) {
         rays[3].tnear = a;
         rays[4].tfar = a;
         for (const Ray& ray : rays) {
+            EXPECT_EQ(is_finite(ray.origin), finite(ray.origin)) << a;
             const bool contract =
-                is_finite(ray.origin) && is_finite(ray.direction) &&
+                finite(ray.origin) && finite(ray.direction) &&
                 (ray.direction.x != 0.0f || ray.direction.y != 0.0f || ray.direction.z != 0.0f) &&
                 std::isfinite(ray.tnear) && !std::isnan(ray.tfar) && ray.tnear <= ray.tfar;
             EXPECT_EQ(is_valid(ray), contract) << a;
