@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """cast_rays from Python on the canonical view (../shared/bench/VIEWS.md: 1024 x 1024 primary rays as one
 float32 array, all threads): lancer's RaycastingScene for the structures asked for, and Open3D's, in
-Mrays/s, the median of --frames calls after one warm-up. docs/python.md has the figures and the command.
+Mrays/s, the median of --frames calls after one warm-up. The rays go as an image, (H, W, 6) as Open3D's
+create_rays_pinhole makes them, and for lancer also as a flat (H * W, 6) array, which it traces by packets
+of consecutive rays instead of camera tiles. docs/python.md has the figures and the command.
 
     PYTHONPATH=build/python /usr/bin/python3 bench/python_cast_rays.py [--mesh FILE ...] [--accel bvh8,...]
 """
@@ -21,7 +23,7 @@ SHARED = pathlib.Path(__file__).resolve().parent.parent.parent / "shared"
 
 
 def canonical_rays(vertices, size):
-    """VIEWS.md's primary rays of a mesh: origin (6 floats per ray) and unit direction, row by row."""
+    """VIEWS.md's primary rays of a mesh, (size, size, 6): origin and unit direction of each pixel's ray."""
     lo, hi = vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64)
     center, half_diagonal = (lo + hi) / 2, np.linalg.norm(hi - lo) / 2
     half_fov = math.radians(45.0) / 2
@@ -36,7 +38,7 @@ def canonical_rays(vertices, size):
     directions = forward + u[None, :, None] * x_axis + v[:, None, None] * y_axis
     directions /= np.linalg.norm(directions, axis=2, keepdims=True)
     origins = np.broadcast_to(eye, directions.shape)
-    return np.concatenate([origins, directions], axis=2).reshape(-1, 6).astype(np.float32)
+    return np.concatenate([origins, directions], axis=2).astype(np.float32)
 
 
 def median_mrays(call, ray_count, frames):
@@ -68,7 +70,7 @@ def main():
     args = parser.parse_args()
     print(f"python_cast_rays: {cpu_name()}, {os.cpu_count()} hardware threads, all used; "
           f"{args.size}x{args.size} canonical view, median of {args.frames} after 1 warm-up")
-    print(f"{'mesh':<16} {'engine':<24} {'Mrays/s':>8} {'hits':>7}")
+    print(f"{'mesh':<16} {'engine':<24} {'rays':<16} {'Mrays/s':>8} {'hits':>7}")
     try:
         import open3d as o3d
     except ImportError:
@@ -76,21 +78,23 @@ def main():
     for mesh in args.mesh or meshes:
         vertices, triangles = lancer.load_mesh(str(mesh))
         rays = canonical_rays(vertices, args.size)
+        ray_count = args.size * args.size
         for accel in args.accel.split(","):
             if accel not in lancer.accel_names():
                 continue
             scene = lancer.RaycastingScene(accel=accel)
             scene.add_triangles(vertices, triangles)
-            hits = np.isfinite(scene.cast_rays(rays)["t_hit"]).mean()
-            mrays = median_mrays(lambda: scene.cast_rays(rays), len(rays), args.frames)
-            print(f"{mesh.name:<16} {'lancer ' + accel:<24} {mrays:8.2f} {hits:7.1%}")
+            for shaped in (rays, rays.reshape(-1, 6)):
+                hits = np.isfinite(scene.cast_rays(shaped)["t_hit"]).mean()
+                mrays = median_mrays(lambda: scene.cast_rays(shaped), ray_count, args.frames)
+                print(f"{mesh.name:<16} {'lancer ' + accel:<24} {str(shaped.shape):<16} {mrays:8.2f} {hits:7.1%}")
         if o3d is not None and not args.no_open3d:
             scene = o3d.t.geometry.RaycastingScene()
             scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(triangles))
             tensor = o3d.core.Tensor(rays)
             hits = np.isfinite(scene.cast_rays(tensor)["t_hit"].numpy()).mean()
-            mrays = median_mrays(lambda: scene.cast_rays(tensor), len(rays), args.frames)
-            print(f"{mesh.name:<16} {'open3d ' + o3d.__version__:<24} {mrays:8.2f} {hits:7.1%}")
+            mrays = median_mrays(lambda: scene.cast_rays(tensor), ray_count, args.frames)
+            print(f"{mesh.name:<16} {'open3d ' + o3d.__version__:<24} {str(rays.shape):<16} {mrays:8.2f} {hits:7.1%}")
 
 
 if __name__ == "__main__":

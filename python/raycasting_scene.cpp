@@ -70,22 +70,29 @@ void rays_of(const float* rows, std::size_t first, std::size_t last, float tnear
     }
 }
 
-// body(first, last) over [0, count) on `threads` threads (0: all), in chunks of kChunk consecutive items
-// (the last one shorter): a chunk of rays is one batch call, as intersect_parallel makes them, and its
-// packets of 64 start at multiples of 64.
-constexpr std::size_t kChunk = 4096;
+// body(index) for each index of [0, count) on `threads` threads (0: all), an index a task.
 template <class Body>
-void parallel_ranges(std::size_t count, int threads, Body&& body) {
-    const std::size_t chunks = (count + kChunk - 1) / kChunk;
+void parallel_for_each(std::size_t count, int threads, Body&& body) {
     tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
     arena.execute([&] {
         tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, chunks, 1),
+            tbb::blocked_range<std::size_t>(0, count, 1),
             [&](const tbb::blocked_range<std::size_t>& range) {
-                for (std::size_t chunk = range.begin(); chunk < range.end(); ++chunk)
-                    body(chunk * kChunk, std::min(count, (chunk + 1) * kChunk));
+                for (std::size_t index = range.begin(); index < range.end(); ++index)
+                    body(index);
             },
             tbb::simple_partitioner());
+    });
+}
+
+// body(first, last) over [0, count) on `threads` threads, in chunks of kChunk consecutive items (the last one
+// shorter): a chunk of rays is one batch call, as intersect_parallel makes them, and its packets of 64 start
+// at multiples of 64.
+constexpr std::size_t kChunk = 4096;
+template <class Body>
+void parallel_ranges(std::size_t count, int threads, Body&& body) {
+    parallel_for_each((count + kChunk - 1) / kChunk, threads, [&](std::size_t chunk) {
+        body(chunk * kChunk, std::min(count, (chunk + 1) * kChunk));
     });
 }
 
@@ -195,6 +202,7 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
     first_triangle_.push_back(static_cast<std::uint32_t>(total));
     scene_.meshes.push_back(std::move(mesh));
     queries_.reset();  // first: it reads the World's triangles
+    unit_normals_.clear();
     world_.reset();
     return static_cast<std::uint32_t>(first_triangle_.size() - 2);
 }
@@ -229,6 +237,7 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
         // The structure follows (a refit for the BVHs) once built; before, the next query builds it.
         if (world_) {
             queries_.reset();  // its own tree is over the triangles about to move
+            unit_normals_.clear();
             report = world_->update_vertices(geometry_id, positions);
         }
         mesh.positions = std::move(positions);
@@ -250,9 +259,15 @@ const GeometryQueries& RaycastingScene::queries() {
     return *queries_;
 }
 
-Vec3f RaycastingScene::unit_normal(std::int32_t prim) const {
-    const Triangle& tri = world_->geometry().view().triangles[static_cast<std::size_t>(prim)];
-    return normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+const std::vector<Vec3f>& RaycastingScene::unit_normals() {
+    committed();
+    if (unit_normals_.empty()) {
+        const std::span<const Triangle> triangles = world_->geometry().view().triangles;
+        unit_normals_.reserve(triangles.size());
+        for (const Triangle& tri : triangles)
+            unit_normals_.push_back(normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0)));
+    }
+    return unit_normals_;
 }
 
 std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t prim) const {
@@ -268,38 +283,38 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
     py::array_t<float> t_hit(answer_shape(rows));
     py::array_t<std::uint32_t> geometry_ids(answer_shape(rows)), primitive_ids(answer_shape(rows));
     py::array_t<float> uvs(answer_shape(rows, {2})), normals(answer_shape(rows, {3}));
-    float* t = t_hit.mutable_data();
-    std::uint32_t* geometry = geometry_ids.mutable_data();
-    std::uint32_t* primitive = primitive_ids.mutable_data();
-    float* uv = uvs.mutable_data();
-    float* normal = normals.mutable_data();
+    const CastAnswers answers{t_hit.mutable_data(), geometry_ids.mutable_data(), primitive_ids.mutable_data(),
+                              uvs.mutable_data(), normals.mutable_data()};
+    const std::vector<py::ssize_t> leading = answer_shape(rows);
+    const RayChunks chunks(std::vector<std::size_t>(leading.begin(), leading.end()));
     {
         // The buffers are filled without the GIL; the lock keeps another thread's add_triangles out. Each
-        // chunk of rays is made, traced and answered by one task, so that the conversions run in parallel
+        // chunk of rays is loaded, traced and answered by one task, so that the conversions run in parallel
         // too.
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const Accel& accel = committed();
-        for_each_ray_chunk(rows, nthreads, 0.0f, kInfinity,
-                           [&](std::size_t first, const std::vector<Ray>& chunk) {
-                               std::vector<Hit> hits(chunk.size());
-                               accel.intersect(chunk, hits);
-                               for (std::size_t k = 0; k < hits.size(); ++k) {
-                                   const std::size_t i = first + k;
-                                   const Hit& hit = hits[k];
-                                   t[i] = hit.t;
-                                   uv[2 * i] = hit.hit() ? hit.u : 0.0f;
-                                   uv[2 * i + 1] = hit.hit() ? hit.v : 0.0f;
-                                   Vec3f n(0.0f);
-                                   if (hit.hit()) {
-                                       std::tie(geometry[i], primitive[i]) = locate(hit.prim);
-                                       n = unit_normal(hit.prim);
-                                   } else {
-                                       geometry[i] = primitive[i] = kInvalidId;
-                                   }
-                                   normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
-                               }
-                           });
+        const std::vector<Vec3f>& unit_normal = unit_normals();
+        const auto name_hit = [&](std::int32_t prim) {
+            const auto [geometry, primitive] = locate(prim);
+            return HitNames{geometry, primitive, unit_normal[static_cast<std::size_t>(prim)]};
+        };
+        parallel_for_each(chunks.size(), nthreads, [&](std::size_t index) {
+            std::vector<PacketRows> packets;
+            chunks.chunk(index, packets);
+            RayPacket packet;
+            HitPacket hits;
+            for (const PacketRows& where : packets) {
+                if (!load_rays(rows.data(), where, packet)) {
+                    throw std::invalid_argument("rays: row " +
+                                                std::to_string(first_bad_row(rows.data(), where)) +
+                                                " holds a NaN or infinite value");
+                }
+                prefetch_answers(where, answers);
+                accel.intersect_packet(packet, hits);
+                store_answers(hits, where, answers, name_hit);
+            }
+        });
     }
     return py::dict("t_hit"_a = t_hit, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,
                     "primitive_uvs"_a = uvs, "primitive_normals"_a = normals);
@@ -404,11 +419,12 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const GeometryQueries& all = queries();
+        const std::vector<Vec3f>& unit_normal = unit_normals();
         parallel_ranges(
             static_cast<std::size_t>(rows.size() / 3), nthreads, [&](std::size_t first, std::size_t last) {
                 for (std::size_t i = first; i < last; ++i) {
                     const NearestPoint nearest = all.nearest_point({q[3 * i], q[3 * i + 1], q[3 * i + 2]});
-                    const Vec3f n = unit_normal(nearest.prim);
+                    const Vec3f n = unit_normal[static_cast<std::size_t>(nearest.prim)];
                     point[3 * i] = nearest.point.x, point[3 * i + 1] = nearest.point.y,
                               point[3 * i + 2] = nearest.point.z;
                     normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;

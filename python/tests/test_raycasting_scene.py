@@ -115,6 +115,55 @@ def test_result_shapes_follow_the_rays_leading_shape(spheres):
     assert np.all(answer["geometry_ids"][misses] == lancer.RaycastingScene.INVALID_ID)
 
 
+def unit_normals(vertices, triangles):
+    v0, v1, v2 = (vertices[triangles[:, k]].astype(np.float64) for k in range(3))
+    normals = np.cross(v1 - v0, v2 - v0)
+    return normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("accel", ["bvh8_packet", "bvh8", "plucker"])
+@pytest.mark.parametrize("shape", [(21, 13), (8, 8), (2, 9, 17), (70, 7), (1, 100), (3001,), (5,), ()])
+def test_each_ray_gets_its_own_answers_whatever_the_leading_shape(spheres, accel, shape):
+    """cast_rays reads images (the last two leading axes, 8 or more each) by camera tiles and other arrays by
+    packets of consecutive rays, with full and partial groups of lanes: each ray's answers must land at its
+    own index. Checked against list_intersections (which takes the rays one by one) and NumPy's normals."""
+    count = int(np.prod(shape))
+    pinhole = lancer.RaycastingScene.create_rays_pinhole(25.0, [0.5, 0, 0], [0.5, 0.2, 4.0], [0, 1, 0], 37, 29)
+    centre = np.roll(pinhole.reshape(-1, 6), -(10 * 37 + 12), axis=0)  # the first rays hit, for the small shapes
+    flat = np.vstack([centre, random_rays(count, 11)])[:count]
+    flat[3::5, 3:] = random_rays(len(flat[3::5]), 12)[:, 3:]  # incoherent rays among the tiles too
+    scene = scene_of(accel, *spheres)
+    answer = scene.cast_rays(flat.reshape(shape + (6,)))
+    assert answer["t_hit"].shape == shape and answer["primitive_normals"].shape == shape + (3,)
+    answer = {key: value.reshape((count,) + value.shape[len(shape):]) for key, value in answer.items()}
+    listed = scene.list_intersections(flat)
+    splits = listed["ray_splits"]
+    normals = [unit_normals(*mesh) for mesh in spheres]
+    hits = 0
+    for i in range(count):
+        first, last = splits[i], splits[i + 1]
+        if first == last:
+            assert not np.isfinite(answer["t_hit"][i]), i
+            assert answer["geometry_ids"][i] == answer["primitive_ids"][i] == lancer.RaycastingScene.INVALID_ID
+            assert not answer["primitive_uvs"][i].any() and not answer["primitive_normals"][i].any()
+            continue
+        hits += 1
+        assert answer["t_hit"][i] == listed["t_hit"][first], i
+        nearest = [k for k in range(first, last) if listed["t_hit"][k] == listed["t_hit"][first]]
+        ids = (answer["geometry_ids"][i], answer["primitive_ids"][i])
+        k = next(k for k in nearest if (listed["geometry_ids"][k], listed["primitive_ids"][k]) == ids)
+        assert np.array_equal(answer["primitive_uvs"][i], listed["primitive_uvs"][k]), i
+        assert np.allclose(answer["primitive_normals"][i], normals[ids[0]][ids[1]], atol=1e-6), i
+    assert hits >= max(1, count // 5)
+
+
+def test_a_bad_ray_in_an_image_is_named_by_its_row(spheres):
+    rays = lancer.RaycastingScene.create_rays_pinhole(40.0, [0, 0, 0], [0, 0, 4.0], [0, 1, 0], 20, 10)
+    rays[3, 14, 4] = np.inf
+    with pytest.raises(ValueError, match="rays: row 74 holds a NaN or infinite value"):
+        scene_of("bvh8_packet", *spheres).cast_rays(rays)
+
+
 def test_occlusions_are_hits_within_the_interval(spheres):
     rays = random_rays(2000, 4)
     scene = scene_of("bvh8", *spheres)

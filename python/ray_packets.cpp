@@ -1,0 +1,260 @@
+#include "ray_packets.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
+#include "lancer/camera.hpp"
+
+namespace lancer::python {
+namespace {
+
+constexpr int kFields = 6;  // a ray's row: origin, then direction
+
+// Lane `lane` from `row`, or a ray of zero direction, which misses (is_valid), when `row` is null.
+void set_lane(RayPacket& rays, int lane, const float* row) {
+    for (int axis = 0; axis < 3; ++axis) {
+        rays.origin[axis][lane] = row != nullptr ? row[axis] : 0.0f;
+        rays.direction[axis][lane] = row != nullptr ? row[3 + axis] : 0.0f;
+    }
+}
+
+bool finite_row(const float* row) {
+    bool finite = true;
+    for (int k = 0; k < kFields; ++k)
+        finite &= std::isfinite(row[k]);
+    return finite;
+}
+
+#if defined(__AVX2__)
+// Whether every lane of `x` is finite: |x| < inf is false for a NaN and an infinity.
+__m256 finite_lanes(__m256 x) {
+    return _mm256_cmp_ps(_mm256_andnot_ps(_mm256_set1_ps(-0.0f), x), _mm256_set1_ps(kInfinity), _CMP_LT_OQ);
+}
+
+// Lanes [lane, lane + 8) in one store per field, which the kernel's loads of eight lanes then read whole:
+// four rays from `low` in the low half of each register, four from `high` in the high half. The first four
+// floats of a ray (ox oy oz dx) make a 4x4 matrix per half, and so do its last four (oz dx dy dz): two
+// transposes give the six fields. Returns whether all of them are finite.
+bool load_eight(const float* low, const float* high, RayPacket& rays, int lane) {
+    __m256 head[kGroupLanes], tail[kGroupLanes];
+    for (int k = 0; k < kGroupLanes; ++k) {
+        head[k] = _mm256_loadu2_m128(high + kFields * k, low + kFields * k);
+        tail[k] = _mm256_loadu2_m128(high + kFields * k + 2, low + kFields * k + 2);
+    }
+    const __m256 ab_low = _mm256_unpacklo_ps(head[0], head[1]),
+                 ab_high = _mm256_unpackhi_ps(head[0], head[1]);
+    const __m256 cd_low = _mm256_unpacklo_ps(head[2], head[3]),
+                 cd_high = _mm256_unpackhi_ps(head[2], head[3]);
+    const __m256 ab_tail = _mm256_unpackhi_ps(tail[0], tail[1]),
+                 cd_tail = _mm256_unpackhi_ps(tail[2], tail[3]);
+    const __m256 fields[kFields] = {
+        _mm256_shuffle_ps(ab_low, cd_low, 0x44),   _mm256_shuffle_ps(ab_low, cd_low, 0xEE),
+        _mm256_shuffle_ps(ab_high, cd_high, 0x44), _mm256_shuffle_ps(ab_high, cd_high, 0xEE),
+        _mm256_shuffle_ps(ab_tail, cd_tail, 0x44), _mm256_shuffle_ps(ab_tail, cd_tail, 0xEE)};
+    __m256 finite = finite_lanes(fields[0]);
+    for (int axis = 0; axis < 3; ++axis) {
+        _mm256_store_ps(rays.origin[axis] + lane, fields[axis]);
+        _mm256_store_ps(rays.direction[axis] + lane, fields[3 + axis]);
+        finite =
+            _mm256_and_ps(finite, _mm256_and_ps(finite_lanes(fields[axis]), finite_lanes(fields[3 + axis])));
+    }
+    return _mm256_movemask_ps(finite) == 0xFF;
+}
+
+// The answers of a pair of full groups, eight rows from the first group's.
+unsigned store_full_pair(const HitPacket& hits, int low_lane, int high_lane, const CastAnswers& answers,
+                         std::size_t row) {
+    const auto lanes_of = [&](const auto* field) {
+        return _mm256_loadu2_m128(reinterpret_cast<const float*>(field + high_lane),
+                                  reinterpret_cast<const float*>(field + low_lane));
+    };
+    const __m256i prim = _mm256_castps_si256(lanes_of(hits.prim));
+    const __m256i hit = _mm256_cmpgt_epi32(prim, _mm256_set1_epi32(-1));
+    const __m256 hit_mask = _mm256_castsi256_ps(hit);
+    _mm256_storeu_ps(answers.t_hit + row, lanes_of(hits.t));
+    // A miss's prim is -1, whose bits are kInvalidId.
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(answers.primitive_ids + row), prim);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(answers.geometry_ids + row),
+                        _mm256_andnot_si256(hit, prim));
+    const __m256 u = _mm256_and_ps(hit_mask, lanes_of(hits.u)), v = _mm256_and_ps(hit_mask, lanes_of(hits.v));
+    const __m256 uv_low = _mm256_unpacklo_ps(u, v), uv_high = _mm256_unpackhi_ps(u, v);
+    _mm256_storeu_ps(answers.uvs + 2 * row, _mm256_permute2f128_ps(uv_low, uv_high, 0x20));
+    _mm256_storeu_ps(answers.uvs + 2 * row + 8, _mm256_permute2f128_ps(uv_low, uv_high, 0x31));
+    for (int k = 0; k < 3; ++k)
+        _mm256_storeu_ps(answers.normals + 3 * row + 8 * k, _mm256_setzero_ps());
+    return static_cast<unsigned>(_mm256_movemask_ps(hit_mask));
+}
+#endif
+
+// The answers of one group, a lane at a time.
+unsigned store_group(const HitPacket& hits, const PacketRows& where, int group, const CastAnswers& answers) {
+    const auto g = static_cast<std::size_t>(group);
+    unsigned hit_rays = 0;
+    for (int index = 0; index < where.count[g]; ++index) {
+        const int lane = group * kGroupLanes + index;
+        const std::size_t i = where.row[g] + static_cast<std::size_t>(index);
+        const bool hit = hits.prim[lane] >= 0;
+        answers.t_hit[i] = hits.t[lane];
+        answers.geometry_ids[i] = answers.primitive_ids[i] = kInvalidId;
+        answers.uvs[2 * i] = hit ? hits.u[lane] : 0.0f;
+        answers.uvs[2 * i + 1] = hit ? hits.v[lane] : 0.0f;
+        std::fill_n(answers.normals + 3 * i, 3, 0.0f);
+        hit_rays |= unsigned{hit} << index;
+    }
+    return hit_rays;
+}
+
+}  // namespace
+
+bool load_rays(const float* rows, const PacketRows& where, RayPacket& rays) {
+    bool finite = true;
+    for (std::size_t g = 0; g < where.row.size(); g += 2) {
+        const int lane = static_cast<int>(g) * kGroupLanes;
+#if defined(__AVX2__)
+        if (where.count[g] == kGroupLanes && where.count[g + 1] == kGroupLanes) {
+            finite &=
+                load_eight(rows + kFields * where.row[g], rows + kFields * where.row[g + 1], rays, lane);
+            continue;
+        }
+#endif
+        for (int k = 0; k < 2 * kGroupLanes; ++k) {
+            const std::size_t group = g + static_cast<std::size_t>(k / kGroupLanes);
+            const int index = k % kGroupLanes;
+            const float* const row =
+                index < where.count[group]
+                    ? rows + kFields * (where.row[group] + static_cast<std::size_t>(index))
+                    : nullptr;
+            set_lane(rays, lane + k, row);
+            finite &= row == nullptr || finite_row(row);
+        }
+    }
+    std::fill(std::begin(rays.tnear), std::end(rays.tnear), 0.0f);
+    std::fill(std::begin(rays.tfar), std::end(rays.tfar), kInfinity);
+    rays.size = RayPacket::kMaxSize;
+    return finite;
+}
+
+std::size_t first_bad_row(const float* rows, const PacketRows& where) {
+    std::size_t first = SIZE_MAX;
+    for (std::size_t g = 0; g < where.row.size(); ++g) {
+        for (int index = 0; index < where.count[g]; ++index) {
+            const std::size_t row = where.row[g] + static_cast<std::size_t>(index);
+            if (!finite_row(rows + kFields * row)) first = std::min(first, row);
+        }
+    }
+    return first;
+}
+
+void prefetch_answers(const PacketRows& where, const CastAnswers& answers) {
+    const auto prefetch_range = [](const void* first, std::size_t bytes) {
+        const auto* const begin = static_cast<const char*>(first);
+        for (std::size_t offset = 0; offset < bytes; offset += 64)
+            __builtin_prefetch(begin + offset, 1);
+        __builtin_prefetch(begin + bytes - 1, 1);
+    };
+    for (const auto& [low, high] : where.answer_pairs) {
+        const std::size_t row = where.row[static_cast<std::size_t>(low)];
+        const auto count = static_cast<std::size_t>(where.count[static_cast<std::size_t>(low)] +
+                                                    where.count[static_cast<std::size_t>(high)]);
+        if (count == 0) continue;
+        prefetch_range(answers.t_hit + row, count * sizeof(float));
+        prefetch_range(answers.geometry_ids + row, count * sizeof(std::uint32_t));
+        prefetch_range(answers.primitive_ids + row, count * sizeof(std::uint32_t));
+        prefetch_range(answers.uvs + 2 * row, 2 * count * sizeof(float));
+        prefetch_range(answers.normals + 3 * row, 3 * count * sizeof(float));
+    }
+}
+
+unsigned store_pair(const HitPacket& hits, const PacketRows& where, std::size_t pair,
+                    const CastAnswers& answers) {
+    const auto [low, high] = where.answer_pairs[pair];
+#if defined(__AVX2__)
+    if (where.count[static_cast<std::size_t>(low)] == kGroupLanes &&
+        where.count[static_cast<std::size_t>(high)] == kGroupLanes) {
+        return store_full_pair(hits, low * kGroupLanes, high * kGroupLanes, answers,
+                               where.row[static_cast<std::size_t>(low)]);
+    }
+#endif
+    return store_group(hits, where, low, answers) | store_group(hits, where, high, answers) << kGroupLanes;
+}
+
+RayChunks::RayChunks(std::span<const std::size_t> shape) {
+    for (const std::size_t extent : shape)
+        ray_count_ *= extent;
+    const auto side = static_cast<std::size_t>(PinholeCamera::kTileSide);
+    if (shape.size() >= 2 && shape[shape.size() - 2] >= side && shape.back() >= side) {
+        height_ = shape[shape.size() - 2];
+        width_ = shape.back();
+        bands_ = (height_ + side - 1) / side;
+        segments_ = (width_ + kChunkPackets * side - 1) / (kChunkPackets * side);
+        chunk_count_ = ray_count_ / (height_ * width_) * bands_ * segments_;
+    } else {
+        const std::size_t chunk_rays = kChunkPackets * RayPacket::kMaxSize;
+        chunk_count_ = (ray_count_ + chunk_rays - 1) / chunk_rays;
+    }
+}
+
+void RayChunks::chunk(std::size_t index, std::vector<PacketRows>& packets) const {
+    packets.clear();
+    if (images()) {
+        image_chunk(index, packets);
+    } else {
+        flat_chunk(index, packets);
+    }
+}
+
+void RayChunks::image_chunk(std::size_t index, std::vector<PacketRows>& packets) const {
+    static_assert(PinholeCamera::kBlockSide == kGroupLanes && PinholeCamera::kTileSide == 2 * kGroupLanes);
+    // A group is a row of a block, four pixels from tile_column(4g) in row tile_row(4g); its answers pair
+    // with those of the group on its right in the tile (column 4 on).
+    static const auto tile_pairs = [] {
+        std::array<std::array<int, 2>, kGroups / 2> pairs{};
+        for (int group = 0; group < kGroups; ++group) {
+            const int lane = group * kGroupLanes;
+            pairs[static_cast<std::size_t>(PinholeCamera::tile_row(lane))]
+                 [static_cast<std::size_t>(PinholeCamera::tile_column(lane) / kGroupLanes)] = group;
+        }
+        return pairs;
+    }();
+    const auto side = static_cast<std::size_t>(PinholeCamera::kTileSide);
+    const std::size_t image = index / (bands_ * segments_), band = index / segments_ % bands_;
+    const std::size_t first_x = index % segments_ * kChunkPackets * side;
+    const std::size_t last_x = std::min(width_, first_x + kChunkPackets * side);
+    const std::size_t first_y = band * side, last_y = std::min(height_, first_y + side);
+    const std::size_t image_first = image * height_ * width_;
+    for (std::size_t x0 = first_x; x0 < last_x; x0 += side) {
+        PacketRows& where = packets.emplace_back();
+        where.answer_pairs = tile_pairs;
+        for (std::size_t g = 0; g < where.row.size(); ++g) {
+            const int lane = static_cast<int>(g) * kGroupLanes;
+            const std::size_t y = first_y + static_cast<std::size_t>(PinholeCamera::tile_row(lane));
+            const std::size_t x = x0 + static_cast<std::size_t>(PinholeCamera::tile_column(lane));
+            where.row[g] = image_first + y * width_ + x;
+            where.count[g] = y < last_y && x < last_x
+                                 ? static_cast<int>(std::min<std::size_t>(kGroupLanes, last_x - x))
+                                 : 0;
+        }
+    }
+}
+
+void RayChunks::flat_chunk(std::size_t index, std::vector<PacketRows>& packets) const {
+    const std::size_t chunk_rays = kChunkPackets * RayPacket::kMaxSize;
+    const std::size_t first = index * chunk_rays, last = std::min(ray_count_, first + chunk_rays);
+    for (std::size_t packet = first; packet < last; packet += RayPacket::kMaxSize) {
+        PacketRows& where = packets.emplace_back();
+        for (std::size_t g = 0; g < where.row.size(); ++g) {
+            where.row[g] = packet + kGroupLanes * g;
+            where.count[g] =
+                static_cast<int>(std::min<std::size_t>(kGroupLanes, last - std::min(last, where.row[g])));
+        }
+        for (std::size_t pair = 0; pair < where.answer_pairs.size(); ++pair)
+            where.answer_pairs[pair] = {2 * static_cast<int>(pair), 2 * static_cast<int>(pair) + 1};
+    }
+}
+
+}  // namespace lancer::python
