@@ -1,0 +1,169 @@
+// The Python module's way between NumPy's rows and packets (python/ray_packets.hpp), which needs no Python:
+// over arrays of many shapes, every ray goes into exactly one lane, in tile_rays's order for images, and its
+// answers come back to its own row. A stand-in for the trace answers each lane with values made from its ray.
+#include "ray_packets.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "lancer/camera.hpp"
+
+namespace lancer::python {
+namespace {
+
+// Ray `row`: an origin naming the row (exact in float for these sizes) and a direction that is never zero.
+void fill_rows(std::vector<float>& rows) {
+    for (std::size_t row = 0; row < rows.size() / 6; ++row) {
+        const auto r = static_cast<float>(row);
+        const float ray[6] = {r, 0.5f * r, -r, 1.0f, 2.0f + r, -3.0f};
+        std::copy(ray, ray + 6, rows.begin() + static_cast<std::ptrdiff_t>(6 * row));
+    }
+}
+
+// What the stand-in trace answers for the ray of `row`: every third a miss.
+bool hits(std::size_t row) {
+    return row % 3 != 0;
+}
+
+struct Answers {
+    explicit Answers(std::size_t count)
+        : t(count, -1.0f),
+          geometry(count, 7),
+          primitive(count, 7),
+          uv(2 * count, -1.0f),
+          normal(3 * count, -1.0f) {}
+    CastAnswers view() { return {t.data(), geometry.data(), primitive.data(), uv.data(), normal.data()}; }
+    std::vector<float> t;
+    std::vector<std::uint32_t> geometry, primitive;
+    std::vector<float> uv, normal;
+};
+
+// Traces every chunk of an array of leading shape `shape` through the stand-in; checks each packet's lanes.
+Answers cast(const std::vector<std::size_t>& shape) {
+    std::size_t count = 1;
+    for (const std::size_t extent : shape)
+        count *= extent;
+    std::vector<float> rows(6 * count);
+    fill_rows(rows);
+    Answers answers(count);
+    std::vector<int> lanes_of_row(count, 0);
+    const RayChunks chunks(shape);
+    std::vector<PacketRows> packets;
+    for (std::size_t index = 0; index < chunks.size(); ++index) {
+        chunks.chunk(index, packets);
+        for (const PacketRows& where : packets) {
+            RayPacket rays;
+            EXPECT_TRUE(load_rays(rows.data(), where, rays));
+            EXPECT_EQ(rays.size, RayPacket::kMaxSize);
+            HitPacket hit_packet;
+            for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
+                EXPECT_EQ(rays.tnear[lane], 0.0f);
+                EXPECT_EQ(rays.tfar[lane], kInfinity);
+                const Ray ray = rays.ray(lane);
+                if (ray.direction == Vec3f(0.0f)) {  // a padding lane: misses
+                    hit_packet.set(lane, Hit{});
+                    continue;
+                }
+                const auto row = static_cast<std::size_t>(ray.origin.x);
+                EXPECT_EQ(ray.origin, Vec3f(ray.origin.x, 0.5f * ray.origin.x, -ray.origin.x));
+                EXPECT_EQ(ray.direction, Vec3f(1.0f, 2.0f + ray.origin.x, -3.0f));
+                ++lanes_of_row.at(row);
+                const auto prim = static_cast<std::int32_t>(row);
+                hit_packet.set(lane, hits(row) ? Hit{ray.origin.x + 0.5f, prim, 0.25f, 0.75f} : Hit{});
+            }
+            if (chunks.images()) {
+                // Camera tiles: lane L at column tile_column(L) and row tile_row(L) of its tile.
+                const std::size_t width = shape.back(), first = where.row[0];
+                for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
+                    const std::size_t group = static_cast<std::size_t>(lane / kGroupLanes);
+                    if (lane % kGroupLanes >= where.count[group]) continue;
+                    EXPECT_EQ(where.row[group] + static_cast<std::size_t>(lane % kGroupLanes),
+                              first + width * static_cast<std::size_t>(PinholeCamera::tile_row(lane)) +
+                                  static_cast<std::size_t>(PinholeCamera::tile_column(lane)));
+                }
+            }
+            store_answers(hit_packet, where, answers.view(), [](std::int32_t prim) {
+                const auto p = static_cast<std::uint32_t>(prim);
+                return HitNames{p % 4, p / 4, Vec3f(static_cast<float>(p), 1.0f, 2.0f)};
+            });
+        }
+    }
+    for (std::size_t row = 0; row < count; ++row)
+        EXPECT_EQ(lanes_of_row[row], 1) << "row " << row;
+    return answers;
+}
+
+class RayPacketsShapes : public testing::TestWithParam<std::vector<std::size_t>> {};
+
+TEST_P(RayPacketsShapes, EveryRayIsTracedOnceAndAnsweredAtItsRow) {
+    const Answers answers = cast(GetParam());
+    for (std::size_t row = 0; row < answers.t.size(); ++row) {
+        const float r = static_cast<float>(row);
+        if (hits(row)) {
+            EXPECT_EQ(answers.t[row], r + 0.5f) << row;
+            EXPECT_EQ(answers.geometry[row], row % 4) << row;
+            EXPECT_EQ(answers.primitive[row], row / 4) << row;
+            EXPECT_EQ(answers.uv[2 * row], 0.25f) << row;
+            EXPECT_EQ(answers.uv[2 * row + 1], 0.75f) << row;
+            EXPECT_EQ(answers.normal[3 * row], r) << row;
+            EXPECT_EQ(answers.normal[3 * row + 1], 1.0f) << row;
+            EXPECT_EQ(answers.normal[3 * row + 2], 2.0f) << row;
+        } else {
+            EXPECT_EQ(answers.t[row], kInfinity) << row;
+            EXPECT_EQ(answers.geometry[row], kInvalidId) << row;
+            EXPECT_EQ(answers.primitive[row], kInvalidId) << row;
+            for (int k = 0; k < 2; ++k)
+                EXPECT_EQ(answers.uv[2 * row + static_cast<std::size_t>(k)], 0.0f) << row;
+            for (int k = 0; k < 3; ++k)
+                EXPECT_EQ(answers.normal[3 * row + static_cast<std::size_t>(k)], 0.0f) << row;
+        }
+    }
+}
+
+// Flat arrays around the group, packet and chunk sizes; images (both last axes 8 or more) around the tile
+// and chunk widths, stacked; arrays too thin to be images.
+INSTANTIATE_TEST_SUITE_P(
+    Shapes, RayPacketsShapes,
+    testing::Values(std::vector<std::size_t>{}, std::vector<std::size_t>{0}, std::vector<std::size_t>{1},
+                    std::vector<std::size_t>{5}, std::vector<std::size_t>{63}, std::vector<std::size_t>{64},
+                    std::vector<std::size_t>{65}, std::vector<std::size_t>{2048},
+                    std::vector<std::size_t>{2051}, std::vector<std::size_t>{8, 8},
+                    std::vector<std::size_t>{9, 8}, std::vector<std::size_t>{8, 9},
+                    std::vector<std::size_t>{13, 21}, std::vector<std::size_t>{3, 17, 300},
+                    std::vector<std::size_t>{2, 16, 256}, std::vector<std::size_t>{7, 300},
+                    std::vector<std::size_t>{300, 7}, std::vector<std::size_t>{4, 0, 9}));
+
+TEST(RayPackets, AnyNonFiniteValueIsFoundWithItsRow) {
+    for (const std::vector<std::size_t>& shape :
+         {std::vector<std::size_t>{200}, std::vector<std::size_t>{19, 13}}) {
+        const std::size_t count = shape.size() == 1 ? shape[0] : shape[0] * shape[1];
+        for (const std::size_t bad_row : {std::size_t{0}, std::size_t{37}, count - 1}) {
+            for (int field = 0; field < 6; ++field) {
+                for (const float bad : {std::numeric_limits<float>::quiet_NaN(), kInfinity, -kInfinity}) {
+                    std::vector<float> rows(6 * count);
+                    fill_rows(rows);
+                    rows[6 * bad_row + static_cast<std::size_t>(field)] = bad;
+                    const RayChunks chunks(shape);
+                    std::vector<PacketRows> packets;
+                    int refused = 0;
+                    for (std::size_t index = 0; index < chunks.size(); ++index) {
+                        chunks.chunk(index, packets);
+                        for (const PacketRows& where : packets) {
+                            RayPacket rays;
+                            if (load_rays(rows.data(), where, rays)) continue;
+                            ++refused;
+                            EXPECT_EQ(first_bad_row(rows.data(), where), bad_row);
+                        }
+                    }
+                    EXPECT_EQ(refused, 1) << "row " << bad_row << ", field " << field;
+                }
+            }
+        }
+    }
+}
+
+}  // namespace
+}  // namespace lancer::python
