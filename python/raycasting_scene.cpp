@@ -265,7 +265,7 @@ const std::vector<Vec3f>& RaycastingScene::unit_normals() {
         const std::span<const Triangle> triangles = world_->geometry().view().triangles;
         unit_normals_.reserve(triangles.size());
         for (const Triangle& tri : triangles)
-            unit_normals_.push_back(normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0)));
+            unit_normals_.push_back(normalize(tri.geometric_normal()));
     }
     return unit_normals_;
 }
