@@ -5,7 +5,6 @@
 #include <map>
 #include <random>
 
-#include "accel/brute.hpp"
 #include "configurations.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
@@ -113,15 +112,8 @@ std::vector<testing::RaySet> ray_sets(const TestScene& scene) {
 // The oracle's answers, computed once per scene, ray set and triangle test and shared by all structures.
 const std::vector<Hit>& oracle_hits(std::size_t scene_index, std::size_t set_index,
                                     const testing::RaySet& set, TriangleTest test) {
-    static std::map<std::tuple<std::size_t, std::size_t, TriangleTest>, std::vector<Hit>> cache;
-    auto [it, inserted] = cache.try_emplace({scene_index, set_index, test});
-    if (inserted) {
-        BruteAccel brute;
-        brute.build(scenes()[scene_index].geometry(), build_options(test));
-        it->second.resize(set.rays.size());
-        brute.intersect(set.rays, it->second);
-    }
-    return it->second;
+    static testing::BruteForceCache cache;
+    return cache.hits(scene_index, set_index, test, scenes()[scene_index].geometry(), set.rays);
 }
 
 class OracleTest : public ::testing::TestWithParam<testing::Configuration> {};

@@ -12,7 +12,6 @@
 #include <cstring>
 #include <random>
 
-#include "accel/brute.hpp"
 #include "accel/bvh/wide_packet.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/camera.hpp"
@@ -64,7 +63,7 @@ void PrintTo(const Pair& pair, std::ostream* os) {
 
 // Torus knot, icosphere and spheres; a plane of triangles whose shared edges make exact ties; and a finely
 // tessellated sphere.
-std::vector<TestScene> scenes() {
+std::vector<TestScene> make_scenes() {
     std::vector<TestScene> all;
     TestScene mixed{"knot, icosphere and spheres", testing::knot_triangles(200), {}};
     make_icosphere(3, {0.5f, 0.2f, 0.1f}, 0.8f).append_triangles(mixed.triangles);
@@ -87,6 +86,11 @@ std::vector<TestScene> scenes() {
     TestScene fine{"icosphere of 5120 triangles", {}, {}};
     make_icosphere(4, {0.1f, -0.2f, 0.3f}, 1.0f).append_triangles(fine.triangles);
     all.push_back(std::move(fine));
+    return all;
+}
+
+const std::vector<TestScene>& scenes() {
+    static const std::vector<TestScene> all = make_scenes();
     return all;
 }
 
@@ -245,17 +249,20 @@ TEST_P(PacketTest, ZeroComponentsAndInvalidRaysInsideAPacket) {
 // The oracle's adversarial sets (vertex and edge rays, axis-parallel rays, clipped rays), sorted so that
 // their packets are coherent: the same hits as `single` bit for bit, and as brute force.
 TEST_P(PacketTest, AdversarialSetsSortedIntoCoherentPackets) {
+    static testing::BruteForceCache brute_force;  // shared by the structures, run in one process
     for_each_build([](const Accel& packet, const Accel& single, const TestScene& scene, TriangleTest test) {
+        const auto scene_index = static_cast<std::size_t>(&scene - scenes().data());
         const Box3f bounds = scene.geometry().bounds();
-        BruteAccel brute;
-        brute.build(scene.geometry(), build_options(test));
-        for (const testing::RaySet& set :
-             {testing::vertex_and_edge_rays(scene.triangles, 3000, 12),
-              testing::axis_parallel_rays(bounds, 3000, 13), testing::clipped_rays(bounds, 2000, 14)}) {
+        const std::vector<testing::RaySet> sets = {testing::vertex_and_edge_rays(scene.triangles, 3000, 12),
+                                                   testing::axis_parallel_rays(bounds, 3000, 13),
+                                                   testing::clipped_rays(bounds, 2000, 14)};
+        for (std::size_t set_index = 0; set_index < sets.size(); ++set_index) {
+            const testing::RaySet& set = sets[set_index];
             const std::vector<Ray> rays = sorted_by_octant(set.rays);
             EXPECT_EQ(bitwise_differences(packet, single, rays), 0u) << set.name;
-            std::vector<Hit> expected(rays.size()), hits(rays.size());
-            brute.intersect(rays, expected);
+            const std::vector<Hit>& expected =
+                brute_force.hits(scene_index, set_index, test, scene.geometry(), rays);
+            std::vector<Hit> hits(rays.size());
             packet.intersect(rays, hits);
             const Agreement agreement = compare_hits(rays, expected, hits);
             EXPECT_EQ(agreement.mismatches, 0u) << set.name << ": " << agreement.summary();

@@ -560,23 +560,26 @@ class PluckerVariant : public ::testing::TestWithParam<std::tuple<bool, bool, bo
 
 TEST_P(PluckerVariant, AgreesWithBruteForce) {
     const auto [balanced, stored_boxes, morton] = GetParam();
+    static testing::BruteForceCache brute_force;  // shared by the variants, run in one process
     for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
-        for (const TestScene& scene : scenes()) {
+        for (std::size_t scene_index = 0; scene_index < scenes().size(); ++scene_index) {
+            const TestScene& scene = scenes()[scene_index];
             const Geometry geometry = scene.geometry();
+            const Box3f bounds = geometry.bounds();
+            const std::vector<testing::RaySet> sets = {
+                testing::random_rays(bounds, 2000, 41),
+                testing::vertex_and_edge_rays(scene.triangles, 1500, 42),
+                testing::axis_parallel_rays(bounds, 1500, 43), testing::clipped_rays(bounds, 1000, 44),
+                testing::hostile_rays(bounds)};
             for (const int max_depth : {0, 9}) {
                 PluckerAccel accel;
                 accel.build(geometry, plucker_options(max_depth, 3, balanced, stored_boxes, morton, test));
-                BruteAccel brute;
-                brute.build(geometry, build_options(test));
-                const Box3f bounds = geometry.bounds();
-                for (const testing::RaySet& set :
-                     {testing::random_rays(bounds, 2000, 41),
-                      testing::vertex_and_edge_rays(scene.triangles, 1500, 42),
-                      testing::axis_parallel_rays(bounds, 1500, 43), testing::clipped_rays(bounds, 1000, 44),
-                      testing::hostile_rays(bounds)}) {
-                    std::vector<Hit> expected(set.rays.size()), hits(set.rays.size());
+                for (std::size_t set_index = 0; set_index < sets.size(); ++set_index) {
+                    const testing::RaySet& set = sets[set_index];
+                    const std::vector<Hit>& expected =
+                        brute_force.hits(scene_index, set_index, test, geometry, set.rays);
+                    std::vector<Hit> hits(set.rays.size());
                     std::vector<std::uint8_t> occluded(set.rays.size());
-                    brute.intersect(set.rays, expected);
                     accel.intersect(set.rays, hits);
                     accel.occluded(set.rays, occluded);
                     const Agreement closest = compare_hits(set.rays, expected, hits);

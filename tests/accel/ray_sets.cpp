@@ -141,6 +141,18 @@ std::vector<Hit> trace_in_parallel(const Accel& accel, std::span<const Ray> rays
     return hits;
 }
 
+const std::vector<Hit>& BruteForceCache::hits(std::size_t scene_index, std::size_t set_index,
+                                              TriangleTest test, const Geometry& geometry,
+                                              std::span<const Ray> rays) {
+    auto [it, inserted] = hits_.try_emplace({scene_index, set_index, test});
+    if (inserted) {
+        const std::unique_ptr<Accel> brute = make_accel("brute");
+        brute->build(geometry, build_options(test));
+        it->second = trace_in_parallel(*brute, rays);
+    }
+    return it->second;
+}
+
 std::vector<Hit> intersect_in_packets(const Accel& accel, std::span<const Ray> rays) {
     std::vector<Hit> hits(rays.size());
     RayPacket packet;

@@ -1,9 +1,11 @@
 // Adversarial ray sets every structure is checked on against the brute-force oracle (style habit 5).
 #pragma once
 
+#include <map>
 #include <random>
 #include <span>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "lancer/accel.hpp"
@@ -45,6 +47,18 @@ std::vector<Hit> trace_in_parallel(const Accel& accel, std::span<const Ray> rays
 // Closest hits of all rays through Accel::intersect_packet: the batch cut into packets of 64 rays, every
 // third packet cut short (to 1 to 63 rays), so that partial packets are traced too.
 std::vector<Hit> intersect_in_packets(const Accel& accel, std::span<const Ray> rays);
+// Brute force's closest hits, computed the first time a (scene, ray set, triangle test) key is asked for and
+// kept: the answers a parameterized test checks each of its structures or variants against. Such a test runs
+// all its parameters in one process (ONE_PROCESS in tests/CMakeLists.txt), so that brute force runs once per
+// key instead of once per parameter. The keys are a test's own indices, so each test keeps its own cache.
+class BruteForceCache {
+  public:
+    const std::vector<Hit>& hits(std::size_t scene_index, std::size_t set_index, TriangleTest test,
+                                 const Geometry& geometry, std::span<const Ray> rays);
+
+  private:
+    std::map<std::tuple<std::size_t, std::size_t, TriangleTest>, std::vector<Hit>> hits_;
+};
 // NaN, infinite, zero-direction, tnear > tfar, denormal directions: all must miss, except denormal ones
 // which are valid and must agree with the oracle.
 RaySet hostile_rays(const Box3f& bounds);
