@@ -2,7 +2,6 @@
 // triangle tests, closest hit and occlusion. A new structure added to the registry is tested here at once.
 #include <gtest/gtest.h>
 
-#include <map>
 #include <random>
 
 #include "configurations.hpp"
