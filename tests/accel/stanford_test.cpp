@@ -37,22 +37,16 @@ std::vector<Hit> brute_force_in_blocks(const Geometry& geometry, TriangleTest te
     std::vector<TriangleBlock<8>> blocks;
     append_leaf_blocks<8>(geometry, prims, blocks);
     std::vector<Hit> hits(rays.size());
-    auto trace = [&]<class TriangleTestT>() {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 16), [&](const auto& range) {
-            for (std::size_t i = range.begin(); i < range.end(); ++i) {
-                if (!is_valid(rays[i])) continue;  // a miss, as every structure answers it
-                const PreparedRay<TriangleTestT> prepared(rays[i]);
-                const BlockRay<TriangleTestT, 8> ray(prepared, geometry);
-                for (const TriangleBlock<8>& block : blocks)
-                    intersect_block(geometry, block, ray, hits[i]);
-            }
-        });
-    };
-    if (test == TriangleTest::Watertight) {
-        trace.operator()<Watertight>();
-    } else {
-        trace.operator()<MollerTrumbore>();
-    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 16), [&](const auto& range) {
+        intersect_each(test, rays.subspan(range.begin(), range.size()),
+                       std::span(hits).subspan(range.begin(), range.size()), nullptr,
+                       [&]<class TriangleTestT, bool>(const PreparedRay<TriangleTestT>& prepared, Hit& best,
+                                                      TraversalCounters&) {
+                           const BlockRay<TriangleTestT, 8> ray(prepared, geometry);
+                           for (const TriangleBlock<8>& block : blocks)
+                               intersect_block(geometry, block, ray, best);
+                       });
+    });
     return hits;
 }
 

@@ -7,7 +7,6 @@
 #include <bit>
 #include <cmath>
 #include <limits>
-#include <map>
 #include <numbers>
 
 #include "accel/brute.hpp"
@@ -51,30 +50,20 @@ std::vector<testing::RaySet> ray_sets(const World& world) {
             testing::clipped_rays(bounds, 1000 / share, 14), testing::hostile_rays(bounds)};
 }
 
-// Brute force's answers on the world's present geometry, built afresh: computed once per triangle test and
-// frame, and shared by every structure (the scene, the wave and the rays are the same for all).
-const std::vector<std::vector<Hit>>& oracle_hits(const World& world, const std::vector<testing::RaySet>& sets,
-                                                 TriangleTest test, int frame) {
-    static std::map<std::pair<TriangleTest, int>, std::vector<std::vector<Hit>>> cache;
-    auto [it, inserted] = cache.try_emplace({test, frame});
-    if (inserted) {
-        BruteAccel brute;
-        brute.build(world.geometry().view(), build_options(test));
-        for (const testing::RaySet& set : sets) {
-            std::vector<Hit>& expected = it->second.emplace_back(set.rays.size());
-            brute.intersect(set.rays, expected);
-        }
-    }
-    return it->second;
+// Brute force's answers on the world's present geometry, built afresh: computed once per frame, ray set and
+// triangle test, and shared by every structure (the scene, the wave and the rays are the same for all).
+const std::vector<Hit>& oracle_hits(const World& world, int frame, std::size_t set_index,
+                                    const testing::RaySet& set, TriangleTest test) {
+    static testing::BruteForceCache cache;  // the frame stands for the scene: the mesh as moved at that frame
+    return cache.hits(static_cast<std::size_t>(frame), set_index, test, world.geometry().view(), set.rays);
 }
 
 // The structure against brute force on the world's present geometry: closest hits, packets and occlusion.
 void expect_agreement(const World& world, TriangleTest test, int frame, const std::string& context) {
     const std::vector<testing::RaySet> sets = ray_sets(world);
-    const std::vector<std::vector<Hit>>& oracle = oracle_hits(world, sets, test, frame);
     for (std::size_t s = 0; s < sets.size(); ++s) {
         const testing::RaySet& set = sets[s];
-        const std::vector<Hit>& expected = oracle[s];
+        const std::vector<Hit>& expected = oracle_hits(world, frame, s, set, test);
         std::vector<Hit> hits(set.rays.size());
         world.accel().intersect(set.rays, hits);
         const Agreement closest = compare_hits(set.rays, expected, hits);
