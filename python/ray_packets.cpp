@@ -1,8 +1,10 @@
 #include "ray_packets.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #if defined(__SSE2__)
 #include <immintrin.h>
@@ -66,9 +68,30 @@ bool load_eight(const float* low, const float* high, RayPacket& rays, int lane) 
     return _mm256_movemask_ps(finite) == 0xFF;
 }
 
-// The answers of a pair of full groups, eight rows from the first group's.
+// Lane j of a pair's normals register k holds float 8k + j of the pair's 24 normal floats: field
+// (8k + j) % 3 of ray (8k + j) / 3.
+struct NormalLanes {
+    std::array<std::array<int, 8>, 3> ray{}, field{};
+};
+constexpr NormalLanes kNormalLanes = [] {
+    NormalLanes lanes;
+    for (int k = 0; k < 3; ++k) {
+        for (int j = 0; j < 8; ++j) {
+            lanes.ray[k][j] = (8 * k + j) / 3;
+            lanes.field[k][j] = (8 * k + j) % 3;
+        }
+    }
+    return lanes;
+}();
+
+__m256i load_lanes(const std::array<int, 8>& lanes) {
+    return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(lanes.data()));
+}
+
+// The answers of a pair of full groups, eight rows from the first group's. The hits' normals are gathered
+// from the table straight in the rows' layout (three floats a ray), a miss's lanes masked to 0.
 unsigned store_full_pair(const HitPacket& hits, int low_lane, int high_lane, const CastAnswers& answers,
-                         std::size_t row) {
+                         const NormalTable& normals, std::size_t row) {
     const auto lanes_of = [&](const auto* field) {
         return _mm256_loadu2_m128(reinterpret_cast<const float*>(field + high_lane),
                                   reinterpret_cast<const float*>(field + low_lane));
@@ -85,14 +108,32 @@ unsigned store_full_pair(const HitPacket& hits, int low_lane, int high_lane, con
     const __m256 uv_low = _mm256_unpacklo_ps(u, v), uv_high = _mm256_unpackhi_ps(u, v);
     _mm256_storeu_ps(answers.uvs + 2 * row, _mm256_permute2f128_ps(uv_low, uv_high, 0x20));
     _mm256_storeu_ps(answers.uvs + 2 * row + 8, _mm256_permute2f128_ps(uv_low, uv_high, 0x31));
-    for (int k = 0; k < 3; ++k)
-        _mm256_storeu_ps(answers.normals + 3 * row + 8 * k, _mm256_setzero_ps());
-    return static_cast<unsigned>(_mm256_movemask_ps(hit_mask));
+    const auto hit_rays = static_cast<unsigned>(_mm256_movemask_ps(hit_mask));
+    for (int k = 0; k < 3; ++k) {
+        __m256 normal = _mm256_setzero_ps();
+        if (hit_rays != 0) {
+            const __m256i ray = load_lanes(kNormalLanes.ray[static_cast<std::size_t>(k)]);
+            const __m256i ray_prim = _mm256_permutevar8x32_epi32(prim, ray);
+            const __m256i index =
+                _mm256_add_epi32(_mm256_mullo_epi32(ray_prim, _mm256_set1_epi32(3)),
+                                 load_lanes(kNormalLanes.field[static_cast<std::size_t>(k)]));
+            normal = _mm256_mask_i32gather_ps(normal, normals.xyz, index,
+                                              _mm256_castsi256_ps(_mm256_permutevar8x32_epi32(hit, ray)), 4);
+        }
+        _mm256_storeu_ps(answers.normals + 3 * row + 8 * k, normal);
+    }
+    return hit_rays;
+}
+
+// Whether every index into the normal table fits the gathers' 32-bit signed offsets.
+bool gathers_reach(const NormalTable& normals) {
+    return normals.triangle_count <= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()) / 3;
 }
 #endif
 
 // The answers of one group, a lane at a time.
-unsigned store_group(const HitPacket& hits, const PacketRows& where, int group, const CastAnswers& answers) {
+unsigned store_group(const HitPacket& hits, const PacketRows& where, int group, const CastAnswers& answers,
+                     const NormalTable& normals) {
     const auto g = static_cast<std::size_t>(group);
     unsigned hit_rays = 0;
     for (int index = 0; index < where.count[g]; ++index) {
@@ -100,10 +141,14 @@ unsigned store_group(const HitPacket& hits, const PacketRows& where, int group, 
         const std::size_t i = where.row[g] + static_cast<std::size_t>(index);
         const bool hit = hits.prim[lane] >= 0;
         answers.t_hit[i] = hits.t[lane];
-        answers.geometry_ids[i] = answers.primitive_ids[i] = kInvalidId;
+        answers.geometry_ids[i] = hit ? 0 : kInvalidId;
+        answers.primitive_ids[i] = hit ? static_cast<std::uint32_t>(hits.prim[lane]) : kInvalidId;
         answers.uvs[2 * i] = hit ? hits.u[lane] : 0.0f;
         answers.uvs[2 * i + 1] = hit ? hits.v[lane] : 0.0f;
-        std::fill_n(answers.normals + 3 * i, 3, 0.0f);
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            answers.normals[3 * i + axis] =
+                hit ? normals.xyz[3 * static_cast<std::size_t>(hits.prim[lane]) + axis] : 0.0f;
+        }
         hit_rays |= unsigned{hit} << index;
     }
     return hit_rays;
@@ -171,16 +216,17 @@ void prefetch_answers(const PacketRows& where, const CastAnswers& answers) {
 }
 
 unsigned store_pair(const HitPacket& hits, const PacketRows& where, std::size_t pair,
-                    const CastAnswers& answers) {
+                    const CastAnswers& answers, const NormalTable& normals) {
     const auto [low, high] = where.answer_pairs[pair];
 #if defined(__AVX2__)
     if (where.count[static_cast<std::size_t>(low)] == kGroupLanes &&
-        where.count[static_cast<std::size_t>(high)] == kGroupLanes) {
-        return store_full_pair(hits, low * kGroupLanes, high * kGroupLanes, answers,
+        where.count[static_cast<std::size_t>(high)] == kGroupLanes && gathers_reach(normals)) {
+        return store_full_pair(hits, low * kGroupLanes, high * kGroupLanes, answers, normals,
                                where.row[static_cast<std::size_t>(low)]);
     }
 #endif
-    return store_group(hits, where, low, answers) | store_group(hits, where, high, answers) << kGroupLanes;
+    return store_group(hits, where, low, answers, normals) | store_group(hits, where, high, answers, normals)
+                                                                 << kGroupLanes;
 }
 
 RayChunks::RayChunks(std::span<const std::size_t> shape) {

@@ -8,10 +8,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <tuple>
 #include <vector>
 
 #include "lancer/packet.hpp"
-#include "lancer/vec.hpp"
 
 namespace lancer::python {
 
@@ -53,34 +53,33 @@ struct CastAnswers {
 // fetch with the trace instead of stalling the stores after it.
 void prefetch_answers(const PacketRows& where, const CastAnswers& answers);
 
-// A hit's ids and unit normal, from its global triangle index.
-struct HitNames {
-    std::uint32_t geometry_id;
-    std::uint32_t primitive_id;
-    Vec3f normal;
+// The unit normal of each triangle, by global triangle index: three floats a triangle.
+struct NormalTable {
+    const float* xyz;
+    std::size_t triangle_count;
 };
 
-// The answers of answer pair `pair`, a miss's ids kInvalidId and its uv and normal 0, a hit's ids and normal
-// left to the caller. Returns which rays hit, as bits: 0 to 3 the pair's first group, 4 to 7 its second.
+// The answers of answer pair `pair`: a miss's ids kInvalidId and its uv and normal 0, a hit's normal from
+// `normals`, its ids those of a scene of one geometry (geometry 0, primitive the global index). Returns which
+// rays hit, as bits: 0 to 3 the pair's first group, 4 to 7 its second.
 [[nodiscard]] unsigned store_pair(const HitPacket& hits, const PacketRows& where, std::size_t pair,
-                                  const CastAnswers& answers);
+                                  const CastAnswers& answers, const NormalTable& normals);
 
-// The answers of the packet's rays: store_pair's, and each hit's ids and normal from name_hit.
-template <class NameHit>
+// The answers of the packet's rays. In a scene of several geometries, each hit's geometry and primitive ids
+// are `locate(global index)`'s pair.
+template <class Locate>
 void store_answers(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
-                   NameHit&& name_hit) {
+                   const NormalTable& normals, bool several_geometries, Locate&& locate) {
     for (std::size_t pair = 0; pair < where.answer_pairs.size(); ++pair) {
-        for (unsigned hit_rays = store_pair(hits, where, pair, answers); hit_rays != 0;
-             hit_rays &= hit_rays - 1) {
+        unsigned hit_rays = store_pair(hits, where, pair, answers, normals);
+        if (!several_geometries) continue;
+        for (; hit_rays != 0; hit_rays &= hit_rays - 1) {
             const int bit = __builtin_ctz(hit_rays);
             const int group = where.answer_pairs[pair][static_cast<std::size_t>(bit / kGroupLanes)];
-            const HitNames names = name_hit(hits.prim[group * kGroupLanes + bit % kGroupLanes]);
             const std::size_t row =
                 where.row[static_cast<std::size_t>(group)] + static_cast<std::size_t>(bit % kGroupLanes);
-            answers.geometry_ids[row] = names.geometry_id;
-            answers.primitive_ids[row] = names.primitive_id;
-            float* const normal = answers.normals + 3 * row;
-            normal[0] = names.normal.x, normal[1] = names.normal.y, normal[2] = names.normal.z;
+            std::tie(answers.geometry_ids[row], answers.primitive_ids[row]) =
+                locate(hits.prim[group * kGroupLanes + bit % kGroupLanes]);
         }
     }
 }

@@ -259,15 +259,17 @@ const GeometryQueries& RaycastingScene::queries() {
     return *queries_;
 }
 
-const std::vector<Vec3f>& RaycastingScene::unit_normals() {
+NormalTable RaycastingScene::unit_normals() {
     committed();
+    const std::span<const Triangle> triangles = world_->geometry().view().triangles;
     if (unit_normals_.empty()) {
-        const std::span<const Triangle> triangles = world_->geometry().view().triangles;
-        unit_normals_.reserve(triangles.size());
-        for (const Triangle& tri : triangles)
-            unit_normals_.push_back(normalize(tri.geometric_normal()));
+        unit_normals_.reserve(3 * triangles.size());
+        for (const Triangle& tri : triangles) {
+            const Vec3f normal = normalize(tri.geometric_normal());
+            unit_normals_.insert(unit_normals_.end(), {normal.x, normal.y, normal.z});
+        }
     }
-    return unit_normals_;
+    return {unit_normals_.data(), triangles.size()};
 }
 
 std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t prim) const {
@@ -294,11 +296,9 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const Accel& accel = committed();
-        const std::vector<Vec3f>& unit_normal = unit_normals();
-        const auto name_hit = [&](std::int32_t prim) {
-            const auto [geometry, primitive] = locate(prim);
-            return HitNames{geometry, primitive, unit_normal[static_cast<std::size_t>(prim)]};
-        };
+        const NormalTable normal_table = unit_normals();
+        const bool several_geometries = first_triangle_.size() > 2;
+        const auto locate_hit = [&](std::int32_t prim) { return locate(prim); };
         parallel_for_each(chunks.size(), nthreads, [&](std::size_t index) {
             std::vector<PacketRows> packets;
             chunks.chunk(index, packets);
@@ -312,7 +312,7 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
                 }
                 prefetch_answers(where, answers);
                 accel.intersect_packet(packet, hits);
-                store_answers(hits, where, answers, name_hit);
+                store_answers(hits, where, answers, normal_table, several_geometries, locate_hit);
             }
         });
     }
@@ -419,15 +419,15 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const GeometryQueries& all = queries();
-        const std::vector<Vec3f>& unit_normal = unit_normals();
+        const NormalTable unit_normal = unit_normals();
         parallel_ranges(
             static_cast<std::size_t>(rows.size() / 3), nthreads, [&](std::size_t first, std::size_t last) {
                 for (std::size_t i = first; i < last; ++i) {
                     const NearestPoint nearest = all.nearest_point({q[3 * i], q[3 * i + 1], q[3 * i + 2]});
-                    const Vec3f n = unit_normal[static_cast<std::size_t>(nearest.prim)];
+                    const float* n = unit_normal.xyz + 3 * static_cast<std::size_t>(nearest.prim);
                     point[3 * i] = nearest.point.x, point[3 * i + 1] = nearest.point.y,
                               point[3 * i + 2] = nearest.point.z;
-                    normal[3 * i] = n.x, normal[3 * i + 1] = n.y, normal[3 * i + 2] = n.z;
+                    std::copy_n(n, 3, normal + 3 * i);
                     uv[2 * i] = nearest.u, uv[2 * i + 1] = nearest.v;
                     std::tie(geometry[i], primitive[i]) = locate(nearest.prim);
                 }

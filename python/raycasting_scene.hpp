@@ -65,10 +65,10 @@ class RaycastingScene {
     // `directions` (sample_directions), by majority.
     [[nodiscard]] bool inside(const GeometryQueries& all, const Vec3f& p,
                               std::span<const Vec3f> directions) const;
-    // The unit geometric normal of each triangle, by global index, (v1 - v0) x (v2 - v0) as Embree's: made
-    // once after each change of the triangles, so that an answer gathers 12 bytes instead of its triangle's
-    // 36 and a square root.
-    const std::vector<Vec3f>& unit_normals();
+    // The unit geometric normal of each triangle, by global index, (v1 - v0) x (v2 - v0) as Embree's, three
+    // floats a triangle: made once after each change of the triangles, so that an answer gathers 12 bytes
+    // instead of its triangle's 36 and a square root.
+    NormalTable unit_normals();
     // The geometry and primitive ids of a global triangle index.
     [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) const;
 
@@ -78,7 +78,7 @@ class RaycastingScene {
     std::vector<std::uint32_t> first_triangle_;  // of each geometry, then the total
     std::unique_ptr<World> world_;               // scene_ flattened and its structure, once built
     std::unique_ptr<GeometryQueries> queries_;
-    std::vector<Vec3f> unit_normals_;  // of world_'s triangles once made; empty before
+    std::vector<float> unit_normals_;  // of world_'s triangles once made; empty before
     std::mutex mutex_;
 };
 

@@ -41,13 +41,28 @@ struct Answers {
     std::vector<float> uv, normal;
 };
 
+// The stand-in's normal table: triangle p's normal is (p, 1, 2).
+std::vector<float> normal_table(std::size_t count) {
+    std::vector<float> xyz;
+    for (std::size_t p = 0; p < count; ++p)
+        xyz.insert(xyz.end(), {static_cast<float>(p), 1.0f, 2.0f});
+    return xyz;
+}
+
+// The stand-in's ids of triangle p in a scene of several geometries.
+std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) {
+    const auto p = static_cast<std::uint32_t>(prim);
+    return {p % 4, p / 4};
+}
+
 // Traces every chunk of an array of leading shape `shape` through the stand-in; checks each packet's lanes.
-Answers cast(const std::vector<std::size_t>& shape) {
+Answers cast(const std::vector<std::size_t>& shape, bool several_geometries) {
     std::size_t count = 1;
     for (const std::size_t extent : shape)
         count *= extent;
     std::vector<float> rows(6 * count);
     fill_rows(rows);
+    const std::vector<float> normals = normal_table(count);
     Answers answers(count);
     std::vector<int> lanes_of_row(count, 0);
     const RayChunks chunks(shape);
@@ -85,10 +100,8 @@ Answers cast(const std::vector<std::size_t>& shape) {
                                   static_cast<std::size_t>(PinholeCamera::tile_column(lane)));
                 }
             }
-            store_answers(hit_packet, where, answers.view(), [](std::int32_t prim) {
-                const auto p = static_cast<std::uint32_t>(prim);
-                return HitNames{p % 4, p / 4, Vec3f(static_cast<float>(p), 1.0f, 2.0f)};
-            });
+            store_answers(hit_packet, where, answers.view(), NormalTable{normals.data(), count},
+                          several_geometries, locate);
         }
     }
     for (std::size_t row = 0; row < count; ++row)
@@ -96,29 +109,41 @@ Answers cast(const std::vector<std::size_t>& shape) {
     return answers;
 }
 
+// The answers of `row`: the stand-in's for a hit, with ids `geometry` and `primitive`, Open3D's for a miss.
+void check_answers(const Answers& answers, std::size_t row, std::uint32_t geometry, std::uint32_t primitive) {
+    const auto r = static_cast<float>(row);
+    if (hits(row)) {
+        EXPECT_EQ(answers.t[row], r + 0.5f) << row;
+        EXPECT_EQ(answers.geometry[row], geometry) << row;
+        EXPECT_EQ(answers.primitive[row], primitive) << row;
+        EXPECT_EQ(answers.uv[2 * row], 0.25f) << row;
+        EXPECT_EQ(answers.uv[2 * row + 1], 0.75f) << row;
+        EXPECT_EQ(answers.normal[3 * row], r) << row;
+        EXPECT_EQ(answers.normal[3 * row + 1], 1.0f) << row;
+        EXPECT_EQ(answers.normal[3 * row + 2], 2.0f) << row;
+    } else {
+        EXPECT_EQ(answers.t[row], kInfinity) << row;
+        EXPECT_EQ(answers.geometry[row], kInvalidId) << row;
+        EXPECT_EQ(answers.primitive[row], kInvalidId) << row;
+        for (int k = 0; k < 2; ++k)
+            EXPECT_EQ(answers.uv[2 * row + static_cast<std::size_t>(k)], 0.0f) << row;
+        for (int k = 0; k < 3; ++k)
+            EXPECT_EQ(answers.normal[3 * row + static_cast<std::size_t>(k)], 0.0f) << row;
+    }
+}
+
 class RayPacketsShapes : public testing::TestWithParam<std::vector<std::size_t>> {};
 
+// A hit's ids are the global index's in a scene of one geometry, locate's in one of several.
 TEST_P(RayPacketsShapes, EveryRayIsTracedOnceAndAnsweredAtItsRow) {
-    const Answers answers = cast(GetParam());
-    for (std::size_t row = 0; row < answers.t.size(); ++row) {
-        const float r = static_cast<float>(row);
-        if (hits(row)) {
-            EXPECT_EQ(answers.t[row], r + 0.5f) << row;
-            EXPECT_EQ(answers.geometry[row], row % 4) << row;
-            EXPECT_EQ(answers.primitive[row], row / 4) << row;
-            EXPECT_EQ(answers.uv[2 * row], 0.25f) << row;
-            EXPECT_EQ(answers.uv[2 * row + 1], 0.75f) << row;
-            EXPECT_EQ(answers.normal[3 * row], r) << row;
-            EXPECT_EQ(answers.normal[3 * row + 1], 1.0f) << row;
-            EXPECT_EQ(answers.normal[3 * row + 2], 2.0f) << row;
-        } else {
-            EXPECT_EQ(answers.t[row], kInfinity) << row;
-            EXPECT_EQ(answers.geometry[row], kInvalidId) << row;
-            EXPECT_EQ(answers.primitive[row], kInvalidId) << row;
-            for (int k = 0; k < 2; ++k)
-                EXPECT_EQ(answers.uv[2 * row + static_cast<std::size_t>(k)], 0.0f) << row;
-            for (int k = 0; k < 3; ++k)
-                EXPECT_EQ(answers.normal[3 * row + static_cast<std::size_t>(k)], 0.0f) << row;
+    for (const bool several_geometries : {false, true}) {
+        SCOPED_TRACE(several_geometries ? "several geometries" : "one geometry");
+        const Answers answers = cast(GetParam(), several_geometries);
+        for (std::size_t row = 0; row < answers.t.size(); ++row) {
+            const auto [geometry, primitive] = several_geometries ? locate(static_cast<std::int32_t>(row))
+                                                                  : std::pair<std::uint32_t, std::uint32_t>{
+                                                                        0, static_cast<std::uint32_t>(row)};
+            check_answers(answers, row, geometry, primitive);
         }
     }
 }
