@@ -229,6 +229,65 @@ unsigned store_pair(const HitPacket& hits, const PacketRows& where, std::size_t 
                                                                  << kGroupLanes;
 }
 
+StagedAnswers::StagedAnswers()
+    : t_hit_{},
+      geometry_ids_{},
+      primitive_ids_{},
+      uvs_{},
+      normals_{},
+      view_{t_hit_, geometry_ids_, primitive_ids_, uvs_, normals_} {}
+
+PacketRows StagedAnswers::rebase(const PacketRows& where, const AnswerBlock& block) const {
+    PacketRows staged = where;
+    for (std::size_t g = 0; g < staged.row.size(); ++g) {
+        const std::size_t offset = where.row[g] - block.first;
+        staged.row[g] = offset / block.stride * AnswerBlock::kRowRays + offset % block.stride;
+    }
+    return staged;
+}
+
+namespace {
+
+// `count` values from `stage` to `out`, both on 64-byte boundaries, count a multiple of 16.
+template <class T>
+void write_lines(T* out, const T* stage, std::size_t count) {
+    static_assert(sizeof(T) == sizeof(float));
+#if defined(__AVX2__)
+    for (std::size_t k = 0; k < count; k += 8) {
+        _mm256_stream_si256(reinterpret_cast<__m256i*>(out + k),
+                            _mm256_load_si256(reinterpret_cast<const __m256i*>(stage + k)));
+    }
+#else
+    std::memcpy(out, stage, count * sizeof(T));
+#endif
+}
+
+}  // namespace
+
+void StagedAnswers::write_out(const CastAnswers& answers, const AnswerBlock& block) const {
+    constexpr std::size_t kRowRays = AnswerBlock::kRowRays;
+    for (std::size_t k = 0; k < AnswerBlock::kRows; ++k) {
+        const std::size_t row = block.first + k * block.stride, staged = k * kRowRays;
+        write_lines(answers.t_hit + row, t_hit_ + staged, kRowRays);
+        write_lines(answers.geometry_ids + row, geometry_ids_ + staged, kRowRays);
+        write_lines(answers.primitive_ids + row, primitive_ids_ + staged, kRowRays);
+        write_lines(answers.uvs + 2 * row, uvs_ + 2 * staged, 2 * kRowRays);
+        write_lines(answers.normals + 3 * row, normals_ + 3 * staged, 3 * kRowRays);
+    }
+}
+
+void finish_streamed_stores() {
+#if defined(__AVX2__)
+    _mm_sfence();
+#endif
+}
+
+bool lines_aligned(const CastAnswers& answers) {
+    const auto aligned = [](const void* array) { return reinterpret_cast<std::uintptr_t>(array) % 64 == 0; };
+    return aligned(answers.t_hit) && aligned(answers.geometry_ids) && aligned(answers.primitive_ids) &&
+           aligned(answers.uvs) && aligned(answers.normals);
+}
+
 RayChunks::RayChunks(std::span<const std::size_t> shape) {
     for (const std::size_t extent : shape)
         ray_count_ *= extent;
@@ -252,6 +311,23 @@ void RayChunks::chunk(std::size_t index, std::vector<PacketRows>& packets) const
     } else {
         flat_chunk(index, packets);
     }
+}
+
+std::optional<AnswerBlock> RayChunks::answer_block(const PacketRows& left, const PacketRows& right) const {
+    static_assert(2 * PinholeCamera::kTileSide == AnswerBlock::kRowRays &&
+                  PinholeCamera::kTileSide == AnswerBlock::kRows);
+    const auto full = [](const PacketRows& where) {
+        return std::all_of(where.count.begin(), where.count.end(),
+                           [](int count) { return count == kGroupLanes; });
+    };
+    // A tile's lane 0 is its top left ray.
+    const std::size_t first = left.row[0];
+    if (!images() || width_ % AnswerBlock::kRowRays != 0 || first % AnswerBlock::kRowRays != 0 ||
+        !full(left) || !full(right) ||
+        right.row[0] != first + static_cast<std::size_t>(PinholeCamera::kTileSide)) {
+        return std::nullopt;
+    }
+    return AnswerBlock{first, width_};
 }
 
 void RayChunks::image_chunk(std::size_t index, std::vector<PacketRows>& packets) const {

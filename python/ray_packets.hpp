@@ -1,12 +1,13 @@
 // cast_rays's way between NumPy's arrays and lancer's packets (docs/python.md, "Speed"). The (..., 6) rows
 // go into RayPackets eight rays at a time, transposed in SIMD registers, through Accel::intersect_packet, and
-// the answers into Open3D's five arrays eight at a time. Made field by field through `Ray` and `Hit` records,
-// the same conversion cost as much as the trace.
+// the answers into Open3D's five arrays eight at a time, through a stage for pairs of camera tiles. Made
+// field by field through `Ray` and `Hit` records, the same conversion cost as much as the trace.
 #pragma once
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <tuple>
 #include <vector>
@@ -84,6 +85,45 @@ void store_answers(const HitPacket& hits, const PacketRows& where, const CastAns
     }
 }
 
+// Two camera tiles side by side, whose answers fill whole cache lines in each of the five arrays: kRows image
+// rows of kRowRays rays, row k from ray first + k * stride (the image's width), each row's first ray a
+// multiple of kRowRays, so that every row starts a line when the arrays start on a 64-byte boundary.
+struct AnswerBlock {
+    static constexpr std::size_t kRows = 8, kRowRays = 16;
+    std::size_t first = 0, stride = 0;
+};
+
+// The answers of an answer block, written first into a stage that stays in L1, then into the arrays with
+// non-temporal stores, a whole line at a time. Written in place, each line is first fetched for ownership,
+// and a camera tile's answers touch eight rows of each array: those fetches cost more than the stage's
+// extra pass (docs/python.md, "Speed").
+class StagedAnswers {
+  public:
+    StagedAnswers();
+    // The stage's arrays, which store_answers writes through `rebase(where)`.
+    [[nodiscard]] const CastAnswers& view() const { return view_; }
+    // `where`, one of the block's packets, with its rows numbered in the stage.
+    [[nodiscard]] PacketRows rebase(const PacketRows& where, const AnswerBlock& block) const;
+    // The stage into the block's rows of `answers`, whose five arrays start on 64-byte boundaries.
+    void write_out(const CastAnswers& answers, const AnswerBlock& block) const;
+
+  private:
+    static constexpr std::size_t kRays = AnswerBlock::kRows * AnswerBlock::kRowRays;
+    alignas(64) float t_hit_[kRays];
+    alignas(64) std::uint32_t geometry_ids_[kRays];
+    alignas(64) std::uint32_t primitive_ids_[kRays];
+    alignas(64) float uvs_[2 * kRays];
+    alignas(64) float normals_[3 * kRays];
+    CastAnswers view_;
+};
+
+// Makes the thread's non-temporal stores (StagedAnswers::write_out) visible before what it does next, such as
+// ending its task: they are weakly ordered, unlike the other stores.
+void finish_streamed_stores();
+
+// Whether the five arrays start on 64-byte boundaries, as StagedAnswers::write_out needs.
+[[nodiscard]] bool lines_aligned(const CastAnswers& answers);
+
 // The chunks of a cast_rays call, each kChunkPackets packets or fewer, traced by one task. An array whose
 // last two leading axes are both 8 or more holds images (rows and columns, the axes before them numbering
 // the images) and goes by camera tiles, 8 x 8 rays in PinholeCamera::tile_rays's lane order, which the packet
@@ -99,6 +139,12 @@ class RayChunks {
     [[nodiscard]] bool images() const { return width_ != 0; }
     // The packets of chunk `index`.
     void chunk(std::size_t index, std::vector<PacketRows>& packets) const;
+    // The answer block of packets `left` and `right`, consecutive in a chunk, when they make one: two camera
+    // tiles side by side, all their rays in the image, in an image whose width is a multiple of 16. A flat
+    // array's packets make none: their answers go straight to consecutive lines, which was measured faster
+    // than staging them (docs/python.md).
+    [[nodiscard]] std::optional<AnswerBlock> answer_block(const PacketRows& left,
+                                                          const PacketRows& right) const;
 
   private:
     void image_chunk(std::size_t index, std::vector<PacketRows>& packets) const;
@@ -109,5 +155,36 @@ class RayChunks {
     std::size_t bands_ = 0, segments_ = 0;
     std::size_t chunk_count_ = 0;
 };
+
+// Traces and answers a chunk's packets: trace(where, hits) traces the packet `where`. Two packets that make
+// an answer block go through a StagedAnswers when the arrays start on 64-byte boundaries, any other packet
+// straight into the arrays. In a scene of several geometries, locate names each hit (store_answers).
+template <class Trace, class Locate>
+void answer_chunk(const RayChunks& chunks, std::span<const PacketRows> packets, const CastAnswers& answers,
+                  const NormalTable& normals, bool several_geometries, Trace&& trace, Locate&& locate) {
+    HitPacket hits;
+    StagedAnswers stage;
+    const bool stage_blocks = lines_aligned(answers);
+    for (std::size_t i = 0; i < packets.size();) {
+        const std::optional<AnswerBlock> block = stage_blocks && i + 1 < packets.size()
+                                                     ? chunks.answer_block(packets[i], packets[i + 1])
+                                                     : std::nullopt;
+        if (block) {
+            for (const std::size_t k : {i, i + 1}) {
+                trace(packets[k], hits);
+                store_answers(hits, stage.rebase(packets[k], *block), stage.view(), normals,
+                              several_geometries, locate);
+            }
+            stage.write_out(answers, *block);
+            i += 2;
+        } else {
+            prefetch_answers(packets[i], answers);
+            trace(packets[i], hits);
+            store_answers(hits, packets[i], answers, normals, several_geometries, locate);
+            ++i;
+        }
+    }
+    finish_streamed_stores();
+}
 
 }  // namespace lancer::python

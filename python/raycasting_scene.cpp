@@ -56,6 +56,20 @@ std::vector<py::ssize_t> answer_shape(const py::array& rows, std::initializer_li
     return shape;
 }
 
+// An uninitialised C-contiguous array of `shape` whose data starts on a 64-byte boundary, as
+// StagedAnswers::write_out needs: a view into a NumPy array one line longer, which owns the memory.
+template <class T>
+py::array_t<T> line_aligned_array(const std::vector<py::ssize_t>& shape) {
+    constexpr std::size_t kLine = 64;
+    py::ssize_t count = 1;
+    for (const py::ssize_t extent : shape)
+        count *= extent;
+    py::array_t<T> storage(count + static_cast<py::ssize_t>(kLine / sizeof(T)));
+    const auto address = reinterpret_cast<std::uintptr_t>(storage.mutable_data());
+    const std::size_t skip = (kLine - address % kLine) % kLine / sizeof(T);
+    return py::array_t<T>(shape, storage.mutable_data() + skip, storage);
+}
+
 // Rays first to last of the (..., 6) rows, with the interval [tnear, tfar]. Throws std::invalid_argument
 // (ValueError) for a row with a NaN or infinite value, as float_rows does.
 void rays_of(const float* rows, std::size_t first, std::size_t last, float tnear, float tfar,
@@ -282,9 +296,11 @@ std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t pri
 py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
     const auto rows = float_rows(rays, "rays", 6, false);
     check_threads(nthreads);
-    py::array_t<float> t_hit(answer_shape(rows));
-    py::array_t<std::uint32_t> geometry_ids(answer_shape(rows)), primitive_ids(answer_shape(rows));
-    py::array_t<float> uvs(answer_shape(rows, {2})), normals(answer_shape(rows, {3}));
+    py::array_t<float> t_hit = line_aligned_array<float>(answer_shape(rows));
+    py::array_t<std::uint32_t> geometry_ids = line_aligned_array<std::uint32_t>(answer_shape(rows));
+    py::array_t<std::uint32_t> primitive_ids = line_aligned_array<std::uint32_t>(answer_shape(rows));
+    py::array_t<float> uvs = line_aligned_array<float>(answer_shape(rows, {2}));
+    py::array_t<float> normals = line_aligned_array<float>(answer_shape(rows, {3}));
     const CastAnswers answers{t_hit.mutable_data(), geometry_ids.mutable_data(), primitive_ids.mutable_data(),
                               uvs.mutable_data(), normals.mutable_data()};
     const std::vector<py::ssize_t> leading = answer_shape(rows);
@@ -303,17 +319,15 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
             std::vector<PacketRows> packets;
             chunks.chunk(index, packets);
             RayPacket packet;
-            HitPacket hits;
-            for (const PacketRows& where : packets) {
+            const auto trace = [&](const PacketRows& where, HitPacket& hits) {
                 if (!load_rays(rows.data(), where, packet)) {
                     throw std::invalid_argument("rays: row " +
                                                 std::to_string(first_bad_row(rows.data(), where)) +
                                                 " holds a NaN or infinite value");
                 }
-                prefetch_answers(where, answers);
                 accel.intersect_packet(packet, hits);
-                store_answers(hits, where, answers, normal_table, several_geometries, locate_hit);
-            }
+            };
+            answer_chunk(chunks, packets, answers, normal_table, several_geometries, trace, locate_hit);
         });
     }
     return py::dict("t_hit"_a = t_hit, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,

@@ -6,7 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <span>
+#include <string>
 #include <vector>
 
 #include "lancer/camera.hpp"
@@ -28,17 +31,38 @@ bool hits(std::size_t row) {
     return row % 3 != 0;
 }
 
+// An answer array of `count` values, each `fill` at first, starting on a 64-byte boundary (as cast_rays
+// makes them) or 4 bytes after one, which answer_chunk must answer without its staged blocks.
+template <class T>
+class AnswerArray {
+  public:
+    AnswerArray(std::size_t count, T fill, bool line_aligned) : storage_(count + 32, fill) {
+        const auto address = reinterpret_cast<std::uintptr_t>(storage_.data());
+        const std::size_t first = (64 - address % 64) % 64 / sizeof(T) + (line_aligned ? 0 : 1);
+        values_ = std::span<T>(storage_).subspan(first, count);
+    }
+    AnswerArray(const AnswerArray&) = delete;
+    AnswerArray(AnswerArray&&) noexcept = default;  // the moved vector keeps its buffer, so values_ too
+    T* data() { return values_.data(); }
+    const T& operator[](std::size_t i) const { return values_[i]; }
+    [[nodiscard]] std::size_t size() const { return values_.size(); }
+
+  private:
+    std::vector<T> storage_;
+    std::span<T> values_;
+};
+
 struct Answers {
-    explicit Answers(std::size_t count)
-        : t(count, -1.0f),
-          geometry(count, 7),
-          primitive(count, 7),
-          uv(2 * count, -1.0f),
-          normal(3 * count, -1.0f) {}
+    Answers(std::size_t count, bool line_aligned)
+        : t(count, -1.0f, line_aligned),
+          geometry(count, 7, line_aligned),
+          primitive(count, 7, line_aligned),
+          uv(2 * count, -1.0f, line_aligned),
+          normal(3 * count, -1.0f, line_aligned) {}
     CastAnswers view() { return {t.data(), geometry.data(), primitive.data(), uv.data(), normal.data()}; }
-    std::vector<float> t;
-    std::vector<std::uint32_t> geometry, primitive;
-    std::vector<float> uv, normal;
+    AnswerArray<float> t;
+    AnswerArray<std::uint32_t> geometry, primitive;
+    AnswerArray<float> uv, normal;
 };
 
 // The stand-in's normal table: triangle p's normal is (p, 1, 2).
@@ -55,54 +79,54 @@ std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) {
     return {p % 4, p / 4};
 }
 
-// Traces every chunk of an array of leading shape `shape` through the stand-in; checks each packet's lanes.
-Answers cast(const std::vector<std::size_t>& shape, bool several_geometries) {
+// Traces every chunk of an array of leading shape `shape` through the stand-in and answer_chunk; checks each
+// packet's lanes.
+Answers cast(const std::vector<std::size_t>& shape, bool several_geometries, bool line_aligned) {
     std::size_t count = 1;
     for (const std::size_t extent : shape)
         count *= extent;
     std::vector<float> rows(6 * count);
     fill_rows(rows);
     const std::vector<float> normals = normal_table(count);
-    Answers answers(count);
+    Answers answers(count, line_aligned);
     std::vector<int> lanes_of_row(count, 0);
     const RayChunks chunks(shape);
+    const auto trace = [&](const PacketRows& where, HitPacket& hit_packet) {
+        RayPacket rays;
+        EXPECT_TRUE(load_rays(rows.data(), where, rays));
+        EXPECT_EQ(rays.size, RayPacket::kMaxSize);
+        for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
+            EXPECT_EQ(rays.tnear[lane], 0.0f);
+            EXPECT_EQ(rays.tfar[lane], kInfinity);
+            const Ray ray = rays.ray(lane);
+            if (ray.direction == Vec3f(0.0f)) {  // a padding lane: misses
+                hit_packet.set(lane, Hit{});
+                continue;
+            }
+            const auto row = static_cast<std::size_t>(ray.origin.x);
+            EXPECT_EQ(ray.origin, Vec3f(ray.origin.x, 0.5f * ray.origin.x, -ray.origin.x));
+            EXPECT_EQ(ray.direction, Vec3f(1.0f, 2.0f + ray.origin.x, -3.0f));
+            ++lanes_of_row.at(row);
+            const auto prim = static_cast<std::int32_t>(row);
+            hit_packet.set(lane, hits(row) ? Hit{ray.origin.x + 0.5f, prim, 0.25f, 0.75f} : Hit{});
+        }
+        if (chunks.images()) {
+            // Camera tiles: lane L at column tile_column(L) and row tile_row(L) of its tile.
+            const std::size_t width = shape.back(), first = where.row[0];
+            for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
+                const std::size_t group = static_cast<std::size_t>(lane / kGroupLanes);
+                if (lane % kGroupLanes >= where.count[group]) continue;
+                EXPECT_EQ(where.row[group] + static_cast<std::size_t>(lane % kGroupLanes),
+                          first + width * static_cast<std::size_t>(PinholeCamera::tile_row(lane)) +
+                              static_cast<std::size_t>(PinholeCamera::tile_column(lane)));
+            }
+        }
+    };
     std::vector<PacketRows> packets;
     for (std::size_t index = 0; index < chunks.size(); ++index) {
         chunks.chunk(index, packets);
-        for (const PacketRows& where : packets) {
-            RayPacket rays;
-            EXPECT_TRUE(load_rays(rows.data(), where, rays));
-            EXPECT_EQ(rays.size, RayPacket::kMaxSize);
-            HitPacket hit_packet;
-            for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
-                EXPECT_EQ(rays.tnear[lane], 0.0f);
-                EXPECT_EQ(rays.tfar[lane], kInfinity);
-                const Ray ray = rays.ray(lane);
-                if (ray.direction == Vec3f(0.0f)) {  // a padding lane: misses
-                    hit_packet.set(lane, Hit{});
-                    continue;
-                }
-                const auto row = static_cast<std::size_t>(ray.origin.x);
-                EXPECT_EQ(ray.origin, Vec3f(ray.origin.x, 0.5f * ray.origin.x, -ray.origin.x));
-                EXPECT_EQ(ray.direction, Vec3f(1.0f, 2.0f + ray.origin.x, -3.0f));
-                ++lanes_of_row.at(row);
-                const auto prim = static_cast<std::int32_t>(row);
-                hit_packet.set(lane, hits(row) ? Hit{ray.origin.x + 0.5f, prim, 0.25f, 0.75f} : Hit{});
-            }
-            if (chunks.images()) {
-                // Camera tiles: lane L at column tile_column(L) and row tile_row(L) of its tile.
-                const std::size_t width = shape.back(), first = where.row[0];
-                for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
-                    const std::size_t group = static_cast<std::size_t>(lane / kGroupLanes);
-                    if (lane % kGroupLanes >= where.count[group]) continue;
-                    EXPECT_EQ(where.row[group] + static_cast<std::size_t>(lane % kGroupLanes),
-                              first + width * static_cast<std::size_t>(PinholeCamera::tile_row(lane)) +
-                                  static_cast<std::size_t>(PinholeCamera::tile_column(lane)));
-                }
-            }
-            store_answers(hit_packet, where, answers.view(), NormalTable{normals.data(), count},
-                          several_geometries, locate);
-        }
+        answer_chunk(chunks, packets, answers.view(), NormalTable{normals.data(), count}, several_geometries,
+                     trace, locate);
     }
     for (std::size_t row = 0; row < count; ++row)
         EXPECT_EQ(lanes_of_row[row], 1) << "row " << row;
@@ -134,22 +158,28 @@ void check_answers(const Answers& answers, std::size_t row, std::uint32_t geomet
 
 class RayPacketsShapes : public testing::TestWithParam<std::vector<std::size_t>> {};
 
-// A hit's ids are the global index's in a scene of one geometry, locate's in one of several.
+// A hit's ids are the global index's in a scene of one geometry, locate's in one of several. Arrays on
+// 64-byte boundaries take the staged blocks where the shape has them, others not.
 TEST_P(RayPacketsShapes, EveryRayIsTracedOnceAndAnsweredAtItsRow) {
-    for (const bool several_geometries : {false, true}) {
-        SCOPED_TRACE(several_geometries ? "several geometries" : "one geometry");
-        const Answers answers = cast(GetParam(), several_geometries);
-        for (std::size_t row = 0; row < answers.t.size(); ++row) {
-            const auto [geometry, primitive] = several_geometries ? locate(static_cast<std::int32_t>(row))
-                                                                  : std::pair<std::uint32_t, std::uint32_t>{
-                                                                        0, static_cast<std::uint32_t>(row)};
-            check_answers(answers, row, geometry, primitive);
+    for (const bool line_aligned : {true, false}) {
+        for (const bool several_geometries : {false, true}) {
+            SCOPED_TRACE(std::string(line_aligned ? "arrays on lines" : "arrays off lines") + ", " +
+                         (several_geometries ? "several geometries" : "one geometry"));
+            const Answers answers = cast(GetParam(), several_geometries, line_aligned);
+            for (std::size_t row = 0; row < answers.t.size(); ++row) {
+                const auto [geometry, primitive] =
+                    several_geometries
+                        ? locate(static_cast<std::int32_t>(row))
+                        : std::pair<std::uint32_t, std::uint32_t>{0, static_cast<std::uint32_t>(row)};
+                check_answers(answers, row, geometry, primitive);
+            }
         }
     }
 }
 
 // Flat arrays around the group, packet and chunk sizes; images (both last axes 8 or more) around the tile
-// and chunk widths, stacked; arrays too thin to be images.
+// and chunk widths, stacked; arrays too thin to be images; images whose width is a multiple of an answer
+// block's (16), with bands whole and cut.
 INSTANTIATE_TEST_SUITE_P(
     Shapes, RayPacketsShapes,
     testing::Values(std::vector<std::size_t>{}, std::vector<std::size_t>{0}, std::vector<std::size_t>{1},
@@ -159,7 +189,9 @@ INSTANTIATE_TEST_SUITE_P(
                     std::vector<std::size_t>{9, 8}, std::vector<std::size_t>{8, 9},
                     std::vector<std::size_t>{13, 21}, std::vector<std::size_t>{3, 17, 300},
                     std::vector<std::size_t>{2, 16, 256}, std::vector<std::size_t>{7, 300},
-                    std::vector<std::size_t>{300, 7}, std::vector<std::size_t>{4, 0, 9}));
+                    std::vector<std::size_t>{300, 7}, std::vector<std::size_t>{4, 0, 9},
+                    std::vector<std::size_t>{24, 48}, std::vector<std::size_t>{12, 48},
+                    std::vector<std::size_t>{2, 8, 16}));
 
 TEST(RayPackets, AnyNonFiniteValueIsFoundWithItsRow) {
     for (const std::vector<std::size_t>& shape :
