@@ -68,28 +68,21 @@ bool load_eight(const float* low, const float* high, RayPacket& rays, int lane) 
     return _mm256_movemask_ps(finite) == 0xFF;
 }
 
-// Lane j of a pair's normals register k holds float 8k + j of the pair's 24 normal floats: field
-// (8k + j) % 3 of ray (8k + j) / 3.
-struct NormalLanes {
-    std::array<std::array<int, 8>, 3> ray{}, field{};
-};
-constexpr NormalLanes kNormalLanes = [] {
-    NormalLanes lanes;
-    for (int k = 0; k < 3; ++k) {
-        for (int j = 0; j < 8; ++j) {
-            lanes.ray[k][j] = (8 * k + j) / 3;
-            lanes.field[k][j] = (8 * k + j) % 3;
-        }
-    }
-    return lanes;
-}();
-
-__m256i load_lanes(const std::array<int, 8>& lanes) {
-    return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(lanes.data()));
+// The normals of four rays, whose global triangle indices start at `prim`, as their rows hold them: twelve
+// floats, x y z a ray. A ray's normal is one unaligned 4-float load from the table (a miss's, index -1, the
+// table's zero entry); the loads' fourth floats are dropped by the shuffles.
+void store_four_normals(const std::int32_t* prim, const NormalTable& normals, float* out) {
+    __m128 ray[kGroupLanes];
+    for (int k = 0; k < kGroupLanes; ++k)
+        ray[k] = _mm_loadu_ps(normals.xyz + 3 * static_cast<std::ptrdiff_t>(prim[k]));
+    // [x0 y0 z0 x1], [y1 z1 x2 y2], [z2 x3 y3 z3]
+    _mm_storeu_ps(out, _mm_blend_ps(ray[0], _mm_shuffle_ps(ray[1], ray[1], _MM_SHUFFLE(0, 0, 0, 0)), 0b1000));
+    _mm_storeu_ps(out + 4, _mm_shuffle_ps(ray[1], ray[2], _MM_SHUFFLE(1, 0, 2, 1)));
+    _mm_storeu_ps(out + 8, _mm_blend_ps(_mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(ray[3]), 4)),
+                                        _mm_shuffle_ps(ray[2], ray[2], _MM_SHUFFLE(2, 2, 2, 2)), 0b0001));
 }
 
-// The answers of a pair of full groups, eight rows from the first group's. The hits' normals are gathered
-// from the table straight in the rows' layout (three floats a ray), a miss's lanes masked to 0.
+// The answers of a pair of full groups, eight rows from the first group's.
 unsigned store_full_pair(const HitPacket& hits, int low_lane, int high_lane, const CastAnswers& answers,
                          const NormalTable& normals, std::size_t row) {
     const auto lanes_of = [&](const auto* field) {
@@ -109,26 +102,16 @@ unsigned store_full_pair(const HitPacket& hits, int low_lane, int high_lane, con
     _mm256_storeu_ps(answers.uvs + 2 * row, _mm256_permute2f128_ps(uv_low, uv_high, 0x20));
     _mm256_storeu_ps(answers.uvs + 2 * row + 8, _mm256_permute2f128_ps(uv_low, uv_high, 0x31));
     const auto hit_rays = static_cast<unsigned>(_mm256_movemask_ps(hit_mask));
-    for (int k = 0; k < 3; ++k) {
-        __m256 normal = _mm256_setzero_ps();
-        if (hit_rays != 0) {
-            const __m256i ray = load_lanes(kNormalLanes.ray[static_cast<std::size_t>(k)]);
-            const __m256i ray_prim = _mm256_permutevar8x32_epi32(prim, ray);
-            const __m256i index =
-                _mm256_add_epi32(_mm256_mullo_epi32(ray_prim, _mm256_set1_epi32(3)),
-                                 load_lanes(kNormalLanes.field[static_cast<std::size_t>(k)]));
-            normal = _mm256_mask_i32gather_ps(normal, normals.xyz, index,
-                                              _mm256_castsi256_ps(_mm256_permutevar8x32_epi32(hit, ray)), 4);
-        }
-        _mm256_storeu_ps(answers.normals + 3 * row + 8 * k, normal);
+    if (hit_rays != 0) {
+        store_four_normals(hits.prim + low_lane, normals, answers.normals + 3 * row);
+        store_four_normals(hits.prim + high_lane, normals, answers.normals + 3 * row + 3 * kGroupLanes);
+    } else {
+        for (int k = 0; k < 3; ++k)
+            _mm256_storeu_ps(answers.normals + 3 * row + 8 * k, _mm256_setzero_ps());
     }
     return hit_rays;
 }
 
-// Whether every index into the normal table fits the gathers' 32-bit signed offsets.
-bool gathers_reach(const NormalTable& normals) {
-    return normals.triangle_count <= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()) / 3;
-}
 #endif
 
 // The answers of one group, a lane at a time.
@@ -145,10 +128,8 @@ unsigned store_group(const HitPacket& hits, const PacketRows& where, int group, 
         answers.primitive_ids[i] = hit ? static_cast<std::uint32_t>(hits.prim[lane]) : kInvalidId;
         answers.uvs[2 * i] = hit ? hits.u[lane] : 0.0f;
         answers.uvs[2 * i + 1] = hit ? hits.v[lane] : 0.0f;
-        for (std::size_t axis = 0; axis < 3; ++axis) {
-            answers.normals[3 * i + axis] =
-                hit ? normals.xyz[3 * static_cast<std::size_t>(hits.prim[lane]) + axis] : 0.0f;
-        }
+        std::copy_n(normals.xyz + 3 * static_cast<std::ptrdiff_t>(hits.prim[lane]), 3,
+                    answers.normals + 3 * i);
         hit_rays |= unsigned{hit} << index;
     }
     return hit_rays;
@@ -215,18 +196,21 @@ void prefetch_answers(const PacketRows& where, const CastAnswers& answers) {
     }
 }
 
-unsigned store_pair(const HitPacket& hits, const PacketRows& where, std::size_t pair,
-                    const CastAnswers& answers, const NormalTable& normals) {
-    const auto [low, high] = where.answer_pairs[pair];
+void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
+                 const NormalTable& normals, std::array<unsigned, kGroups / 2>& hit_rays) {
+    for (std::size_t pair = 0; pair < hit_rays.size(); ++pair) {
+        const auto [low, high] = where.answer_pairs[pair];
 #if defined(__AVX2__)
-    if (where.count[static_cast<std::size_t>(low)] == kGroupLanes &&
-        where.count[static_cast<std::size_t>(high)] == kGroupLanes && gathers_reach(normals)) {
-        return store_full_pair(hits, low * kGroupLanes, high * kGroupLanes, answers, normals,
-                               where.row[static_cast<std::size_t>(low)]);
-    }
+        if (where.count[static_cast<std::size_t>(low)] == kGroupLanes &&
+            where.count[static_cast<std::size_t>(high)] == kGroupLanes) {
+            hit_rays[pair] = store_full_pair(hits, low * kGroupLanes, high * kGroupLanes, answers, normals,
+                                             where.row[static_cast<std::size_t>(low)]);
+            continue;
+        }
 #endif
-    return store_group(hits, where, low, answers, normals) | store_group(hits, where, high, answers, normals)
-                                                                 << kGroupLanes;
+        hit_rays[pair] = store_group(hits, where, low, answers, normals) |
+                         store_group(hits, where, high, answers, normals) << kGroupLanes;
+    }
 }
 
 StagedAnswers::StagedAnswers()
@@ -238,11 +222,21 @@ StagedAnswers::StagedAnswers()
       view_{t_hit_, geometry_ids_, primitive_ids_, uvs_, normals_} {}
 
 PacketRows StagedAnswers::rebase(const PacketRows& where, const AnswerBlock& block) const {
+    // Group g of a tile is row tile_row(4g) of the tile, from column tile_column(4g); the right tile's
+    // columns are eight more.
+    static constexpr auto kStageRow = [] {
+        std::array<std::size_t, kGroups> stage_row{};
+        for (int group = 0; group < kGroups; ++group) {
+            const int lane = group * kGroupLanes;
+            stage_row[static_cast<std::size_t>(group)] = static_cast<std::size_t>(
+                PinholeCamera::tile_row(lane) * static_cast<int>(AnswerBlock::kRowRays) +
+                PinholeCamera::tile_column(lane));
+        }
+        return stage_row;
+    }();
     PacketRows staged = where;
-    for (std::size_t g = 0; g < staged.row.size(); ++g) {
-        const std::size_t offset = where.row[g] - block.first;
-        staged.row[g] = offset / block.stride * AnswerBlock::kRowRays + offset % block.stride;
-    }
+    for (std::size_t g = 0; g < staged.row.size(); ++g)
+        staged.row[g] = kStageRow[g] + (where.row[0] - block.first);
     return staged;
 }
 

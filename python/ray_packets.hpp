@@ -54,28 +54,31 @@ struct CastAnswers {
 // fetch with the trace instead of stalling the stores after it.
 void prefetch_answers(const PacketRows& where, const CastAnswers& answers);
 
-// The unit normal of each triangle, by global triangle index: three floats a triangle.
+// The unit normal of each triangle, three floats a triangle: triangle p's at xyz + 3p, for p from -1 (a
+// miss's index, whose normal is 0) to triangle_count - 1, then one more float, which the answers' 4-float
+// loads may read.
 struct NormalTable {
     const float* xyz;
     std::size_t triangle_count;
 };
 
-// The answers of answer pair `pair`: a miss's ids kInvalidId and its uv and normal 0, a hit's normal from
-// `normals`, its ids those of a scene of one geometry (geometry 0, primitive the global index). Returns which
-// rays hit, as bits: 0 to 3 the pair's first group, 4 to 7 its second.
-[[nodiscard]] unsigned store_pair(const HitPacket& hits, const PacketRows& where, std::size_t pair,
-                                  const CastAnswers& answers, const NormalTable& normals);
+// The answers of each answer pair: a miss's ids kInvalidId and its uv and normal 0, a hit's normal from
+// `normals`, its ids those of a scene of one geometry (geometry 0, primitive the global index). hit_rays[k]
+// says which rays of pair k hit, as bits: 0 to 3 the pair's first group, 4 to 7 its second.
+void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
+                 const NormalTable& normals, std::array<unsigned, kGroups / 2>& hit_rays);
 
 // The answers of the packet's rays. In a scene of several geometries, each hit's geometry and primitive ids
 // are `locate(global index)`'s pair.
 template <class Locate>
 void store_answers(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
                    const NormalTable& normals, bool several_geometries, Locate&& locate) {
-    for (std::size_t pair = 0; pair < where.answer_pairs.size(); ++pair) {
-        unsigned hit_rays = store_pair(hits, where, pair, answers, normals);
-        if (!several_geometries) continue;
-        for (; hit_rays != 0; hit_rays &= hit_rays - 1) {
-            const int bit = __builtin_ctz(hit_rays);
+    std::array<unsigned, kGroups / 2> hit_rays;
+    store_pairs(hits, where, answers, normals, hit_rays);
+    if (!several_geometries) return;
+    for (std::size_t pair = 0; pair < hit_rays.size(); ++pair) {
+        for (unsigned rays = hit_rays[pair]; rays != 0; rays &= rays - 1) {
+            const int bit = __builtin_ctz(rays);
             const int group = where.answer_pairs[pair][static_cast<std::size_t>(bit / kGroupLanes)];
             const std::size_t row =
                 where.row[static_cast<std::size_t>(group)] + static_cast<std::size_t>(bit % kGroupLanes);

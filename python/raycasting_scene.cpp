@@ -277,13 +277,16 @@ NormalTable RaycastingScene::unit_normals() {
     committed();
     const std::span<const Triangle> triangles = world_->geometry().view().triangles;
     if (unit_normals_.empty()) {
-        unit_normals_.reserve(3 * triangles.size());
+        // NormalTable's layout: a miss's zero normal, the triangles', one float for the last 4-float load.
+        unit_normals_.reserve(3 * triangles.size() + 4);
+        unit_normals_.assign(3, 0.0f);
         for (const Triangle& tri : triangles) {
             const Vec3f normal = normalize(tri.geometric_normal());
             unit_normals_.insert(unit_normals_.end(), {normal.x, normal.y, normal.z});
         }
+        unit_normals_.push_back(0.0f);
     }
-    return {unit_normals_.data(), triangles.size()};
+    return {unit_normals_.data() + 3, triangles.size()};
 }
 
 std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t prim) const {

@@ -65,9 +65,9 @@ class RaycastingScene {
     // `directions` (sample_directions), by majority.
     [[nodiscard]] bool inside(const GeometryQueries& all, const Vec3f& p,
                               std::span<const Vec3f> directions) const;
-    // The unit geometric normal of each triangle, by global index, (v1 - v0) x (v2 - v0) as Embree's, three
-    // floats a triangle: made once after each change of the triangles, so that an answer gathers 12 bytes
-    // instead of its triangle's 36 and a square root.
+    // The unit geometric normal of each triangle, by global index, (v1 - v0) x (v2 - v0) as Embree's, laid
+    // out as NormalTable says: made once after each change of the triangles, so that an answer loads 12
+    // bytes instead of its triangle's 36 and a square root.
     NormalTable unit_normals();
     // The geometry and primitive ids of a global triangle index.
     [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) const;

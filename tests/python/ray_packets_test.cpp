@@ -65,11 +65,12 @@ struct Answers {
     AnswerArray<float> uv, normal;
 };
 
-// The stand-in's normal table: triangle p's normal is (p, 1, 2).
+// The stand-in's normal table, laid out as NormalTable says: triangle p's normal is (p, 1, 2).
 std::vector<float> normal_table(std::size_t count) {
-    std::vector<float> xyz;
+    std::vector<float> xyz(3, 0.0f);
     for (std::size_t p = 0; p < count; ++p)
         xyz.insert(xyz.end(), {static_cast<float>(p), 1.0f, 2.0f});
+    xyz.push_back(0.0f);
     return xyz;
 }
 
@@ -125,8 +126,8 @@ Answers cast(const std::vector<std::size_t>& shape, bool several_geometries, boo
     std::vector<PacketRows> packets;
     for (std::size_t index = 0; index < chunks.size(); ++index) {
         chunks.chunk(index, packets);
-        answer_chunk(chunks, packets, answers.view(), NormalTable{normals.data(), count}, several_geometries,
-                     trace, locate);
+        answer_chunk(chunks, packets, answers.view(), NormalTable{normals.data() + 3, count},
+                     several_geometries, trace, locate);
     }
     for (std::size_t row = 0; row < count; ++row)
         EXPECT_EQ(lanes_of_row[row], 1) << "row " << row;
