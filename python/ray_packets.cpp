@@ -68,21 +68,39 @@ bool load_eight(const float* low, const float* high, RayPacket& rays, int lane) 
     return _mm256_movemask_ps(finite) == 0xFF;
 }
 
+// How the answers reach the arrays: in place, or with non-temporal stores, which need aligned addresses and
+// pay only where the stores fill whole lines one after the other (stream_tile_pair).
+struct DirectStores {
+    static void store(float* to, __m128 value) { _mm_storeu_ps(to, value); }
+    static void store(float* to, __m256 value) { _mm256_storeu_ps(to, value); }
+};
+struct StreamedStores {
+    static void store(float* to, __m128 value) { _mm_stream_ps(to, value); }
+    static void store(float* to, __m256 value) { _mm256_stream_ps(to, value); }
+};
+
+template <class Stores>
+void store_ids(std::uint32_t* to, __m256i ids) {
+    Stores::store(reinterpret_cast<float*>(to), _mm256_castsi256_ps(ids));
+}
+
 // The normals of four rays, whose global triangle indices start at `prim`, as their rows hold them: twelve
 // floats, x y z a ray. A ray's normal is one unaligned 4-float load from the table (a miss's, index -1, the
 // table's zero entry); the loads' fourth floats are dropped by the shuffles.
+template <class Stores>
 void store_four_normals(const std::int32_t* prim, const NormalTable& normals, float* out) {
     __m128 ray[kGroupLanes];
     for (int k = 0; k < kGroupLanes; ++k)
         ray[k] = _mm_loadu_ps(normals.xyz + 3 * static_cast<std::ptrdiff_t>(prim[k]));
     // [x0 y0 z0 x1], [y1 z1 x2 y2], [z2 x3 y3 z3]
-    _mm_storeu_ps(out, _mm_blend_ps(ray[0], _mm_shuffle_ps(ray[1], ray[1], _MM_SHUFFLE(0, 0, 0, 0)), 0b1000));
-    _mm_storeu_ps(out + 4, _mm_shuffle_ps(ray[1], ray[2], _MM_SHUFFLE(1, 0, 2, 1)));
-    _mm_storeu_ps(out + 8, _mm_blend_ps(_mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(ray[3]), 4)),
+    Stores::store(out, _mm_blend_ps(ray[0], _mm_shuffle_ps(ray[1], ray[1], _MM_SHUFFLE(0, 0, 0, 0)), 0b1000));
+    Stores::store(out + 4, _mm_shuffle_ps(ray[1], ray[2], _MM_SHUFFLE(1, 0, 2, 1)));
+    Stores::store(out + 8, _mm_blend_ps(_mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(ray[3]), 4)),
                                         _mm_shuffle_ps(ray[2], ray[2], _MM_SHUFFLE(2, 2, 2, 2)), 0b0001));
 }
 
 // The answers of a pair of full groups, eight rows from the first group's.
+template <class Stores>
 unsigned store_full_pair(const HitPacket& hits, int low_lane, int high_lane, const CastAnswers& answers,
                          const NormalTable& normals, std::size_t row) {
     const auto lanes_of = [&](const auto* field) {
@@ -92,22 +110,22 @@ unsigned store_full_pair(const HitPacket& hits, int low_lane, int high_lane, con
     const __m256i prim = _mm256_castps_si256(lanes_of(hits.prim));
     const __m256i hit = _mm256_cmpgt_epi32(prim, _mm256_set1_epi32(-1));
     const __m256 hit_mask = _mm256_castsi256_ps(hit);
-    _mm256_storeu_ps(answers.t_hit + row, lanes_of(hits.t));
+    Stores::store(answers.t_hit + row, lanes_of(hits.t));
     // A miss's prim is -1, whose bits are kInvalidId.
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(answers.primitive_ids + row), prim);
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(answers.geometry_ids + row),
-                        _mm256_andnot_si256(hit, prim));
+    store_ids<Stores>(answers.primitive_ids + row, prim);
+    store_ids<Stores>(answers.geometry_ids + row, _mm256_andnot_si256(hit, prim));
     const __m256 u = _mm256_and_ps(hit_mask, lanes_of(hits.u)), v = _mm256_and_ps(hit_mask, lanes_of(hits.v));
     const __m256 uv_low = _mm256_unpacklo_ps(u, v), uv_high = _mm256_unpackhi_ps(u, v);
-    _mm256_storeu_ps(answers.uvs + 2 * row, _mm256_permute2f128_ps(uv_low, uv_high, 0x20));
-    _mm256_storeu_ps(answers.uvs + 2 * row + 8, _mm256_permute2f128_ps(uv_low, uv_high, 0x31));
+    Stores::store(answers.uvs + 2 * row, _mm256_permute2f128_ps(uv_low, uv_high, 0x20));
+    Stores::store(answers.uvs + 2 * row + 8, _mm256_permute2f128_ps(uv_low, uv_high, 0x31));
     const auto hit_rays = static_cast<unsigned>(_mm256_movemask_ps(hit_mask));
     if (hit_rays != 0) {
-        store_four_normals(hits.prim + low_lane, normals, answers.normals + 3 * row);
-        store_four_normals(hits.prim + high_lane, normals, answers.normals + 3 * row + 3 * kGroupLanes);
+        store_four_normals<Stores>(hits.prim + low_lane, normals, answers.normals + 3 * row);
+        store_four_normals<Stores>(hits.prim + high_lane, normals,
+                                   answers.normals + 3 * row + 3 * kGroupLanes);
     } else {
         for (int k = 0; k < 3; ++k)
-            _mm256_storeu_ps(answers.normals + 3 * row + 8 * k, _mm256_setzero_ps());
+            Stores::store(answers.normals + 3 * row + 8 * k, _mm256_setzero_ps());
     }
     return hit_rays;
 }
@@ -197,14 +215,15 @@ void prefetch_answers(const PacketRows& where, const CastAnswers& answers) {
 }
 
 void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
-                 const NormalTable& normals, std::array<unsigned, kGroups / 2>& hit_rays) {
+                 const NormalTable& normals, PairHits& hit_rays) {
     for (std::size_t pair = 0; pair < hit_rays.size(); ++pair) {
         const auto [low, high] = where.answer_pairs[pair];
 #if defined(__AVX2__)
         if (where.count[static_cast<std::size_t>(low)] == kGroupLanes &&
             where.count[static_cast<std::size_t>(high)] == kGroupLanes) {
-            hit_rays[pair] = store_full_pair(hits, low * kGroupLanes, high * kGroupLanes, answers, normals,
-                                             where.row[static_cast<std::size_t>(low)]);
+            hit_rays[pair] =
+                store_full_pair<DirectStores>(hits, low * kGroupLanes, high * kGroupLanes, answers, normals,
+                                              where.row[static_cast<std::size_t>(low)]);
             continue;
         }
 #endif
@@ -213,61 +232,24 @@ void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswe
     }
 }
 
-StagedAnswers::StagedAnswers()
-    : t_hit_{},
-      geometry_ids_{},
-      primitive_ids_{},
-      uvs_{},
-      normals_{},
-      view_{t_hit_, geometry_ids_, primitive_ids_, uvs_, normals_} {}
-
-PacketRows StagedAnswers::rebase(const PacketRows& where, const AnswerBlock& block) const {
-    // Group g of a tile is row tile_row(4g) of the tile, from column tile_column(4g); the right tile's
-    // columns are eight more.
-    static constexpr auto kStageRow = [] {
-        std::array<std::size_t, kGroups> stage_row{};
-        for (int group = 0; group < kGroups; ++group) {
-            const int lane = group * kGroupLanes;
-            stage_row[static_cast<std::size_t>(group)] = static_cast<std::size_t>(
-                PinholeCamera::tile_row(lane) * static_cast<int>(AnswerBlock::kRowRays) +
-                PinholeCamera::tile_column(lane));
-        }
-        return stage_row;
-    }();
-    PacketRows staged = where;
-    for (std::size_t g = 0; g < staged.row.size(); ++g)
-        staged.row[g] = kStageRow[g] + (where.row[0] - block.first);
-    return staged;
-}
-
-namespace {
-
-// `count` values from `stage` to `out`, both on 64-byte boundaries, count a multiple of 16.
-template <class T>
-void write_lines(T* out, const T* stage, std::size_t count) {
-    static_assert(sizeof(T) == sizeof(float));
+void stream_tile_pair(const HitPacket& left_hits, const HitPacket& right_hits, const PacketRows& left,
+                      const PacketRows& right, const CastAnswers& answers, const NormalTable& normals,
+                      PairHits& left_hit_rays, PairHits& right_hit_rays) {
 #if defined(__AVX2__)
-    for (std::size_t k = 0; k < count; k += 8) {
-        _mm256_stream_si256(reinterpret_cast<__m256i*>(out + k),
-                            _mm256_load_si256(reinterpret_cast<const __m256i*>(stage + k)));
+    // Pair k of either tile is the tile's row k (RayChunks::image_chunk): the left tile's eight answers, then
+    // the right's, fill the row's lines.
+    for (std::size_t pair = 0; pair < left_hit_rays.size(); ++pair) {
+        const auto [low, high] = left.answer_pairs[pair];
+        const auto low_group = static_cast<std::size_t>(low);
+        left_hit_rays[pair] = store_full_pair<StreamedStores>(
+            left_hits, low * kGroupLanes, high * kGroupLanes, answers, normals, left.row[low_group]);
+        right_hit_rays[pair] = store_full_pair<StreamedStores>(
+            right_hits, low * kGroupLanes, high * kGroupLanes, answers, normals, right.row[low_group]);
     }
 #else
-    std::memcpy(out, stage, count * sizeof(T));
+    store_pairs(left_hits, left, answers, normals, left_hit_rays);
+    store_pairs(right_hits, right, answers, normals, right_hit_rays);
 #endif
-}
-
-}  // namespace
-
-void StagedAnswers::write_out(const CastAnswers& answers, const AnswerBlock& block) const {
-    constexpr std::size_t kRowRays = AnswerBlock::kRowRays;
-    for (std::size_t k = 0; k < AnswerBlock::kRows; ++k) {
-        const std::size_t row = block.first + k * block.stride, staged = k * kRowRays;
-        write_lines(answers.t_hit + row, t_hit_ + staged, kRowRays);
-        write_lines(answers.geometry_ids + row, geometry_ids_ + staged, kRowRays);
-        write_lines(answers.primitive_ids + row, primitive_ids_ + staged, kRowRays);
-        write_lines(answers.uvs + 2 * row, uvs_ + 2 * staged, 2 * kRowRays);
-        write_lines(answers.normals + 3 * row, normals_ + 3 * staged, 3 * kRowRays);
-    }
 }
 
 void finish_streamed_stores() {
@@ -307,21 +289,19 @@ void RayChunks::chunk(std::size_t index, std::vector<PacketRows>& packets) const
     }
 }
 
-std::optional<AnswerBlock> RayChunks::answer_block(const PacketRows& left, const PacketRows& right) const {
-    static_assert(2 * PinholeCamera::kTileSide == AnswerBlock::kRowRays &&
-                  PinholeCamera::kTileSide == AnswerBlock::kRows);
+bool RayChunks::tile_pair(const PacketRows& left, const PacketRows& right) const {
+    // Sixteen answers fill a line of every array: 64 bytes of t and of each id, 128 of uv, 192 of normals.
+    constexpr std::size_t kLineRays = 2 * PinholeCamera::kTileSide;
     const auto full = [](const PacketRows& where) {
         return std::all_of(where.count.begin(), where.count.end(),
                            [](int count) { return count == kGroupLanes; });
     };
-    // A tile's lane 0 is its top left ray.
-    const std::size_t first = left.row[0];
-    if (!images() || width_ % AnswerBlock::kRowRays != 0 || first % AnswerBlock::kRowRays != 0 ||
-        !full(left) || !full(right) ||
-        right.row[0] != first + static_cast<std::size_t>(PinholeCamera::kTileSide)) {
-        return std::nullopt;
+    if (!images() || width_ % kLineRays != 0 || left.row[0] % kLineRays != 0 || !full(left) || !full(right))
+        return false;
+    for (std::size_t g = 0; g < left.row.size(); ++g) {
+        if (right.row[g] != left.row[g] + PinholeCamera::kTileSide) return false;
     }
-    return AnswerBlock{first, width_};
+    return true;
 }
 
 void RayChunks::image_chunk(std::size_t index, std::vector<PacketRows>& packets) const {

@@ -1,13 +1,12 @@
 // cast_rays's way between NumPy's arrays and lancer's packets (docs/python.md, "Speed"). The (..., 6) rows
 // go into RayPackets eight rays at a time, transposed in SIMD registers, through Accel::intersect_packet, and
-// the answers into Open3D's five arrays eight at a time, through a stage for pairs of camera tiles. Made
+// the answers into Open3D's five arrays eight at a time, streamed for pairs of camera tiles. Made
 // field by field through `Ray` and `Hit` records, the same conversion cost as much as the trace.
 #pragma once
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <optional>
 #include <span>
 #include <tuple>
 #include <vector>
@@ -65,17 +64,31 @@ struct NormalTable {
 // The answers of each answer pair: a miss's ids kInvalidId and its uv and normal 0, a hit's normal from
 // `normals`, its ids those of a scene of one geometry (geometry 0, primitive the global index). hit_rays[k]
 // says which rays of pair k hit, as bits: 0 to 3 the pair's first group, 4 to 7 its second.
+using PairHits = std::array<unsigned, kGroups / 2>;
 void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
-                 const NormalTable& normals, std::array<unsigned, kGroups / 2>& hit_rays);
+                 const NormalTable& normals, PairHits& hit_rays);
 
-// The answers of the packet's rays. In a scene of several geometries, each hit's geometry and primitive ids
-// are `locate(global index)`'s pair.
+// store_pairs's answers of two whole camera tiles side by side (RayChunks::tile_pair), streamed into the
+// arrays with non-temporal stores. Each image row's sixteen answers fill whole lines of every array, written
+// one after the other, so that no line is fetched for ownership first as the stores of a tile alone, 32
+// bytes of `t` in each of eight rows, need; those fetches were most of the answers' cost (docs/python.md,
+// "Speed"). The arrays must start on 64-byte boundaries (lines_aligned).
+void stream_tile_pair(const HitPacket& left_hits, const HitPacket& right_hits, const PacketRows& left,
+                      const PacketRows& right, const CastAnswers& answers, const NormalTable& normals,
+                      PairHits& left_hit_rays, PairHits& right_hit_rays);
+
+// Whether the five arrays start on 64-byte boundaries, as stream_tile_pair needs.
+[[nodiscard]] bool lines_aligned(const CastAnswers& answers);
+
+// Makes the thread's non-temporal stores (stream_tile_pair) visible before what it does next, such as ending
+// its task: they are weakly ordered, unlike the other stores.
+void finish_streamed_stores();
+
+// The ids of the packet's hits (bits of hit_rays, as store_pairs gives them) in a scene of several
+// geometries: `locate(global index)`'s pair.
 template <class Locate>
-void store_answers(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
-                   const NormalTable& normals, bool several_geometries, Locate&& locate) {
-    std::array<unsigned, kGroups / 2> hit_rays;
-    store_pairs(hits, where, answers, normals, hit_rays);
-    if (!several_geometries) return;
+void store_located_ids(const HitPacket& hits, const PacketRows& where, const PairHits& hit_rays,
+                       const CastAnswers& answers, Locate&& locate) {
     for (std::size_t pair = 0; pair < hit_rays.size(); ++pair) {
         for (unsigned rays = hit_rays[pair]; rays != 0; rays &= rays - 1) {
             const int bit = __builtin_ctz(rays);
@@ -87,45 +100,6 @@ void store_answers(const HitPacket& hits, const PacketRows& where, const CastAns
         }
     }
 }
-
-// Two camera tiles side by side, whose answers fill whole cache lines in each of the five arrays: kRows image
-// rows of kRowRays rays, row k from ray first + k * stride (the image's width), each row's first ray a
-// multiple of kRowRays, so that every row starts a line when the arrays start on a 64-byte boundary.
-struct AnswerBlock {
-    static constexpr std::size_t kRows = 8, kRowRays = 16;
-    std::size_t first = 0, stride = 0;
-};
-
-// The answers of an answer block, written first into a stage that stays in L1, then into the arrays with
-// non-temporal stores, a whole line at a time. Written in place, each line is first fetched for ownership,
-// and a camera tile's answers touch eight rows of each array: those fetches cost more than the stage's
-// extra pass (docs/python.md, "Speed").
-class StagedAnswers {
-  public:
-    StagedAnswers();
-    // The stage's arrays, which store_answers writes through `rebase(where)`.
-    [[nodiscard]] const CastAnswers& view() const { return view_; }
-    // `where`, one of the block's packets, with its rows numbered in the stage.
-    [[nodiscard]] PacketRows rebase(const PacketRows& where, const AnswerBlock& block) const;
-    // The stage into the block's rows of `answers`, whose five arrays start on 64-byte boundaries.
-    void write_out(const CastAnswers& answers, const AnswerBlock& block) const;
-
-  private:
-    static constexpr std::size_t kRays = AnswerBlock::kRows * AnswerBlock::kRowRays;
-    alignas(64) float t_hit_[kRays];
-    alignas(64) std::uint32_t geometry_ids_[kRays];
-    alignas(64) std::uint32_t primitive_ids_[kRays];
-    alignas(64) float uvs_[2 * kRays];
-    alignas(64) float normals_[3 * kRays];
-    CastAnswers view_;
-};
-
-// Makes the thread's non-temporal stores (StagedAnswers::write_out) visible before what it does next, such as
-// ending its task: they are weakly ordered, unlike the other stores.
-void finish_streamed_stores();
-
-// Whether the five arrays start on 64-byte boundaries, as StagedAnswers::write_out needs.
-[[nodiscard]] bool lines_aligned(const CastAnswers& answers);
 
 // The chunks of a cast_rays call, each kChunkPackets packets or fewer, traced by one task. An array whose
 // last two leading axes are both 8 or more holds images (rows and columns, the axes before them numbering
@@ -142,12 +116,11 @@ class RayChunks {
     [[nodiscard]] bool images() const { return width_ != 0; }
     // The packets of chunk `index`.
     void chunk(std::size_t index, std::vector<PacketRows>& packets) const;
-    // The answer block of packets `left` and `right`, consecutive in a chunk, when they make one: two camera
-    // tiles side by side, all their rays in the image, in an image whose width is a multiple of 16. A flat
-    // array's packets make none: their answers go straight to consecutive lines, which was measured faster
-    // than staging them (docs/python.md).
-    [[nodiscard]] std::optional<AnswerBlock> answer_block(const PacketRows& left,
-                                                          const PacketRows& right) const;
+    // Whether packets `left` and `right`, consecutive in a chunk, are two camera tiles side by side, all
+    // their rays in an image whose width is a multiple of 16, the first's columns starting at a multiple of
+    // 16: the pairs stream_tile_pair streams. A flat array's packets are none: their answers go to
+    // consecutive lines already, and streamed they were slower (docs/python.md).
+    [[nodiscard]] bool tile_pair(const PacketRows& left, const PacketRows& right) const;
 
   private:
     void image_chunk(std::size_t index, std::vector<PacketRows>& packets) const;
@@ -159,31 +132,31 @@ class RayChunks {
     std::size_t chunk_count_ = 0;
 };
 
-// Traces and answers a chunk's packets: trace(where, hits) traces the packet `where`. Two packets that make
-// an answer block go through a StagedAnswers when the arrays start on 64-byte boundaries, any other packet
-// straight into the arrays. In a scene of several geometries, locate names each hit (store_answers).
+// Traces and answers a chunk's packets: trace(where, hits) traces the packet `where`. Tile pairs are
+// streamed when the arrays start on 64-byte boundaries, any other packet answered in place. In a scene of
+// several geometries, locate names each hit (store_located_ids).
 template <class Trace, class Locate>
 void answer_chunk(const RayChunks& chunks, std::span<const PacketRows> packets, const CastAnswers& answers,
                   const NormalTable& normals, bool several_geometries, Trace&& trace, Locate&& locate) {
-    HitPacket hits;
-    StagedAnswers stage;
-    const bool stage_blocks = lines_aligned(answers);
+    HitPacket hits, right_hits;
+    PairHits hit_rays, right_hit_rays;
+    const bool stream_pairs = lines_aligned(answers);
     for (std::size_t i = 0; i < packets.size();) {
-        const std::optional<AnswerBlock> block = stage_blocks && i + 1 < packets.size()
-                                                     ? chunks.answer_block(packets[i], packets[i + 1])
-                                                     : std::nullopt;
-        if (block) {
-            for (const std::size_t k : {i, i + 1}) {
-                trace(packets[k], hits);
-                store_answers(hits, stage.rebase(packets[k], *block), stage.view(), normals,
-                              several_geometries, locate);
+        if (stream_pairs && i + 1 < packets.size() && chunks.tile_pair(packets[i], packets[i + 1])) {
+            trace(packets[i], hits);
+            trace(packets[i + 1], right_hits);
+            stream_tile_pair(hits, right_hits, packets[i], packets[i + 1], answers, normals, hit_rays,
+                             right_hit_rays);
+            if (several_geometries) {
+                store_located_ids(hits, packets[i], hit_rays, answers, locate);
+                store_located_ids(right_hits, packets[i + 1], right_hit_rays, answers, locate);
             }
-            stage.write_out(answers, *block);
             i += 2;
         } else {
             prefetch_answers(packets[i], answers);
             trace(packets[i], hits);
-            store_answers(hits, packets[i], answers, normals, several_geometries, locate);
+            store_pairs(hits, packets[i], answers, normals, hit_rays);
+            if (several_geometries) store_located_ids(hits, packets[i], hit_rays, answers, locate);
             ++i;
         }
     }

@@ -57,7 +57,7 @@ std::vector<py::ssize_t> answer_shape(const py::array& rows, std::initializer_li
 }
 
 // An uninitialised C-contiguous array of `shape` whose data starts on a 64-byte boundary, as
-// StagedAnswers::write_out needs: a view into a NumPy array one line longer, which owns the memory.
+// stream_tile_pair needs: a view into a NumPy array one line longer, which owns the memory.
 template <class T>
 py::array_t<T> line_aligned_array(const std::vector<py::ssize_t>& shape) {
     constexpr std::size_t kLine = 64;

@@ -125,10 +125,11 @@ def unit_normals(vertices, triangles):
 @pytest.mark.parametrize("shape", [(21, 13), (8, 8), (16, 32), (2, 9, 17), (70, 7), (1, 100), (3001,), (5,), ()])
 @pytest.mark.parametrize("geometries", [1, 2])
 def test_each_ray_gets_its_own_answers_whatever_the_leading_shape(spheres, accel, shape, geometries):
-    """cast_rays reads images (the last two leading axes, 8 or more each) by camera tiles, staging the answers
-    of pairs of whole tiles where the width is a multiple of 16, and other arrays by packets of consecutive
-    rays, with full and partial groups of lanes: each ray's answers must land at its own index. Checked against list_intersections (which takes the rays one by one) and NumPy's normals, in
-    a scene of one geometry (whose ids cast_rays writes with the other answers) and of two (looked up)."""
+    """cast_rays reads images (the last two leading axes, 8 or more each) by camera tiles, streaming the
+    answers of pairs of whole tiles where the width is a multiple of 16, and other arrays by packets of
+    consecutive rays, with full and partial groups of lanes: each ray's answers must land at its own index.
+    Checked against list_intersections (which takes the rays one by one) and NumPy's normals, in a scene of
+    one geometry (whose ids cast_rays writes with the other answers) and of two (looked up)."""
     spheres = spheres[:geometries]
     count = int(np.prod(shape))
     pinhole = lancer.RaycastingScene.create_rays_pinhole(25.0, [0.5, 0, 0], [0.5, 0.2, 4.0], [0, 1, 0], 37, 29)

@@ -32,7 +32,7 @@ bool hits(std::size_t row) {
 }
 
 // An answer array of `count` values, each `fill` at first, starting on a 64-byte boundary (as cast_rays
-// makes them) or 4 bytes after one, which answer_chunk must answer without its staged blocks.
+// makes them) or 4 bytes after one, which answer_chunk must answer without streaming.
 template <class T>
 class AnswerArray {
   public:
@@ -160,7 +160,7 @@ void check_answers(const Answers& answers, std::size_t row, std::uint32_t geomet
 class RayPacketsShapes : public testing::TestWithParam<std::vector<std::size_t>> {};
 
 // A hit's ids are the global index's in a scene of one geometry, locate's in one of several. Arrays on
-// 64-byte boundaries take the staged blocks where the shape has them, others not.
+// 64-byte boundaries have tile pairs streamed where the shape has them, others not.
 TEST_P(RayPacketsShapes, EveryRayIsTracedOnceAndAnsweredAtItsRow) {
     for (const bool line_aligned : {true, false}) {
         for (const bool several_geometries : {false, true}) {
@@ -179,8 +179,8 @@ TEST_P(RayPacketsShapes, EveryRayIsTracedOnceAndAnsweredAtItsRow) {
 }
 
 // Flat arrays around the group, packet and chunk sizes; images (both last axes 8 or more) around the tile
-// and chunk widths, stacked; arrays too thin to be images; images whose width is a multiple of an answer
-// block's (16), with bands whole and cut.
+// and chunk widths, stacked; arrays too thin to be images; images whose width is a multiple of a streamed
+// tile pair's (16), with bands whole and cut.
 INSTANTIATE_TEST_SUITE_P(
     Shapes, RayPacketsShapes,
     testing::Values(std::vector<std::size_t>{}, std::vector<std::size_t>{0}, std::vector<std::size_t>{1},
