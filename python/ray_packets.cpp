@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <tuple>
+#include <utility>
 
 #if defined(__SSE2__)
 #include <immintrin.h>
@@ -99,10 +101,25 @@ void store_four_normals(const std::int32_t* prim, const NormalTable& normals, fl
                                         _mm_shuffle_ps(ray[2], ray[2], _MM_SHUFFLE(2, 2, 2, 2)), 0b0001));
 }
 
+// The ids of a pair's hits in a scene of several geometries, from their global indices: the misses' lanes
+// keep theirs.
+void locate_hits(const GeometryStarts& geometries, unsigned hit_rays, __m256i& geometry, __m256i& primitive) {
+    alignas(32) std::uint32_t geometry_ids[8], primitive_ids[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(geometry_ids), geometry);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(primitive_ids), primitive);
+    for (; hit_rays != 0; hit_rays &= hit_rays - 1) {
+        const int lane = __builtin_ctz(hit_rays);
+        std::tie(geometry_ids[lane], primitive_ids[lane]) =
+            geometries.locate(static_cast<std::int32_t>(primitive_ids[lane]));
+    }
+    geometry = _mm256_load_si256(reinterpret_cast<const __m256i*>(geometry_ids));
+    primitive = _mm256_load_si256(reinterpret_cast<const __m256i*>(primitive_ids));
+}
+
 // The answers of a pair of full groups, eight rows from the first group's.
 template <class Stores>
-unsigned store_full_pair(const HitPacket& hits, int low_lane, int high_lane, const CastAnswers& answers,
-                         const NormalTable& normals, std::size_t row) {
+void store_full_pair(const HitPacket& hits, int low_lane, int high_lane, const CastAnswers& answers,
+                     const HitTables& tables, std::size_t row) {
     const auto lanes_of = [&](const auto* field) {
         return _mm256_loadu2_m128(reinterpret_cast<const float*>(field + high_lane),
                                   reinterpret_cast<const float*>(field + low_lane));
@@ -110,47 +127,46 @@ unsigned store_full_pair(const HitPacket& hits, int low_lane, int high_lane, con
     const __m256i prim = _mm256_castps_si256(lanes_of(hits.prim));
     const __m256i hit = _mm256_cmpgt_epi32(prim, _mm256_set1_epi32(-1));
     const __m256 hit_mask = _mm256_castsi256_ps(hit);
+    const auto hit_rays = static_cast<unsigned>(_mm256_movemask_ps(hit_mask));
+    // A miss's prim is -1, whose bits are kInvalidId; a hit's ids in a scene of one geometry are 0 and prim.
+    __m256i geometry = _mm256_andnot_si256(hit, prim), primitive = prim;
+    if (tables.geometries.geometry_count() > 1 && hit_rays != 0)
+        locate_hits(tables.geometries, hit_rays, geometry, primitive);
     Stores::store(answers.t_hit + row, lanes_of(hits.t));
-    // A miss's prim is -1, whose bits are kInvalidId.
-    store_ids<Stores>(answers.primitive_ids + row, prim);
-    store_ids<Stores>(answers.geometry_ids + row, _mm256_andnot_si256(hit, prim));
+    store_ids<Stores>(answers.primitive_ids + row, primitive);
+    store_ids<Stores>(answers.geometry_ids + row, geometry);
     const __m256 u = _mm256_and_ps(hit_mask, lanes_of(hits.u)), v = _mm256_and_ps(hit_mask, lanes_of(hits.v));
     const __m256 uv_low = _mm256_unpacklo_ps(u, v), uv_high = _mm256_unpackhi_ps(u, v);
     Stores::store(answers.uvs + 2 * row, _mm256_permute2f128_ps(uv_low, uv_high, 0x20));
     Stores::store(answers.uvs + 2 * row + 8, _mm256_permute2f128_ps(uv_low, uv_high, 0x31));
-    const auto hit_rays = static_cast<unsigned>(_mm256_movemask_ps(hit_mask));
     if (hit_rays != 0) {
-        store_four_normals<Stores>(hits.prim + low_lane, normals, answers.normals + 3 * row);
-        store_four_normals<Stores>(hits.prim + high_lane, normals,
+        store_four_normals<Stores>(hits.prim + low_lane, tables.normals, answers.normals + 3 * row);
+        store_four_normals<Stores>(hits.prim + high_lane, tables.normals,
                                    answers.normals + 3 * row + 3 * kGroupLanes);
     } else {
         for (int k = 0; k < 3; ++k)
             Stores::store(answers.normals + 3 * row + 8 * k, _mm256_setzero_ps());
     }
-    return hit_rays;
 }
 
 #endif
 
 // The answers of one group, a lane at a time.
-unsigned store_group(const HitPacket& hits, const PacketRows& where, int group, const CastAnswers& answers,
-                     const NormalTable& normals) {
+void store_group(const HitPacket& hits, const PacketRows& where, int group, const CastAnswers& answers,
+                 const HitTables& tables) {
     const auto g = static_cast<std::size_t>(group);
-    unsigned hit_rays = 0;
     for (int index = 0; index < where.count[g]; ++index) {
         const int lane = group * kGroupLanes + index;
         const std::size_t i = where.row[g] + static_cast<std::size_t>(index);
-        const bool hit = hits.prim[lane] >= 0;
+        const std::int32_t prim = hits.prim[lane];
+        const bool hit = prim >= 0;
         answers.t_hit[i] = hits.t[lane];
-        answers.geometry_ids[i] = hit ? 0 : kInvalidId;
-        answers.primitive_ids[i] = hit ? static_cast<std::uint32_t>(hits.prim[lane]) : kInvalidId;
+        std::tie(answers.geometry_ids[i], answers.primitive_ids[i]) =
+            hit ? tables.geometries.locate(prim) : std::pair{kInvalidId, kInvalidId};
         answers.uvs[2 * i] = hit ? hits.u[lane] : 0.0f;
         answers.uvs[2 * i + 1] = hit ? hits.v[lane] : 0.0f;
-        std::copy_n(normals.xyz + 3 * static_cast<std::ptrdiff_t>(hits.prim[lane]), 3,
-                    answers.normals + 3 * i);
-        hit_rays |= unsigned{hit} << index;
+        std::copy_n(tables.normals.xyz + 3 * static_cast<std::ptrdiff_t>(prim), 3, answers.normals + 3 * i);
     }
-    return hit_rays;
 }
 
 }  // namespace
@@ -214,41 +230,44 @@ void prefetch_answers(const PacketRows& where, const CastAnswers& answers) {
     }
 }
 
+std::pair<std::uint32_t, std::uint32_t> GeometryStarts::locate(std::int32_t prim) const {
+    const auto index = static_cast<std::uint32_t>(prim);
+    const auto after = std::upper_bound(first.begin(), first.end() - 1, index);
+    const auto geometry = static_cast<std::size_t>(after - first.begin()) - 1;
+    return {static_cast<std::uint32_t>(geometry), index - first[geometry]};
+}
+
 void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
-                 const NormalTable& normals, PairHits& hit_rays) {
-    for (std::size_t pair = 0; pair < hit_rays.size(); ++pair) {
-        const auto [low, high] = where.answer_pairs[pair];
+                 const HitTables& tables) {
+    for (const auto& [low, high] : where.answer_pairs) {
 #if defined(__AVX2__)
         if (where.count[static_cast<std::size_t>(low)] == kGroupLanes &&
             where.count[static_cast<std::size_t>(high)] == kGroupLanes) {
-            hit_rays[pair] =
-                store_full_pair<DirectStores>(hits, low * kGroupLanes, high * kGroupLanes, answers, normals,
-                                              where.row[static_cast<std::size_t>(low)]);
+            store_full_pair<DirectStores>(hits, low * kGroupLanes, high * kGroupLanes, answers, tables,
+                                          where.row[static_cast<std::size_t>(low)]);
             continue;
         }
 #endif
-        hit_rays[pair] = store_group(hits, where, low, answers, normals) |
-                         store_group(hits, where, high, answers, normals) << kGroupLanes;
+        store_group(hits, where, low, answers, tables);
+        store_group(hits, where, high, answers, tables);
     }
 }
 
 void stream_tile_pair(const HitPacket& left_hits, const HitPacket& right_hits, const PacketRows& left,
-                      const PacketRows& right, const CastAnswers& answers, const NormalTable& normals,
-                      PairHits& left_hit_rays, PairHits& right_hit_rays) {
+                      const PacketRows& right, const CastAnswers& answers, const HitTables& tables) {
 #if defined(__AVX2__)
     // Pair k of either tile is the tile's row k (RayChunks::image_chunk): the left tile's eight answers, then
     // the right's, fill the row's lines.
-    for (std::size_t pair = 0; pair < left_hit_rays.size(); ++pair) {
-        const auto [low, high] = left.answer_pairs[pair];
+    for (const auto& [low, high] : left.answer_pairs) {
         const auto low_group = static_cast<std::size_t>(low);
-        left_hit_rays[pair] = store_full_pair<StreamedStores>(
-            left_hits, low * kGroupLanes, high * kGroupLanes, answers, normals, left.row[low_group]);
-        right_hit_rays[pair] = store_full_pair<StreamedStores>(
-            right_hits, low * kGroupLanes, high * kGroupLanes, answers, normals, right.row[low_group]);
+        store_full_pair<StreamedStores>(left_hits, low * kGroupLanes, high * kGroupLanes, answers, tables,
+                                        left.row[low_group]);
+        store_full_pair<StreamedStores>(right_hits, low * kGroupLanes, high * kGroupLanes, answers, tables,
+                                        right.row[low_group]);
     }
 #else
-    store_pairs(left_hits, left, answers, normals, left_hit_rays);
-    store_pairs(right_hits, right, answers, normals, right_hit_rays);
+    store_pairs(left_hits, left, answers, tables);
+    store_pairs(right_hits, right, answers, tables);
 #endif
 }
 

@@ -8,7 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
-#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "lancer/packet.hpp"
@@ -61,12 +61,26 @@ struct NormalTable {
     std::size_t triangle_count;
 };
 
-// The answers of each answer pair: a miss's ids kInvalidId and its uv and normal 0, a hit's normal from
-// `normals`, its ids those of a scene of one geometry (geometry 0, primitive the global index). hit_rays[k]
-// says which rays of pair k hit, as bits: 0 to 3 the pair's first group, 4 to 7 its second.
-using PairHits = std::array<unsigned, kGroups / 2>;
+// Where each geometry's triangles start in the global triangle index, increasing, then their total.
+struct GeometryStarts {
+    std::span<const std::uint32_t> first;  // one more than the geometries
+
+    [[nodiscard]] std::size_t geometry_count() const { return first.size() - 1; }
+    // The geometry and primitive ids of global triangle index `prim`: the last geometry starting at or
+    // before it, and its index from that start.
+    [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) const;
+};
+
+// What the answers of a hit need from the scene beside the trace: its normal and its ids.
+struct HitTables {
+    NormalTable normals;
+    GeometryStarts geometries;
+};
+
+// The answers of the packet's rays, by answer pair: a miss's ids kInvalidId and its uv and normal 0, a
+// hit's normal and ids from `tables`.
 void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
-                 const NormalTable& normals, PairHits& hit_rays);
+                 const HitTables& tables);
 
 // store_pairs's answers of two whole camera tiles side by side (RayChunks::tile_pair), streamed into the
 // arrays with non-temporal stores. Each image row's sixteen answers fill whole lines of every array, written
@@ -74,8 +88,7 @@ void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswe
 // bytes of `t` in each of eight rows, need; those fetches were most of the answers' cost (docs/python.md,
 // "Speed"). The arrays must start on 64-byte boundaries (lines_aligned).
 void stream_tile_pair(const HitPacket& left_hits, const HitPacket& right_hits, const PacketRows& left,
-                      const PacketRows& right, const CastAnswers& answers, const NormalTable& normals,
-                      PairHits& left_hit_rays, PairHits& right_hit_rays);
+                      const PacketRows& right, const CastAnswers& answers, const HitTables& tables);
 
 // Whether the five arrays start on 64-byte boundaries, as stream_tile_pair needs.
 [[nodiscard]] bool lines_aligned(const CastAnswers& answers);
@@ -83,23 +96,6 @@ void stream_tile_pair(const HitPacket& left_hits, const HitPacket& right_hits, c
 // Makes the thread's non-temporal stores (stream_tile_pair) visible before what it does next, such as ending
 // its task: they are weakly ordered, unlike the other stores.
 void finish_streamed_stores();
-
-// The ids of the packet's hits (bits of hit_rays, as store_pairs gives them) in a scene of several
-// geometries: `locate(global index)`'s pair.
-template <class Locate>
-void store_located_ids(const HitPacket& hits, const PacketRows& where, const PairHits& hit_rays,
-                       const CastAnswers& answers, Locate&& locate) {
-    for (std::size_t pair = 0; pair < hit_rays.size(); ++pair) {
-        for (unsigned rays = hit_rays[pair]; rays != 0; rays &= rays - 1) {
-            const int bit = __builtin_ctz(rays);
-            const int group = where.answer_pairs[pair][static_cast<std::size_t>(bit / kGroupLanes)];
-            const std::size_t row =
-                where.row[static_cast<std::size_t>(group)] + static_cast<std::size_t>(bit % kGroupLanes);
-            std::tie(answers.geometry_ids[row], answers.primitive_ids[row]) =
-                locate(hits.prim[group * kGroupLanes + bit % kGroupLanes]);
-        }
-    }
-}
 
 // The chunks of a cast_rays call, each kChunkPackets packets or fewer, traced by one task. An array whose
 // last two leading axes are both 8 or more holds images (rows and columns, the axes before them numbering
@@ -133,30 +129,22 @@ class RayChunks {
 };
 
 // Traces and answers a chunk's packets: trace(where, hits) traces the packet `where`. Tile pairs are
-// streamed when the arrays start on 64-byte boundaries, any other packet answered in place. In a scene of
-// several geometries, locate names each hit (store_located_ids).
-template <class Trace, class Locate>
+// streamed when the arrays start on 64-byte boundaries, any other packet answered in place.
+template <class Trace>
 void answer_chunk(const RayChunks& chunks, std::span<const PacketRows> packets, const CastAnswers& answers,
-                  const NormalTable& normals, bool several_geometries, Trace&& trace, Locate&& locate) {
+                  const HitTables& tables, Trace&& trace) {
     HitPacket hits, right_hits;
-    PairHits hit_rays, right_hit_rays;
     const bool stream_pairs = lines_aligned(answers);
     for (std::size_t i = 0; i < packets.size();) {
         if (stream_pairs && i + 1 < packets.size() && chunks.tile_pair(packets[i], packets[i + 1])) {
             trace(packets[i], hits);
             trace(packets[i + 1], right_hits);
-            stream_tile_pair(hits, right_hits, packets[i], packets[i + 1], answers, normals, hit_rays,
-                             right_hit_rays);
-            if (several_geometries) {
-                store_located_ids(hits, packets[i], hit_rays, answers, locate);
-                store_located_ids(right_hits, packets[i + 1], right_hit_rays, answers, locate);
-            }
+            stream_tile_pair(hits, right_hits, packets[i], packets[i + 1], answers, tables);
             i += 2;
         } else {
             prefetch_answers(packets[i], answers);
             trace(packets[i], hits);
-            store_pairs(hits, packets[i], answers, normals, hit_rays);
-            if (several_geometries) store_located_ids(hits, packets[i], hit_rays, answers, locate);
+            store_pairs(hits, packets[i], answers, tables);
             ++i;
         }
     }

@@ -290,10 +290,7 @@ NormalTable RaycastingScene::unit_normals() {
 }
 
 std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t prim) const {
-    const auto index = static_cast<std::uint32_t>(prim);
-    const auto after = std::upper_bound(first_triangle_.begin(), first_triangle_.end() - 1, index);
-    const auto geometry = static_cast<std::uint32_t>(after - first_triangle_.begin()) - 1;
-    return {geometry, index - first_triangle_[geometry]};
+    return GeometryStarts{first_triangle_}.locate(prim);
 }
 
 py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
@@ -315,9 +312,7 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const Accel& accel = committed();
-        const NormalTable normal_table = unit_normals();
-        const bool several_geometries = first_triangle_.size() > 2;
-        const auto locate_hit = [&](std::int32_t prim) { return locate(prim); };
+        const HitTables tables{unit_normals(), GeometryStarts{first_triangle_}};
         parallel_for_each(chunks.size(), nthreads, [&](std::size_t index) {
             std::vector<PacketRows> packets;
             chunks.chunk(index, packets);
@@ -330,7 +325,7 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
                 }
                 accel.intersect_packet(packet, hits);
             };
-            answer_chunk(chunks, packets, answers, normal_table, several_geometries, trace, locate_hit);
+            answer_chunk(chunks, packets, answers, tables, trace);
         });
     }
     return py::dict("t_hit"_a = t_hit, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,

@@ -74,10 +74,22 @@ std::vector<float> normal_table(std::size_t count) {
     return xyz;
 }
 
-// The stand-in's ids of triangle p in a scene of several geometries.
-std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) {
-    const auto p = static_cast<std::uint32_t>(prim);
-    return {p % 4, p / 4};
+// Where the geometries of the stand-in's scene start: one geometry, or geometries of 1 to 13 triangles,
+// most smaller than a pair of lanes, so that a pair's hits fall in several.
+std::vector<std::uint32_t> geometry_starts(std::size_t count, bool several_geometries) {
+    std::vector<std::uint32_t> first{0};
+    for (std::uint32_t size = 1; several_geometries && first.back() + size < count; size = size % 13 + 1)
+        first.push_back(first.back() + size);
+    first.push_back(static_cast<std::uint32_t>(count));
+    return first;
+}
+
+// Triangle p's ids, found by walking the starts (GeometryStarts::locate searches them).
+std::pair<std::uint32_t, std::uint32_t> walked_ids(const std::vector<std::uint32_t>& first, std::size_t p) {
+    std::uint32_t geometry = 0;
+    while (first[geometry + 1] <= p)
+        ++geometry;
+    return {geometry, static_cast<std::uint32_t>(p) - first[geometry]};
 }
 
 // Traces every chunk of an array of leading shape `shape` through the stand-in and answer_chunk; checks each
@@ -89,6 +101,8 @@ Answers cast(const std::vector<std::size_t>& shape, bool several_geometries, boo
     std::vector<float> rows(6 * count);
     fill_rows(rows);
     const std::vector<float> normals = normal_table(count);
+    const std::vector<std::uint32_t> starts = geometry_starts(count, several_geometries);
+    const HitTables tables{NormalTable{normals.data() + 3, count}, GeometryStarts{starts}};
     Answers answers(count, line_aligned);
     std::vector<int> lanes_of_row(count, 0);
     const RayChunks chunks(shape);
@@ -126,8 +140,7 @@ Answers cast(const std::vector<std::size_t>& shape, bool several_geometries, boo
     std::vector<PacketRows> packets;
     for (std::size_t index = 0; index < chunks.size(); ++index) {
         chunks.chunk(index, packets);
-        answer_chunk(chunks, packets, answers.view(), NormalTable{normals.data() + 3, count},
-                     several_geometries, trace, locate);
+        answer_chunk(chunks, packets, answers.view(), tables, trace);
     }
     for (std::size_t row = 0; row < count; ++row)
         EXPECT_EQ(lanes_of_row[row], 1) << "row " << row;
@@ -159,19 +172,17 @@ void check_answers(const Answers& answers, std::size_t row, std::uint32_t geomet
 
 class RayPacketsShapes : public testing::TestWithParam<std::vector<std::size_t>> {};
 
-// A hit's ids are the global index's in a scene of one geometry, locate's in one of several. Arrays on
-// 64-byte boundaries have tile pairs streamed where the shape has them, others not.
+// A hit's ids are those of its geometry. Arrays on 64-byte boundaries have tile pairs streamed where the
+// shape has them, others not.
 TEST_P(RayPacketsShapes, EveryRayIsTracedOnceAndAnsweredAtItsRow) {
     for (const bool line_aligned : {true, false}) {
         for (const bool several_geometries : {false, true}) {
             SCOPED_TRACE(std::string(line_aligned ? "arrays on lines" : "arrays off lines") + ", " +
                          (several_geometries ? "several geometries" : "one geometry"));
             const Answers answers = cast(GetParam(), several_geometries, line_aligned);
+            const std::vector<std::uint32_t> starts = geometry_starts(answers.t.size(), several_geometries);
             for (std::size_t row = 0; row < answers.t.size(); ++row) {
-                const auto [geometry, primitive] =
-                    several_geometries
-                        ? locate(static_cast<std::int32_t>(row))
-                        : std::pair<std::uint32_t, std::uint32_t>{0, static_cast<std::uint32_t>(row)};
+                const auto [geometry, primitive] = walked_ids(starts, row);
                 check_answers(answers, row, geometry, primitive);
             }
         }
