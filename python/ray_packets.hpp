@@ -54,11 +54,10 @@ struct CastAnswers {
 void prefetch_answers(const PacketRows& where, const CastAnswers& answers);
 
 // The unit normal of each triangle, three floats a triangle: triangle p's at xyz + 3p, for p from -1 (a
-// miss's index, whose normal is 0) to triangle_count - 1, then one more float, which the answers' 4-float
+// miss's index, whose normal is 0) to the last triangle, then one more float, which the answers' 4-float
 // loads may read.
 struct NormalTable {
     const float* xyz;
-    std::size_t triangle_count;
 };
 
 // Where each geometry's triangles start in the global triangle index, increasing, then their total.

@@ -275,8 +275,8 @@ const GeometryQueries& RaycastingScene::queries() {
 
 NormalTable RaycastingScene::unit_normals() {
     committed();
-    const std::span<const Triangle> triangles = world_->geometry().view().triangles;
     if (unit_normals_.empty()) {
+        const std::span<const Triangle> triangles = world_->geometry().view().triangles;
         // NormalTable's layout: a miss's zero normal, the triangles', one float for the last 4-float load.
         unit_normals_.reserve(3 * triangles.size() + 4);
         unit_normals_.assign(3, 0.0f);
@@ -286,7 +286,7 @@ NormalTable RaycastingScene::unit_normals() {
         }
         unit_normals_.push_back(0.0f);
     }
-    return {unit_normals_.data() + 3, triangles.size()};
+    return {unit_normals_.data() + 3};
 }
 
 std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t prim) const {

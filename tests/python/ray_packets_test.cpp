@@ -102,7 +102,7 @@ Answers cast(const std::vector<std::size_t>& shape, bool several_geometries, boo
     fill_rows(rows);
     const std::vector<float> normals = normal_table(count);
     const std::vector<std::uint32_t> starts = geometry_starts(count, several_geometries);
-    const HitTables tables{NormalTable{normals.data() + 3, count}, GeometryStarts{starts}};
+    const HitTables tables{NormalTable{normals.data() + 3}, GeometryStarts{starts}};
     Answers answers(count, line_aligned);
     std::vector<int> lanes_of_row(count, 0);
     const RayChunks chunks(shape);
