@@ -6,13 +6,21 @@ create_rays_pinhole makes them, and for lancer also as a flat (H * W, 6) array, 
 of consecutive rays instead of camera tiles. docs/python.md has the figures and the command.
 
     PYTHONPATH=build/python /usr/bin/python3 bench/python_cast_rays.py [--mesh FILE ...] [--accel bvh8,...]
+
+With --against-bench LANCER it also runs LANCER's `bench` on the same mesh, structure, view and threads after
+each Python timing, --rounds times alternated (timings on a shared machine drift within minutes, so the two
+are compared round by round), and prints each round's ratio and their median: issue 24's goal is Python
+within 10% of `lancer bench`.
 """
 import argparse
+import json
 import math
 import os
 import pathlib
 import platform
 import statistics
+import subprocess
+import tempfile
 import time
 
 import numpy as np
@@ -58,6 +66,17 @@ def cpu_name():
     return platform.processor()
 
 
+def bench_mrays(lancer_cli, mesh, accel, frames):
+    """`lancer bench`'s median Mrays/s for one structure on the mesh's canonical view, all threads."""
+    with tempfile.TemporaryDirectory() as folder:
+        record = pathlib.Path(folder) / "bench.json"
+        subprocess.run([str(lancer_cli), "bench", "--mesh", str(mesh), "--accel", accel, "--threads",
+                        str(os.cpu_count()), "--frames", str(frames), "--json", str(record)],
+                       check=True, stdout=subprocess.DEVNULL)
+        (row,) = json.loads(record.read_text())
+        return row["mrays_per_s"]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     meshes = [SHARED / "data" / "meshes" / name for name in ("bunny.obj", "armadillo.off", "dragon.ply")]
@@ -67,10 +86,20 @@ def main():
     parser.add_argument("--size", type=int, default=1024, help="image side in pixels")
     parser.add_argument("--frames", type=int, default=5, help="timed calls (median)")
     parser.add_argument("--no-open3d", action="store_true", help="skip Open3D")
+    parser.add_argument("--against-bench", type=pathlib.Path, metavar="LANCER",
+                        help="also time LANCER's `bench` on the same work, alternated with Python")
+    parser.add_argument("--rounds", type=int, default=1, help="alternations with --against-bench")
     args = parser.parse_args()
+    if args.rounds < 1:
+        parser.error("--rounds: expected 1 or more")
+    if args.against_bench is not None and not args.against_bench.is_file():
+        parser.error(f"--against-bench: no file {args.against_bench}")
     print(f"python_cast_rays: {cpu_name()}, {os.cpu_count()} hardware threads, all used; "
           f"{args.size}x{args.size} canonical view, median of {args.frames} after 1 warm-up")
-    print(f"{'mesh':<16} {'engine':<24} {'rays':<16} {'Mrays/s':>8} {'hits':>7}")
+    header = f"{'mesh':<16} {'engine':<24} {'rays':<16} {'Mrays/s':>8} {'hits':>7}"
+    if args.against_bench is not None:
+        header += f" {'round':>5} {'bench':>8} {'/bench':>7}"
+    print(header)
     try:
         import open3d as o3d
     except ImportError:
@@ -79,15 +108,30 @@ def main():
         vertices, triangles = lancer.load_mesh(str(mesh))
         rays = canonical_rays(vertices, args.size)
         ray_count = args.size * args.size
+        scenes = {}
         for accel in args.accel.split(","):
-            if accel not in lancer.accel_names():
-                continue
-            scene = lancer.RaycastingScene(accel=accel)
-            scene.add_triangles(vertices, triangles)
-            for shaped in (rays, rays.reshape(-1, 6)):
-                hits = np.isfinite(scene.cast_rays(shaped)["t_hit"]).mean()
-                mrays = median_mrays(lambda: scene.cast_rays(shaped), ray_count, args.frames)
-                print(f"{mesh.name:<16} {'lancer ' + accel:<24} {str(shaped.shape):<16} {mrays:8.2f} {hits:7.1%}")
+            if accel in lancer.accel_names():
+                scenes[accel] = lancer.RaycastingScene(accel=accel)
+                scenes[accel].add_triangles(vertices, triangles)
+        ratios = {}
+        for round_index in range(args.rounds if args.against_bench is not None else 1):
+            for accel, scene in scenes.items():
+                timed = []
+                for shaped in (rays, rays.reshape(-1, 6)):
+                    hits = np.isfinite(scene.cast_rays(shaped)["t_hit"]).mean()
+                    timed.append((shaped.shape, hits, median_mrays(lambda: scene.cast_rays(shaped), ray_count,
+                                                                   args.frames)))
+                bench = None if args.against_bench is None else bench_mrays(args.against_bench, mesh, accel,
+                                                                             args.frames)
+                for shape, hits, mrays in timed:
+                    line = f"{mesh.name:<16} {'lancer ' + accel:<24} {str(shape):<16} {mrays:8.2f} {hits:7.1%}"
+                    if bench is not None:
+                        line += f" {round_index + 1:5d} {bench:8.2f} {mrays / bench:7.3f}"
+                        ratios.setdefault((accel, str(shape)), []).append(mrays / bench)
+                    print(line, flush=True)
+        for (accel, shape), values in ratios.items():
+            print(f"{mesh.name:<16} {'lancer ' + accel:<24} {shape:<16} median / bench {statistics.median(values):.3f}"
+                  f" over {len(values)} rounds ({min(values):.3f}-{max(values):.3f})")
         if o3d is not None and not args.no_open3d:
             scene = o3d.t.geometry.RaycastingScene()
             scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(triangles))
