@@ -100,15 +100,16 @@ void store_four_normals(const std::int32_t* prim, const NormalTable& normals, fl
 }
 
 // The ids of a pair's hits in a scene of several geometries, from their global indices: the misses' lanes
-// keep theirs.
+// keep theirs. Neighbouring rays mostly hit one geometry, so each hit tries the previous hit's first.
 void locate_hits(const GeometryStarts& geometries, unsigned hit_rays, __m256i& geometry, __m256i& primitive) {
     alignas(32) std::uint32_t geometry_ids[8], primitive_ids[8];
     _mm256_store_si256(reinterpret_cast<__m256i*>(geometry_ids), geometry);
     _mm256_store_si256(reinterpret_cast<__m256i*>(primitive_ids), primitive);
+    std::uint32_t last_geometry = 0;
     for (; hit_rays != 0; hit_rays &= hit_rays - 1) {
         const int lane = __builtin_ctz(hit_rays);
         std::tie(geometry_ids[lane], primitive_ids[lane]) =
-            geometries.locate(static_cast<std::int32_t>(primitive_ids[lane]));
+            geometries.locate(static_cast<std::int32_t>(primitive_ids[lane]), last_geometry);
     }
     geometry = _mm256_load_si256(reinterpret_cast<const __m256i*>(geometry_ids));
     primitive = _mm256_load_si256(reinterpret_cast<const __m256i*>(primitive_ids));
@@ -229,10 +230,19 @@ void prefetch_answers(const PacketRows& where, const CastAnswers& answers) {
 }
 
 std::pair<std::uint32_t, std::uint32_t> GeometryStarts::locate(std::int32_t prim) const {
+    std::uint32_t geometry = 0;
+    return locate(prim, geometry);
+}
+
+std::pair<std::uint32_t, std::uint32_t> GeometryStarts::locate(std::int32_t prim,
+                                                               std::uint32_t& geometry) const {
     const auto index = static_cast<std::uint32_t>(prim);
-    const auto after = std::upper_bound(first.begin(), first.end() - 1, index);
-    const auto geometry = static_cast<std::size_t>(after - first.begin()) - 1;
-    return {static_cast<std::uint32_t>(geometry), index - first[geometry]};
+    // The geometry holding the index is the one non-empty range [first[g], first[g + 1]) around it.
+    if (index < first[geometry] || index >= first[geometry + 1]) {
+        const auto after = std::upper_bound(first.begin(), first.end() - 1, index);
+        geometry = static_cast<std::uint32_t>(after - first.begin()) - 1;
+    }
+    return {geometry, index - first[geometry]};
 }
 
 void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswers& answers,
@@ -313,12 +323,9 @@ bool RayChunks::tile_pair(const PacketRows& left, const PacketRows& right) const
         return std::all_of(where.count.begin(), where.count.end(),
                            [](int count) { return count == kGroupLanes; });
     };
-    if (!images() || width_ % kLineRays != 0 || left.row[0] % kLineRays != 0 || !full(left) || !full(right))
-        return false;
-    for (std::size_t g = 0; g < left.row.size(); ++g) {
-        if (right.row[g] != left.row[g] + PinholeCamera::kTileSide) return false;
-    }
-    return true;
+    // A tile's lane 0 is its top left ray: the right tile starts eight rays on, and the pair on a line.
+    return images() && width_ % kLineRays == 0 && left.row[0] % kLineRays == 0 &&
+           right.row[0] == left.row[0] + PinholeCamera::kTileSide && full(left) && full(right);
 }
 
 void RayChunks::image_chunk(std::size_t index, std::vector<PacketRows>& packets) const {

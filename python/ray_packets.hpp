@@ -68,6 +68,10 @@ struct GeometryStarts {
     // The geometry and primitive ids of global triangle index `prim`: the last geometry starting at or
     // before it, and its index from that start.
     [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) const;
+    // locate, trying geometry `geometry` (below geometry_count()) before searching, and leaving the answer's
+    // geometry in it.
+    [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim,
+                                                                 std::uint32_t& geometry) const;
 };
 
 // What the answers of a hit need from the scene beside the trace: its normal and its ids.

@@ -205,6 +205,23 @@ INSTANTIATE_TEST_SUITE_P(
                     std::vector<std::size_t>{24, 48}, std::vector<std::size_t>{12, 48},
                     std::vector<std::size_t>{2, 8, 16}));
 
+// Every index's ids, whatever geometry the search is told to try first, with empty geometries among the
+// others (their start repeats the next one's).
+TEST(RayPackets, GeometryStartsLocateEveryIndexFromAnyHint) {
+    const std::vector<std::uint32_t> first{0, 3, 3, 5, 9, 9, 12};
+    const GeometryStarts geometries{first};
+    for (std::uint32_t p = 0; p < first.back(); ++p) {
+        const auto expected = walked_ids(first, p);
+        EXPECT_EQ(geometries.locate(static_cast<std::int32_t>(p)), expected) << p;
+        for (std::uint32_t hint = 0; hint < geometries.geometry_count(); ++hint) {
+            std::uint32_t geometry = hint;
+            EXPECT_EQ(geometries.locate(static_cast<std::int32_t>(p), geometry), expected)
+                << p << ", " << hint;
+            EXPECT_EQ(geometry, expected.first) << p << ", " << hint;
+        }
+    }
+}
+
 TEST(RayPackets, AnyNonFiniteValueIsFoundWithItsRow) {
     for (const std::vector<std::size_t>& shape :
          {std::vector<std::size_t>{200}, std::vector<std::size_t>{19, 13}}) {
