@@ -68,35 +68,18 @@ bool load_eight(const float* low, const float* high, RayPacket& rays, int lane) 
     return _mm256_movemask_ps(finite) == 0xFF;
 }
 
-// How the answers reach the arrays: in place, or with non-temporal stores, which need aligned addresses and
-// pay only where the stores fill whole lines one after the other (stream_tile_pair).
-struct DirectStores {
-    static void store(float* to, __m128 value) { _mm_storeu_ps(to, value); }
-    static void store(float* to, __m256 value) { _mm256_storeu_ps(to, value); }
-};
-struct StreamedStores {
-    static void store(float* to, __m128 value) { _mm_stream_ps(to, value); }
-    static void store(float* to, __m256 value) { _mm256_stream_ps(to, value); }
-};
-
-template <class Stores>
-void store_ids(std::uint32_t* to, __m256i ids) {
-    Stores::store(reinterpret_cast<float*>(to), _mm256_castsi256_ps(ids));
-}
-
 // The normals of four rays, whose global triangle indices start at `prim`, as their rows hold them: twelve
-// floats, x y z a ray. A ray's normal is one unaligned 4-float load from the table (a miss's, index -1, the
-// table's zero entry); the loads' fourth floats are dropped by the shuffles.
-template <class Stores>
-void store_four_normals(const std::int32_t* prim, const NormalTable& normals, float* out) {
+// floats, x y z a ray, in three registers. A ray's normal is one unaligned 4-float load from the table (a
+// miss's, index -1, the table's zero entry); the loads' fourth floats are dropped by the shuffles.
+void four_normals(const std::int32_t* prim, const NormalTable& normals, __m128* out) {
     __m128 ray[kGroupLanes];
     for (int k = 0; k < kGroupLanes; ++k)
         ray[k] = _mm_loadu_ps(normals.xyz + 3 * static_cast<std::ptrdiff_t>(prim[k]));
     // [x0 y0 z0 x1], [y1 z1 x2 y2], [z2 x3 y3 z3]
-    Stores::store(out, _mm_blend_ps(ray[0], _mm_shuffle_ps(ray[1], ray[1], _MM_SHUFFLE(0, 0, 0, 0)), 0b1000));
-    Stores::store(out + 4, _mm_shuffle_ps(ray[1], ray[2], _MM_SHUFFLE(1, 0, 2, 1)));
-    Stores::store(out + 8, _mm_blend_ps(_mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(ray[3]), 4)),
-                                        _mm_shuffle_ps(ray[2], ray[2], _MM_SHUFFLE(2, 2, 2, 2)), 0b0001));
+    out[0] = _mm_blend_ps(ray[0], _mm_shuffle_ps(ray[1], ray[1], _MM_SHUFFLE(0, 0, 0, 0)), 0b1000);
+    out[1] = _mm_shuffle_ps(ray[1], ray[2], _MM_SHUFFLE(1, 0, 2, 1));
+    out[2] = _mm_blend_ps(_mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(ray[3]), 4)),
+                          _mm_shuffle_ps(ray[2], ray[2], _MM_SHUFFLE(2, 2, 2, 2)), 0b0001);
 }
 
 // The ids of a pair's hits in a scene of several geometries, from their global indices: the misses' lanes
@@ -115,36 +98,77 @@ void locate_hits(const GeometryStarts& geometries, unsigned hit_rays, __m256i& g
     primitive = _mm256_load_si256(reinterpret_cast<const __m256i*>(primitive_ids));
 }
 
-// The answers of a pair of full groups, eight rows from the first group's.
-template <class Stores>
-void store_full_pair(const HitPacket& hits, int low_lane, int high_lane, const CastAnswers& answers,
-                     const HitTables& tables, std::size_t row) {
-    const auto lanes_of = [&](const auto* field) {
-        return _mm256_loadu2_m128(reinterpret_cast<const float*>(field + high_lane),
-                                  reinterpret_cast<const float*>(field + low_lane));
+// The answers of eight neighbouring rays, a pair of full groups (lanes low_lane to low_lane + 3, then
+// high_lane to high_lane + 3), in registers as the arrays lay them out.
+struct EightAnswers {
+    __m256 t;
+    __m256i geometry, primitive;
+    __m256 uv[2];      // u v of rays 0-3, then of rays 4-7
+    __m128 normal[6];  // x y z of rays 0-3 in the first three, of rays 4-7 in the last three
+
+    EightAnswers(const HitPacket& hits, int low_lane, int high_lane, const HitTables& tables) {
+        const auto lanes_of = [&](const auto* field) {
+            return _mm256_loadu2_m128(reinterpret_cast<const float*>(field + high_lane),
+                                      reinterpret_cast<const float*>(field + low_lane));
+        };
+        t = lanes_of(hits.t);
+        primitive = _mm256_castps_si256(lanes_of(hits.prim));
+        const __m256i hit = _mm256_cmpgt_epi32(primitive, _mm256_set1_epi32(-1));
+        const __m256 hit_mask = _mm256_castsi256_ps(hit);
+        const auto hit_rays = static_cast<unsigned>(_mm256_movemask_ps(hit_mask));
+        // A miss's prim is -1, whose bits are kInvalidId; a hit's ids in a scene of one geometry are 0 and
+        // prim.
+        geometry = _mm256_andnot_si256(hit, primitive);
+        if (tables.geometries.geometry_count() > 1 && hit_rays != 0)
+            locate_hits(tables.geometries, hit_rays, geometry, primitive);
+        const __m256 u = _mm256_and_ps(hit_mask, lanes_of(hits.u));
+        const __m256 v = _mm256_and_ps(hit_mask, lanes_of(hits.v));
+        const __m256 uv_low = _mm256_unpacklo_ps(u, v), uv_high = _mm256_unpackhi_ps(u, v);
+        uv[0] = _mm256_permute2f128_ps(uv_low, uv_high, 0x20);
+        uv[1] = _mm256_permute2f128_ps(uv_low, uv_high, 0x31);
+        if (hit_rays != 0) {
+            four_normals(hits.prim + low_lane, tables.normals, normal);
+            four_normals(hits.prim + high_lane, tables.normals, normal + 3);
+        } else {
+            std::fill(std::begin(normal), std::end(normal), _mm_setzero_ps());
+        }
+    }
+
+    // Into rows [row, row + 8) of the arrays, in place.
+    void store(const CastAnswers& answers, std::size_t row) const {
+        _mm256_storeu_ps(answers.t_hit + row, t);
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(answers.geometry_ids + row), geometry);
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(answers.primitive_ids + row), primitive);
+        _mm256_storeu_ps(answers.uvs + 2 * row, uv[0]);
+        _mm256_storeu_ps(answers.uvs + 2 * row + 8, uv[1]);
+        for (int k = 0; k < 6; ++k)
+            _mm_storeu_ps(answers.normals + 3 * row + 4 * k, normal[k]);
+    }
+};
+
+// The answers of sixteen rays from `row`, a multiple of 16, `left`'s then `right`'s: whole lines of every
+// array, streamed one line after the other, so that no line is left half written while the next is begun
+// (stream_tile_pair).
+void stream_sixteen(const EightAnswers& left, const EightAnswers& right, const CastAnswers& answers,
+                    std::size_t row) {
+    const auto stream_ids = [](std::uint32_t* to, __m256i ids) {
+        _mm256_stream_si256(reinterpret_cast<__m256i*>(to), ids);
     };
-    const __m256i prim = _mm256_castps_si256(lanes_of(hits.prim));
-    const __m256i hit = _mm256_cmpgt_epi32(prim, _mm256_set1_epi32(-1));
-    const __m256 hit_mask = _mm256_castsi256_ps(hit);
-    const auto hit_rays = static_cast<unsigned>(_mm256_movemask_ps(hit_mask));
-    // A miss's prim is -1, whose bits are kInvalidId; a hit's ids in a scene of one geometry are 0 and prim.
-    __m256i geometry = _mm256_andnot_si256(hit, prim), primitive = prim;
-    if (tables.geometries.geometry_count() > 1 && hit_rays != 0)
-        locate_hits(tables.geometries, hit_rays, geometry, primitive);
-    Stores::store(answers.t_hit + row, lanes_of(hits.t));
-    store_ids<Stores>(answers.primitive_ids + row, primitive);
-    store_ids<Stores>(answers.geometry_ids + row, geometry);
-    const __m256 u = _mm256_and_ps(hit_mask, lanes_of(hits.u)), v = _mm256_and_ps(hit_mask, lanes_of(hits.v));
-    const __m256 uv_low = _mm256_unpacklo_ps(u, v), uv_high = _mm256_unpackhi_ps(u, v);
-    Stores::store(answers.uvs + 2 * row, _mm256_permute2f128_ps(uv_low, uv_high, 0x20));
-    Stores::store(answers.uvs + 2 * row + 8, _mm256_permute2f128_ps(uv_low, uv_high, 0x31));
-    if (hit_rays != 0) {
-        store_four_normals<Stores>(hits.prim + low_lane, tables.normals, answers.normals + 3 * row);
-        store_four_normals<Stores>(hits.prim + high_lane, tables.normals,
-                                   answers.normals + 3 * row + 3 * kGroupLanes);
-    } else {
-        for (int k = 0; k < 3; ++k)
-            Stores::store(answers.normals + 3 * row + 8 * k, _mm256_setzero_ps());
+    _mm256_stream_ps(answers.t_hit + row, left.t);
+    _mm256_stream_ps(answers.t_hit + row + 8, right.t);
+    stream_ids(answers.geometry_ids + row, left.geometry);
+    stream_ids(answers.geometry_ids + row + 8, right.geometry);
+    stream_ids(answers.primitive_ids + row, left.primitive);
+    stream_ids(answers.primitive_ids + row + 8, right.primitive);
+    for (const EightAnswers* eight : {&left, &right}) {
+        const std::size_t first = eight == &left ? row : row + 8;
+        _mm256_stream_ps(answers.uvs + 2 * first, eight->uv[0]);
+        _mm256_stream_ps(answers.uvs + 2 * first + 8, eight->uv[1]);
+    }
+    for (const EightAnswers* eight : {&left, &right}) {
+        const std::size_t first = eight == &left ? row : row + 8;
+        for (int k = 0; k < 6; ++k)
+            _mm_stream_ps(answers.normals + 3 * first + 4 * k, eight->normal[k]);
     }
 }
 
@@ -251,8 +275,8 @@ void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswe
 #if defined(__AVX2__)
         if (where.count[static_cast<std::size_t>(low)] == kGroupLanes &&
             where.count[static_cast<std::size_t>(high)] == kGroupLanes) {
-            store_full_pair<DirectStores>(hits, low * kGroupLanes, high * kGroupLanes, answers, tables,
-                                          where.row[static_cast<std::size_t>(low)]);
+            EightAnswers(hits, low * kGroupLanes, high * kGroupLanes, tables)
+                .store(answers, where.row[static_cast<std::size_t>(low)]);
             continue;
         }
 #endif
@@ -262,16 +286,15 @@ void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswe
 }
 
 void stream_tile_pair(const HitPacket& left_hits, const HitPacket& right_hits, const PacketRows& left,
-                      const PacketRows& right, const CastAnswers& answers, const HitTables& tables) {
+                      [[maybe_unused]] const PacketRows& right, const CastAnswers& answers,
+                      const HitTables& tables) {
 #if defined(__AVX2__)
     // Pair k of either tile is the tile's row k (RayChunks::image_chunk): the left tile's eight answers, then
-    // the right's, fill the row's lines.
+    // the right's, eight rays on (RayChunks::tile_pair), fill the row's lines.
     for (const auto& [low, high] : left.answer_pairs) {
-        const auto low_group = static_cast<std::size_t>(low);
-        store_full_pair<StreamedStores>(left_hits, low * kGroupLanes, high * kGroupLanes, answers, tables,
-                                        left.row[low_group]);
-        store_full_pair<StreamedStores>(right_hits, low * kGroupLanes, high * kGroupLanes, answers, tables,
-                                        right.row[low_group]);
+        stream_sixteen(EightAnswers(left_hits, low * kGroupLanes, high * kGroupLanes, tables),
+                       EightAnswers(right_hits, low * kGroupLanes, high * kGroupLanes, tables), answers,
+                       left.row[static_cast<std::size_t>(low)]);
     }
 #else
     store_pairs(left_hits, left, answers, tables);

@@ -86,10 +86,10 @@ void store_pairs(const HitPacket& hits, const PacketRows& where, const CastAnswe
                  const HitTables& tables);
 
 // store_pairs's answers of two whole camera tiles side by side (RayChunks::tile_pair), streamed into the
-// arrays with non-temporal stores. Each image row's sixteen answers fill whole lines of every array, written
-// one after the other, so that no line is fetched for ownership first as the stores of a tile alone, 32
-// bytes of `t` in each of eight rows, need; those fetches were most of the answers' cost (docs/python.md,
-// "Speed"). The arrays must start on 64-byte boundaries (lines_aligned).
+// arrays with non-temporal stores. Each image row's sixteen answers fill whole lines of every array, each
+// written whole before the next is begun, so that no line is fetched for ownership first as the stores of a
+// tile alone, 32 bytes of `t` in each of eight rows, need; those fetches were most of the answers' cost
+// (docs/python.md, "Speed"). The arrays must start on 64-byte boundaries (lines_aligned).
 void stream_tile_pair(const HitPacket& left_hits, const HitPacket& right_hits, const PacketRows& left,
                       const PacketRows& right, const CastAnswers& answers, const HitTables& tables);
 
