@@ -14,12 +14,19 @@ PYBIND11_MODULE(lancer, module) {
     module.attr("__version__") = "0.1.0";
     py::class_<RaycastingScene>(module, "RaycastingScene")
         .def(
-            py::init<std::string, bool>(), py::arg("accel") = "bvh", py::arg("watertight") = true,
+            py::init<std::string, bool, int>(), py::arg("accel") = "bvh", py::arg("watertight") = true,
+            py::arg("nthreads") = 0,
             "A scene traced by lancer structure `accel` (lancer.accel_names()), with the watertight triangle "
-            "test (Woop et al. 2013) or Moller-Trumbore")
+            "test (Woop et al. 2013) or Moller-Trumbore; nthreads builds the structures (0: all)")
+        .def(py::init([](int nthreads) { return std::make_unique<RaycastingScene>("bvh", true, nthreads); }),
+             py::arg("nthreads"), "Open3D's constructor: a `bvh` scene, built on nthreads threads (0: all)")
         .def_readonly_static("INVALID_ID", &lancer::python::kInvalidId)
-        .def("add_triangles", &RaycastingScene::add_triangles, py::arg("vertices"), py::arg("triangles"),
-             "Adds a mesh: vertices float32 (N, 3), triangles integer (M, 3). Returns its geometry id.")
+        .def("add_triangles", &RaycastingScene::add_triangles, py::arg("vertex_positions"),
+             py::arg("triangle_indices"),
+             "Adds a mesh: vertex_positions float32 (N, 3), triangle_indices integer (M, 3). Returns its "
+             "geometry id.")
+        .def("add_triangles", &RaycastingScene::add_mesh, py::arg("mesh"),
+             "Adds an open3d.t.geometry.TriangleMesh. Returns its geometry id.")
         .def("update_vertices", &RaycastingScene::update_vertices, py::arg("geometry_id"),
              py::arg("vertices"),
              "Moves a geometry's vertices, float32 (N, 3) with N its vertex count, its triangles kept;\n"
@@ -50,10 +57,20 @@ PYBIND11_MODULE(lancer, module) {
         .def("compute_signed_distance", &RaycastingScene::compute_signed_distance, py::arg("query_points"),
              py::arg("nthreads") = 0, py::arg("nsamples") = 1,
              "The distance to the surface, negative inside the closed meshes (compute_occupancy's rule)")
-        .def_static("create_rays_pinhole", &RaycastingScene::create_rays_pinhole, py::arg("fov_deg"),
-                    py::arg("center"), py::arg("eye"), py::arg("up"), py::arg("width_px"),
+        .def_static(
+            "create_rays_pinhole",
+            py::overload_cast<double, const py::object&, const py::object&, const py::object&, int, int>(
+                &RaycastingScene::create_rays_pinhole),
+            py::arg("fov_deg"), py::arg("center"), py::arg("eye"), py::arg("up"), py::arg("width_px"),
+            py::arg("height_px"),
+            "Rays (height_px, width_px, 6) of a pinhole camera at `eye` looking at `center`")
+        .def_static("create_rays_pinhole",
+                    py::overload_cast<const py::object&, const py::object&, int, int>(
+                        &RaycastingScene::create_rays_pinhole),
+                    py::arg("intrinsic_matrix"), py::arg("extrinsic_matrix"), py::arg("width_px"),
                     py::arg("height_px"),
-                    "Rays (height_px, width_px, 6) of a pinhole camera at `eye` looking at `center`")
+                    "Rays (height_px, width_px, 6) of a pinhole camera: intrinsic_matrix K (3, 3), "
+                    "extrinsic_matrix the world-to-camera transform (4, 4)")
         .def("save_structure", &RaycastingScene::save_structure, py::arg("path"),
              "lancer's own: writes the `plucker` structure and its triangles as a .plo file")
         .def_static(

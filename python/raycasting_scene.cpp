@@ -24,26 +24,33 @@ std::string shape_text(const py::array& array) {
     return text + (array.ndim() == 1 ? ",)" : ")");
 }
 
-// A float32 array of shape (..., width), C-contiguous (read in place when it already is). Throws TypeError
-// or ValueError naming `name`, and with `check_finite` for a NaN or infinite value (the ray queries check
-// their rows as each task converts them instead: rays_of).
-py::array_t<float, py::array::c_style> float_rows(const py::object& object, const char* name,
+// A tensor that gives a NumPy array (numpy(): Open3D's, torch's on the CPU) as that array, which shares its
+// memory; anything else as it is.
+py::object numpy_of(const py::object& object) {
+    if (py::isinstance<py::array>(object) || !py::hasattr(object, "numpy")) return object;
+    return object.attr("numpy")();
+}
+
+// A float32 array of shape (..., width), C-contiguous (read in place when it already is), from an array or a
+// tensor (numpy_of). Throws TypeError or ValueError naming `name`, and with `check_finite` for a NaN or
+// infinite value (the ray queries check their rows as each task converts them instead: rays_of).
+py::array_t<float, py::array::c_style> float_rows(const py::object& argument, const std::string& name,
                                                   py::ssize_t width, bool check_finite = true) {
+    const py::object object = numpy_of(argument);
     if (!py::isinstance<py::array>(object))
-        throw py::type_error(std::string(name) + ": expected a numpy array of float32, got " +
+        throw py::type_error(name + ": expected a numpy array of float32, got " +
                              std::string(py::str(py::type::of(object).attr("__name__"))));
     const auto array = py::reinterpret_borrow<py::array>(object);
     if (array.dtype().kind() != 'f' || array.itemsize() != 4)
-        throw py::type_error(std::string(name) + ": expected dtype float32, got " +
-                             std::string(py::str(array.dtype())));
+        throw py::type_error(name + ": expected dtype float32, got " + std::string(py::str(array.dtype())));
     if (array.ndim() < 1 || array.shape(array.ndim() - 1) != width)
-        throw py::value_error(std::string(name) + ": expected shape (..., " + std::to_string(width) +
-                              "), got " + shape_text(array));
+        throw py::value_error(name + ": expected shape (..., " + std::to_string(width) + "), got " +
+                              shape_text(array));
     auto rows = py::array_t<float, py::array::c_style>::ensure(array);
     const float* data = rows.data();
     for (py::ssize_t i = 0; check_finite && i < rows.size(); ++i) {
         if (!std::isfinite(data[i]))
-            throw py::value_error(std::string(name) + ": row " + std::to_string(i / width) +
+            throw py::value_error(name + ": row " + std::to_string(i / width) +
                                   " holds a NaN or infinite value");
     }
     return rows;
@@ -156,12 +163,40 @@ Vec3f vec3_argument(const py::object& object, const char* name) {
     return {rows.data()[0], rows.data()[1], rows.data()[2]};
 }
 
+// A rows x cols matrix of finite numbers (any dtype NumPy turns into float64), from an array, a tensor or
+// nested sequences, row by row. Throws TypeError or ValueError naming `name`.
+std::vector<double> matrix_argument(const py::object& object, const char* name, py::ssize_t rows,
+                                    py::ssize_t cols) {
+    const std::string expected = std::to_string(rows) + " x " + std::to_string(cols);
+    py::object converted;
+    try {
+        converted = py::module_::import("numpy").attr("asarray")(numpy_of(object), "float64");
+    } catch (const py::error_already_set&) {
+        throw py::type_error(std::string(name) + ": expected a " + expected + " matrix of numbers");
+    }
+    const auto matrix = py::array_t<double, py::array::c_style>::ensure(converted);
+    if (matrix.ndim() != 2 || matrix.shape(0) != rows || matrix.shape(1) != cols)
+        throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(rows) + ", " +
+                              std::to_string(cols) + "), got " + shape_text(matrix));
+    std::vector<double> values(matrix.data(), matrix.data() + matrix.size());
+    if (!std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); }))
+        throw py::value_error(std::string(name) + ": holds a NaN or infinite value");
+    return values;
+}
+
+void check_image_size(int width_px, int height_px) {
+    if (width_px <= 0 || height_px <= 0 || width_px > 1 << 16 || height_px > 1 << 16)
+        throw py::value_error("width_px, height_px: expected sizes in [1, 65536]");
+}
+
 }  // namespace
 
-RaycastingScene::RaycastingScene(std::string accel, bool watertight)
+RaycastingScene::RaycastingScene(std::string accel, bool watertight, int nthreads)
     : accel_name_(std::move(accel)),
       test_(watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore),
+      build_threads_(nthreads),
       first_triangle_{0} {
+    check_threads(nthreads);
     scene_.materials.emplace_back();  // the meshes' material 0: a World renders what it holds
     const std::vector<std::string_view> names = accel_names();
     if (std::find(names.begin(), names.end(), accel_name_) == names.end()) {
@@ -172,26 +207,42 @@ RaycastingScene::RaycastingScene(std::string accel, bool watertight)
     }
 }
 
-std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const py::object& triangles) {
-    const auto points = float_rows(vertices, "vertices", 3);
-    if (!py::isinstance<py::array>(triangles))
-        throw py::type_error("triangles: expected a numpy array of integers");
-    const auto indices_array = py::reinterpret_borrow<py::array>(triangles);
+std::uint32_t RaycastingScene::add_triangles(const py::object& vertex_positions,
+                                             const py::object& triangle_indices) {
+    return add_geometry(vertex_positions, triangle_indices, "vertex_positions", "triangle_indices");
+}
+
+std::uint32_t RaycastingScene::add_mesh(const py::object& mesh) {
+    if (!py::hasattr(mesh, "vertex") || !py::hasattr(mesh, "triangle"))
+        throw py::type_error("mesh: expected an open3d.t.geometry.TriangleMesh, got " +
+                             std::string(py::str(py::type::of(mesh).attr("__name__"))));
+    return add_geometry(mesh.attr("vertex")["positions"], mesh.attr("triangle")["indices"],
+                        "mesh.vertex['positions']", "mesh.triangle['indices']");
+}
+
+std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py::object& triangles,
+                                            const std::string& vertices_name,
+                                            const std::string& triangles_name) {
+    const auto points = float_rows(vertices, vertices_name, 3);
+    const py::object indices_object = numpy_of(triangles);
+    if (!py::isinstance<py::array>(indices_object))
+        throw py::type_error(triangles_name + ": expected a numpy array of integers");
+    const auto indices_array = py::reinterpret_borrow<py::array>(indices_object);
     const char kind = indices_array.dtype().kind();
     if (kind != 'i' && kind != 'u')
-        throw py::type_error("triangles: expected an integer dtype (uint32 as Open3D), got " +
+        throw py::type_error(triangles_name + ": expected an integer dtype (uint32 as Open3D), got " +
                              std::string(py::str(indices_array.dtype())));
     if (indices_array.ndim() != 2 || indices_array.shape(1) != 3)
-        throw py::value_error("triangles: expected shape (M, 3), got " + shape_text(indices_array));
+        throw py::value_error(triangles_name + ": expected shape (M, 3), got " + shape_text(indices_array));
     if (points.ndim() != 2)
-        throw py::value_error("vertices: expected shape (N, 3), got " + shape_text(points));
+        throw py::value_error(vertices_name + ": expected shape (N, 3), got " + shape_text(points));
     const auto indices =
         py::array_t<std::int64_t, py::array::c_style>::ensure(indices_array.attr("astype")("int64"));
     const auto vertex_count = static_cast<std::int64_t>(points.shape(0));
     const float* p = points.data();
     for (py::ssize_t i = 0; i < points.shape(0); ++i) {
         if (!in_coordinate_domain({p[3 * i], p[3 * i + 1], p[3 * i + 2]}))
-            throw py::value_error("vertices: row " + std::to_string(i) +
+            throw py::value_error(vertices_name + ": row " + std::to_string(i) +
                                   " lies outside the coordinate domain [-2^60, 2^60]");
     }
     TriangleMesh mesh;
@@ -203,7 +254,7 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
     mesh.indices.reserve(static_cast<std::size_t>(indices.size()));
     for (py::ssize_t k = 0; k < indices.size(); ++k) {
         if (index[k] < 0 || index[k] >= vertex_count)
-            throw py::value_error("triangles: row " + std::to_string(k / 3) + " names vertex " +
+            throw py::value_error(triangles_name + ": row " + std::to_string(k / 3) + " names vertex " +
                                   std::to_string(index[k]) + ", outside [0, " + std::to_string(vertex_count) +
                                   ")");
         mesh.indices.push_back(static_cast<std::uint32_t>(index[k]));
@@ -212,7 +263,7 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertices, const p
     const std::lock_guard lock(mutex_);
     const std::size_t total = first_triangle_.back() + mesh.triangle_count();
     if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
-        throw std::invalid_argument("triangles: more triangles than a hit's 32-bit id can number");
+        throw std::invalid_argument(triangles_name + ": more triangles than a hit's 32-bit id can number");
     first_triangle_.push_back(static_cast<std::uint32_t>(total));
     scene_.meshes.push_back(std::move(mesh));
     queries_.reset();  // first: it reads the World's triangles
@@ -252,7 +303,7 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
         if (world_) {
             queries_.reset();  // its own tree is over the triangles about to move
             unit_normals_.clear();
-            report = world_->update_vertices(geometry_id, positions);
+            building([&] { report = world_->update_vertices(geometry_id, positions); });
         }
         mesh.positions = std::move(positions);
     }
@@ -263,13 +314,15 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
 
 const Accel& RaycastingScene::committed() {
     if (first_triangle_.back() == 0) throw std::invalid_argument("the scene is empty: add_triangles first");
-    if (!world_) world_ = std::make_unique<World>(scene_, accel_name_, build_options(test_));
+    if (!world_)
+        building([&] { world_ = std::make_unique<World>(scene_, accel_name_, build_options(test_)); });
     return world_->accel();
 }
 
 const GeometryQueries& RaycastingScene::queries() {
     committed();
-    if (!queries_) queries_ = std::make_unique<GeometryQueries>(world_->geometry().view(), test_);
+    if (!queries_)
+        building([&] { queries_ = std::make_unique<GeometryQueries>(world_->geometry().view(), test_); });
     return *queries_;
 }
 
@@ -514,8 +567,7 @@ py::array RaycastingScene::create_rays_pinhole(double fov_deg, const py::object&
                                                const py::object& eye, const py::object& up, int width_px,
                                                int height_px) {
     if (!(fov_deg > 0.0 && fov_deg < 180.0)) throw py::value_error("fov_deg: expected a value in (0, 180)");
-    if (width_px <= 0 || height_px <= 0 || width_px > 1 << 16 || height_px > 1 << 16)
-        throw py::value_error("width_px, height_px: expected sizes in [1, 65536]");
+    check_image_size(width_px, height_px);
     const Vec3f target = vec3_argument(center, "center"), origin = vec3_argument(eye, "eye");
     const Vec3f up_vector = vec3_argument(up, "up");
     // Open3D's look-at frame, which it builds as x = up x forward and y = forward x x: pixel (0, 0) lies
@@ -538,6 +590,55 @@ py::array RaycastingScene::create_rays_pinhole(double fov_deg, const py::object&
             const Vec3f direction = forward + a * x_axis + b * y_axis;
             out[0] = origin.x, out[1] = origin.y, out[2] = origin.z;
             out[3] = direction.x, out[4] = direction.y, out[5] = direction.z;
+        }
+    }
+    return rays;
+}
+
+py::array RaycastingScene::create_rays_pinhole(const py::object& intrinsic_matrix,
+                                               const py::object& extrinsic_matrix, int width_px,
+                                               int height_px) {
+    const std::vector<double> k = matrix_argument(intrinsic_matrix, "intrinsic_matrix", 3, 3);
+    const std::vector<double> e = matrix_argument(extrinsic_matrix, "extrinsic_matrix", 4, 4);
+    check_image_size(width_px, height_px);
+    // K^-1 by cofactors, in double as Open3D computes it; its rays are R^T K^-1 (x + 0.5, y + 0.5, 1) from
+    // -R^T t, rounded to float32 once.
+    const auto at = [&](int row, int column) { return k[static_cast<std::size_t>(3 * row + column)]; };
+    const double cofactor[3][3] = {
+        {at(1, 1) * at(2, 2) - at(1, 2) * at(2, 1), at(0, 2) * at(2, 1) - at(0, 1) * at(2, 2),
+         at(0, 1) * at(1, 2) - at(0, 2) * at(1, 1)},
+        {at(1, 2) * at(2, 0) - at(1, 0) * at(2, 2), at(0, 0) * at(2, 2) - at(0, 2) * at(2, 0),
+         at(0, 2) * at(1, 0) - at(0, 0) * at(1, 2)},
+        {at(1, 0) * at(2, 1) - at(1, 1) * at(2, 0), at(0, 1) * at(2, 0) - at(0, 0) * at(2, 1),
+         at(0, 0) * at(1, 1) - at(0, 1) * at(1, 0)}};
+    const double determinant =
+        at(0, 0) * cofactor[0][0] + at(0, 1) * cofactor[1][0] + at(0, 2) * cofactor[2][0];
+    if (!(std::abs(determinant) > 0.0) || !std::isfinite(1.0 / determinant))
+        throw py::value_error("intrinsic_matrix: expected an invertible matrix");
+    const auto rotation = [&](int row, int column) { return e[static_cast<std::size_t>(4 * row + column)]; };
+    double to_world[3][3];  // R^T K^-1
+    for (int row = 0; row < 3; ++row) {
+        for (int column = 0; column < 3; ++column) {
+            double sum = 0.0;
+            for (int j = 0; j < 3; ++j)
+                sum += rotation(j, row) * cofactor[j][column] / determinant;
+            to_world[row][column] = sum;
+        }
+    }
+    double centre[3];  // -R^T t
+    for (int row = 0; row < 3; ++row)
+        centre[row] = -(rotation(0, row) * rotation(0, 3) + rotation(1, row) * rotation(1, 3) +
+                        rotation(2, row) * rotation(2, 3));
+    py::array_t<float> rays(std::vector<py::ssize_t>{height_px, width_px, 6});
+    float* out = rays.mutable_data();
+    for (int y = 0; y < height_px; ++y) {
+        for (int x = 0; x < width_px; ++x, out += 6) {
+            const double pixel[3] = {x + 0.5, y + 0.5, 1.0};
+            for (int row = 0; row < 3; ++row) {
+                out[row] = static_cast<float>(centre[row]);
+                out[3 + row] = static_cast<float>(to_world[row][0] * pixel[0] + to_world[row][1] * pixel[1] +
+                                                  to_world[row][2] * pixel[2]);
+            }
         }
     }
     return rays;
@@ -569,7 +670,7 @@ std::unique_ptr<RaycastingScene> RaycastingScene::load_structure(const std::stri
         }
     }
     auto scene = std::make_unique<RaycastingScene>(
-        "plucker", world->options().triangle_test == TriangleTest::Watertight);
+        "plucker", world->options().triangle_test == TriangleTest::Watertight, 0);
     scene->scene_ = world->scene();
     scene->first_triangle_.push_back(static_cast<std::uint32_t>(world->geometry().triangle_count()));
     scene->world_ = std::move(world);

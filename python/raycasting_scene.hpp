@@ -1,17 +1,20 @@
 // lancer.RaycastingScene: the API of Open3D's open3d.t.geometry.RaycastingScene (0.16, with 0.17's
 // list_intersections) over lancer's structures, so that its users switch by changing one import
-// (docs/python.md). Arrays are NumPy's: float32 rays (..., 6) and points (..., 3), read in place when
-// C-contiguous; results keep the leading shape. The GIL is released while C++ traces.
+// (docs/python.md). Arrays are NumPy's, or tensors that give one (Open3D's, torch's): float32 rays (..., 6)
+// and points (..., 3), read in place when C-contiguous; results keep the leading shape. The GIL is released
+// while C++ traces.
 #pragma once
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
+#include <tbb/task_arena.h>
 
 #include <cstdint>
 #include <memory>
 #include <mutex>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lancer/accel.hpp"
@@ -26,9 +29,13 @@ namespace py = pybind11;
 
 class RaycastingScene {
   public:
-    RaycastingScene(std::string accel, bool watertight);
+    // nthreads, Open3D's constructor argument: the threads that build the structure (0: all).
+    RaycastingScene(std::string accel, bool watertight, int nthreads);
 
-    std::uint32_t add_triangles(const py::object& vertices, const py::object& triangles);
+    std::uint32_t add_triangles(const py::object& vertex_positions, const py::object& triangle_indices);
+    // Open3D's other add_triangles: an open3d.t.geometry.TriangleMesh, its vertex["positions"] and
+    // triangle["indices"].
+    std::uint32_t add_mesh(const py::object& mesh);
     // lancer's own: new positions for a geometry's vertices, its triangles kept (World::update_vertices: the
     // BVHs refit). Returns what the update did.
     py::dict update_vertices(std::uint32_t geometry_id, const py::object& vertices);
@@ -42,6 +49,10 @@ class RaycastingScene {
     py::array compute_signed_distance(const py::object& query_points, int nthreads, int nsamples);
     static py::array create_rays_pinhole(double fov_deg, const py::object& center, const py::object& eye,
                                          const py::object& up, int width_px, int height_px);
+    // Open3D's other pinhole: a 3x3 intrinsic matrix K and a 4x4 world-to-camera transform [R t]; pixel
+    // (x, y)'s ray starts at the camera's centre, -R^T t, along R^T K^-1 (x + 0.5, y + 0.5, 1).
+    static py::array create_rays_pinhole(const py::object& intrinsic_matrix,
+                                         const py::object& extrinsic_matrix, int width_px, int height_px);
 
     // lancer's own: the `plucker` structure and its geometry as a `.plo` file (lancer convert's), and a scene
     // made from one, its triangles one geometry.
@@ -53,6 +64,14 @@ class RaycastingScene {
     [[nodiscard]] py::dict stats();
 
   private:
+    // work() on the threads the constructor's nthreads allows: building and updating the structures.
+    template <class Work>
+    void building(Work&& work) const {
+        tbb::task_arena arena(build_threads_ > 0 ? build_threads_ : tbb::task_arena::automatic);
+        arena.execute(std::forward<Work>(work));
+    }
+    std::uint32_t add_geometry(const py::object& vertices, const py::object& triangles,
+                               const std::string& vertices_name, const std::string& triangles_name);
     // Builds the structure over every geometry added so far, once after each add_triangles. These and
     // the members below are used under mutex_, taken with the GIL released: queries trace without the GIL,
     // and another Python thread's add_triangles must not move the triangles under them.
@@ -74,6 +93,7 @@ class RaycastingScene {
 
     std::string accel_name_;
     TriangleTest test_;
+    int build_threads_;                          // 0: all
     Scene scene_;                                // a mesh per geometry
     std::vector<std::uint32_t> first_triangle_;  // of each geometry, then the total
     std::unique_ptr<World> world_;               // scene_ flattened and its structure, once built

@@ -220,13 +220,14 @@ def test_pinhole_rays_are_open3ds():
 
 
 @pytest.mark.parametrize("call, message", [
-    (lambda s, v, t: s.add_triangles(v.astype(np.float64), t), "vertices: expected dtype float32"),
-    (lambda s, v, t: s.add_triangles(v[:, :2], t), "vertices: expected shape (..., 3)"),
-    (lambda s, v, t: s.add_triangles(v, t.astype(np.float32)), "triangles: expected an integer dtype"),
-    (lambda s, v, t: s.add_triangles(v, t + np.uint32(len(v))), "triangles: row 0 names vertex"),
+    (lambda s, v, t: s.add_triangles(v.astype(np.float64), t), "vertex_positions: expected dtype float32"),
+    (lambda s, v, t: s.add_triangles(v[:, :2], t), "vertex_positions: expected shape (..., 3)"),
+    (lambda s, v, t: s.add_triangles(v, t.astype(np.float32)), "triangle_indices: expected an integer dtype"),
+    (lambda s, v, t: s.add_triangles(v, t + np.uint32(len(v))), "triangle_indices: row 0 names vertex"),
     (lambda s, v, t: s.add_triangles(np.where(np.arange(len(v))[:, None] == 3, np.nan, v).astype(np.float32), t),
-     "vertices: row 3 holds a NaN"),
-    (lambda s, v, t: s.add_triangles("not an array", t), "vertices: expected a numpy array"),
+     "vertex_positions: row 3 holds a NaN"),
+    (lambda s, v, t: s.add_triangles("not an array", t), "vertex_positions: expected a numpy array"),
+    (lambda s, v, t: s.add_triangles(mesh=v), "mesh: expected an open3d.t.geometry.TriangleMesh, got ndarray"),
 ])
 def test_bad_geometry_raises_naming_the_argument(spheres, call, message):
     vertices, triangles = spheres[0]
@@ -336,6 +337,83 @@ def test_occupancy_and_signed_distance_are_right_on_closed_spheres(spheres):
         assert np.allclose(np.abs(signed), scene.compute_distance(points), atol=0)
     # The centre of a sphere, the case Debian's Open3D gets wrong (docs/python.md).
     assert scene.compute_signed_distance(np.zeros((1, 3), np.float32))[0] < 0
+
+
+def test_open3d_call_forms_give_the_same_answers(spheres):
+    """Open3D's keyword names, its constructor's nthreads (the threads that build), and, where Open3D is
+    installed, its tensors for arrays and its TriangleMesh for add_triangles."""
+    rays = random_rays(2000, 12)
+    expected = scene_of("bvh8", *spheres).cast_rays(rays)["t_hit"]
+    by_keywords = lancer.RaycastingScene(nthreads=1, accel="bvh8")
+    for vertices, triangles in spheres:
+        by_keywords.add_triangles(vertex_positions=vertices, triangle_indices=triangles)
+    assert np.array_equal(by_keywords.cast_rays(rays=rays, nthreads=1)["t_hit"], expected)
+    open3ds = lancer.RaycastingScene(2)  # Open3D's positional nthreads: a `bvh` scene
+    assert open3ds.accel == "bvh"
+    with pytest.raises(ValueError, match="nthreads: expected 0"):
+        lancer.RaycastingScene(nthreads=-1)
+    o3d = pytest.importorskip("open3d", reason="Open3D is missing: scripts/deps.sh installs python3-open3d")
+    for vertices, triangles in spheres:
+        mesh = o3d.t.geometry.TriangleMesh()
+        mesh.vertex["positions"] = o3d.core.Tensor(vertices)
+        mesh.triangle["indices"] = o3d.core.Tensor(triangles.astype(np.int64))
+        open3ds.add_triangles(mesh)
+    answer = open3ds.cast_rays(o3d.core.Tensor(rays))
+    assert np.array_equal(answer["t_hit"], scene_of("bvh", *spheres).cast_rays(rays)["t_hit"])
+    assert np.array_equal(answer["t_hit"], expected)
+    with pytest.raises(ValueError, match=r"mesh.vertex\['positions'\]: expected shape"):
+        bad = o3d.t.geometry.TriangleMesh()
+        bad.vertex["positions"] = o3d.core.Tensor(np.zeros((4, 2), np.float32))
+        bad.triangle["indices"] = o3d.core.Tensor(np.zeros((1, 3), np.int64))
+        open3ds.add_triangles(bad)
+
+
+def random_camera(rng):
+    """An upper triangular intrinsic matrix with skew and a rigid world-to-camera transform."""
+    intrinsic = np.array([[rng.uniform(50, 500), rng.uniform(-2, 2), rng.uniform(10, 60)],
+                          [0, rng.uniform(50, 500), rng.uniform(10, 60)], [0, 0, 1]])
+    rotation, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    rotation[:, 0] *= np.sign(np.linalg.det(rotation))
+    extrinsic = np.eye(4)
+    extrinsic[:3, :3], extrinsic[:3, 3] = rotation, rng.uniform(-5, 5, 3)
+    return intrinsic, extrinsic
+
+
+def test_pinhole_from_matrices_starts_at_the_camera_through_each_pixel():
+    rng = np.random.default_rng(13)
+    intrinsic, extrinsic = random_camera(rng)
+    rays = lancer.RaycastingScene.create_rays_pinhole(intrinsic, extrinsic, 31, 17)
+    assert rays.shape == (17, 31, 6) and rays.dtype == np.float32
+    rotation, translation = extrinsic[:3, :3], extrinsic[:3, 3]
+    assert np.allclose(rays[..., :3], -rotation.T @ translation, atol=1e-6)
+    # Back in the camera's frame, through K, each direction lands on its pixel's centre at depth 1.
+    pixels = np.einsum("ij,hwj->hwi", intrinsic @ rotation, rays[..., 3:].astype(np.float64))
+    x, y = np.meshgrid(np.arange(31) + 0.5, np.arange(17) + 0.5)
+    assert np.allclose(pixels, np.stack([x, y, np.ones_like(x)], axis=-1), atol=1e-4)
+    o3d = pytest.importorskip("open3d", reason="Open3D is missing: scripts/deps.sh installs python3-open3d")
+    for _ in range(4):
+        intrinsic, extrinsic = random_camera(rng)
+        ours = lancer.RaycastingScene.create_rays_pinhole(o3d.core.Tensor(intrinsic), extrinsic, 40, 30)
+        theirs = o3d.t.geometry.RaycastingScene.create_rays_pinhole(o3d.core.Tensor(intrinsic),
+                                                                    o3d.core.Tensor(extrinsic), 40, 30)
+        assert np.allclose(ours, theirs.numpy(), rtol=1e-6, atol=1e-6)
+
+
+def test_pinhole_matrices_are_checked():
+    make = lancer.RaycastingScene.create_rays_pinhole
+    intrinsic, extrinsic = np.diag([100.0, 100.0, 1.0]), np.eye(4)
+    with pytest.raises(ValueError, match=r"intrinsic_matrix: expected shape \(3, 3\), got \(2, 2\)"):
+        make(np.eye(2), extrinsic, 4, 4)
+    with pytest.raises(ValueError, match=r"extrinsic_matrix: expected shape \(4, 4\)"):
+        make(intrinsic, np.eye(3), 4, 4)
+    with pytest.raises(ValueError, match="intrinsic_matrix: expected an invertible matrix"):
+        make(np.diag([100.0, 0.0, 1.0]), extrinsic, 4, 4)
+    with pytest.raises(ValueError, match="extrinsic_matrix: holds a NaN"):
+        make(intrinsic, np.where(np.eye(4) == 1, np.nan, 0.0), 4, 4)
+    with pytest.raises(TypeError, match="intrinsic_matrix: expected a 3 x 3 matrix of numbers"):
+        make([["a", "b", "c"]] * 3, extrinsic, 4, 4)
+    with pytest.raises(ValueError, match="width_px, height_px"):
+        make(intrinsic, extrinsic, 0, 4)
 
 
 def test_pinhole_arguments_are_checked():
