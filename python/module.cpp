@@ -1,4 +1,5 @@
 // The `lancer` Python module (docs/python.md): RaycastingScene with Open3D's signatures and defaults.
+#include <pybind11/eval.h>
 #include <pybind11/pybind11.h>
 
 #include <limits>
@@ -12,6 +13,21 @@ using lancer::python::RaycastingScene;
 PYBIND11_MODULE(lancer, module) {
     module.doc() = "lancer: exact ray queries over triangle meshes (Open3D's RaycastingScene API)";
     module.attr("__version__") = "0.1.0";
+    // Open3D's answers are tensors, and code written for them reads each through numpy(): lancer's are NumPy
+    // arrays of this subclass, which adds that method and nothing else.
+    py::dict scope;
+    scope["numpy"] = py::module_::import("numpy");
+    py::exec(R"(
+class Array(numpy.ndarray):
+    """A NumPy array with Open3D's Tensor.numpy(): the answers of lancer.RaycastingScene."""
+
+    def numpy(self):
+        """This array as a plain numpy.ndarray (a view, as Open3D's Tensor.numpy() on the CPU)."""
+        return self.view(numpy.ndarray)
+)",
+             scope);
+    scope["Array"].attr("__module__") = "lancer";
+    module.attr("Array") = scope["Array"];
     py::class_<RaycastingScene>(module, "RaycastingScene")
         .def(
             py::init<std::string, bool, int>(), py::arg("accel") = "bvh", py::arg("watertight") = true,

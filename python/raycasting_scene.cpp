@@ -24,6 +24,12 @@ std::string shape_text(const py::array& array) {
     return text + (array.ndim() == 1 ? ",)" : ")");
 }
 
+// `array` viewed as a lancer.Array (module.cpp), the NumPy array with Open3D's Tensor.numpy(), so that code
+// written for Open3D's answers runs on lancer's as it is.
+py::array open3d_like(const py::array& array) {
+    return array.attr("view")(py::module_::import("lancer").attr("Array"));
+}
+
 // A tensor that gives a NumPy array (numpy(): Open3D's, torch's on the CPU) as that array, which shares its
 // memory; anything else as it is.
 py::object numpy_of(const py::object& object) {
@@ -381,8 +387,9 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
             answer_chunk(chunks, packets, answers, tables, trace);
         });
     }
-    return py::dict("t_hit"_a = t_hit, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,
-                    "primitive_uvs"_a = uvs, "primitive_normals"_a = normals);
+    return py::dict("t_hit"_a = open3d_like(t_hit), "geometry_ids"_a = open3d_like(geometry_ids),
+                    "primitive_ids"_a = open3d_like(primitive_ids), "primitive_uvs"_a = open3d_like(uvs),
+                    "primitive_normals"_a = open3d_like(normals));
 }
 
 py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads) {
@@ -403,7 +410,7 @@ py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, 
                                std::copy(occluded.begin(), occluded.end(), out + first);
                            });
     }
-    return result;
+    return open3d_like(result);
 }
 
 py::array RaycastingScene::count_intersections(const py::object& rays, int nthreads) {
@@ -425,7 +432,7 @@ py::array RaycastingScene::count_intersections(const py::object& rays, int nthre
                                }
                            });
     }
-    return counts;
+    return open3d_like(counts);
 }
 
 py::dict RaycastingScene::list_intersections(const py::object& rays, int nthreads) {
@@ -464,8 +471,10 @@ py::dict RaycastingScene::list_intersections(const py::object& rays, int nthread
         }
         ray_splits.mutable_data()[i + 1] = static_cast<std::uint32_t>(k);
     }
-    return py::dict("ray_splits"_a = ray_splits, "ray_ids"_a = ray_ids, "geometry_ids"_a = geometry_ids,
-                    "primitive_ids"_a = primitive_ids, "primitive_uvs"_a = uvs, "t_hit"_a = t_hit);
+    return py::dict("ray_splits"_a = open3d_like(ray_splits), "ray_ids"_a = open3d_like(ray_ids),
+                    "geometry_ids"_a = open3d_like(geometry_ids),
+                    "primitive_ids"_a = open3d_like(primitive_ids), "primitive_uvs"_a = open3d_like(uvs),
+                    "t_hit"_a = open3d_like(t_hit));
 }
 
 py::dict RaycastingScene::compute_closest_points(const py::object& query_points, int nthreads) {
@@ -498,8 +507,9 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
                 }
             });
     }
-    return py::dict("points"_a = points, "geometry_ids"_a = geometry_ids, "primitive_ids"_a = primitive_ids,
-                    "primitive_uvs"_a = uvs, "primitive_normals"_a = normals);
+    return py::dict("points"_a = open3d_like(points), "geometry_ids"_a = open3d_like(geometry_ids),
+                    "primitive_ids"_a = open3d_like(primitive_ids), "primitive_uvs"_a = open3d_like(uvs),
+                    "primitive_normals"_a = open3d_like(normals));
 }
 
 bool RaycastingScene::inside(const GeometryQueries& all, const Vec3f& p,
@@ -536,7 +546,7 @@ py::array RaycastingScene::map_points(const py::object& query_points, int nthrea
                                 out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]));
                         });
     }
-    return answers;
+    return open3d_like(answers);
 }
 
 py::array RaycastingScene::compute_distance(const py::object& query_points, int nthreads) {
@@ -592,7 +602,7 @@ py::array RaycastingScene::create_rays_pinhole(double fov_deg, const py::object&
             out[3] = direction.x, out[4] = direction.y, out[5] = direction.z;
         }
     }
-    return rays;
+    return open3d_like(rays);
 }
 
 py::array RaycastingScene::create_rays_pinhole(const py::object& intrinsic_matrix,
@@ -641,7 +651,7 @@ py::array RaycastingScene::create_rays_pinhole(const py::object& intrinsic_matri
             }
         }
     }
-    return rays;
+    return open3d_like(rays);
 }
 
 void RaycastingScene::save_structure(const std::string& path) {

@@ -1,8 +1,8 @@
 // lancer.RaycastingScene: the API of Open3D's open3d.t.geometry.RaycastingScene (0.16, with 0.17's
 // list_intersections) over lancer's structures, so that its users switch by changing one import
 // (docs/python.md). Arrays are NumPy's, or tensors that give one (Open3D's, torch's): float32 rays (..., 6)
-// and points (..., 3), read in place when C-contiguous; results keep the leading shape. The GIL is released
-// while C++ traces.
+// and points (..., 3), read in place when C-contiguous; results keep the leading shape, as NumPy arrays with
+// Open3D's Tensor.numpy() (lancer.Array). The GIL is released while C++ traces.
 #pragma once
 
 #include <pybind11/numpy.h>

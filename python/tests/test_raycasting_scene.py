@@ -368,6 +368,25 @@ def test_open3d_call_forms_give_the_same_answers(spheres):
         open3ds.add_triangles(bad)
 
 
+def test_answers_read_through_numpy_as_open3ds_tensors(spheres):
+    """Code written for Open3D calls numpy() on each answer: lancer's answers are NumPy arrays that have it."""
+    import pickle
+    scene = scene_of("bvh8", *spheres)
+    rays = lancer.RaycastingScene.create_rays_pinhole(40.0, [0, 0, 0], [0, 0, 4.0], [0, 1, 0], 16, 8)
+    assert type(rays.numpy()) is np.ndarray
+    answers = dict(scene.cast_rays(rays), hit=scene.test_occlusions(rays), count=scene.count_intersections(rays),
+                   distance=scene.compute_distance(rays[..., :3].copy()))
+    answers.update({"list " + key: value for key, value in scene.list_intersections(rays).items()})
+    for key, answer in answers.items():
+        assert isinstance(answer, np.ndarray) and isinstance(answer, lancer.Array), key
+        plain = answer.numpy()
+        assert type(plain) is np.ndarray and np.shares_memory(plain, answer), key
+        assert np.array_equal(plain, answer), key
+    depth = answers["t_hit"]
+    assert np.isfinite(depth).sum() > 0
+    assert np.array_equal(pickle.loads(pickle.dumps(depth)), depth)
+
+
 def random_camera(rng):
     """An upper triangular intrinsic matrix with skew and a rigid world-to-camera transform."""
     intrinsic = np.array([[rng.uniform(50, 500), rng.uniform(-2, 2), rng.uniform(10, 60)],
