@@ -387,6 +387,25 @@ def test_answers_read_through_numpy_as_open3ds_tensors(spheres):
     assert np.array_equal(pickle.loads(pickle.dumps(depth)), depth)
 
 
+def test_open3ds_tutorial_runs_with_the_import_changed():
+    """Open3D's ray casting tutorial, its RaycastingScene replaced by lancer's and nothing else changed, gives
+    the answers the tutorial prints (Debian's Open3D itself misses every ray: docs/python.md)."""
+    o3d = pytest.importorskip("open3d", reason="Open3D is missing: scripts/deps.sh installs python3-open3d")
+    RaycastingScene = lancer.RaycastingScene  # instead of o3d.t.geometry.RaycastingScene
+    cube = o3d.t.geometry.TriangleMesh.from_legacy(o3d.geometry.TriangleMesh.create_box().translate([0, 0, 0]))
+    scene = RaycastingScene()
+    cube_id = scene.add_triangles(cube)
+    rays = o3d.core.Tensor([[0.5, 0.5, 10, 0, 0, -1], [-1, -1, -1, 0, 0, -1]], dtype=o3d.core.Dtype.Float32)
+    ans = scene.cast_rays(rays)
+    assert cube_id == 0
+    assert ans["t_hit"].numpy().tolist() == [9.0, math.inf]
+    assert ans["geometry_ids"].numpy().tolist() == [0, RaycastingScene.INVALID_ID]
+    rays = RaycastingScene.create_rays_pinhole(fov_deg=90, center=[0, 0, 2], eye=[2, 3, 0], up=[0, 1, 0],
+                                               width_px=640, height_px=480)
+    depth = scene.cast_rays(rays)["t_hit"].numpy()
+    assert depth.shape == (480, 640) and 0.01 < np.isfinite(depth).mean() < 0.5  # the cube, seen from afar
+
+
 def random_camera(rng):
     """An upper triangular intrinsic matrix with skew and a rigid world-to-camera transform."""
     intrinsic = np.array([[rng.uniform(50, 500), rng.uniform(-2, 2), rng.uniform(10, 60)],
