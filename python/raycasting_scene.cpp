@@ -219,11 +219,24 @@ std::uint32_t RaycastingScene::add_triangles(const py::object& vertex_positions,
 }
 
 std::uint32_t RaycastingScene::add_mesh(const py::object& mesh) {
-    if (!py::hasattr(mesh, "vertex") || !py::hasattr(mesh, "triangle"))
-        throw py::type_error("mesh: expected an open3d.t.geometry.TriangleMesh, got " +
-                             std::string(py::str(py::type::of(mesh).attr("__name__"))));
-    return add_geometry(mesh.attr("vertex")["positions"], mesh.attr("triangle")["indices"],
-                        "mesh.vertex['positions']", "mesh.triangle['indices']");
+    const py::handle type = py::type::of(mesh);
+    const std::string type_name =
+        std::string(py::str(type.attr("__module__"))) + "." + std::string(py::str(type.attr("__qualname__")));
+    if (!py::hasattr(mesh, "vertex") || !py::hasattr(mesh, "triangle")) {
+        throw py::type_error(
+            "mesh: expected an open3d.t.geometry.TriangleMesh (from_legacy() converts a legacy "
+            "open3d.geometry.TriangleMesh), got " +
+            type_name);
+    }
+    py::object positions, indices;
+    try {
+        positions = mesh.attr("vertex")["positions"];
+        indices = mesh.attr("triangle")["indices"];
+    } catch (const py::error_already_set&) {
+        throw py::value_error("mesh: expected vertex['positions'] and triangle['indices'], a " + type_name +
+                              " without them");
+    }
+    return add_geometry(positions, indices, "mesh.vertex['positions']", "mesh.triangle['indices']");
 }
 
 std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py::object& triangles,

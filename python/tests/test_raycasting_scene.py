@@ -227,7 +227,7 @@ def test_pinhole_rays_are_open3ds():
     (lambda s, v, t: s.add_triangles(np.where(np.arange(len(v))[:, None] == 3, np.nan, v).astype(np.float32), t),
      "vertex_positions: row 3 holds a NaN"),
     (lambda s, v, t: s.add_triangles("not an array", t), "vertex_positions: expected a numpy array"),
-    (lambda s, v, t: s.add_triangles(mesh=v), "mesh: expected an open3d.t.geometry.TriangleMesh, got ndarray"),
+    (lambda s, v, t: s.add_triangles(mesh=v), "mesh: expected an open3d.t.geometry.TriangleMesh .*, got numpy.ndarray"),
 ])
 def test_bad_geometry_raises_naming_the_argument(spheres, call, message):
     vertices, triangles = spheres[0]
@@ -361,6 +361,10 @@ def test_open3d_call_forms_give_the_same_answers(spheres):
     answer = open3ds.cast_rays(o3d.core.Tensor(rays))
     assert np.array_equal(answer["t_hit"], scene_of("bvh", *spheres).cast_rays(rays)["t_hit"])
     assert np.array_equal(answer["t_hit"], expected)
+    with pytest.raises(TypeError, match="from_legacy.*got open3d.*geometry.TriangleMesh"):
+        open3ds.add_triangles(o3d.geometry.TriangleMesh.create_box())
+    with pytest.raises(ValueError, match=r"mesh: expected vertex\['positions'\] and triangle\['indices'\]"):
+        open3ds.add_triangles(o3d.t.geometry.TriangleMesh())
     with pytest.raises(ValueError, match=r"mesh.vertex\['positions'\]: expected shape"):
         bad = o3d.t.geometry.TriangleMesh()
         bad.vertex["positions"] = o3d.core.Tensor(np.zeros((4, 2), np.float32))
