@@ -160,13 +160,12 @@ void stream_sixteen(const EightAnswers& left, const EightAnswers& right, const C
     stream_ids(answers.geometry_ids + row + 8, right.geometry);
     stream_ids(answers.primitive_ids + row, left.primitive);
     stream_ids(answers.primitive_ids + row + 8, right.primitive);
-    for (const EightAnswers* eight : {&left, &right}) {
-        const std::size_t first = eight == &left ? row : row + 8;
+    // Each half's uv fill a line, and the two halves' normals three (a line shared in the middle).
+    for (const auto& [eight, first] : {std::pair{&left, row}, std::pair{&right, row + 8}}) {
         _mm256_stream_ps(answers.uvs + 2 * first, eight->uv[0]);
         _mm256_stream_ps(answers.uvs + 2 * first + 8, eight->uv[1]);
     }
-    for (const EightAnswers* eight : {&left, &right}) {
-        const std::size_t first = eight == &left ? row : row + 8;
+    for (const auto& [eight, first] : {std::pair{&left, row}, std::pair{&right, row + 8}}) {
         for (int k = 0; k < 6; ++k)
             _mm_stream_ps(answers.normals + 3 * first + 4 * k, eight->normal[k]);
     }

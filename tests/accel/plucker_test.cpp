@@ -406,9 +406,10 @@ TEST(PluckerWalk, VisitsTheLeavesTheRayCrossesInOrder) {
             const std::vector<LeafBoxes> leaves =
                 leaf_boxes(leaves_by_address(accel.layout(), octree), octree);
             const Box3f bounds = scene.geometry().bounds();
-            std::vector<Ray> rays = testing::random_rays(bounds, 400, 21).rays;
-            for (const auto& extra :
-                 {testing::axis_parallel_rays(bounds, 200, 22), testing::clipped_rays(bounds, 200, 23)})
+            constexpr std::size_t share = testing::kSanitizedShare;
+            std::vector<Ray> rays = testing::random_rays(bounds, 400 / share, 21).rays;
+            for (const auto& extra : {testing::axis_parallel_rays(bounds, 200 / share, 22),
+                                      testing::clipped_rays(bounds, 200 / share, 23)})
                 rays.insert(rays.end(), extra.rays.begin(), extra.rays.end());
             std::vector<std::uint32_t> touched;
             for (std::size_t i = 0; i < rays.size(); ++i) {
@@ -430,7 +431,7 @@ TEST(PluckerWalk, VisitsTheLeavesTheRayCrossesInOrder) {
         }
     }
     EXPECT_GT(longest, 20u);
-    EXPECT_GT(compared, 8000u);
+    EXPECT_GT(compared, 8000u / testing::kSanitizedShare);
 }
 
 // Rays lying in cell planes (zero components, origins exactly on the planes of every level, along faces and
