@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """cast_rays from Python on the canonical view (../shared/bench/VIEWS.md: 1024 x 1024 primary rays as one
-float32 array, all threads): lancer's RaycastingScene for the structures asked for, and Open3D's, in
+float32 array, all threads or --threads): lancer's RaycastingScene for the structures asked for, and Open3D's, in
 Mrays/s, the median of --frames calls after one warm-up. The rays go as an image, (H, W, 6) as Open3D's
 create_rays_pinhole makes them, and for lancer also as a flat (H * W, 6) array, which it traces by packets
 of consecutive rays instead of camera tiles. docs/python.md has the figures and the command.
@@ -13,6 +13,7 @@ are compared round by round), and prints each round's ratio and their median: is
 within 10% of `lancer bench`.
 """
 import argparse
+import functools
 import json
 import math
 import os
@@ -20,6 +21,7 @@ import pathlib
 import platform
 import statistics
 import subprocess
+import sys
 import tempfile
 import time
 
@@ -66,15 +68,16 @@ def cpu_name():
     return platform.processor()
 
 
-def bench_mrays(lancer_cli, mesh, accel, frames):
-    """`lancer bench`'s median Mrays/s for one structure on the mesh's canonical view, all threads."""
+def bench_mrays(lancer_cli, mesh, accel, size, frames, threads):
+    """`lancer bench`'s median Mrays/s for one structure on the mesh's canonical view, size x size pixels, on
+    `threads` threads, and the fraction of its rays that hit."""
     with tempfile.TemporaryDirectory() as folder:
         record = pathlib.Path(folder) / "bench.json"
-        subprocess.run([str(lancer_cli), "bench", "--mesh", str(mesh), "--accel", accel, "--threads",
-                        str(os.cpu_count()), "--frames", str(frames), "--json", str(record)],
+        subprocess.run([str(lancer_cli), "bench", "--mesh", str(mesh), "--accel", accel, "--size", str(size),
+                        "--threads", str(threads), "--frames", str(frames), "--json", str(record)],
                        check=True, stdout=subprocess.DEVNULL)
         (row,) = json.loads(record.read_text())
-        return row["mrays_per_s"]
+        return row["mrays_per_s"], row["hit_fraction"]
 
 
 def main():
@@ -89,12 +92,22 @@ def main():
     parser.add_argument("--against-bench", type=pathlib.Path, metavar="LANCER",
                         help="also time LANCER's `bench` on the same work, alternated with Python")
     parser.add_argument("--rounds", type=int, default=1, help="alternations with --against-bench")
+    parser.add_argument("--threads", type=int, default=0,
+                        help="threads of every engine (0, the default: all the machine's)")
     args = parser.parse_args()
     if args.rounds < 1:
         parser.error("--rounds: expected 1 or more")
+    if args.threads < 0:
+        parser.error("--threads: expected 0 (all) or a thread count")
+    if not 1 <= args.size <= 16384:
+        parser.error("--size: expected a side from 1 to 16384 pixels, as `lancer bench` takes")
+    for accel in args.accel.split(","):
+        if accel not in lancer.accel_names():
+            parser.error(f"--accel: unknown structure {accel!r} (known: {', '.join(lancer.accel_names())})")
+    threads = args.threads or os.cpu_count()
     if args.against_bench is not None and not args.against_bench.is_file():
         parser.error(f"--against-bench: no file {args.against_bench}")
-    print(f"python_cast_rays: {cpu_name()}, {os.cpu_count()} hardware threads, all used; "
+    print(f"python_cast_rays: {cpu_name()}, {os.cpu_count()} hardware threads, {threads} used; "
           f"{args.size}x{args.size} canonical view, median of {args.frames} after 1 warm-up")
     header = f"{'mesh':<16} {'engine':<24} {'rays':<16} {'Mrays/s':>8} {'hits':>7}"
     if args.against_bench is not None:
@@ -110,19 +123,23 @@ def main():
         ray_count = args.size * args.size
         scenes = {}
         for accel in args.accel.split(","):
-            if accel in lancer.accel_names():
-                scenes[accel] = lancer.RaycastingScene(accel=accel)
-                scenes[accel].add_triangles(vertices, triangles)
+            scenes[accel] = lancer.RaycastingScene(accel=accel)
+            scenes[accel].add_triangles(vertices, triangles)
         ratios = {}
         for round_index in range(args.rounds if args.against_bench is not None else 1):
             for accel, scene in scenes.items():
                 timed = []
                 for shaped in (rays, rays.reshape(-1, 6)):
                     hits = np.isfinite(scene.cast_rays(shaped)["t_hit"]).mean()
-                    timed.append((shaped.shape, hits, median_mrays(lambda: scene.cast_rays(shaped), ray_count,
-                                                                   args.frames)))
-                bench = None if args.against_bench is None else bench_mrays(args.against_bench, mesh, accel,
-                                                                             args.frames)
+                    call = functools.partial(scene.cast_rays, shaped, nthreads=threads)
+                    timed.append((shaped.shape, hits, median_mrays(call, ray_count, args.frames)))
+                bench = None
+                if args.against_bench is not None:
+                    bench, bench_hits = bench_mrays(args.against_bench, mesh, accel, args.size, args.frames, threads)
+                    # The same rays, but for a ray or two at the silhouette: the two cameras round differently.
+                    if abs(bench_hits - timed[0][1]) * ray_count > 2 + 1e-5 * ray_count:
+                        sys.exit(f"{mesh.name}, {accel}: the image's rays hit {timed[0][1]:.6f} of the view and "
+                                 f"`lancer bench`'s {bench_hits:.6f}: not the same rays")
                 for shape, hits, mrays in timed:
                     line = f"{mesh.name:<16} {'lancer ' + accel:<24} {str(shape):<16} {mrays:8.2f} {hits:7.1%}"
                     if bench is not None:
@@ -137,7 +154,8 @@ def main():
             scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(triangles))
             tensor = o3d.core.Tensor(rays)
             hits = np.isfinite(scene.cast_rays(tensor)["t_hit"].numpy()).mean()
-            mrays = median_mrays(lambda: scene.cast_rays(tensor), ray_count, args.frames)
+            mrays = median_mrays(functools.partial(scene.cast_rays, tensor, nthreads=threads), ray_count,
+                                 args.frames)
             print(f"{mesh.name:<16} {'open3d ' + o3d.__version__:<24} {str(rays.shape):<16} {mrays:8.2f} {hits:7.1%}")
 
 
