@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """cast_rays from Python on the canonical view (../shared/bench/VIEWS.md: 1024 x 1024 primary rays as one
-float32 array, all threads or --threads): lancer's RaycastingScene for the structures asked for, and Open3D's, in
-Mrays/s, the median of --frames calls after one warm-up. The rays go as an image, (H, W, 6) as Open3D's
+float32 array, all threads or --threads): lancer's RaycastingScene for the structures asked for, and Open3D's,
+in Mrays/s, the median of --frames calls after one warm-up. The rays go as an image, (H, W, 6) as Open3D's
 create_rays_pinhole makes them, and for lancer also as a flat (H * W, 6) array, which it traces by packets
 of consecutive rays instead of camera tiles. docs/python.md has the figures and the command.
 
