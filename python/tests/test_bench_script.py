@@ -55,9 +55,10 @@ def test_its_rays_hit_what_lancer_bench_hits(cli, mesh_file, tmp_path):
     subprocess.run([cli, "bench", "--mesh", str(mesh_file), "--accel", "bvh", "--size", str(size), "--threads",
                     "1", "--frames", "1", "--json", str(record)], check=True, stdout=subprocess.DEVNULL)
     (row,) = json.loads(record.read_text())
-    # The sphere fills part of the image, so that a camera placed or aimed otherwise changes the count.
+    # The sphere fills part of the image, so that a camera placed or aimed otherwise changes the count. The
+    # two cameras round differently (NumPy in double, lancer in float), so a ray at the silhouette may differ.
     assert 0 < hits < size * size
-    assert round(row["hit_fraction"] * size * size) == hits
+    assert abs(round(row["hit_fraction"] * size * size) - hits) <= 1
 
 
 def test_rounds_against_lancer_bench_print_their_ratios(cli, mesh_file):
