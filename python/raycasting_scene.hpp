@@ -20,6 +20,7 @@
 #include "lancer/accel.hpp"
 #include "lancer/queries.hpp"
 #include "lancer/scene.hpp"
+#include "lancer/vec3d.hpp"
 #include "lancer/world.hpp"
 #include "ray_packets.hpp"
 

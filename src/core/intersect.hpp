@@ -12,10 +12,10 @@
 
 #include "core/host_device.hpp"
 #include "core/isa_namespace.hpp"
-#include "core/vec3d.hpp"
 #include "lancer/box.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
+#include "lancer/vec3d.hpp"
 
 namespace lancer {
 // Per instruction set (core/isa_namespace.hpp): the kernels compiled for AVX-512 call these too.

@@ -8,16 +8,12 @@
 #include <stdexcept>
 
 #include "accel/brute.hpp"
-#include "core/vec3d.hpp"
 #include "lancer/render.hpp"
+#include "lancer/vec3d.hpp"
 #include "render/print_vec.hpp"
 
 namespace lancer {
 namespace {
-
-Vec3d normalize(Vec3d a) {
-    return (1.0 / std::sqrt(dot(a, a))) * a;
-}
 
 // The eye at (0, 0, eye_z) looks down -z with up +y and a 90-degree field, so tan(fov / 2) = 1 and the frame
 // is f = -z, x = +x, y = +y: pixel (i, j) looks along normalize(u, v, -1).
@@ -35,7 +31,7 @@ Camera camera_down_z(float eye_z, int width, int height) {
 Vec3d pixel_direction(const Camera& camera, int i, int j) {
     const double u = (2.0 * (i + 0.5) / camera.width - 1.0) * camera.width / camera.height;
     const double v = 1.0 - 2.0 * (j + 0.5) / camera.height;
-    return normalize({u, v, -1.0});
+    return normalize(Vec3d{u, v, -1.0});
 }
 
 Image render_with_brute(const Scene& scene, const Camera& camera, const RenderOptions& options,
@@ -175,7 +171,8 @@ TEST(RenderNormal, BackSideIsFlippedTowardsTheRay) {
 
 TEST(RenderNormal, VertexNormalsAreInterpolatedWithTheBarycentrics) {
     Scene scene = facing_triangle_scene(true);
-    const Vec3d n0 = normalize({0, 0, 1}), n1 = normalize({1, 0, 1}), n2 = normalize({0, 1, 2});
+    const Vec3d n0 = normalize(Vec3d{0, 0, 1}), n1 = normalize(Vec3d{1, 0, 1}),
+                n2 = normalize(Vec3d{0, 1, 2});
     scene.meshes[0].normals = {to_float(n0), to_float(n1), to_float(n2)};
     const Camera camera = camera_down_z(4.0f, 9, 9);
     const Image image = render_with_brute(scene, camera, with_mode(ShadingMode::Normal));
@@ -192,8 +189,8 @@ TEST(RenderNormal, VertexNormalsAreInterpolatedWithTheBarycentrics) {
 
 TEST(RenderFlat, SmoothMeshStaysFaceted) {
     Scene scene = facing_triangle_scene(true);
-    scene.meshes[0].normals = {to_float(normalize({1, 0, 1})), to_float(normalize({1, 0, 1})),
-                               to_float(normalize({1, 0, 1}))};
+    scene.meshes[0].normals = {to_float(normalize(Vec3d{1, 0, 1})), to_float(normalize(Vec3d{1, 0, 1})),
+                               to_float(normalize(Vec3d{1, 0, 1}))};
     const Camera camera = camera_down_z(4.0f, 9, 9);
     const Image image = render_with_brute(scene, camera, with_mode(ShadingMode::Flat));
     // The facet's normal is +z whatever the vertex normals say.

@@ -13,7 +13,7 @@
 #include "accel/plucker/layout.hpp"
 #include "core/host_device.hpp"
 #include "core/intersect.hpp"
-#include "core/vec3d.hpp"
+#include "lancer/vec3d.hpp"
 
 namespace lancer::plucker {
 

@@ -1,6 +1,9 @@
-// Double-precision vectors: the kernels' exact fallbacks (grazing Moller-Trumbore, spheres) and the tests'
-// reference computations. A float converts to double exactly, and so does a product of two floats.
+// Double-precision vectors: the kernels' exact fallbacks (grazing Moller-Trumbore, spheres), the tests'
+// reference computations and the Python module's camera frames. A float converts to double exactly, and so
+// does a product of two floats.
 #pragma once
+
+#include <cmath>
 
 #include "lancer/vec.hpp"
 
@@ -25,6 +28,10 @@ struct Vec3d {
 }
 [[nodiscard]] constexpr Vec3d cross(const Vec3d& a, const Vec3d& b) {
     return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+[[nodiscard]] inline Vec3d normalize(const Vec3d& a) {
+    const double length = std::sqrt(dot(a, a));
+    return {a.x / length, a.y / length, a.z / length};
 }
 
 }  // namespace lancer
