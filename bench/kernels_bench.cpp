@@ -1,6 +1,6 @@
 // Kernel throughput: one triangle test (both variants), one slab test, one sphere test, per call; the ray
 // conditioning scan of a batch, per ray; one node step of each walk (BVH inner node, octree node, kd-tree
-// node, Pluecker leaf-to-leaf step) and the Pluecker exit face alone. Inputs are random but fixed (seeded)
+// node, Plücker leaf-to-leaf step) and the Plücker exit face alone. Inputs are random but fixed (seeded)
 // and visited in a shuffled order, and half of the rays hit, so branch prediction is not flattered.
 // docs/accel/parallel-build.md has the figures.
 #include <benchmark/benchmark.h>
@@ -186,7 +186,7 @@ void BM_PluckerExitFace(benchmark::State& state) {
 }
 BENCHMARK(BM_PluckerExitFace)->Name("step/plucker_exit_face");
 
-// One Pluecker leaf-to-leaf step (Walker::advance: EXIT-FACE, sub-face when the face has four neighbours,
+// One Plücker leaf-to-leaf step (Walker::advance: EXIT-FACE, sub-face when the face has four neighbours,
 // NEIGHBOR lookup) from walk states met along real walks through the balanced, stored-box layout.
 void BM_PluckerLeafStep(benchmark::State& state) {
     const Walks& scene = walks();

@@ -1,4 +1,4 @@
-// Writes the plo harness's seed corpus (scripts/fuzz.sh): small Pluecker octree files in every layout
+// Writes the plo harness's seed corpus (scripts/fuzz.sh): small Plücker octree files in every layout
 // variant and both triangle tests, so that mutations start from files that read.
 #include <cstdio>
 #include <filesystem>

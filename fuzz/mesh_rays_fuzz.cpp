@@ -1,7 +1,7 @@
 // libFuzzer harness: `rays` queries on deep structures. rays_fuzz builds every structure on a tiny fuzzed
 // scene, so its trees are a leaf or two deep. Here every structure is built once, at start, in both triangle
 // tests, on five fixed scenes of 578 to 1,280 primitives with small leaves and raised depth limits, and only
-// the rays are fuzzed. That reaches what a tiny scene cannot: deep trees, the Pluecker octree's deeper levels
+// the rays are fuzzed. That reaches what a tiny scene cannot: deep trees, the Plücker octree's deeper levels
 // and its links between leaves of different sizes, long leaf-to-leaf walks, full traversal stacks, leaves of
 // coincident triangles at the depth limit.
 //
@@ -50,7 +50,7 @@ struct DeepScene {
     std::optional<Vec3f> enclosed_point;
     // The octrees' depth limit: 9, or 6 at 1e6, where the geometric tolerance (about a unit there) grows
     // every triangle into its neighbours' cells and leaves of 2 would split the whole surface to the limit
-    // (851 MB for the Pluecker octree at depth 9).
+    // (851 MB for the Plücker octree at depth 9).
     int octree_depth = 9;
     Box3f bounds;
     struct Built {
@@ -103,7 +103,7 @@ DeepScene clutter() {
 }
 
 // Options that make every tree deep on a scene of a thousand primitives: small leaves and raised depth
-// limits (the automatic Pluecker depth for 1,280 triangles is 3). `variants` selects the Pluecker octree's
+// limits (the automatic Plücker depth for 1,280 triangles is 3). `variants` selects the Plücker octree's
 // section 6 variants (no 2:1 rule, planes recomputed, Morton order) instead of the defaults.
 BuildOptions deep_options(TriangleTest test, int octree_depth, bool variants) {
     BuildOptions options = build_options(test);

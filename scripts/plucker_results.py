@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The measurements of docs/results.md for the Pluecker octree (seed 000, Tables 1-3 and the depth / leaf size
+"""The measurements of docs/results.md for the Plücker octree (seed 000, Tables 1-3 and the depth / leaf size
 sweep), made with the lancer command line only, printed as Markdown tables.
 
     scripts/plucker_results.py LANCER MESHES_DIR table1|table2|table3|sweep|incoherent [--runs N]

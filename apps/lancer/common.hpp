@@ -79,7 +79,7 @@ struct BuiltAccel {
 // Throws InputError for an unknown structure name, a malformed --set or a build that passes --max-memory.
 [[nodiscard]] BuiltAccel build_timed(const AccelChoice& choice, const Geometry& geometry);
 
-// What a command works on: a scene file with the chosen structure built on it, or a Pluecker octree file
+// What a command works on: a scene file with the chosen structure built on it, or a Plücker octree file
 // (`.plo`, written by `lancer convert`) with the geometry it holds, loaded instead of built (build_ms 0,
 // load_ms the read and the checks). A `.plo` file takes --watertight but not --set, and --accel only as
 // plucker. Throws LoadError, InputError.

@@ -1,4 +1,4 @@
-// lancer convert SCENE --accel plucker -o FILE.plo: builds the Pluecker octree once and writes it with its
+// lancer convert SCENE --accel plucker -o FILE.plo: builds the Plücker octree once and writes it with its
 // geometry (World::save_structure), for `lancer render FILE.plo` and `lancer rays FILE.plo`.
 #include <fmt/core.h>
 
@@ -42,7 +42,7 @@ void add_convert_command(CLI::App& app) {
     auto options = std::make_shared<ConvertOptions>();
     options->accel.name = "plucker";
     CLI::App* command =
-        app.add_subcommand("convert", "Build the Pluecker octree of a scene and write it to a .plo file");
+        app.add_subcommand("convert", "Build the Plücker octree of a scene and write it to a .plo file");
     command->add_option("scene", options->scene_file, "Mesh or scene file")->required();
     command->add_option("-o,--output", options->output, "The .plo file to write")->required();
     options->accel.add_options(*command);

@@ -35,8 +35,7 @@ int fail(int code, fmt::format_string<Args...> format, Args&&... args) {
 
 int main(int argc, char** argv) {
     const lancer::cli::Job& job = lancer::cli::Job::get();  // MPI starts here under mpirun
-    CLI::App app{
-        "lancer: ray-tracing kernels (Pluecker-connected octree, BVH, kd-tree, grid) and a renderer"};
+    CLI::App app{"lancer: ray-tracing kernels (Plücker-connected octree, BVH, kd-tree, grid) and a renderer"};
     app.require_subcommand(1);
     lancer::cli::add_render_command(app);
     lancer::cli::add_info_command(app);

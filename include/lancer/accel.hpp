@@ -146,7 +146,7 @@ struct PluckerLayout;
 }
 
 // The arrays of a structure that other code reads as they are: the GPU tracer uploads a binary BVH or a
-// Pluecker octree (CudaTracer), a `.plo` file stores a Pluecker octree (World::save_structure). A structure
+// Plücker octree (CudaTracer), a `.plo` file stores a Plücker octree (World::save_structure). A structure
 // names the ones it has; the others are null.
 struct ExportedLayout {
     const BvhAccel* bvh = nullptr;

@@ -17,7 +17,7 @@
 namespace lancer {
 
 enum class CudaKernel {
-    Plucker,     // seed 000 section 5.2: the Pluecker walk, one thread per ray (a `plucker` structure)
+    Plucker,     // seed 000 section 5.2: the Plücker walk, one thread per ray (a `plucker` structure)
     WhileWhile,  // Aila & Laine 2009, while-while (a `bvh` structure)
     SpeculativeWhileWhile,  // Aila & Laine 2009, speculative while-while
     Persistent,             // speculative while-while in persistent threads fetching warp-sized batches

@@ -1,5 +1,5 @@
 // A scene ready to trace: the scene, its geometry flattened for the structures, and one acceleration
-// structure over that geometry, made together so that they always match. A Pluecker octree file (`.plo`)
+// structure over that geometry, made together so that they always match. A Plücker octree file (`.plo`)
 // is one more way to make one: its octree is loaded instead of built.
 #pragma once
 
@@ -40,7 +40,7 @@ class World {
     // replaces the test the file was built with. Throws StructureFileError, std::bad_alloc.
     [[nodiscard]] static World load_structure(const std::filesystem::path& file,
                                               std::optional<TriangleTest> triangle_test = std::nullopt);
-    // Writes the structure and its geometry as a `.plo` file; only the Pluecker octree (`plucker`,
+    // Writes the structure and its geometry as a `.plo` file; only the Plücker octree (`plucker`,
     // `plucker_packet`) can be written.
     // Throws StructureFileError.
     void save_structure(const std::filesystem::path& file) const;

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "accel/options.hpp"
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 #include "accel/single_ray.hpp"
 
 namespace lancer {

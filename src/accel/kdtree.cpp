@@ -4,7 +4,7 @@
 #include <cmath>
 #include <limits>
 
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 #include "accel/tree_shape.hpp"
 
 namespace lancer {

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 #include "accel/tree_shape.hpp"
 
 namespace lancer {

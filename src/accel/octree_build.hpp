@@ -1,5 +1,5 @@
 // The top-down octree build (seed 004 "grille adaptative : octree"; seed 000 section 2.2), shared by the
-// classic octree (octree.hpp, Revelles et al. 2000 traversal) and the Pluecker-connected octree of seed 000,
+// classic octree (octree.hpp, Revelles et al. 2000 traversal) and the Plücker-connected octree of seed 000,
 // which adds a 2:1 balance and neighbour links on top of this node array.
 //
 // Cells are cubes. A cell of level l with integer coordinates (x, y, z), each in [0, 2^l), spans
@@ -35,7 +35,7 @@ struct OctreeOptions {
 inline constexpr int kOctreeMaxLevel = 16;
 inline constexpr std::uint32_t kOctreeNoChild = 0xFFFFFFFFu;
 
-// 20 bytes; the build's output, kept whole by structures that need positions (the Pluecker octree's
+// 20 bytes; the build's output, kept whole by structures that need positions (the Plücker octree's
 // balance and links) and converted to the 8-byte OctreeNode (octree.hpp) for Revelles' traversal.
 struct OctreeCell {
     std::uint32_t first_child = kOctreeNoChild;  // 4: index of child 0, the 8 children are contiguous

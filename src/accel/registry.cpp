@@ -7,9 +7,9 @@
 
 #include "accel/brute.hpp"
 #include "accel/bvh/bvh.hpp"
-#include "accel/bvh/packet.hpp"
-#include "accel/bvh/wide.hpp"
-#include "accel/bvh/wide_packet.hpp"
+#include "accel/bvh/bvh8_packet.hpp"
+#include "accel/bvh/bvh_packet.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 #if LANCER_HAS_EMBREE
 #include "accel/embree.hpp"
 #endif
@@ -17,8 +17,8 @@
 #include "accel/kdtree.hpp"
 #include "accel/octree.hpp"
 #include "accel/options.hpp"
-#include "accel/plucker/packet.hpp"
 #include "accel/plucker/plucker.hpp"
+#include "accel/plucker/plucker_packet.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {
@@ -39,9 +39,9 @@ const std::vector<Entry>& registry() {
          [] { return std::make_unique<GridAccel>(); }, &GridAccel::option_rows},
         {"octree", "classic octree, parametric traversal (Revelles et al. 2000)",
          [] { return std::make_unique<OctreeAccel>(); }, &OctreeAccel::option_rows},
-        {"plucker", "Pluecker-connected octree walked leaf to leaf (Portalez & Duguet 2016)",
+        {"plucker", "Plücker-connected octree walked leaf to leaf (Portalez & Duguet 2016)",
          [] { return std::make_unique<PluckerAccel>(); }, &PluckerAccel::option_rows},
-        {"plucker_packet", "the Pluecker walk for packets of 64 rays, grouped by leaf",
+        {"plucker_packet", "the Plücker walk for packets of 64 rays, grouped by leaf",
          [] { return std::make_unique<PluckerPacketAccel>(); }, &PluckerAccel::option_rows},
         {"kdtree", "SAH kd-tree (Wald & Havran 2006)", [] { return std::make_unique<KdTreeAccel>(); },
          &KdTreeAccel::option_rows},
@@ -54,7 +54,7 @@ const std::vector<Entry>& registry() {
         {"bvh8", "8-wide BVH collapsed from the binary one, SIMD boxes and triangle blocks",
          [] { return std::make_unique<Bvh8Accel>(); }, &BvhAccel::option_rows},
         {"bvh8_packet", "the 8-wide BVH for packets of 64 coherent rays, 8 or 16 a SIMD instruction",
-         [] { return std::make_unique<WidePacketAccel>(); }, &BvhAccel::option_rows},
+         [] { return std::make_unique<Bvh8PacketAccel>(); }, &BvhAccel::option_rows},
 #if LANCER_HAS_EMBREE
         {"embree", "Intel Embree 3, rtcIntersect1 and rtcOccluded1",
          [] { return std::make_unique<EmbreeAccel>(1); }, &EmbreeAccel::option_rows},

@@ -14,7 +14,7 @@
 #include <cstdint>
 #include <span>
 
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {

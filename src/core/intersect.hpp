@@ -186,7 +186,7 @@ struct MollerTrumbore {
 struct Watertight {
     // The axes {kx, ky, kz} of a ray whose direction is dominant along kz: kx and ky the next two in cyclic
     // order, swapped when the dominant component is negative, to keep the winding. The packet kernels
-    // (bvh/wide_packet.cpp) choose per lane from the same table.
+    // (bvh/bvh8_packet.cpp) choose per lane from the same table.
     [[nodiscard]] static constexpr std::array<int, 3> permutation(int kz, bool negative) {
         const int next = kz == 2 ? 0 : kz + 1, last = next == 2 ? 0 : next + 1;
         return negative ? std::array<int, 3>{last, next, kz} : std::array<int, 3>{next, last, kz};

@@ -1,4 +1,4 @@
-// The host side of the GPU path, plain C++ (g++): the CPU BVH flattened into Aila-Laine nodes, the Pluecker
+// The host side of the GPU path, plain C++ (g++): the CPU BVH flattened into Aila-Laine nodes, the Plücker
 // octree's arrays viewed as they are, the constant tables and the camera frame. Every function refuses what
 // the GPU kernels do not trace, with a message that says what (std::invalid_argument).
 #pragma once

@@ -1,7 +1,7 @@
 // The plain-old-data arrays the GPU kernels read, and the views (pointers and counts) that the per-ray
 // traversals take, shared by the host (flatten.cpp, the CPU tests) and the device (kernels.cu): Aila &
 // Laine's 64-byte BVH nodes with triangles stored as vertices, so that the CPU's triangle tests run
-// unchanged, and the Pluecker octree's serialised arrays as they are (layout.hpp). Why each choice:
+// unchanged, and the Plücker octree's serialised arrays as they are (layout.hpp). Why each choice:
 // docs/cuda.md, "Memory layout".
 #pragma once
 
@@ -9,7 +9,7 @@
 
 #include "accel/plucker/walk.hpp"
 #include "core/camera_ray.hpp"
-#include "cuda/host_device.hpp"
+#include "cuda/read_only_cache.hpp"
 #include "lancer/scene.hpp"
 
 namespace lancer::gpu {
@@ -41,7 +41,7 @@ struct AilaLaineNode {
 };
 static_assert(sizeof(AilaLaineNode) == 64);
 
-// 40 bytes: a leaf's triangle and its global primitive index (the Pluecker octree's PluckerPrimitive).
+// 40 bytes: a leaf's triangle and its global primitive index (the Plücker octree's PluckerPrimitive).
 struct TriangleRef {
     Triangle triangle;   // 36
     std::uint32_t prim;  // 4

@@ -1,4 +1,4 @@
-// The Pluecker octree walk on the GPU: accel/plucker/walk.hpp's walk, the CPU structures' own source, over
+// The Plücker octree walk on the GPU: accel/plucker/walk.hpp's walk, the CPU structures' own source, over
 // the arrays in device memory and the tables in constant memory, with each leaf's triangles tested one at a
 // time (intersect_leaf) where the CPU tests them in SIMD blocks. Triangles only: the caller refuses layouts
 // with spheres (CudaTracer, flatten.cpp's plucker_view).
@@ -11,7 +11,7 @@
 
 namespace lancer::gpu {
 
-// The Pluecker layout a walk is compiled for (PluckerView::balanced and stored_boxes), as one type that the
+// The Plücker layout a walk is compiled for (PluckerView::balanced and stored_boxes), as one type that the
 // launch code passes down with the kernel's other choices.
 template <bool kBalancedLayout, bool kStoredBoxesLayout>
 struct WalkLayout {

@@ -5,7 +5,7 @@
 #pragma once
 
 #include "core/intersect.hpp"
-#include "cuda/host_device.hpp"
+#include "cuda/read_only_cache.hpp"
 #include "lancer/scene.hpp"
 
 namespace lancer::gpu {

@@ -2,7 +2,7 @@
 // box test equal to intersect_box (hit or miss and entry distance) on random and face-plane rays, and the
 // triangle block kernels bit-identical to the scalar triangle tests. Agreement with brute force is the oracle
 // test's (every registered structure).
-#include "accel/bvh/wide.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 
 #include <gtest/gtest.h>
 

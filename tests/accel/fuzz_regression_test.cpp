@@ -32,7 +32,7 @@ struct FuzzCase {
 std::vector<FuzzCase> fuzz_cases() {
     const Vec3f corner(-0x1.4p+2f);  // (-5, -5, -5)
     return {
-        // A scene that is one point: the Pluecker octree's root cube has size 0, and cell_index converted
+        // A scene that is one point: the Plücker octree's root cube has size 0, and cell_index converted
         // the NaN (p - lo) / size to an integer (UBSan: walk.hpp; fixed to start from cell 0).
         {{"one-point scene", {{corner, corner, corner}}, {}},
          {{corner, {-5.0f, -5.0f, 0x1.017e14p-126f}, -5.0f, 0x1.1p+0f},
@@ -54,7 +54,7 @@ std::vector<FuzzCase> fuzz_cases() {
          false},
         // A ray from 6.5e19 away through a vertex, its whole path through the scene within an ulp of
         // t = -1.08: the slab exits were widened by multiplying by 1 + 2 gamma(3), which shrinks a negative
-        // distance, and the grid, the Pluecker octree and the BVHs lost the box (intersect_box).
+        // distance, and the grid, the Plücker octree and the BVHs lost the box (intersect_box).
         {{"far origin, negative t",
           {{{0, 0, 0}, {1, 0, 0x1.c0a0ap-35f}, {1, 0, 0}}, {{1, 0, 0}, {1, 0, -5}, {0.5f, 0.5f, 1}}},
           {{{-0x1.4p-2f, -1, 0}, 0x1.3cp+2f, 0}, {{0, 0, 0}, 1, 0}}},
@@ -503,7 +503,7 @@ std::vector<TinyDirectionCase> tiny_direction_cases() {
            {0x1.78cd6p-129f, 0x1.98d58p-129f, -0x1.5e066p-130f}},
           {{0x1p-6f, -0x1.cp-7f, -0x1.24p-3f}, {-0x1.2676ap-129f, 0x1.31281p-129f, 0x1.07b068p-128f}},
           {{0x1.cp-6f, 0x1.4p-4f, 0x1.0cp-3f}, {-0x1.77dadp-129f, -0x1.460e7p-129f, -0x1.30d6cp-130f}},
-          // The octree, the Pluecker octree and the BVHs lost this one too (their boxes' 1 / d of a denormal
+          // The octree, the Plücker octree and the BVHs lost this one too (their boxes' 1 / d of a denormal
           // component): rays are now conditioned once for every structure (src/core/ray_conditioning.hpp).
           {{-0x1.1c9d8ap-1f, -0x1.ec4ec6p-3f, 0x1.9p-2f},
            {0x1.83e9a8p-128f, 0x1.41f5p-129f, -0x1.d368ep-129f}}}},
@@ -612,9 +612,9 @@ TEST(FuzzRegression, TinySphereIsNotTouchedFromAfar) {
 }
 
 // Finding 24 (docs/robustness.md, from fuzz/mesh_rays_fuzz.cpp): a ray from a vertex of an icosphere at
-// y = 0, a plane of every level of the Pluecker octree, towards the centre with d_y = -2^-147. The exact line
+// y = 0, a plane of every level of the Plücker octree, towards the centre with d_y = -2^-147. The exact line
 // crosses y = 0 at the vertex, at t = 0. The walk, one cell before the vertex's, chose the exit face from
-// three Pluecker products in float; with w_y = 0 one of them is d_y w_z alone, which underflowed to 0, and
+// three Plücker products in float; with w_y = 0 one of them is d_y w_z alone, which underflowed to 0, and
 // the pattern named the y face (exit at t = 0) instead of the z face (t = -0.07): the walk stopped with the
 // hit at t = 0 on triangle 527, where brute force found triangle 514 at t = -7.5e-19 (Moller-Trumbore) and
 // triangle 513 at t = -0 (watertight, lower index). The products are now computed in double. Rays from
@@ -647,7 +647,7 @@ TEST(FuzzRegression, PluckerWalkLeavesByTheFirstExitWithADenormalComponent) {
 // Finding 25 (docs/robustness.md, from fuzz/mesh_rays_fuzz.cpp): a ray from (8, -8, 16), on two faces of
 // the root, straight down with outward components 2^-73 and 2^-125 of its length (after conditioning), to
 // the vertex (8, -8, 0.0625) of a large triangle. The exact line passes 2^-68 outside the triangle, within
-// the geometric tolerance, and brute force reports the hit. The Pluecker walk entered the root (grown by the
+// the geometric tolerance, and brute force reports the hit. The Plücker walk entered the root (grown by the
 // tolerance) but then left the first cell by its x face on the root's boundary, at t = 0, and missed it. The
 // faces of the root's boundary are now the grown root's (exit_plane_of). The fuzzer's ray and its mirror
 // images at the other corners of the root's top face.

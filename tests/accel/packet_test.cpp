@@ -12,7 +12,7 @@
 #include <cstring>
 #include <random>
 
-#include "accel/bvh/wide_packet.hpp"
+#include "accel/bvh/bvh8_packet.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
@@ -82,7 +82,7 @@ std::vector<TestScene> make_scenes() {
     }
     all.push_back(std::move(plane));
     // Triangles smaller than a pixel of the test views: a leaf meets few rays of a group, and
-    // bvh8_packet's Moller-Trumbore tests it a ray at a time (PacketTracer::test_rays).
+    // bvh8_packet's Moller-Trumbore tests it a ray at a time (Bvh8PacketTraversal::test_rays).
     TestScene fine{"icosphere of 5120 triangles", {}, {}};
     make_icosphere(4, {0.1f, -0.2f, 0.3f}, 1.0f).append_triangles(fine.triangles);
     all.push_back(std::move(fine));
@@ -341,22 +341,22 @@ TEST(PacketCall, RefusesASizeOutsideThePacket) {
 }
 
 // bvh8_packet runs the widest kernels by default, and those asked for: 16 lanes with AVX-512, 8 with AVX2.
-TEST(WidePacket, RunsTheKernelsOfTheInstructionSetAskedFor) {
+TEST(Bvh8Packet, RunsTheKernelsOfTheInstructionSetAskedFor) {
     const TestScene scene = scenes()[0];
-    WidePacketAccel widest;
+    Bvh8PacketAccel widest;
     widest.build(scene.geometry(), build_options(TriangleTest::MollerTrumbore));
     EXPECT_EQ(widest.lane_count(), isa_available(SimdIsa::Avx512) ? 16 : 8);
     for (SimdIsa isa : available_isas()) {
         BuildOptions options = build_options(TriangleTest::MollerTrumbore);
         options.isa = isa;
-        WidePacketAccel accel;
+        Bvh8PacketAccel accel;
         accel.build(scene.geometry(), options);
         EXPECT_EQ(accel.lane_count(), isa == SimdIsa::Avx512 ? 16 : 8) << isa_name(isa);
     }
     if (!isa_available(SimdIsa::Avx512)) {
         BuildOptions options = build_options(TriangleTest::MollerTrumbore);
         options.isa = SimdIsa::Avx512;
-        WidePacketAccel accel;
+        Bvh8PacketAccel accel;
         EXPECT_THROW(accel.build(scene.geometry(), options), std::invalid_argument);
     }
 }

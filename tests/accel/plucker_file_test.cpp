@@ -1,4 +1,4 @@
-// Pluecker octree files (src/accel/plucker/serialise.hpp): a written and read structure answers every ray
+// Plücker octree files (src/accel/plucker/serialise.hpp): a written and read structure answers every ray
 // exactly as the one built, for every layout variant; damaged files are refused with a message naming the
 // problem, before any allocation the file's size does not justify.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// The Pluecker octree: the invariants of its build (2:1 balance, references wherever a primitive overlaps,
+// The Plücker octree: the invariants of its build (2:1 balance, references wherever a primitive overlaps,
 // neighbour links symmetric and pointing at the cells across each face and sub-face, the cube map and the
 // point location pointing at the cells that hold their points), the walk's leaf order against slab tests,
 // and every variant of section 6 against brute force on adversarial scenes and rays.
@@ -15,6 +15,7 @@
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
 #include "accel/plucker/balance.hpp"
+#include "accel/plucker/build.hpp"
 #include "accel/plucker/conventions.hpp"
 #include "accel/plucker/walk.hpp"
 #include "lancer/agreement.hpp"

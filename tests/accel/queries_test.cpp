@@ -10,7 +10,7 @@
 #include <random>
 #include <vector>
 
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 #include "ray_sets.hpp"
 #include "test_scenes.hpp"
 

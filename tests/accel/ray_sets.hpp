@@ -30,7 +30,7 @@ RaySet clipped_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed);
 // The primary rays of shared/bench/VIEWS.md's canonical view, size x size, row by row.
 RaySet canonical_view_rays(const Box3f& bounds, int size = 1024);
 // Under AddressSanitizer + UBSan (LANCER_SANITIZED, docs/robustness.md) the Stanford tests trace every
-// kSanitizedStride-th ray of their sets, and the oracle, determinism, update and Pluecker leaf-order tests
+// kSanitizedStride-th ray of their sets, and the oracle, determinism, update and Plücker leaf-order tests
 // generate kSanitizedShare times fewer rays per generated set (the hostile set stays whole), so that the
 // sanitized suite stays within CI's time; 1 otherwise.
 #ifdef LANCER_SANITIZED

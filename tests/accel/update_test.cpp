@@ -10,7 +10,7 @@
 #include <numbers>
 
 #include "accel/brute.hpp"
-#include "accel/bvh/wide.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 #include "configurations.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/animate.hpp"

@@ -414,7 +414,7 @@ TEST_F(Cli, RenderDefaultsToWhittedAndWritesExr) {
     EXPECT_EQ(magic[3], 0x01);
 }
 
-// lancer convert writes the Pluecker octree; rays and render read it back, with the same answers as a
+// lancer convert writes the Plücker octree; rays and render read it back, with the same answers as a
 // structure built on the mesh; a damaged file or a contradicting flag exits with 2.
 TEST_F(Cli, ConvertedPluckerOctreeAnswersLikeTheMesh) {
     const fs::path mesh = write("mesh.off", kMesh);

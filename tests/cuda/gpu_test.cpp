@@ -24,7 +24,7 @@ std::string_view structure_of(CudaKernel kernel) {
     return kernel == CudaKernel::Plucker ? "plucker" : "bvh";
 }
 
-// Each kernel on its structure's default build; the walk also on the other three Pluecker layouts (without
+// Each kernel on its structure's default build; the walk also on the other three Plücker layouts (without
 // the 2:1 rule, with computed boxes).
 struct Configuration {
     CudaKernel kernel;

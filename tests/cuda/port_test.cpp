@@ -1,5 +1,5 @@
 // The GPU traversals run on the CPU (src/cuda/*.hpp compiled by g++) over the flattened arrays, against the
-// CPU structures on the same rays: the Pluecker walk against `plucker`, the Aila-Laine while-while and
+// CPU structures on the same rays: the Plücker walk against `plucker`, the Aila-Laine while-while and
 // speculative while-while traversals against `bvh`, bit for bit (t, primitive, u, v): the arithmetic is
 // the same, so any difference is a porting error. This proves the ports' logic; the launch, the transfers
 // and the device compiler are left to gpu_test.cpp, on a machine with a GPU.

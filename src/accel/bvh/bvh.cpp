@@ -4,7 +4,7 @@
 
 #include "accel/bvh/build.hpp"
 #include "accel/bvh/refit.hpp"
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 
 namespace lancer {
 

@@ -6,7 +6,7 @@
 #include <limits>
 
 #include "accel/bvh/bvh.hpp"
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 
 namespace lancer {
 

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "accel/bvh/bvh.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 #include "accel/bvh/triangle_block.hpp"
-#include "accel/bvh/wide.hpp"
 #include "accel/tree_shape.hpp"
 
 namespace lancer {

@@ -17,7 +17,7 @@
 #include <span>
 #include <vector>
 
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 #include "accel/simd_float.hpp"
 #include "core/intersect.hpp"
 
@@ -150,7 +150,7 @@ template <class Ops>
 }
 
 // MollerTrumbore::intersect on every lane: lane i tests ray i against triangle i. The triangle-SIMD block
-// test broadcasts one ray against a block's triangles; the packet test (wide_packet.cpp) broadcasts one
+// test broadcasts one ray against a block's triangles; the packet test (bvh8_packet.cpp) broadcasts one
 // triangle against a packet's rays: both call this, so that one source holds the kernel. A lane that
 // passes the widened float u and v tests but is grazing or within their error bound of an edge is left to
 // the scalar kernel, which decides it in double.

@@ -1,7 +1,7 @@
-// The numbering of faces, vertices and sub-faces of a cell of the Pluecker octree, and the lookup tables of
+// The numbering of faces, vertices and sub-faces of a cell of the Plücker octree, and the lookup tables of
 // seed 000 section 4.2 (equations 6 to 10) derived from it at compile time: the seed's Figure 4, which fixes
 // its own numbering, is missing, so its tables (7), (8) and (9) cannot be copied. Derivation and conventions:
-// docs/plucker-octree.md; tests/accel/plucker_tables_test.cpp checks the tables against slab computations.
+// docs/accel/plucker.md; tests/accel/plucker_tables_test.cpp checks the tables against slab computations.
 #pragma once
 
 #include <array>
@@ -33,7 +33,7 @@ namespace lancer::plucker {
 
 namespace derivation {
 
-// Exact 3-vectors of small integers: the sample rays below are built so that every Pluecker product is an
+// Exact 3-vectors of small integers: the sample rays below are built so that every Plücker product is an
 // integer, hence exact, and its sign is the one of equation (2).
 struct IntVec {
     long long c[3];
@@ -111,7 +111,7 @@ struct NeighbourTables {
     // tie[f][octant]: the bit to use for an in-face component whose product is exactly 0 (the ray crosses
     // the face on a median line), so that the sub-face chosen is the one on the octant's side of that
     // median. For a zero direction component this keeps the walk in cells whose exit plane is not the
-    // ray's own coordinate (docs/plucker-octree.md, "Zero components"); otherwise either side is right.
+    // ray's own coordinate (docs/accel/plucker.md, "Zero components"); otherwise either side is right.
     std::array<std::array<std::uint8_t, 8>, 6> tie{};
 };
 

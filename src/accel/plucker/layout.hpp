@@ -1,8 +1,8 @@
-// The trace-time arrays of the Pluecker octree (seed 000 section 3): the cells as a stream of 32-bit words
+// The trace-time arrays of the Plücker octree (seed 000 section 3): the cells as a stream of 32-bit words
 // (a leaf's are equation (3)'s, with running ends of the neighbour lists instead of counts), the triangles in
 // leaf order, the cell boxes and the boundary cube map, plus the point-location tree that rays starting
 // inside the root need. Plain data: this is also the on-disk layout (serialise.hpp). Each deviation from the
-// seed and its reason: docs/plucker-octree.md, "Layout".
+// seed and its reason: docs/accel/plucker.md, "Layout".
 #pragma once
 
 #include <array>
@@ -139,17 +139,5 @@ struct PluckerLayout {
     // order): inner: first child << 1 | 1; leaf: its address << 1.
     std::vector<std::uint32_t> locate;
 };
-
-// Lays out a (balanced, unless options.balanced is false) octree: leaves in the build's cell order, or in
-// Morton order (depth first) with options.morton; inner cells after the leaves in the unconstrained
-// variant. Throws std::length_error when the stream would not fit 31-bit addresses.
-[[nodiscard]] PluckerLayout layout_octree(const Geometry& geometry, const Octree& octree,
-                                          const PluckerLayoutOptions& options);
-
-// The tree the layout was made from: cells (levels, coordinates, children) from `locate`, leaf references
-// from the stream. Throws std::invalid_argument naming the first inconsistency (a child index out of range
-// or not after its parent, a cell with two parents, a level past kOctreeMaxLevel, a leaf address or a
-// triangle range out of bounds).
-[[nodiscard]] Octree recover_octree(const PluckerLayout& layout);
 
 }  // namespace lancer::plucker

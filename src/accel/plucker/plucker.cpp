@@ -5,9 +5,10 @@
 #include <cmath>
 
 #include "accel/plucker/balance.hpp"
+#include "accel/plucker/build.hpp"
 #include "accel/plucker/leaf_block.hpp"
 #include "accel/plucker/walk.hpp"
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 #include "accel/tree_shape.hpp"
 
 namespace lancer {
@@ -199,7 +200,7 @@ std::vector<std::uint32_t> PluckerAccel::leaves_along(const Ray& ray) const {
 }
 
 std::vector<BuildOptionRow> PluckerAccel::option_rows() {
-    return {number_option("max_depth", "deepest level of the Pluecker octree; 0: round(0.8 log2(N) - 5)",
+    return {number_option("max_depth", "deepest level of the Plücker octree; 0: round(0.8 log2(N) - 5)",
                           &PluckerOptions::max_depth, 0, 16),
             number_option("leaf_size", "references a cell may hold before it is split",
                           &PluckerOptions::leaf_size, 1, 1 << 20),

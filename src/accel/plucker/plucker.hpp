@@ -1,7 +1,7 @@
-// The Pluecker-connected octree of Portalez & Duguet, "Lancer de rayons dans un octree" (2016; seed 000):
+// The Plücker-connected octree of Portalez & Duguet, "Lancer de rayons dans un octree" (2016; seed 000):
 // the octree of octree_build.hpp made 2:1 balanced (balance.hpp), its leaves linked to their face
-// neighbours and laid out as the seed's four arrays (layout.hpp), walked leaf to leaf with Pluecker tests
-// for the exit face and the sub-face (walk.hpp, conventions.hpp). Design note: docs/plucker-octree.md.
+// neighbours and laid out as the seed's four arrays (layout.hpp), walked leaf to leaf with Plücker tests
+// for the exit face and the sub-face (walk.hpp, conventions.hpp). Design note: docs/accel/plucker.md.
 #pragma once
 
 #include <cstdint>
@@ -17,13 +17,13 @@ namespace lancer {
 // The options of `plucker` and `plucker_packet` (seed 000, Portalez & Duguet 2016): the octree with the 2:1
 // rule and face-neighbour links, walked leaf to leaf. max_depth 0 = automatic: round(0.8 log2(N) - 5), the
 // depths of the seed's section 5.2 (8 for the bunny's 69k triangles, 10 for the armadillo's 346k, 11 for
-// the dragon's 871k). The other fields are the variants of its section 6 (docs/plucker-octree.md).
+// the dragon's 871k). The other fields are the variants of its section 6 (docs/accel/plucker.md).
 struct PluckerOptions {
     static constexpr std::string_view kGroup = "plucker";
     int max_depth = 0;
     // Split while a cell holds more references. 32, not the seed's 12 ("6 triangles per leaf on average",
     // 5.1): leaves are tested 8 triangles per block here, so larger leaves cost few extra tests and save
-    // steps, memory and build time (docs/plucker-octree.md, "Leaf size"); the seed's tables use 12.
+    // steps, memory and build time (docs/accel/plucker.md, "Leaf size"); the seed's tables use 12.
     int leaf_size = 32;
     bool balanced = true;      // false: no 2:1 rule, links to the same-or-larger neighbour and a descent
     bool stored_boxes = true;  // false: cell planes recomputed from integer coordinates and level

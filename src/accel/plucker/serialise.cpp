@@ -10,13 +10,13 @@
 #include <string>
 
 #include "accel/build_util.hpp"
+#include "accel/plucker/build.hpp"
 
 namespace lancer::plucker {
 namespace {
 
-static_assert(
-    std::endian::native == std::endian::little,
-    "Pluecker octree files are little-endian and read by memcpy: add byte swapping for this target");
+static_assert(std::endian::native == std::endian::little,
+              "Plücker octree files are little-endian and read by memcpy: add byte swapping for this target");
 static_assert(sizeof(Sphere) == 20);
 
 constexpr std::uint32_t kStoredBoxesFlag = 1, kBalancedFlag = 2, kMortonFlag = 4;
@@ -96,7 +96,7 @@ PluckerFile read_plucker_file(const std::filesystem::path& file) {
     const auto available = static_cast<std::streamsize>(std::min<std::uint64_t>(file_size, sizeof(header)));
     if (!in.read(reinterpret_cast<char*>(&header), available)) fail(file, "read error");
     if (file_size < sizeof(kFileMagic) || std::memcmp(header.magic, kFileMagic, sizeof(kFileMagic)) != 0)
-        fail(file, "not a lancer Pluecker octree file (wrong magic; write one with `lancer convert`)");
+        fail(file, "not a lancer Plücker octree file (wrong magic; write one with `lancer convert`)");
     if (file_size < sizeof(header))
         fail(file, "truncated: shorter than the " + std::to_string(sizeof(header)) + "-byte header");
     if (header.version != kFileVersion)

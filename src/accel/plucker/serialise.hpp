@@ -1,4 +1,4 @@
-// The Pluecker octree on disk (seed 000 section 3: the cells, the triangles, the boxes and the cube map),
+// The Plücker octree on disk (seed 000 section 3: the cells, the triangles, the boxes and the cube map),
 // with the geometry it was built on, so that `lancer convert` writes it once and `lancer render` and
 // `lancer rays` load it back without a build. Versioned (magic, version, header size, layout flags),
 // little-endian, read by memcpy.
@@ -11,7 +11,7 @@
 // Reading never trusts the file: the header's counts must add up to the file's size before anything is
 // allocated (so a few corrupted bytes cannot ask for gigabytes), a checksum covers the arrays, and the
 // structure is rebuilt from its tree (recover_octree, layout_octree) and must come out identical, which
-// bounds every address and proves every link (docs/plucker-octree.md, "File").
+// bounds every address and proves every link (docs/accel/plucker.md, "File").
 #pragma once
 
 #include <cstdint>
@@ -24,7 +24,7 @@
 namespace lancer::plucker {
 
 inline constexpr char kFileMagic[8] = {'L', 'A', 'N', 'C', 'E', 'R', 'P', 'O'};
-// Raised whenever a layout change makes older files' arrays mean something else (docs/plucker-octree.md,
+// Raised whenever a layout change makes older files' arrays mean something else (docs/accel/plucker.md,
 // "File").
 inline constexpr std::uint32_t kFileVersion = 4;
 

@@ -1,9 +1,9 @@
 // The walk of seed 000 section 4, one source for the CPU structures (plucker.cpp, packet.cpp) and the GPU
-// kernel (cuda/plucker_walk.hpp): entry by the boundary cube map (4.1), exit face by three Pluecker signs and
+// kernel (cuda/plucker_walk.hpp): entry by the boundary cube map (4.1), exit face by three Plücker signs and
 // a table (4.2.1), sub-face by two more signs and a table (4.2.2), the loop of 4.2.3. Phases in the code:
 // ENTRY, LEAF, EXIT-FACE, NEIGHBOR. It deviates from the seed where an exact closest hit needs it: it goes on
 // past the first leaf with a hit, descends the tree for rays that start inside, gives zero direction
-// components a sign, and computes the Pluecker products in double (docs/plucker-octree.md, "The walk", "Zero
+// components a sign, and computes the Plücker products in double (docs/accel/plucker.md, "The walk", "Zero
 // direction components", "The Plücker products").
 #pragma once
 
@@ -81,7 +81,7 @@ inline constexpr PluckerTables kTables = [] {
 // the step reads them at a per-ray axis or pattern, and on the GPU an array so indexed lives in local memory.
 struct WalkRay {
     Vec3f origin;
-    // The direction in double, for the Pluecker products d x w with w = P - o (exit_face, sub_face): each
+    // The direction in double, for the Plücker products d x w with w = P - o (exit_face, sub_face): each
     // product of two floats is exact in double, and one subtraction keeps the exact sign, so every sign is
     // that of the exact product for the computed w, whatever the magnitudes (no overflow at 2^128, no
     // underflow at 2^-149).
@@ -94,7 +94,7 @@ struct WalkRay {
 
     WalkRay() = default;
     // A zero direction component takes the side of the root's centre the origin is not on, so that the ray
-    // has an exit vertex (docs/plucker-octree.md, "Zero direction components").
+    // has an exit vertex (docs/accel/plucker.md, "Zero direction components").
     LANCER_HOST_DEVICE WalkRay(const Ray& ray, const OctreeCube& cube, const PluckerTables& tables)
         : origin(ray.origin), direction(ray.direction), abs_direction(magnitude(ray.direction)) {
         for (int axis = 0; axis < 3; ++axis) {
@@ -222,7 +222,7 @@ struct SlabInterval {
         return true;
     }
     // A texel over several deeper leaves (the cube map stops at level 10): descend from its cell, of the
-    // face's layer (layout.cpp's face_layers) on entry_axis and (i, j) on (u, v).
+    // face's layer (build.cpp's face_layers) on entry_axis and (i, j) on (u, v).
     std::uint32_t coordinates[3];
     coordinates[entry_axis] = cell_index(cube, entry_axis, level, p[entry_axis], entry_up);
     coordinates[u] = i;
@@ -245,7 +245,7 @@ struct CellCounter {
 // link is a leaf (the seed's 2:1 octree). Otherwise a link may name an inner cell, which is descended
 // through the sub-face test on each level, and a walk stops after as many steps as there are words of
 // cells: a walk that follows the ray never enters a leaf twice, and this bounds one that rounding made
-// circle (the balanced walk needs no bound: docs/plucker-octree.md, "Termination"). kStoredBoxes: a cell's
+// circle (the balanced walk needs no bound: docs/accel/plucker.md, "Termination"). kStoredBoxes: a cell's
 // planes are read from its stored box (the seed's layout), else computed from its integer coordinates and
 // level (section 6), which spares the step the box's load after the cell's.
 template <bool kBalanced, bool kStoredBoxes>
@@ -297,7 +297,7 @@ class Walker {
         exit.ahead = ray.up(axis) ? w[axis] : -w[axis];
         // NEIGHBOR: the sub-face test only for four neighbours. The seed computes it for one neighbour too
         // and multiplies the index by count / 4 to save a branch (equation 10 and 5.3.2), which suits a GPU;
-        // on the CPU the predicted branch is 15% faster over the canonical view (docs/plucker-octree.md).
+        // on the CPU the predicted branch is 15% faster over the canonical view (docs/accel/plucker.md).
         const std::uint32_t ends = read_only(leaf + kHeader - 1);
         const std::uint32_t start = neighbour_start(ends, exit.face);
         const std::uint32_t count = neighbour_end(ends, exit.face) - start;

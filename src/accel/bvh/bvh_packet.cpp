@@ -1,4 +1,4 @@
-#include "accel/bvh/packet.hpp"
+#include "accel/bvh/bvh_packet.hpp"
 
 #include <algorithm>
 #include <array>
@@ -6,8 +6,8 @@
 #include <cmath>
 #include <vector>
 
-#include "accel/bvh/wide.hpp"
-#include "accel/primitive_test.hpp"
+#include "accel/bvh/bvh_wide.hpp"
+#include "accel/primitive_intersect.hpp"
 #include "accel/simd_float.hpp"
 
 namespace lancer {
@@ -91,9 +91,9 @@ struct PacketStackEntry {
 
 // One packet: its rays prepared for the triangle test and laid out for the box test.
 template <class TriangleTestT>
-class PacketTracer {
+class BvhPacketTraversal {
   public:
-    PacketTracer(const BvhAccel& bvh, const Geometry& geometry) : bvh_(bvh), geometry_(geometry) {
+    BvhPacketTraversal(const BvhAccel& bvh, const Geometry& geometry) : bvh_(bvh), geometry_(geometry) {
         prepared_.reserve(kPacketSize);
     }
 
@@ -197,7 +197,7 @@ void trace_batch(const BvhAccel& bvh, const Geometry& geometry, TriangleTest tes
                  std::span<Answer> answers, TraversalCounters* counters) {
     dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
-        PacketTracer<TriangleTestT> tracer(bvh, geometry);
+        BvhPacketTraversal<TriangleTestT> tracer(bvh, geometry);
         for_each_packet<kPacketRays, kAnyHit, kCount>(
             rays, answers, bvh, counts,
             [&](std::span<const Ray> packet_rays, std::span<Answer> packet_answers) {

@@ -1,22 +1,22 @@
-#include "accel/bvh/wide_packet.hpp"
+#include "accel/bvh/bvh8_packet.hpp"
 
-#include "accel/bvh/wide_packet_kernel.hpp"
+#include "accel/bvh/bvh8_packet_kernel.hpp"
 #include "lancer/isa.hpp"
 
 namespace lancer {
 namespace {
 
 // The kernels of `isa`, or none where a build without AVX2 has none (bvh8 then traces every ray).
-const WidePacketKernels* kernels_for(SimdIsa isa) {
+const Bvh8PacketKernels* kernels_for(SimdIsa isa) {
     if (isa == SimdIsa::Auto && available_isas().empty()) return nullptr;
     switch (resolve_isa(isa)) {
 #if LANCER_HAS_AVX512_KERNELS
         case SimdIsa::Avx512:
-            return &avx512::wide_packet_kernels();
+            return &avx512::bvh8_packet_kernels();
 #endif
 #if defined(__AVX2__)
         case SimdIsa::Avx2:
-            return &avx2::wide_packet_kernels();
+            return &avx2::bvh8_packet_kernels();
 #endif
         default:
             return nullptr;
@@ -25,28 +25,28 @@ const WidePacketKernels* kernels_for(SimdIsa isa) {
 
 }  // namespace
 
-void WidePacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
+void Bvh8PacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     kernels_ = kernels_for(options.isa);
     PacketAccel::build_structure(geometry, options);
 }
 
-int WidePacketAccel::lane_count() const {
+int Bvh8PacketAccel::lane_count() const {
     return kernels_ != nullptr ? kernels_->lane_count : 1;
 }
 
-void WidePacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+void Bvh8PacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                       TraversalCounters* counters) const {
     if (kernels_ == nullptr) return single_ray_.intersect(rays, hits, counters);
     kernels_->intersect(single_ray_, geometry_, triangle_test_, rays, hits, counters);
 }
 
-void WidePacketAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
+void Bvh8PacketAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                                             TraversalCounters* counters) const {
     if (kernels_ == nullptr) return Accel::intersect_packet_rays(rays, hits, counters);
     kernels_->intersect_packet(single_ray_, geometry_, triangle_test_, rays, hits, counters);
 }
 
-void WidePacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+void Bvh8PacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                      TraversalCounters* counters) const {
     if (kernels_ == nullptr) return single_ray_.occluded(rays, occluded, counters);
     kernels_->occluded(single_ray_, geometry_, triangle_test_, rays, occluded, counters);

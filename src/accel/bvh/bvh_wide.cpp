@@ -1,4 +1,4 @@
-#include "accel/bvh/wide.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 
 #include <algorithm>
 #include <array>
@@ -6,7 +6,7 @@
 
 #include "accel/bvh/build.hpp"
 #include "accel/bvh/refit.hpp"
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 
 namespace lancer {
 namespace {

@@ -1,7 +1,7 @@
-// The kernel of bvh8_packet (wide_packet.hpp): this one source is compiled once per instruction set, by
+// The kernel of bvh8_packet (bvh8_packet.hpp): this one source is compiled once per instruction set, by
 // lancer_core for AVX2 (8 rays per instruction) and by lancer_kernels_avx512 for AVX-512 (16), each into its
-// own namespace (core/isa_namespace.hpp), and WidePacketAccel picks one when it is built (lancer/isa.hpp).
-#include "accel/bvh/wide_packet_kernel.hpp"
+// own namespace (core/isa_namespace.hpp), and Bvh8PacketAccel picks one when it is built (lancer/isa.hpp).
+#include "accel/bvh/bvh8_packet_kernel.hpp"
 
 #include <algorithm>
 #include <array>
@@ -14,7 +14,7 @@
 #include "accel/build_util.hpp"
 #include "accel/bvh/triangle_block.hpp"
 #include "accel/packet_batch.hpp"
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 #include "accel/simd_float.hpp"
 
 #if defined(__AVX2__)
@@ -22,7 +22,7 @@ namespace lancer {
 inline namespace LANCER_ISA_NAMESPACE {
 namespace {
 
-constexpr int kPacketSize = kWidePacketSize;
+constexpr int kPacketSize = kBvh8PacketSize;
 constexpr int kWidth = 8;  // bvh8
 using Node = WideBvhNode<kWidth>;
 using Block = Bvh8Accel::Block;
@@ -167,8 +167,8 @@ struct BlockEdges {
     return out;
 }
 
-// The lanes of a test that holds rays against whole blocks (PacketTracer::test_rays): each 8-lane half of
-// the vector is one ray of a group against a block's 8 triangles, as in bvh8's block test, so an AVX-512
+// The lanes of a test that holds rays against whole blocks (Bvh8PacketTraversal::test_rays): each 8-lane half
+// of the vector is one ray of a group against a block's 8 triangles, as in bvh8's block test, so an AVX-512
 // test takes two rays and an AVX2 test one.
 template <class Ops>
 struct BlockRays;
@@ -252,7 +252,7 @@ constexpr std::uint32_t kMaxLeafBlocks = block_count(BvhAccel::kMaxLeafSize, kWi
 
 // One packet: loaded, then traced. Ops: the lane width of the box and triangle tests.
 template <class Ops, class TriangleTestT>
-class PacketTracer {
+class Bvh8PacketTraversal {
     static constexpr int kLanes = Ops::kWidth;
     static constexpr LaneMask kGroup = (LaneMask{1} << kLanes) - 1;
     static_assert(kPacketSize % kLanes == 0);
@@ -262,7 +262,7 @@ class PacketTracer {
     using Vec3v = block_detail::Vec3v<Ops>;
 
   public:
-    PacketTracer(const Bvh8Accel& bvh, const Geometry& geometry)
+    Bvh8PacketTraversal(const Bvh8Accel& bvh, const Geometry& geometry)
         : nodes_(bvh.nodes()),
           blocks_(bvh.blocks()),
           geometry_(geometry),
@@ -888,7 +888,7 @@ void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest te
                  std::span<Answer> answers, TraversalCounters* counters) {
     dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
-        PacketTracer<Ops, TriangleTestT> tracer(bvh, geometry);
+        Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry);
         for_each_packet<static_cast<std::size_t>(kPacketSize), kAnyHit, kCount>(
             rays, answers, bvh, counts,
             [&](std::span<const Ray> packet_rays, std::span<Answer> packet_answers) {
@@ -913,7 +913,7 @@ void trace_soa_packet(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTe
                       const RayPacket& rays, HitPacket& hits, TraversalCounters* counters) {
     dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
-        PacketTracer<Ops, TriangleTestT> tracer(bvh, geometry);
+        Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry);
         if (tracer.load(rays)) {
             tracer.template trace<false, kCount>(std::span<Hit>(), counts);
             tracer.store_hits(hits);
@@ -952,8 +952,8 @@ void intersect_packet(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTe
 
 }  // namespace
 
-const WidePacketKernels& wide_packet_kernels() {
-    static constexpr WidePacketKernels kernels = {KernelOps::kWidth, intersect, occluded, intersect_packet};
+const Bvh8PacketKernels& bvh8_packet_kernels() {
+    static constexpr Bvh8PacketKernels kernels = {KernelOps::kWidth, intersect, occluded, intersect_packet};
     return kernels;
 }
 

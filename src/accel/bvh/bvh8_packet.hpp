@@ -12,15 +12,15 @@
 
 #include <cstdint>
 
-#include "accel/bvh/wide.hpp"
-#include "accel/bvh/wide_packet_kernel.hpp"
+#include "accel/bvh/bvh8_packet_kernel.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 #include "accel/packet_accel.hpp"
 
 namespace lancer {
 
-class WidePacketAccel final : public PacketAccel<Bvh8Accel> {
+class Bvh8PacketAccel final : public PacketAccel<Bvh8Accel> {
   public:
-    static constexpr int kPacketSize = kWidePacketSize;
+    static constexpr int kPacketSize = kBvh8PacketSize;
 
     [[nodiscard]] std::string_view name() const override { return "bvh8_packet"; }
     // The rays per instruction of the packet's box and triangle tests, once built: 16 with the AVX-512
@@ -37,7 +37,7 @@ class WidePacketAccel final : public PacketAccel<Bvh8Accel> {
     void intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                                TraversalCounters* counters) const override;
 
-    const WidePacketKernels* kernels_ = nullptr;
+    const Bvh8PacketKernels* kernels_ = nullptr;
 };
 
 }  // namespace lancer

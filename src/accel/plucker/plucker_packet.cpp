@@ -1,4 +1,4 @@
-#include "accel/plucker/packet.hpp"
+#include "accel/plucker/plucker_packet.hpp"
 
 #include <algorithm>
 #include <array>
@@ -7,7 +7,7 @@
 
 #include "accel/plucker/leaf_block.hpp"
 #include "accel/plucker/walk.hpp"
-#include "accel/primitive_test.hpp"
+#include "accel/primitive_intersect.hpp"
 
 namespace lancer {
 namespace {

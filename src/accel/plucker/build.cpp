@@ -1,4 +1,4 @@
-#include "accel/plucker/layout.hpp"
+#include "accel/plucker/build.hpp"
 
 #include <algorithm>
 #include <limits>

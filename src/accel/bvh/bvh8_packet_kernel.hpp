@@ -1,22 +1,22 @@
-// The entry points of bvh8_packet's kernel (wide_packet_kernel.cpp), one table per instruction set it is
-// compiled for, so that WidePacketAccel chooses at run time (lancer/isa.hpp) and the library's baseline
+// The entry points of bvh8_packet's kernel (bvh8_packet_kernel.cpp), one table per instruction set it is
+// compiled for, so that Bvh8PacketAccel chooses at run time (lancer/isa.hpp) and the library's baseline
 // stays AVX2.
 #pragma once
 
 #include <cstdint>
 #include <span>
 
-#include "accel/bvh/wide.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 #include "core/isa_namespace.hpp"
 #include "lancer/accel.hpp"
 
 namespace lancer {
 
 // Rays traced together: one 8x8 tile of `lancer bench`, and the 64 bits of a lane mask.
-inline constexpr int kWidePacketSize = 64;
-static_assert(kWidePacketSize == RayPacket::kMaxSize, "a RayPacket is traced as one packet");
+inline constexpr int kBvh8PacketSize = 64;
+static_assert(kBvh8PacketSize == RayPacket::kMaxSize, "a RayPacket is traced as one packet");
 
-struct WidePacketKernels {
+struct Bvh8PacketKernels {
     int lane_count;  // rays per instruction of the box and triangle tests
     void (*intersect)(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
                       std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters);
@@ -34,7 +34,7 @@ struct WidePacketKernels {
 inline
 #endif
     namespace avx2 {
-[[nodiscard]] const WidePacketKernels& wide_packet_kernels();
+[[nodiscard]] const Bvh8PacketKernels& bvh8_packet_kernels();
 }  // namespace avx2
 #endif
 #if LANCER_HAS_AVX512_KERNELS
@@ -42,7 +42,7 @@ inline
 inline
 #endif
     namespace avx512 {
-[[nodiscard]] const WidePacketKernels& wide_packet_kernels();
+[[nodiscard]] const Bvh8PacketKernels& bvh8_packet_kernels();
 }  // namespace avx512
 #endif
 
