@@ -1,18 +1,26 @@
-# The two commands of the README. Both install missing Debian packages first, then build Release in build/.
+# The two commands of the README. Both install missing Debian packages first, then build Release in build/:
+# `make demo` only the command-line tool it runs, `make test` everything the suite tests.
 BUILD_DIR := build
 PRESET := release
 JOBS ?= $(shell nproc)
+# The interpreter the Python module is built for: the first python3 on PATH that imports NumPy (a pyenv or
+# other python3 may come before Debian's, which scripts/deps.sh gives NumPy). Override with PYTHON=...
+PYTHON ?= $(shell for p in $$(which -a python3 2>/dev/null); do $$p -c 'import numpy' 2>/dev/null && { echo $$p; break; }; done)
+CONFIGURE_FLAGS := $(if $(PYTHON),-DPython3_EXECUTABLE=$(PYTHON))
 
-.PHONY: demo test build deps build-sanitize test-sanitize
+.PHONY: demo test build configure deps build-sanitize test-sanitize
 
 deps:
 	@bash scripts/deps.sh
 
-build: deps
-	@cmake --preset $(PRESET) >/dev/null
+configure: deps
+	@cmake --preset $(PRESET) $(CONFIGURE_FLAGS) >/dev/null
+
+build: configure
 	@cmake --build --preset $(PRESET) -j $(JOBS)
 
-demo: build
+demo: configure
+	@cmake --build --preset $(PRESET) -j $(JOBS) --target lancer_cli
 	@mkdir -p out
 	$(BUILD_DIR)/apps/lancer/lancer render -o out/demo.png
 

@@ -17,7 +17,7 @@ class CMakeBuild(build_ext):
     def build_extension(self, ext):
         build_dir = pathlib.Path(self.build_temp).resolve() / "cmake"
         configure = ["cmake", "-S", str(ROOT), "-B", str(build_dir), "-DCMAKE_BUILD_TYPE=Release",
-                     f"-DPython_EXECUTABLE={sys.executable}", "-DLANCER_BUILD_PYTHON=ON",
+                     f"-DPython3_EXECUTABLE={sys.executable}", "-DLANCER_BUILD_PYTHON=ON",
                      "-DLANCER_BUILD_TESTS=OFF", "-DLANCER_BUILD_BENCH=OFF", "-DLANCER_BUILD_APPS=OFF",
                      "-DLANCER_CUDA=OFF"]
         subprocess.run(configure, check=True)

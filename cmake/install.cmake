@@ -7,16 +7,15 @@ include(CMakePackageConfigHelpers)
 # file and finds none of its private dependencies. The static libraries are linked too, for their
 # dependencies (assimp, libpng, OpenEXR, oneTBB, Embree, the CUDA runtime): their own members are never
 # pulled, every symbol being defined by the objects already.
-set(lancer_shared_parts lancer_core lancer_scene lancer_render lancer_cuda lancer_cuda_host)
 set(lancer_shared_objects)
-foreach(part IN LISTS lancer_shared_parts)
+foreach(part IN LISTS lancer_parts)
   list(APPEND lancer_shared_objects $<TARGET_OBJECTS:${part}>)
 endforeach()
 if(TARGET lancer_kernels_avx512)
   list(APPEND lancer_shared_objects $<TARGET_OBJECTS:lancer_kernels_avx512>)
 endif()
 add_library(lancer_shared SHARED ${lancer_shared_objects})
-target_link_libraries(lancer_shared PRIVATE ${lancer_shared_parts})
+target_link_libraries(lancer_shared PRIVATE ${lancer_parts})
 target_include_directories(lancer_shared PUBLIC $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
 set_target_properties(lancer_shared PROPERTIES
   OUTPUT_NAME lancer EXPORT_NAME lancer LINKER_LANGUAGE CXX
@@ -33,9 +32,7 @@ else()
   set(lancer_core_uses_tbb OFF)
 endif()
 
-# lancer_options travels with lancer::core only as a link-only dependency of a static library: its link
-# options (none outside a sanitized build), not its compile flags.
-install(TARGETS lancer_shared lancer_core lancer_options EXPORT lancerTargets
+install(TARGETS lancer_shared lancer_core EXPORT lancerTargets
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
