@@ -91,7 +91,7 @@ struct AccelFigure {
     std::string help;    // what it measures, one phrase
 };
 
-// Statistics of a built structure (seed 003's counts).
+// Statistics of a built structure (the counts of Ferreira & Mendoza 2011).
 struct AccelStats {
     double build_ms = 0.0;
     std::size_t primitives = 0;

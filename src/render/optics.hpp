@@ -1,6 +1,7 @@
-// The optics of the Whitted ray tree: mirror and Snell-Descartes directions (seed 003 sections 4.1 and 4.2),
-// Fresnel's dielectric reflectance, the camera's sample positions, and secondary-ray origins moved off the
-// surface they leave (seed 004, "problème de précision"; Wächter & Binder 2019).
+// The optics of the Whitted ray tree: mirror and Snell-Descartes directions (Ferreira & Mendoza 2011,
+// sections 4.1 and 4.2), Fresnel's dielectric reflectance, the camera's sample positions, and secondary-ray
+// origins moved off the surface they leave (the "Lancer de rayon" slides, "problème de précision"; Wächter &
+// Binder 2019).
 #pragma once
 
 #include <algorithm>

@@ -1,4 +1,5 @@
-// DSC, seed 003 section 5.2: the materials, lights and image size that go with the .off of the same stem.
+// DSC, Ferreira & Mendoza 2011, section 5.2: the materials, lights and image size that go with the .off of
+// the same stem.
 //   DSC
 //   width height
 //   nmaterials nlights
