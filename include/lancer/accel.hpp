@@ -24,7 +24,7 @@
 namespace lancer {
 
 enum class TriangleTest {
-    MollerTrumbore,  // Moller & Trumbore 1997 (seeds 003, 004): fast, may leak through shared edges
+    MollerTrumbore,  // Moller & Trumbore 1997 (Ferreira & Mendoza 2011, 3): fast, may leak at shared edges
     Watertight,      // Woop, Benthin & Wald 2013: no ray passes between two triangles that share an edge
 };
 

@@ -166,7 +166,8 @@ bool GridAccel::fill_cells(std::size_t reference_budget) {
                 first[axis] = cell_index(axis, prim_bounds.lo[axis] - margin[axis]);
                 last[axis] = cell_index(axis, prim_bounds.hi[axis] + margin[axis]);
             }
-            // Seed 004: "une cellule : liste des objets l'intersectant" — the exact overlap, not the bounds.
+            // The "Lancer de rayon" slides: "une cellule : liste des objets l'intersectant" — the exact
+            // overlap, not the bounds.
             for (int z = first[2]; z <= last[2]; ++z) {
                 for (int y = first[1]; y <= last[1]; ++y) {
                     for (int x = first[0]; x <= last[0]; ++x) {
@@ -289,9 +290,9 @@ bool GridAccel::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
         // EXIT-FACE: the nearest next plane; ties go to the lower axis (deterministic).
         const int axis =
             t_next[0] <= t_next[1] ? (t_next[0] <= t_next[2] ? 0 : 2) : (t_next[1] <= t_next[2] ? 1 : 2);
-        // Seed 004 "Intersection(s) dans la cellule ? Oui : retourner la plus proche": stop once the best hit
-        // (or the end of the ray) lies inside the cells walked so far. An infinite exit (no axis steps) stops
-        // too, since tfar <= +inf.
+        // The "Lancer de rayon" slides, "Intersection(s) dans la cellule ? Oui : retourner la plus proche":
+        // stop once the best hit (or the end of the ray) lies inside the cells walked so far. An infinite
+        // exit (no axis steps) stops too, since tfar <= +inf.
         const float limit = kAnyHit ? ray.tfar : std::min(best.t, ray.tfar);  // best.t is +inf on a miss
         if (limit <= exit_lower_bound(t_next[axis])) break;
         // NEIGHBOR

@@ -105,10 +105,10 @@ class LevelShader {
     }
 
   private:
-    // Seed 003 4.3's kd sum_j (N.L_j), with the surface colour, plus a Phong highlight ks (V.L)^shininess
-    // around the mirror direction V, both scaled by the light's colour and only where its shadow ray is
-    // free. As the SPD asks, no shadow ray is cast when the normal faces away from the light: the shading
-    // normal (no light) or the facet's normal (the ray would leave through the surface).
+    // Ferreira & Mendoza 2011, 4.3: kd sum_j (N.L_j), with the surface colour, plus a Phong highlight ks
+    // (V.L)^shininess around the mirror direction V, both scaled by the light's colour and only where its
+    // shadow ray is free. As the SPD asks, no shadow ray is cast when the normal faces away from the light:
+    // the shading normal (no light) or the facet's normal (the ray would leave through the surface).
     void add_lights(const RayNode& node, const Material& material, Vec3f color,
                     const FacingSurface& surface) const {
         const bool highlight = material.ks > 0.0f && material.shininess > 0.0f;
@@ -131,10 +131,10 @@ class LevelShader {
         }
     }
 
-    // Seed 003 4.1 and 4.2: the mirror ray takes ks; the refracted ray takes kt, or hands it to the mirror
-    // ray under total internal reflection (the SPD still spawns that ray). With Fresnel on, kt is split
-    // between the two by the dielectric reflectance. Children whose weight is not above the minimum are
-    // cut off.
+    // Ferreira & Mendoza 2011, 4.1 and 4.2: the mirror ray takes ks; the refracted ray takes kt, or hands it
+    // to the mirror ray under total internal reflection (the SPD still spawns that ray). With Fresnel on, kt
+    // is split between the two by the dielectric reflectance. Children whose weight is not above the minimum
+    // are cut off.
     void add_children(const RayNode& node, const Material& material, const FacingSurface& surface) const {
         float reflection_weight = material.ks;
         float refraction_weight = 0.0f;

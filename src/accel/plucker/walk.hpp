@@ -55,8 +55,9 @@ struct PluckerView {
     return view;
 }
 
-// Seed 000's tables (equations 8 and 9) and the tie bits of conventions.hpp as one plain struct: the GPU
-// copies it to constant memory (section 5.2), where a warp reading one entry is served in one broadcast.
+// Portalez & Duguet's tables (2016, equations 8 and 9) and the tie bits of conventions.hpp as one plain
+// struct: the GPU copies it to constant memory (section 5.2), where a warp reading one entry is served in one
+// broadcast.
 struct PluckerTables {
     std::uint8_t exit_face[8][8];
     std::uint8_t neighbour_quadrant[6][8];
