@@ -1,6 +1,7 @@
 // Embree on the canonical view of shared/bench/VIEWS.md, called the way Embree's own tutorials call it and
-// with no lancer code: the yardstick that `lancer bench`'s Embree rows must match (scripts/embree_check.py,
-// issue 20). What the tutorials and the "Performance Recommendations" of Embree's manual ask for:
+// with no lancer code: the yardstick that `lancer bench`'s Embree rows must match (scripts/embree_check.py;
+// docs/results.md, "Embree at its best"). What the tutorials and the "Performance Recommendations" of
+// Embree's manual ask for:
 //   - packets of 4x2 (rtcIntersect8) and 4x4 (rtcIntersect16) pixels, rays written straight into the SoA
 //     packet, and the COHERENT context flag, since camera rays are coherent;
 //   - flush-to-zero and denormals-are-zero set once per tracing thread;

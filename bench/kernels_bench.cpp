@@ -152,9 +152,9 @@ std::vector<std::uint32_t> shuffled(std::size_t count) {
     return order;
 }
 
-// EXIT-FACE alone (seed 000 section 4.2.1, equations 4-8): the exit vertex of a random cell, a ray from a
-// random point inside it in a random direction, 6 products and a table lookup. Each of the three exit faces
-// comes out about as often as the others.
+// EXIT-FACE alone (Portalez & Duguet 2016, section 4.2.1, equations 4-8): the exit vertex of a random cell, a
+// ray from a random point inside it in a random direction, 6 products and a table lookup. Each of the three
+// exit faces comes out about as often as the others.
 void BM_PluckerExitFace(benchmark::State& state) {
     struct Input {
         plucker::WalkRay ray;

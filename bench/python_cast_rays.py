@@ -9,8 +9,8 @@ of consecutive rays instead of camera tiles. docs/python.md has the figures and 
 
 With --against-bench LANCER it also runs LANCER's `bench` on the same mesh, structure, view and threads after
 each Python timing, --rounds times alternated (timings on a shared machine drift within minutes, so the two
-are compared round by round), and prints each round's ratio and their median: issue 24's goal is Python
-within 10% of `lancer bench`.
+are compared round by round), and prints each round's ratio and their median: the goal (docs/python.md,
+"Speed") is Python within 10% of `lancer bench`.
 """
 import argparse
 import functools

@@ -1,14 +1,14 @@
 #!/usr/bin/python3
 """Checks `lancer bench`'s Embree rows against bench/embree_reference (Embree called as its tutorials call it,
-with no lancer code), in the same run, on the same meshes and thread counts (issue 20: each row within 10%),
-and sets lancer's own structures beside Embree's fastest call (issue 20's goal: 1.25 times it).
+with no lancer code), in the same run, on the same meshes and thread counts (each row within 10%),
+and sets lancer's own structures beside Embree's fastest call (the goal, docs/results.md: 1.25 times it).
 
     scripts/embree_check.py [--build build] [--mesh FILE]... [--threads 1,2] [--frames 5] [--repeat 3]
                             [--view primary|diffuse|shadow] [--watertight] [--tolerance 0.10]
                             [--lancer bvh8_packet,...]
 
 Prints one line per mesh, call and thread count with both figures and their ratio, then one line per mesh,
-thread count and lancer structure with its ratio to the fastest Embree call (issue 21: the same on the
+thread count and lancer structure with its ratio to the fastest Embree call (the same on the
 diffuse and shadow views of VIEWS.md, with --view); exits 1 when an Embree row is
 further than the tolerance below the reference, 2 on bad input. Run it on an idle machine: the two programs
 alternate per mesh, --repeat times, and each figure is the median of its runs, so that drift hits both alike

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""The measurements of docs/results.md for the Plücker octree (seed 000, Tables 1-3 and the depth / leaf size
-sweep), made with the lancer command line only, printed as Markdown tables.
+"""The measurements of docs/results.md for the Plücker octree (Portalez & Duguet 2016, Tables 1-3 and the
+depth / leaf size sweep), made with the lancer command line only, printed as Markdown tables.
 
     scripts/plucker_results.py LANCER MESHES_DIR table1|table2|table3|sweep|incoherent [--runs N]
 
@@ -22,7 +22,8 @@ import tempfile
 from pathlib import Path
 
 MESHES = [("Bunny", "bunny.obj"), ("Armadillo", "armadillo.off"), ("Dragon", "dragon.ply")]
-# The seed's split threshold ("6 triangles per leaf on average", 5.1); lancer's default is 32 since issue 22.
+# The seed's split threshold ("6 triangles per leaf on average", 5.1); lancer's default is 32
+# (docs/accel/plucker.md, "Leaf size").
 SEED = ["plucker.leaf_size=12"]
 VARIANTS = [
     ("plucker (seed: 2:1, stored boxes)", "plucker", SEED),

@@ -24,7 +24,7 @@
 namespace lancer {
 
 enum class TriangleTest {
-    MollerTrumbore,  // Moller & Trumbore 1997 (seeds 003, 004): fast, may leak through shared edges
+    MollerTrumbore,  // Moller & Trumbore 1997 (Ferreira & Mendoza 2011, 3): fast, may leak at shared edges
     Watertight,      // Woop, Benthin & Wald 2013: no ray passes between two triangles that share an edge
 };
 
@@ -91,7 +91,7 @@ struct AccelFigure {
     std::string help;    // what it measures, one phrase
 };
 
-// Statistics of a built structure (seed 003's counts).
+// Statistics of a built structure (the counts of Ferreira & Mendoza 2011).
 struct AccelStats {
     double build_ms = 0.0;
     std::size_t primitives = 0;

@@ -1,5 +1,5 @@
 // Comparing two structures' answers ray by ray: the oracle tests, and `lancer bench`, which checks every
-// structure against the first one before it times them (style habit 9: validate while timing).
+// structure against the first one before it times them (validate while timing).
 #pragma once
 
 #include <cstddef>
@@ -10,8 +10,8 @@
 
 namespace lancer {
 
-// Agreement (issue 3): the same hit or miss, and t within 1e-5 relative. A different primitive at the same
-// t is a tie, counted apart, not an error.
+// Agreement: the same hit or miss, and t within 1e-5 relative. A different primitive at the same t is a
+// tie, counted apart, not an error.
 struct Agreement {
     std::size_t rays = 0, hits = 0, ties = 0, mismatches = 0;
     std::string first_mismatch;  // ray index, both answers

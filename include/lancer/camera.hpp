@@ -1,4 +1,4 @@
-// Primary-ray generation for the pinhole camera (seed 004; shared/bench/VIEWS.md).
+// Primary-ray generation for the pinhole camera (the "Lancer de rayon" slides; shared/bench/VIEWS.md).
 #pragma once
 
 #include <span>

@@ -1,4 +1,4 @@
-// The GPU path (issue 7; docs/cuda.md): a built `plucker` or `bvh` structure uploaded once to an NVIDIA GPU
+// The GPU path (docs/cuda.md): a built `plucker` or `bvh` structure uploaded once to an NVIDIA GPU
 // and traced there, a frame of the canonical camera or a batch of rays at a time. Built with LANCER_CUDA;
 // without it every call but cuda_available throws CudaError ("built without CUDA").
 #pragma once
@@ -17,7 +17,7 @@
 namespace lancer {
 
 enum class CudaKernel {
-    Plucker,     // seed 000 section 5.2: the Plücker walk, one thread per ray (a `plucker` structure)
+    Plucker,     // Portalez & Duguet 2016, 5.2: the Plücker walk, a thread per ray (a `plucker` structure)
     WhileWhile,  // Aila & Laine 2009, while-while (a `bvh` structure)
     SpeculativeWhileWhile,  // Aila & Laine 2009, speculative while-while
     Persistent,             // speculative while-while in persistent threads fetching warp-sized batches

@@ -24,9 +24,9 @@ class LoadError : public std::runtime_error {
     std::size_t line_;
 };
 
-// Loads by extension: .off (polygons fan-triangulated, file order kept), .dsc (seed 003: reads the .off of
-// the same stem beside it), .nff (Haines' SPD), anything else through assimp (PLY, OBJ, STL, glTF, ...).
-// The scene always has at least one material; a scene without camera keeps camera empty.
+// Loads by extension: .off (polygons fan-triangulated, file order kept), .dsc (Ferreira & Mendoza 2011: reads
+// the .off of the same stem beside it), .nff (Haines' SPD), anything else through assimp (PLY, OBJ, STL,
+// glTF, ...). The scene always has at least one material; a scene without camera keeps camera empty.
 [[nodiscard]] Scene load_scene(const std::filesystem::path& file);
 
 }  // namespace lancer

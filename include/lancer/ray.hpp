@@ -43,7 +43,7 @@ static_assert(sizeof(Hit) == 16);
 }
 
 // Closest-hit order shared by every structure so that all of them return the same answer on exact ties:
-// the smaller t wins, and at equal t the smaller primitive index (style habit 7: ties broken by index).
+// the smaller t wins, and at equal t the smaller primitive index.
 [[nodiscard]] constexpr bool closer(float t, std::int32_t prim, const Hit& best) {
     return t < best.t || (t == best.t && prim < best.prim);
 }

@@ -17,7 +17,7 @@
 namespace lancer {
 
 enum class ShadingMode {
-    Whitted,  // seed 003 4.3: ambient, shadowed point lights with Phong highlights, mirror and refracted rays
+    Whitted,  // Ferreira & Mendoza 2011, 4.3: ambient, shadowed Phong point lights, mirror and refracted rays
     Flat,     // the paper's Figure 5 look: material colour times |cos| between geometric normal and ray
     Normal,   // shading normal mapped from [-1, 1] to [0, 1]
     Depth,    // distance along the ray, near = white, far = black, misses black
@@ -39,7 +39,7 @@ struct RenderOptions {
     bool progress = false;  // a progress line on stderr (the CLI turns it on when stderr is a terminal)
     // Whitted mode (docs/whitted.md):
     int samples_per_pixel = 1;  // stratified over the pixel (a Hammersley set); 1 = the pixel centre
-    int max_depth = 5;          // ray-tree depth, the eye ray being depth 1 (seed 003 5; the SPD's 5)
+    int max_depth = 5;          // ray-tree depth, the eye ray being 1 (Ferreira & Mendoza 2011, 5; SPD: 5)
     // A reflected or refracted ray whose weight (product of ks and kt from the eye) is not above this is not
     // traced. 0 traces every ray with a positive weight, as the SPD asks.
     float min_weight = 1.0f / 512.0f;

@@ -36,7 +36,7 @@ struct Sphere {
     [[nodiscard]] Box3f bounds() const { return {center - Vec3f(radius), center + Vec3f(radius)}; }
 };
 
-// The plane x . normal = offset with a unit normal (seed 004, "intersection rayon-plan").
+// The plane x . normal = offset with a unit normal (the "Lancer de rayon" slides, "intersection rayon-plan").
 // Planes are unbounded, so no acceleration structure holds them: the scene tests them one by one.
 struct Plane {
     Vec3f normal{0.0f, 1.0f, 0.0f};
@@ -46,7 +46,7 @@ struct Plane {
 };
 
 // One surface description that covers the seed-003 .dsc material and the NFF `f` line.
-// Whitted's model (seed 003 4.3): I = Ia + kd sum(N.L) + ks S + kt T.
+// Whitted's model (Ferreira & Mendoza 2011, 4.3): I = Ia + kd sum(N.L) + ks S + kt T.
 struct Material {
     Vec3f color{0.8f};
     float kd = 1.0f;         // diffuse weight
@@ -62,7 +62,7 @@ struct Light {
     Vec3f color{1.0f};
 };
 
-// The pinhole camera of seed 004 and of shared/bench/VIEWS.md.
+// The pinhole camera of the "Lancer de rayon" slides and of shared/bench/VIEWS.md.
 struct Camera {
     Vec3f eye;
     Vec3f look_at;

@@ -1,10 +1,11 @@
 // Intel Embree behind lancer's interface, so that it is measured in the same process, on the same rays and
-// threads as lancer's own structures (issue 6), called the way its manual asks for speed (issue 20): one
-// structure per call, `embree` (rtcIntersect1, rtcOccluded1), `embree8` and `embree16` (packets of 8 and 16
-// consecutive rays: 4x2 and 4x4 pixels in a coherent batch, which gets the COHERENT flag). Compiled in when
-// Debian's Embree 3 is found (LANCER_EMBREE). Embree uses its own triangle test (watertight when --watertight
-// sets its robust mode) and its own traversal: it is a peer to compare with, not one of our kernels, so it is
-// checked against brute force by tests/accel/embree_test.cpp rather than held to the bit-exact oracle test.
+// threads as lancer's own structures (docs/results.md), called the way its manual asks for speed
+// (docs/results.md, "Embree at its best"): one structure per call, `embree` (rtcIntersect1, rtcOccluded1),
+// `embree8` and `embree16` (packets of 8 and 16 consecutive rays: 4x2 and 4x4 pixels in a coherent batch,
+// which gets the COHERENT flag). Compiled in when Debian's Embree 3 is found (LANCER_EMBREE). Embree uses its
+// own triangle test (watertight when --watertight sets its robust mode) and its own traversal: it is a peer
+// to compare with, not one of our kernels, so it is checked against brute force by
+// tests/accel/embree_test.cpp rather than held to the bit-exact oracle test.
 #pragma once
 
 #include <embree3/rtcore.h>

@@ -18,9 +18,10 @@ namespace {
 // does not depend on the thread count.
 constexpr std::size_t kPairBlock = 8192;
 
-// Cubic cells of side s with prod_a max(1, extent_a / s) ~= target_cells (seed 004: resolution ~ cbrt(n) per
-// axis for a cube). An axis thinner than s gets one cell and leaves the budget to the others, so a flat box
-// is cut in its plane only. The rounded counts may overshoot max_cells: s then grows until they fit.
+// Cubic cells of side s with prod_a max(1, extent_a / s) ~= target_cells (the "Lancer de rayon" slides:
+// resolution ~ cbrt(n) per axis for a cube). An axis thinner than s gets one cell and leaves the budget to
+// the others, so a flat box is cut in its plane only. The rounded counts may overshoot max_cells: s then
+// grows until they fit.
 std::array<int, 3> resolution_for(const Box3f& bounds, double target_cells, double max_cells) {
     const Vec3f box_extent = bounds.extent();
     const std::array<double, 3> extent = {box_extent.x, box_extent.y, box_extent.z};
@@ -165,7 +166,8 @@ bool GridAccel::fill_cells(std::size_t reference_budget) {
                 first[axis] = cell_index(axis, prim_bounds.lo[axis] - margin[axis]);
                 last[axis] = cell_index(axis, prim_bounds.hi[axis] + margin[axis]);
             }
-            // Seed 004: "une cellule : liste des objets l'intersectant" — the exact overlap, not the bounds.
+            // The "Lancer de rayon" slides: "une cellule : liste des objets l'intersectant" — the exact
+            // overlap, not the bounds.
             for (int z = first[2]; z <= last[2]; ++z) {
                 for (int y = first[1]; y <= last[1]; ++y) {
                     for (int x = first[0]; x <= last[0]; ++x) {
@@ -232,9 +234,9 @@ std::span<const std::uint32_t> GridAccel::cell_primitives(int x, int y, int z) c
     return std::span(references_).subspan(cell_begin_[cell], cell_begin_[cell + 1] - cell_begin_[cell]);
 }
 
-// The 3D-DDA of Amanatides & Woo (1987; seed 004 "Choisir la cellule suivante"), with the distances to the
-// next plane on each axis recomputed from the planes themselves rather than accumulated (t_next += dt), so
-// that each carries one bounded rounding error instead of one per step.
+// The 3D-DDA of Amanatides & Woo (1987; the "Lancer de rayon" slides, "Choisir la cellule suivante"), with
+// the distances to the next plane on each axis recomputed from the planes themselves rather than accumulated
+// (t_next += dt), so that each carries one bounded rounding error instead of one per step.
 template <bool kAnyHit, bool kCount, class TriangleTestT>
 bool GridAccel::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
                       TraversalCounters& counters) const {
@@ -245,8 +247,8 @@ bool GridAccel::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
         return false;
 
     // ENTRY: the cell of the entry point, which is the origin itself when it lies inside the box (t_entry is
-    // then tnear; seed 004: "l'origine du rayon peut être dans la boîte"). Clamping keeps a rounded entry
-    // point that falls just outside the box in its boundary cell.
+    // then tnear; the "Lancer de rayon" slides: "l'origine du rayon peut être dans la boîte"). Clamping keeps
+    // a rounded entry point that falls just outside the box in its boundary cell.
     const std::array<float, 3> origin = {ray.origin.x, ray.origin.y, ray.origin.z};
     const std::array<float, 3> inverse_direction = {slab.inv_direction.x, slab.inv_direction.y,
                                                     slab.inv_direction.z};
@@ -288,9 +290,9 @@ bool GridAccel::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
         // EXIT-FACE: the nearest next plane; ties go to the lower axis (deterministic).
         const int axis =
             t_next[0] <= t_next[1] ? (t_next[0] <= t_next[2] ? 0 : 2) : (t_next[1] <= t_next[2] ? 1 : 2);
-        // Seed 004 "Intersection(s) dans la cellule ? Oui : retourner la plus proche": stop once the best hit
-        // (or the end of the ray) lies inside the cells walked so far. An infinite exit (no axis steps) stops
-        // too, since tfar <= +inf.
+        // The "Lancer de rayon" slides, "Intersection(s) dans la cellule ? Oui : retourner la plus proche":
+        // stop once the best hit (or the end of the ray) lies inside the cells walked so far. An infinite
+        // exit (no axis steps) stops too, since tfar <= +inf.
         const float limit = kAnyHit ? ray.tfar : std::min(best.t, ray.tfar);  // best.t is +inf on a miss
         if (limit <= exit_lower_bound(t_next[axis])) break;
         // NEIGHBOR

@@ -1,7 +1,7 @@
-// Regular grid (seed 004, "Grille régulière"): the scene box cut into about density^3 * N cubic cells, each
-// listing the primitives that overlap it, walked front to back by the 3D-DDA of Amanatides & Woo, "A Fast
-// Voxel Traversal Algorithm for Ray Tracing" (Eurographics 1987; seed 004 "3DDDA"). Design note:
-// docs/accel/grid.md.
+// Regular grid (the "Lancer de rayon" slides, "Grille régulière"): the scene box cut into about density^3 * N
+// cubic cells, each listing the primitives that overlap it, walked front to back by the 3D-DDA of Amanatides
+// & Woo, "A Fast Voxel Traversal Algorithm for Ray Tracing" (Eurographics 1987; the "Lancer de rayon" slides,
+// "3DDDA"). Design note: docs/accel/grid.md.
 #pragma once
 
 #include <array>
@@ -18,8 +18,8 @@
 
 namespace lancer {
 
-// The options of `grid` (seed 004): cells per axis = density * cbrt(N), shared among the axes in proportion
-// to the box's extents, so that cells are about cubic.
+// The options of `grid` (the "Lancer de rayon" slides): cells per axis = density * cbrt(N), shared among the
+// axes in proportion to the box's extents, so that cells are about cubic.
 struct GridOptions {
     static constexpr std::string_view kGroup = "grid";
     float density = 1.0f;

@@ -81,12 +81,13 @@ static_assert(sizeof(StackEntry) == 12);
 }  // namespace
 
 // Front-to-back walk with a stack of far children (Havran's TA_rec_B in the iterative form of pbrt-v3's
-// KdTreeAccel::Intersect; seed 004 "KD-tree : parcours récursif": the three cases t* > tmax, t* < tmin,
-// tmin <= t* <= tmax). Each node is entered with an interval [tmin, tmax] that contains every parameter where
-// the ray is within the geometric tolerance of the node's box (docs/numerical-contract.md, "Boxes"): the
-// split crossing is bracketed (bracket() above), the near child gets [tmin, hi], the far one [lo, tmax]. A
-// child is skipped only when its interval is empty, so no rounding skips a leaf the ray passes through, and
-// a hit the kernel reports a hair outside its primitive's leaves is still found.
+// KdTreeAccel::Intersect; the "Lancer de rayon" slides, "KD-tree : parcours récursif": the three cases t* >
+// tmax, t* < tmin, tmin <= t* <= tmax). Each node is entered with an interval [tmin, tmax] that contains
+// every parameter where the ray is within the geometric tolerance of the node's box
+// (docs/numerical-contract.md, "Boxes"): the split crossing is bracketed (bracket() above), the near child
+// gets [tmin, hi], the far one [lo, tmax]. A child is skipped only when its interval is empty, so no rounding
+// skips a leaf the ray passes through, and a hit the kernel reports a hair outside its primitive's leaves is
+// still found.
 template <bool kAnyHit, bool kCount, class TriangleTestT>
 bool KdTreeAccel::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
                         TraversalCounters& counts) const {
@@ -205,7 +206,7 @@ std::size_t KdTreeAccel::memory_bytes() const {
 std::vector<BuildOptionRow> KdTreeAccel::option_rows() {
     return {
         choice_option<KdTreeOptions, KdTreeCost>(
-            "cost", "the split cost: Wald & Havran's SAH, or seed 003's", &KdTreeOptions::cost,
+            "cost", "the split cost: Wald & Havran's SAH, or Ferreira & Mendoza's", &KdTreeOptions::cost,
             {{"wald-havran", KdTreeCost::WaldHavran}, {"seed003", KdTreeCost::Seed003}}),
         number_option("traversal_cost", "the SAH's cost of a traversal step", &KdTreeOptions::traversal_cost,
                       0.0f, 1e6f),

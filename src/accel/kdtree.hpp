@@ -1,7 +1,7 @@
-// SAH kd-tree (Wald & Havran 2006; seeds 002, 003 section 5.3 and 004): perfect splits over the clipped
-// primitive boxes, an O(N log N) event-sweep build (accel/kdtree_build.hpp), and pbrt-v3's stack-based
-// front-to-back walk with early exit, its split distances bracketed so that rounding never skips the leaf
-// that holds the closest hit (docs/accel/kdtree.md).
+// SAH kd-tree (Wald & Havran 2006; Iehl 2011; Ferreira & Mendoza 2011, section 5.3; the "Lancer de rayon"
+// slides): perfect splits over the clipped primitive boxes, an O(N log N) event-sweep build
+// (accel/kdtree_build.hpp), and pbrt-v3's stack-based front-to-back walk with early exit, its split distances
+// bracketed so that rounding never skips the leaf that holds the closest hit (docs/accel/kdtree.md).
 #pragma once
 
 #include "accel/kdtree_build.hpp"

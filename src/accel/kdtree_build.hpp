@@ -17,7 +17,7 @@ namespace lancer {
 
 enum class KdTreeCost {
     WaldHavran,  // Wald & Havran 2006: SAH with an empty-space bonus
-    Seed003,     // seed 003 section 5.3.2: C = 1 / SA(N) [SA(L)(Nl + Nb) + SA(R)(Nr + Nb)], no bonus
+    Seed003,     // Ferreira & Mendoza 2011, 5.3.2: C = 1 / SA(N) [SA(L)(Nl + Nb) + SA(R)(Nr + Nb)], no bonus
 };
 
 // The options of `kdtree` (Wald & Havran 2006). max_depth 0 = automatic: 8 + 1.3 log2(N).
@@ -106,13 +106,13 @@ struct KdTreeData {
 // and `right_probability` (their surface areas over the node's) and which hold `left_count` and
 // `right_count` primitives (the straddling ones in both), in the chosen model:
 //   WaldHavran: Ct + Ci (P_L N_L + P_R N_R) (1 - empty_bonus when N_L or N_R is 0);
-//   Seed003:    P_L N_L + P_R N_R (seed 003 section 5.3.2: N_L = Trig_left + Trig_both, N_R likewise).
+//   Seed003:    P_L N_L + P_R N_R (Ferreira & Mendoza 2011, 5.3.2: N_L = Trig_left + Trig_both, so N_R).
 [[nodiscard]] double kdtree_split_cost(const KdTreeOptions& options, double left_probability,
                                        double right_probability, std::size_t left_count,
                                        std::size_t right_count);
 // The cost of making a leaf of `count` primitives instead, in the same model: Ci N (WaldHavran), or N
-// (Seed003: the "coût de ne pas diviser" of seed 003 section 5.3.3, SA(N) N / SA(N)). A node is split only
-// when its best split costs strictly less.
+// (Seed003: the "coût de ne pas diviser" of Ferreira & Mendoza 2011, section 5.3.3, SA(N) N / SA(N)). A node
+// is split only when its best split costs strictly less.
 [[nodiscard]] double kdtree_leaf_cost(const KdTreeOptions& options, std::size_t count);
 
 // Builds the tree over every primitive of `geometry` (triangles then spheres); with oneTBB, nodes of more

@@ -1,6 +1,7 @@
-// The classic octree (seed 004 "grille adaptative : octree"; seed 000 sections 1 and 2.2): the top-down build
-// of octree_build.hpp, walked with the parametric top-down algorithm of Revelles, Urena & Lastra, "An
-// Efficient Parametric Algorithm for Octree Traversal" (WSCG 2000), iteratively over a fixed-size stack.
+// The classic octree (the "Lancer de rayon" slides, "grille adaptative : octree"; Portalez & Duguet 2016,
+// sections 1 and 2.2): the top-down build of octree_build.hpp, walked with the parametric top-down algorithm
+// of Revelles, Urena & Lastra, "An Efficient Parametric Algorithm for Octree Traversal" (WSCG 2000),
+// iteratively over a fixed-size stack.
 //
 // Revelles' method works in a mirrored frame where every direction component is >= 0. There a node is
 // described by three parameters per axis: t0 (entry plane), t1 (exit plane) and tm (mid plane); its children

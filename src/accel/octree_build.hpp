@@ -1,6 +1,7 @@
-// The top-down octree build (seed 004 "grille adaptative : octree"; seed 000 section 2.2), shared by the
-// classic octree (octree.hpp, Revelles et al. 2000 traversal) and the Plücker-connected octree of seed 000,
-// which adds a 2:1 balance and neighbour links on top of this node array.
+// The top-down octree build (the "Lancer de rayon" slides, "grille adaptative : octree"; Portalez & Duguet
+// 2016, section 2.2), shared by the classic octree (octree.hpp, Revelles et al. 2000 traversal) and the
+// Plücker-connected octree of Portalez & Duguet 2016, which adds a 2:1 balance and neighbour links on top of
+// this node array.
 //
 // Cells are cubes. A cell of level l with integer coordinates (x, y, z), each in [0, 2^l), spans
 //   [root.lo + root.size * (x, y, z) / 2^l, root.lo + root.size * (x + 1, y + 1, z + 1) / 2^l]
@@ -22,8 +23,8 @@
 
 namespace lancer {
 
-// The options of `octree` (seed 004; Revelles et al. 2000): a node is split while depth < max_depth and it
-// holds more than leaf_size references.
+// The options of `octree` (the "Lancer de rayon" slides; Revelles et al. 2000): a node is split while depth <
+// max_depth and it holds more than leaf_size references.
 struct OctreeOptions {
     static constexpr std::string_view kGroup = "octree";
     int max_depth = 10;

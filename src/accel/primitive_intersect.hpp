@@ -1,5 +1,5 @@
 // What every structure does at a leaf: test one primitive of the global numbering against a ray, and the
-// once-per-batch dispatch of the policies that shape the hot loop (style habit 2).
+// once-per-batch dispatch of the policies that shape the hot loop, never a flag tested inside it.
 #pragma once
 
 #include <algorithm>

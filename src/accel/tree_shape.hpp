@@ -1,5 +1,6 @@
-// The shape the hierarchies measure of themselves (seed 003's counts), and the figures it makes in
-// AccelStats. A structure publishes them with its own figures (its SAH cost, each with what it means).
+// The shape the hierarchies measure of themselves (the counts of Ferreira & Mendoza 2011), and the figures it
+// makes in AccelStats. A structure publishes them with its own figures (its SAH cost, each with what it
+// means).
 #pragma once
 
 #include <cstddef>

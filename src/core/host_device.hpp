@@ -52,8 +52,8 @@ LANCER_HOST_DEVICE inline float inverse_power_of_two(int level) {
     return power;
 }
 
-// Loads through the read-only data cache on the device (__ldg, seed 000 section 5.2: cells, triangles and
-// boxes are never written during a frame); a plain load on the host.
+// Loads through the read-only data cache on the device (__ldg, Portalez & Duguet 2016, section 5.2: cells,
+// triangles and boxes are never written during a frame); a plain load on the host.
 template <class T>
 LANCER_HOST_DEVICE inline T read_only(const T* address) {
 #if defined(__CUDA_ARCH__)

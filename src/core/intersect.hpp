@@ -28,7 +28,7 @@ inline namespace LANCER_ISA_NAMESPACE {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// Slab test (Kay & Kajiya 1986; seed 004 "boîtes englobantes").
+// Slab test (Kay & Kajiya 1986; the "Lancer de rayon" slides, "boîtes englobantes").
 // The reciprocal direction of a zero component is +-inf; when the origin also lies on that slab's plane
 // the product is 0 * inf = NaN. The ray then runs inside the plane of a face, within the closed slab, so
 // that slab is unbounded: boxes are closed, and a ray along a face never loses the box.
@@ -74,7 +74,7 @@ struct TriangleHit {
     float t = 0.0f, u = 0.0f, v = 0.0f;
 };
 
-// Moller & Trumbore 1997, as written in seed 003 section 3:
+// Moller & Trumbore 1997, as written in Ferreira & Mendoza 2011, section 3:
 // [t u v] = 1 / ((D x E2) . E1) [((T x E1) . E2), ((D x E2) . T), ((T x E1) . D)], T = O - V0.
 struct MollerTrumbore {
     // |det| <= 2^-20 |d| |e1| |e2| (max norms): a miss (parallel ray, degenerate triangle).
@@ -270,9 +270,9 @@ struct Watertight {
 };
 
 // ---------------------------------------------------------------------------------------------------------
-// Ray-sphere (seed 004): t^2 d.d + 2t d.(o - c) + |o - c|^2 - r^2 = 0, solved with the discriminant of
-// Haines et al., "Precision Improvements for Ray/Sphere Intersection" (Ray Tracing Gems, ch. 7), which
-// stays accurate far from the sphere, and the stable root pair q / a, c / q. The nearer root in
+// Ray-sphere (the "Lancer de rayon" slides): t^2 d.d + 2t d.(o - c) + |o - c|^2 - r^2 = 0, solved with the
+// discriminant of Haines et al., "Precision Improvements for Ray/Sphere Intersection" (Ray Tracing Gems, ch.
+// 7), which stays accurate far from the sphere, and the stable root pair q / a, c / q. The nearer root in
 // [tnear, tfar] wins; the far one answers rays that start inside. (u, v) = (azimuth / 2pi, polar / pi).
 // In double: the squares of float lengths neither underflow nor overflow there, where in float a tiny radius
 // and a ray's tiny distance from the sphere both square to 0 and the discriminant says tangent
@@ -312,7 +312,7 @@ struct Watertight {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// Ray-plane, t = (D - o.n) / (d.n), with the four cases of seed 004.
+// Ray-plane, t = (D - o.n) / (d.n), with the four cases of the "Lancer de rayon" slides.
 enum class PlaneCase {
     Parallel,  // d.n = 0 and the origin off the plane: t infinite, no hit
     InPlane,   // d.n = 0 and the origin on the plane: t undefined, counted as no hit

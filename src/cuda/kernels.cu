@@ -15,7 +15,7 @@ namespace {
 constexpr unsigned kBlockSize = 128;
 constexpr unsigned kWarpSize = 32;
 
-// Seed 000 section 5.2: the lookup tables in constant memory.
+// Portalez & Duguet 2016, section 5.2: the lookup tables in constant memory.
 __constant__ plucker::PluckerTables c_tables;
 
 // The speculative traversal's vote over the lanes still in the loop.

@@ -22,7 +22,7 @@ struct LaunchRays {
     CameraFrame camera;
 };
 
-// Copies seed 000's tables to constant memory (once per process is enough; idempotent).
+// Copies Portalez & Duguet's tables to constant memory (once per process is enough; idempotent).
 void upload_plucker_tables(const plucker::PluckerTables& tables);
 
 // Runs `kernel` over the rays, hits[slot] for each (a frame's slot: y * width + x), and returns the

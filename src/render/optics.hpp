@@ -1,6 +1,7 @@
-// The optics of the Whitted ray tree: mirror and Snell-Descartes directions (seed 003 sections 4.1 and 4.2),
-// Fresnel's dielectric reflectance, the camera's sample positions, and secondary-ray origins moved off the
-// surface they leave (seed 004, "problème de précision"; Wächter & Binder 2019).
+// The optics of the Whitted ray tree: mirror and Snell-Descartes directions (Ferreira & Mendoza 2011,
+// sections 4.1 and 4.2), Fresnel's dielectric reflectance, the camera's sample positions, and secondary-ray
+// origins moved off the surface they leave (the "Lancer de rayon" slides, "problème de précision"; Wächter &
+// Binder 2019).
 #pragma once
 
 #include <algorithm>
@@ -13,14 +14,14 @@
 
 namespace lancer {
 
-// Seed 003 4.1: V = 2 (I.N) N - I for I the unit vector back along the incoming ray; with d = -I the
-// direction of travel, V = d - 2 (d.N) N. Any side of the surface, any length of d.
+// Ferreira & Mendoza 2011, 4.1: V = 2 (I.N) N - I for I the unit vector back along the incoming ray; with d =
+// -I the direction of travel, V = d - 2 (d.N) N. Any side of the surface, any length of d.
 [[nodiscard]] inline Vec3f reflect(Vec3f direction, Vec3f normal) {
     return direction - 2.0f * dot(direction, normal) * normal;
 }
 
-// Seed 003 4.2, Snell-Descartes n_i sin(theta_i) = n_t sin(theta_t): the refracted direction of the unit
-// direction d arriving at a surface whose unit normal n faces the incoming side (d.n <= 0), with
+// Ferreira & Mendoza 2011, 4.2, Snell-Descartes n_i sin(theta_i) = n_t sin(theta_t): the refracted direction
+// of the unit direction d arriving at a surface whose unit normal n faces the incoming side (d.n <= 0), with
 // eta = n_i / n_t. Written with d = -I as
 //   T = eta d + (eta cos(theta_i) - cos(theta_t)) n,  cos(theta_i) = -d.n,
 //   cos(theta_t) = sqrt(1 - eta^2 (1 - cos^2(theta_i))),

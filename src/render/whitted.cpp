@@ -1,4 +1,5 @@
-// The ray tree of seed 003 section 5.4, walked without recursion. Whitted's model (seed 003 4.3),
+// The ray tree of Ferreira & Mendoza 2011, section 5.4, walked without recursion. Whitted's model (Ferreira &
+// Mendoza 2011, 4.3),
 //   I = Ia + kd sum_j (N.L_j) + ks S + kt T,
 // is linear in S and T, so a node's value is its local term plus its children's values scaled by ks and kt:
 // the value of the whole tree is the sum over its nodes of (product of the ks and kt on the path from the
@@ -19,7 +20,8 @@
 namespace lancer {
 namespace {
 
-// One node of the ray tree (seed 003, Tableau 2, without the pointers the weights make unnecessary).
+// One node of the ray tree (Ferreira & Mendoza 2011, Tableau 2, without the pointers the weights make
+// unnecessary).
 struct RayNode {
     Ray ray;               // unit direction, origin already moved off the surface it leaves
     float weight;          // product of the ks and kt met since the eye ray
@@ -45,7 +47,7 @@ struct LevelOutput {
 };
 
 // The surface as the arriving ray sees it: which side it came from is decided by the geometric normal (the
-// sign of I.N, seed 003 4.2), and both normals are turned towards that side.
+// sign of I.N, Ferreira & Mendoza 2011, 4.2), and both normals are turned towards that side.
 struct FacingSurface {
     Vec3f position;
     Vec3f geometric;  // unit, facing the incoming ray
@@ -103,10 +105,10 @@ class LevelShader {
     }
 
   private:
-    // Seed 003 4.3's kd sum_j (N.L_j), with the surface colour, plus a Phong highlight ks (V.L)^shininess
-    // around the mirror direction V, both scaled by the light's colour and only where its shadow ray is
-    // free. As the SPD asks, no shadow ray is cast when the normal faces away from the light: the shading
-    // normal (no light) or the facet's normal (the ray would leave through the surface).
+    // Ferreira & Mendoza 2011, 4.3: kd sum_j (N.L_j), with the surface colour, plus a Phong highlight ks
+    // (V.L)^shininess around the mirror direction V, both scaled by the light's colour and only where its
+    // shadow ray is free. As the SPD asks, no shadow ray is cast when the normal faces away from the light:
+    // the shading normal (no light) or the facet's normal (the ray would leave through the surface).
     void add_lights(const RayNode& node, const Material& material, Vec3f color,
                     const FacingSurface& surface) const {
         const bool highlight = material.ks > 0.0f && material.shininess > 0.0f;
@@ -129,10 +131,10 @@ class LevelShader {
         }
     }
 
-    // Seed 003 4.1 and 4.2: the mirror ray takes ks; the refracted ray takes kt, or hands it to the mirror
-    // ray under total internal reflection (the SPD still spawns that ray). With Fresnel on, kt is split
-    // between the two by the dielectric reflectance. Children whose weight is not above the minimum are
-    // cut off.
+    // Ferreira & Mendoza 2011, 4.1 and 4.2: the mirror ray takes ks; the refracted ray takes kt, or hands it
+    // to the mirror ray under total internal reflection (the SPD still spawns that ray). With Fresnel on, kt
+    // is split between the two by the dielectric reflectance. Children whose weight is not above the minimum
+    // are cut off.
     void add_children(const RayNode& node, const Material& material, const FacingSurface& surface) const {
         float reflection_weight = material.ks;
         float refraction_weight = 0.0f;

@@ -1,6 +1,7 @@
-// Whitted's ray tracer (Whitted 1980; seed 003 sections 4 and 5; seed 004 "extension du modèle"), one tile at
-// a time: every level of the ray tree of all the tile's camera samples is one batch of closest-hit rays
-// through the SceneIntersector, and its shadow rays one batch of occlusion queries. docs/whitted.md.
+// Whitted's ray tracer (Whitted 1980; Ferreira & Mendoza 2011, sections 4 and 5; the "Lancer de rayon"
+// slides, "extension du modèle"), one tile at a time: every level of the ray tree of all the tile's camera
+// samples is one batch of closest-hit rays through the SceneIntersector, and its shadow rays one batch of
+// occlusion queries. docs/whitted.md.
 #pragma once
 
 #include <cstdint>

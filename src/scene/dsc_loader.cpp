@@ -1,4 +1,5 @@
-// DSC, seed 003 section 5.2: the materials, lights and image size that go with the .off of the same stem.
+// DSC, Ferreira & Mendoza 2011, section 5.2: the materials, lights and image size that go with the .off of
+// the same stem.
 //   DSC
 //   width height
 //   nmaterials nlights
@@ -26,8 +27,9 @@ constexpr std::size_t min_material_chars = 12;
 constexpr std::size_t min_light_chars = 12;
 constexpr std::size_t min_triangle_chars = 2;
 
-// Seed 003 names three coefficients; Whitted's model has four weights. The transmission weight is what
-// the diffuse and reflection weights leave, and only a refracting material (index set and not 1) has one.
+// Ferreira & Mendoza 2011 name three coefficients; Whitted's model has four weights. The transmission weight
+// is what the diffuse and reflection weights leave, and only a refracting material (index set and not 1) has
+// one.
 Material dsc_material(Vec3f color, float reflection, float intensity, float refraction_index) {
     Material material;
     material.color = color;

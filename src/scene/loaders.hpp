@@ -22,7 +22,8 @@ struct OffMesh {
 [[nodiscard]] OffMesh read_off(const std::filesystem::path& file);
 
 [[nodiscard]] Scene load_off(const std::filesystem::path& file);
-// Seed 003's scene description: materials, lights and a per-face material for the .off of the same stem.
+// Ferreira & Mendoza's scene description (2011, section 5.2): materials, lights and a per-face material for
+// the .off of the same stem.
 [[nodiscard]] Scene load_dsc(const std::filesystem::path& file);
 // Eric Haines' Neutral File Format, as the Standard Procedural Databases write it.
 [[nodiscard]] Scene load_nff(const std::filesystem::path& file);

@@ -1,4 +1,4 @@
-// OFF (Object File Format), as seed 003 section 5.2 and the usual readers know it:
+// OFF (Object File Format), as Ferreira & Mendoza 2011, section 5.2, and the usual readers know it:
 //   OFF                      (COFF, NOFF and CNOFF too: their extra vertex columns are ignored)
 //   nv nf [ne]               (may follow OFF on its line; ne is ignored)
 //   x y z [...]              nv vertex lines, extra columns (colours, normals) ignored

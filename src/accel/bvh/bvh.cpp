@@ -139,7 +139,7 @@ std::size_t BvhAccel::memory_bytes() const {
 std::vector<BuildOptionRow> BvhAccel::option_rows() {
     return {
         choice_option<BvhOptions, BvhBuilder>(
-            "builder", "the SAH builder: binned, or a full sweep (seed 002)", &BvhOptions::builder,
+            "builder", "the SAH builder: binned, or a full sweep (Iehl 2011)", &BvhOptions::builder,
             {{"binned", BvhBuilder::BinnedSah}, {"sweep", BvhBuilder::SweepSah}}),
         number_option("max_leaf_size", "primitives a leaf may hold (also bvh4, bvh8)",
                       &BvhOptions::max_leaf_size, 1, 64),

@@ -1,5 +1,5 @@
-// Binary bounding volume hierarchy built with the surface-area heuristic (MacDonald & Booth 1990; seed 002),
-// either by the full sweep over centroids sorted once per axis (seed 002, "incrémental : trier une seule
+// Binary bounding volume hierarchy built with the surface-area heuristic (MacDonald & Booth 1990; Iehl 2011),
+// either by the full sweep over centroids sorted once per axis (Iehl 2011, "incrémental : trier une seule
 // fois par axe") or by binning (Wald 2007, "On fast construction of SAH-based bounding volume hierarchies"),
 // traversed front to back with a small stack. docs/accel/bvh.md has the design note.
 #pragma once
@@ -14,7 +14,7 @@
 namespace lancer {
 
 enum class BvhBuilder {
-    SweepSah,   // seed 002: full sweep over centroids sorted on each axis
+    SweepSah,   // Iehl 2011: full sweep over centroids sorted on each axis
     BinnedSah,  // Wald 2007: binned SAH, parallel over oneTBB when available
 };
 

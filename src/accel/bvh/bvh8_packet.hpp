@@ -1,4 +1,4 @@
-// Large-packet traversal of the 8-wide BVH (lancer issue 20): 64 consecutive rays (one 8x8 tile of
+// Large-packet traversal of the 8-wide BVH (docs/accel/packets.md): 64 consecutive rays (one 8x8 tile of
 // primary rays) walk `bvh8` together. Each node culls its 8 children for the whole packet at once with
 // interval arithmetic on the packet's origins and reciprocal directions (Overbeck, Ramamoorthi & Mark,
 // "Large Ray Packets for Real-time Whitted Ray Tracing", RT 2008; Fuetterling et al., "Efficient Ray Tracing

@@ -1,4 +1,4 @@
-// Coherent packet traversal of the binary SAH BVH (seed 002, "parcours cohérent"; lancer issue 6): the
+// Coherent packet traversal of the binary SAH BVH (Iehl 2011, "parcours cohérent"): the
 // rays of a packet (consecutive rays of the batch, one 8x8 tile of primary rays) go down the tree together.
 // Each node's box is tested against all the packet's active rays at once, 8 lanes per AVX2 instruction
 // (SIMD across rays, Wald, Slusallek, Benthin & Wagner 2001; masked traversal as in Wald, Boulos & Shirley

@@ -1,6 +1,6 @@
-// The regularity constraint of seed 000 section 2.2 ("la difference de profondeur entre deux voisins ne peut
-// exceder 1"), applied to the octree of octree_build.hpp, and the face-neighbour queries that the links and
-// the balance share.
+// The regularity constraint of Portalez & Duguet 2016, section 2.2 ("la difference de profondeur entre deux
+// voisins ne peut exceder 1"), applied to the octree of octree_build.hpp, and the face-neighbour queries that
+// the links and the balance share.
 #pragma once
 
 #include <array>

@@ -1,7 +1,8 @@
 // The numbering of faces, vertices and sub-faces of a cell of the Plücker octree, and the lookup tables of
-// seed 000 section 4.2 (equations 6 to 10) derived from it at compile time: the seed's Figure 4, which fixes
-// its own numbering, is missing, so its tables (7), (8) and (9) cannot be copied. Derivation and conventions:
-// docs/accel/plucker.md; tests/accel/plucker_tables_test.cpp checks the tables against slab computations.
+// Portalez & Duguet 2016, section 4.2 (equations 6 to 10) derived from it at compile time: the seed's Figure
+// 4, which fixes its own numbering, is missing, so its tables (7), (8) and (9) cannot be copied. Derivation
+// and conventions: docs/accel/plucker.md; tests/accel/plucker_tables_test.cpp checks the tables against slab
+// computations.
 #pragma once
 
 #include <array>
@@ -39,8 +40,8 @@ struct IntVec {
     long long c[3];
 };
 
-// The permuted inner product of the ray (o, d) with the line through p along +e_axis (seed 000, eq. 2 with
-// the simplification of eq. 4-5): Pi_axis(p) = d . ((p - o) x e_axis) = (d x (p - o))_axis.
+// The permuted inner product of the ray (o, d) with the line through p along +e_axis (Portalez & Duguet 2016,
+// eq. 2 with the simplification of eq. 4-5): Pi_axis(p) = d . ((p - o) x e_axis) = (d x (p - o))_axis.
 [[nodiscard]] constexpr long long pluecker(const IntVec& o, const IntVec& d, const IntVec& p, int axis) {
     const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
     return d.c[a1] * (p.c[a2] - o.c[a2]) - d.c[a2] * (p.c[a1] - o.c[a1]);

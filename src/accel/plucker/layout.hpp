@@ -1,8 +1,8 @@
-// The trace-time arrays of the Plücker octree (seed 000 section 3): the cells as a stream of 32-bit words
-// (a leaf's are equation (3)'s, with running ends of the neighbour lists instead of counts), the triangles in
-// leaf order, the cell boxes and the boundary cube map, plus the point-location tree that rays starting
-// inside the root need. Plain data: this is also the on-disk layout (serialise.hpp). Each deviation from the
-// seed and its reason: docs/accel/plucker.md, "Layout".
+// The trace-time arrays of the Plücker octree (Portalez & Duguet 2016, section 3): the cells as a stream of
+// 32-bit words (a leaf's are equation (3)'s, with running ends of the neighbour lists instead of counts), the
+// triangles in leaf order, the cell boxes and the boundary cube map, plus the point-location tree that rays
+// starting inside the root need. Plain data: this is also the on-disk layout (serialise.hpp). Each deviation
+// from the seed and its reason: docs/accel/plucker.md, "Layout".
 #pragma once
 
 #include <array>
@@ -100,9 +100,9 @@ struct PluckerPrimitive {
 };
 static_assert(sizeof(PluckerPrimitive) == 40);
 
-// The boundary cube map (seed 000 section 3, Figure 3), on the faces of the geometry's bounds rather than
-// the root's: for each face, a square of 2^level x 2^level texels, level the deepest leaf in the face's
-// layer (the cells that hold the face's plane, ties to the side of the rays entering through it), each
+// The boundary cube map (Portalez & Duguet 2016, section 3, Figure 3), on the faces of the geometry's bounds
+// rather than the root's: for each face, a square of 2^level x 2^level texels, level the deepest leaf in the
+// face's layer (the cells that hold the face's plane, ties to the side of the rays entering through it), each
 // holding the address of the leaf of that layer that contains it. Texel (i, j) on face f covers in-face
 // cells i (lower in-face axis) and j (upper) at that level; it is texels[offset[f] + i + (j << level[f])].
 // The cube map stops at 2^10 x 2^10 texels per face (4 MiB, the seed's 24 MB for the dragon over six

@@ -1,4 +1,4 @@
-// The Plücker-connected octree of Portalez & Duguet, "Lancer de rayons dans un octree" (2016; seed 000):
+// The Plücker-connected octree of Portalez & Duguet, "Lancer de rayons dans un octree" (2016):
 // the octree of octree_build.hpp made 2:1 balanced (balance.hpp), its leaves linked to their face
 // neighbours and laid out as the seed's four arrays (layout.hpp), walked leaf to leaf with Plücker tests
 // for the exit face and the sub-face (walk.hpp, conventions.hpp). Design note: docs/accel/plucker.md.
@@ -14,7 +14,7 @@
 
 namespace lancer {
 
-// The options of `plucker` and `plucker_packet` (seed 000, Portalez & Duguet 2016): the octree with the 2:1
+// The options of `plucker` and `plucker_packet` (Portalez & Duguet 2016): the octree with the 2:1
 // rule and face-neighbour links, walked leaf to leaf. max_depth 0 = automatic: round(0.8 log2(N) - 5), the
 // depths of the seed's section 5.2 (8 for the bunny's 69k triangles, 10 for the armadillo's 346k, 11 for
 // the dragon's 871k). The other fields are the variants of its section 6 (docs/accel/plucker.md).

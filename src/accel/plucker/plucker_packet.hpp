@@ -1,5 +1,5 @@
-// Packets of rays walked leaf to leaf through the Plücker-connected octree (seed 002's "parcours cohérent"
-// applied to seed 000's walk; lancer issue 6). Every ray keeps its own walk state; the walk repeatedly takes
+// Packets of rays walked leaf to leaf through the Plücker-connected octree (Iehl 2011's "parcours cohérent"
+// applied to Portalez & Duguet's walk). Every ray keeps its own walk state; the walk repeatedly takes
 // the leaf of the first ray still walking, tests all the rays standing in that same leaf together (each
 // triangle loaded once for all of them), then moves each of them to its next leaf by its own EXIT-FACE and
 // NEIGHBOR steps. A ray therefore visits exactly the leaves, with exactly the search intervals, of its walk

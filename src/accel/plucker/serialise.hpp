@@ -1,6 +1,6 @@
-// The Plücker octree on disk (seed 000 section 3: the cells, the triangles, the boxes and the cube map),
-// with the geometry it was built on, so that `lancer convert` writes it once and `lancer render` and
-// `lancer rays` load it back without a build. Versioned (magic, version, header size, layout flags),
+// The Plücker octree on disk (Portalez & Duguet 2016, section 3: the cells, the triangles, the boxes and the
+// cube map), with the geometry it was built on, so that `lancer convert` writes it once and `lancer render`
+// and `lancer rays` load it back without a build. Versioned (magic, version, header size, layout flags),
 // little-endian, read by memcpy.
 //
 // File: a 136-byte header (PluckerFileHeader), then the arrays in this order, each packed:

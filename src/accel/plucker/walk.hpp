@@ -1,10 +1,10 @@
-// The walk of seed 000 section 4, one source for the CPU structures (plucker.cpp, packet.cpp) and the GPU
-// kernel (cuda/plucker_walk.hpp): entry by the boundary cube map (4.1), exit face by three Plücker signs and
-// a table (4.2.1), sub-face by two more signs and a table (4.2.2), the loop of 4.2.3. Phases in the code:
-// ENTRY, LEAF, EXIT-FACE, NEIGHBOR. It deviates from the seed where an exact closest hit needs it: it goes on
-// past the first leaf with a hit, descends the tree for rays that start inside, gives zero direction
-// components a sign, and computes the Plücker products in double (docs/accel/plucker.md, "The walk", "Zero
-// direction components", "The Plücker products").
+// The walk of Portalez & Duguet 2016, section 4, one source for the CPU structures (plucker.cpp, packet.cpp)
+// and the GPU kernel (cuda/plucker_walk.hpp): entry by the boundary cube map (4.1), exit face by three
+// Plücker signs and a table (4.2.1), sub-face by two more signs and a table (4.2.2), the loop of 4.2.3.
+// Phases in the code: ENTRY, LEAF, EXIT-FACE, NEIGHBOR. It deviates from the seed where an exact closest hit
+// needs it: it goes on past the first leaf with a hit, descends the tree for rays that start inside, gives
+// zero direction components a sign, and computes the Plücker products in double (docs/accel/plucker.md, "The
+// walk", "Zero direction components", "The Plücker products").
 #pragma once
 
 #include <cstdint>
@@ -55,8 +55,9 @@ struct PluckerView {
     return view;
 }
 
-// Seed 000's tables (equations 8 and 9) and the tie bits of conventions.hpp as one plain struct: the GPU
-// copies it to constant memory (section 5.2), where a warp reading one entry is served in one broadcast.
+// Portalez & Duguet's tables (2016, equations 8 and 9) and the tie bits of conventions.hpp as one plain
+// struct: the GPU copies it to constant memory (section 5.2), where a warp reading one entry is served in one
+// broadcast.
 struct PluckerTables {
     std::uint8_t exit_face[8][8];
     std::uint8_t neighbour_quadrant[6][8];
@@ -181,11 +182,11 @@ struct SlabInterval {
     return word >> 1;
 }
 
-// ENTRY (seed 000 section 4.1): the first leaf along [tnear, tfar], or false when the ray misses the
-// geometry's bounds (grown by the scene's tolerance, as every structure's boxes: docs/numerical-contract.md).
-// The seed enters by the root's faces; the root is a cube anchored at the bounds' lower corner, and the walk
-// starts and ends at the bounds instead, so that it does not cross the root's empty rest (PluckerLayout::
-// bounds). walk_end: where the ray leaves the bounds.
+// ENTRY (Portalez & Duguet 2016, section 4.1): the first leaf along [tnear, tfar], or false when the ray
+// misses the geometry's bounds (grown by the scene's tolerance, as every structure's boxes:
+// docs/numerical-contract.md). The seed enters by the root's faces; the root is a cube anchored at the
+// bounds' lower corner, and the walk starts and ends at the bounds instead, so that it does not cross the
+// root's empty rest (PluckerLayout:: bounds). walk_end: where the ray leaves the bounds.
 [[nodiscard]] LANCER_HOST_DEVICE inline bool entry_leaf(const PluckerView& view, const Ray& ray,
                                                         const WalkRay& walk_ray, std::uint32_t& address,
                                                         float& walk_end) {
