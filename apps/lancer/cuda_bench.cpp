@@ -1,6 +1,7 @@
 // lancer bench --device cuda: the GPU kernels on the canonical view (VIEWS.md), validated against the CPU
-// structure on the same rays before they are timed (style habit 9). The time is the kernel's alone (CUDA
-// events): ray generation is in the kernel, the transfers of the hits are not, as in seed 000 Table 2.
+// structure on the same rays before they are timed. The time is the kernel's alone (CUDA events): ray
+// generation is in the kernel, the transfers of the hits are not, as in Portalez & Duguet, "Lancer de rayons
+// dans un octree" (2016), Table 2.
 #include <fmt/core.h>
 
 #include <algorithm>

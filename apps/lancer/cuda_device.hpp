@@ -1,4 +1,4 @@
-// `--device cpu|cuda` for bench, render and rays (issue 7): the option, the early refusal when no CUDA
+// `--device cpu|cuda` for bench, render and rays: the option, the early refusal when no CUDA
 // device can be used (exit code 2), and the GPU paths themselves, kept out of the commands' files.
 #pragma once
 

@@ -1,5 +1,6 @@
-// lancer stats MESH --accel NAME [--json FILE] [--rays]: what a structure looks like once built (seed 003's
-// operation counts, the paper's Figure 6 in numbers), and with --rays its cost per primary ray.
+// lancer stats MESH --accel NAME [--json FILE] [--rays]: what a structure looks like once built (the
+// operation counts of Ferreira & Mendoza (2011), their Figure 6 in numbers), and with --rays its cost per
+// primary ray.
 #include <fmt/core.h>
 #include <fmt/os.h>
 
