@@ -1,5 +1,5 @@
 // Intel Embree behind lancer's interface, so that it is measured in the same process, on the same rays and
-// threads as lancer's own structures (issue 6), called the way its manual asks for speed (issue 20): one
+// threads as lancer's own structures, called the way its manual asks for speed: one
 // structure per call, `embree` (rtcIntersect1, rtcOccluded1), `embree8` and `embree16` (packets of 8 and 16
 // consecutive rays: 4x2 and 4x4 pixels in a coherent batch, which gets the COHERENT flag). Compiled in when
 // Debian's Embree 3 is found (LANCER_EMBREE). Embree uses its own triangle test (watertight when --watertight
@@ -24,6 +24,11 @@ struct EmbreeOptions {
     static constexpr std::string_view kGroup = "embree";
     EmbreeQuality quality = EmbreeQuality::High;
 };
+
+// The ids of lancer's triangles and spheres in Embree's scene, one geometry each: Embree numbers primitives
+// per geometry, and lancer's hits number the spheres after the triangles.
+inline constexpr unsigned int kEmbreeTriangleGeometry = 0;
+inline constexpr unsigned int kEmbreeSphereGeometry = 1;
 
 class EmbreeAccel final : public Accel {
   public:
@@ -60,8 +65,10 @@ class EmbreeAccel final : public Accel {
 
     RTCDevice device_ = nullptr;
     RTCScene scene_ = nullptr;
-    Box3f scene_box_;  // grown by the geometric tolerance: where a ray with tnear < 0 starts (embree.cpp)
-    float scene_scale_ = 1.0f;  // the power of two Embree's copy of the scene is scaled by (embree.cpp)
+    Box3f
+        scene_box_;  // grown by the geometric tolerance: where a ray with tnear < 0 starts (embree_rays.cpp)
+    float scene_scale_ =
+        1.0f;  // the power of two Embree's copy of the scene is scaled by (embree.cpp, scene_scale)
     unsigned int triangle_count_ = 0;
     std::size_t primitive_count_ = 0;
     std::size_t buffer_bytes_ = 0;
