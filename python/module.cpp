@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "files.hpp"
+#include "pinhole_rays.hpp"
 #include "raycasting_scene.hpp"
 
 namespace py = pybind11;
@@ -76,13 +77,13 @@ class Array(numpy.ndarray):
         .def_static(
             "create_rays_pinhole",
             py::overload_cast<double, const py::object&, const py::object&, const py::object&, int, int>(
-                &RaycastingScene::create_rays_pinhole),
+                &lancer::python::create_rays_pinhole),
             py::arg("fov_deg"), py::arg("center"), py::arg("eye"), py::arg("up"), py::arg("width_px"),
             py::arg("height_px"),
             "Rays (height_px, width_px, 6) of a pinhole camera at `eye` looking at `center`")
         .def_static("create_rays_pinhole",
                     py::overload_cast<const py::object&, const py::object&, int, int>(
-                        &RaycastingScene::create_rays_pinhole),
+                        &lancer::python::create_rays_pinhole),
                     py::arg("intrinsic_matrix"), py::arg("extrinsic_matrix"), py::arg("width_px"),
                     py::arg("height_px"),
                     "Rays (height_px, width_px, 6) of a pinhole camera: intrinsic_matrix K (3, 3), "

@@ -1,88 +1,19 @@
 #include "raycasting_scene.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <mutex>
-#include <numbers>
 #include <optional>
 #include <stdexcept>
+
+#include "array_arguments.hpp"
+#include "lancer/parallel.hpp"
 
 namespace lancer::python {
 
 using namespace pybind11::literals;
 
 namespace {
-
-std::string shape_text(const py::array& array) {
-    std::string text = "(";
-    for (py::ssize_t axis = 0; axis < array.ndim(); ++axis)
-        text.append(axis == 0 ? "" : ", ").append(std::to_string(array.shape(axis)));
-    return text + (array.ndim() == 1 ? ",)" : ")");
-}
-
-// `array` viewed as a lancer.Array (module.cpp), the NumPy array with Open3D's Tensor.numpy(), so that code
-// written for Open3D's answers runs on lancer's as it is.
-py::array open3d_like(const py::array& array) {
-    return array.attr("view")(py::module_::import("lancer").attr("Array"));
-}
-
-// A tensor that gives a NumPy array (numpy(): Open3D's, torch's on the CPU) as that array, which shares its
-// memory; anything else as it is.
-py::object numpy_of(const py::object& object) {
-    if (py::isinstance<py::array>(object) || !py::hasattr(object, "numpy")) return object;
-    return object.attr("numpy")();
-}
-
-// A float32 array of shape (..., width), C-contiguous (read in place when it already is), from an array or a
-// tensor (numpy_of). Throws TypeError or ValueError naming `name`, and with `check_finite` for a NaN or
-// infinite value (the ray queries check their rows as each task converts them instead: rays_of).
-py::array_t<float, py::array::c_style> float_rows(const py::object& argument, const std::string& name,
-                                                  py::ssize_t width, bool check_finite = true) {
-    const py::object object = numpy_of(argument);
-    if (!py::isinstance<py::array>(object))
-        throw py::type_error(name + ": expected a numpy array of float32, got " +
-                             std::string(py::str(py::type::of(object).attr("__name__"))));
-    const auto array = py::reinterpret_borrow<py::array>(object);
-    if (array.dtype().kind() != 'f' || array.itemsize() != 4)
-        throw py::type_error(name + ": expected dtype float32, got " + std::string(py::str(array.dtype())));
-    if (array.ndim() < 1 || array.shape(array.ndim() - 1) != width)
-        throw py::value_error(name + ": expected shape (..., " + std::to_string(width) + "), got " +
-                              shape_text(array));
-    auto rows = py::array_t<float, py::array::c_style>::ensure(array);
-    const float* data = rows.data();
-    for (py::ssize_t i = 0; check_finite && i < rows.size(); ++i) {
-        if (!std::isfinite(data[i]))
-            throw py::value_error(name + ": row " + std::to_string(i / width) +
-                                  " holds a NaN or infinite value");
-    }
-    return rows;
-}
-
-// The shape of `rows` without its last axis, then `extra` (the shape of one answer, empty for a scalar).
-std::vector<py::ssize_t> answer_shape(const py::array& rows, std::initializer_list<py::ssize_t> extra = {}) {
-    std::vector<py::ssize_t> shape(rows.shape(), rows.shape() + rows.ndim() - 1);
-    shape.insert(shape.end(), extra);
-    return shape;
-}
-
-// An uninitialised C-contiguous array of `shape` whose data starts on a 64-byte boundary, as
-// stream_tile_pair needs: a view into a NumPy array one line longer, which owns the memory.
-template <class T>
-py::array_t<T> line_aligned_array(const std::vector<py::ssize_t>& shape) {
-    constexpr std::size_t kLine = 64;
-    py::ssize_t count = 1;
-    for (const py::ssize_t extent : shape)
-        count *= extent;
-    py::array_t<T> storage(count + static_cast<py::ssize_t>(kLine / sizeof(T)));
-    const auto address = reinterpret_cast<std::uintptr_t>(storage.mutable_data());
-    const std::size_t skip = (kLine - address % kLine) % kLine / sizeof(T);
-    return py::array_t<T>(shape, storage.mutable_data() + skip, storage);
-}
 
 // Rays first to last of the (..., 6) rows, with the interval [tnear, tfar]. Throws std::invalid_argument
 // (ValueError) for a row with a NaN or infinite value, as float_rows does.
@@ -98,43 +29,21 @@ void rays_of(const float* rows, std::size_t first, std::size_t last, float tnear
     }
 }
 
-// body(index) for each index of [0, count) on `threads` threads (0: all), an index a task.
-template <class Body>
-void parallel_for_each(std::size_t count, int threads, Body&& body) {
-    tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-    arena.execute([&] {
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, count, 1),
-            [&](const tbb::blocked_range<std::size_t>& range) {
-                for (std::size_t index = range.begin(); index < range.end(); ++index)
-                    body(index);
-            },
-            tbb::simple_partitioner());
-    });
-}
-
-// body(first, last) over [0, count) on `threads` threads, in chunks of kChunk consecutive items (the last one
-// shorter): a chunk of rays is one batch call, as intersect_parallel makes them, and its packets of 64 start
-// at multiples of 64.
+// Items per task of the queries: a chunk of rays is one batch call, as intersect_parallel makes them, and as
+// the chunks start at multiples of kChunk, its packets of 64 start at multiples of 64.
 constexpr std::size_t kChunk = 4096;
-template <class Body>
-void parallel_ranges(std::size_t count, int threads, Body&& body) {
-    parallel_for_each((count + kChunk - 1) / kChunk, threads, [&](std::size_t chunk) {
-        body(chunk * kChunk, std::min(count, (chunk + 1) * kChunk));
-    });
-}
 
-// body(first, rays) for each chunk of the (..., 6) rows, on `threads` threads: the rays first to
+// body(first, rays) for each chunk of the (..., 6) rows, on `threads` threads (0: all): the rays first to
 // first + rays.size(), made by the task that traces them (rays_of).
 template <class Body>
 void for_each_ray_chunk(const py::array_t<float, py::array::c_style>& rows, int threads, float tnear,
                         float tfar, Body&& body) {
-    parallel_ranges(static_cast<std::size_t>(rows.size() / 6), threads,
-                    [&](std::size_t first, std::size_t last) {
-                        std::vector<Ray> rays;
-                        rays_of(rows.data(), first, last, tnear, tfar, rays);
-                        body(first, rays);
-                    });
+    parallel_for(static_cast<std::size_t>(rows.size() / 6), kChunk, threads,
+                 [&](std::size_t first, std::size_t last) {
+                     std::vector<Ray> rays;
+                     rays_of(rows.data(), first, last, tnear, tfar, rays);
+                     body(first, rays);
+                 });
 }
 
 // `samples` fixed directions in no plane of the axes, so that axis-aligned meshes do not put their edges on
@@ -152,100 +61,9 @@ std::vector<Vec3f> sample_directions(int samples) {
     return directions;
 }
 
-void check_threads(int nthreads) {
-    if (nthreads < 0)
-        throw py::value_error("nthreads: expected 0 (all) or a thread count, got " +
-                              std::to_string(nthreads));
-}
-
 void check_samples(int nsamples) {
     if (nsamples < 1 || nsamples > 1024)
         throw py::value_error("nsamples: expected a count in [1, 1024], got " + std::to_string(nsamples));
-}
-
-Vec3f vec3_argument(const py::object& object, const char* name) {
-    // Any sequence of 3 numbers, as Open3D takes them; NumPy's own error for what is not one.
-    const auto rows = float_rows(py::module_::import("numpy").attr("asarray")(object, "float32"), name, 3);
-    if (rows.size() != 3) throw py::value_error(std::string(name) + ": expected 3 values");
-    return {rows.data()[0], rows.data()[1], rows.data()[2]};
-}
-
-// A rows x cols matrix of finite numbers (any dtype NumPy turns into float64), from an array, a tensor or
-// nested sequences, row by row. Throws TypeError or ValueError naming `name`.
-std::vector<double> matrix_argument(const py::object& object, const char* name, py::ssize_t rows,
-                                    py::ssize_t cols) {
-    const std::string expected = std::to_string(rows) + " x " + std::to_string(cols);
-    py::object converted;
-    try {
-        converted = py::module_::import("numpy").attr("asarray")(numpy_of(object), "float64");
-    } catch (const py::error_already_set&) {
-        throw py::type_error(std::string(name) + ": expected a " + expected + " matrix of numbers");
-    }
-    const auto matrix = py::array_t<double, py::array::c_style>::ensure(converted);
-    if (matrix.ndim() != 2 || matrix.shape(0) != rows || matrix.shape(1) != cols)
-        throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(rows) + ", " +
-                              std::to_string(cols) + "), got " + shape_text(matrix));
-    std::vector<double> values(matrix.data(), matrix.data() + matrix.size());
-    if (!std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); }))
-        throw py::value_error(std::string(name) + ": holds a NaN or infinite value");
-    return values;
-}
-
-void check_image_size(int width_px, int height_px) {
-    if (width_px <= 0 || height_px <= 0 || width_px > 1 << 16 || height_px > 1 << 16)
-        throw py::value_error("width_px, height_px: expected sizes in [1, 65536]");
-}
-
-// Open3D's pinhole rays, (height_px, width_px, 6), from a 3x3 intrinsic matrix K and a 4x4 world-to-camera
-// transform [R t], both row by row: pixel (x, y)'s ray starts at the camera's centre, -R^T t, along
-// R^T K^-1 (x + 0.5, y + 0.5, 1), in double as Open3D computes it, rounded to float32 once. Throws ValueError
-// for a K that is not invertible.
-py::array pinhole_rays(std::span<const double, 9> intrinsic, std::span<const double, 16> extrinsic,
-                       int width_px, int height_px) {
-    // K^-1 by cofactors.
-    const auto at = [&](int row, int column) {
-        return intrinsic[static_cast<std::size_t>(3 * row + column)];
-    };
-    const double cofactor[3][3] = {
-        {at(1, 1) * at(2, 2) - at(1, 2) * at(2, 1), at(0, 2) * at(2, 1) - at(0, 1) * at(2, 2),
-         at(0, 1) * at(1, 2) - at(0, 2) * at(1, 1)},
-        {at(1, 2) * at(2, 0) - at(1, 0) * at(2, 2), at(0, 0) * at(2, 2) - at(0, 2) * at(2, 0),
-         at(0, 2) * at(1, 0) - at(0, 0) * at(1, 2)},
-        {at(1, 0) * at(2, 1) - at(1, 1) * at(2, 0), at(0, 1) * at(2, 0) - at(0, 0) * at(2, 1),
-         at(0, 0) * at(1, 1) - at(0, 1) * at(1, 0)}};
-    const double determinant =
-        at(0, 0) * cofactor[0][0] + at(0, 1) * cofactor[1][0] + at(0, 2) * cofactor[2][0];
-    if (!(std::abs(determinant) > 0.0) || !std::isfinite(1.0 / determinant))
-        throw py::value_error("intrinsic_matrix: expected an invertible matrix");
-    const auto transform = [&](int row, int column) {
-        return extrinsic[static_cast<std::size_t>(4 * row + column)];
-    };
-    double to_world[3][3];  // R^T K^-1
-    for (int row = 0; row < 3; ++row) {
-        for (int column = 0; column < 3; ++column) {
-            double sum = 0.0;
-            for (int j = 0; j < 3; ++j)
-                sum += transform(j, row) * cofactor[j][column] / determinant;
-            to_world[row][column] = sum;
-        }
-    }
-    double centre[3];  // -R^T t
-    for (int row = 0; row < 3; ++row)
-        centre[row] = -(transform(0, row) * transform(0, 3) + transform(1, row) * transform(1, 3) +
-                        transform(2, row) * transform(2, 3));
-    py::array_t<float> rays(std::vector<py::ssize_t>{height_px, width_px, 6});
-    float* out = rays.mutable_data();
-    for (int y = 0; y < height_px; ++y) {
-        for (int x = 0; x < width_px; ++x, out += 6) {
-            const double pixel[3] = {x + 0.5, y + 0.5, 1.0};
-            for (int row = 0; row < 3; ++row) {
-                out[row] = static_cast<float>(centre[row]);
-                out[3 + row] = static_cast<float>(to_world[row][0] * pixel[0] + to_world[row][1] * pixel[1] +
-                                                  to_world[row][2] * pixel[2]);
-            }
-        }
-    }
-    return open3d_like(rays);
 }
 
 }  // namespace
@@ -438,7 +256,7 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
         const std::lock_guard lock(mutex_);
         const Accel& accel = committed();
         const HitTables tables{unit_normals(), GeometryStarts{first_triangle_}};
-        parallel_for_each(chunks.size(), nthreads, [&](std::size_t index) {
+        parallel_for(chunks.size(), 1, nthreads, [&](std::size_t index, std::size_t) {
             std::vector<PacketRows> packets;
             chunks.chunk(index, packets);
             RayPacket packet;
@@ -560,8 +378,9 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
         const std::lock_guard lock(mutex_);
         const GeometryQueries& all = queries();
         const NormalTable unit_normal = unit_normals();
-        parallel_ranges(
-            static_cast<std::size_t>(rows.size() / 3), nthreads, [&](std::size_t first, std::size_t last) {
+        parallel_for(
+            static_cast<std::size_t>(rows.size() / 3), kChunk, nthreads,
+            [&](std::size_t first, std::size_t last) {
                 for (std::size_t i = first; i < last; ++i) {
                     const NearestPoint nearest = all.nearest_point({q[3 * i], q[3 * i + 1], q[3 * i + 2]});
                     const float* n = unit_normal.xyz + 3 * static_cast<std::size_t>(nearest.prim);
@@ -606,11 +425,11 @@ py::array RaycastingScene::map_points(const py::object& query_points, int nthrea
         py::gil_scoped_release released;
         const std::lock_guard lock(mutex_);
         const GeometryQueries& all = queries();
-        parallel_ranges(static_cast<std::size_t>(rows.size() / 3), nthreads,
-                        [&](std::size_t first, std::size_t last) {
-                            for (std::size_t i = first; i < last; ++i)
-                                out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]));
-                        });
+        parallel_for(static_cast<std::size_t>(rows.size() / 3), kChunk, nthreads,
+                     [&](std::size_t first, std::size_t last) {
+                         for (std::size_t i = first; i < last; ++i)
+                             out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]));
+                     });
     }
     return open3d_like(answers);
 }
@@ -637,46 +456,6 @@ py::array RaycastingScene::compute_signed_distance(const py::object& query_point
         const float distance = all.nearest_point(p).distance;
         return inside(all, p, directions) ? -distance : distance;
     });
-}
-
-py::array RaycastingScene::create_rays_pinhole(double fov_deg, const py::object& center,
-                                               const py::object& eye, const py::object& up, int width_px,
-                                               int height_px) {
-    if (!(fov_deg > 0.0 && fov_deg < 180.0)) throw py::value_error("fov_deg: expected a value in (0, 180)");
-    check_image_size(width_px, height_px);
-    // Open3D's look-at camera, traced through the matrix form as Open3D traces it: the rows of R are x = up x
-    // forward, y = forward x x and forward, so pixel (0, 0) lies towards -x and +y of the usual camera;
-    // focal length 0.5 width / tan(fov / 2) in pixels, the principal point at the image's centre. The frame
-    // is made in double, as Open3D makes it (docs/python.md, "The API").
-    const Vec3d target(vec3_argument(center, "center")), origin(vec3_argument(eye, "eye"));
-    const Vec3d forward = normalize(target - origin);
-    const Vec3d x_axis = normalize(cross(Vec3d(vec3_argument(up, "up")), forward));
-    if (!std::isfinite(forward.x) || !std::isfinite(x_axis.x))
-        throw py::value_error(
-            "center, eye, up: the eye must differ from the centre and up must not be along the view");
-    const Vec3d y_axis = normalize(cross(forward, x_axis));
-    const double focal = 0.5 * width_px / std::tan(0.5 * fov_deg * std::numbers::pi / 180.0);
-    std::array<double, 9> intrinsic{};  // K, row by row
-    intrinsic[0] = intrinsic[4] = focal;
-    intrinsic[2] = 0.5 * width_px, intrinsic[5] = 0.5 * height_px, intrinsic[8] = 1.0;
-    std::array<double, 16> extrinsic{};  // [R -R eye], last row (0 0 0 1)
-    extrinsic[15] = 1.0;
-    for (std::size_t row = 0; row < 3; ++row) {
-        const Vec3d& axis = row == 0 ? x_axis : row == 1 ? y_axis : forward;
-        extrinsic[4 * row] = axis.x, extrinsic[4 * row + 1] = axis.y, extrinsic[4 * row + 2] = axis.z;
-        extrinsic[4 * row + 3] = -dot(axis, origin);
-    }
-    return pinhole_rays(intrinsic, extrinsic, width_px, height_px);
-}
-
-py::array RaycastingScene::create_rays_pinhole(const py::object& intrinsic_matrix,
-                                               const py::object& extrinsic_matrix, int width_px,
-                                               int height_px) {
-    const std::vector<double> intrinsic = matrix_argument(intrinsic_matrix, "intrinsic_matrix", 3, 3);
-    const std::vector<double> extrinsic = matrix_argument(extrinsic_matrix, "extrinsic_matrix", 4, 4);
-    check_image_size(width_px, height_px);
-    return pinhole_rays(std::span<const double, 9>(intrinsic.data(), 9),
-                        std::span<const double, 16>(extrinsic.data(), 16), width_px, height_px);
 }
 
 void RaycastingScene::save_structure(const std::string& path) {

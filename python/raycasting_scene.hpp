@@ -7,9 +7,9 @@
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
-#include <tbb/task_arena.h>
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <span>
@@ -18,9 +18,9 @@
 #include <vector>
 
 #include "lancer/accel.hpp"
+#include "lancer/parallel.hpp"
 #include "lancer/queries.hpp"
 #include "lancer/scene.hpp"
-#include "lancer/vec3d.hpp"
 #include "lancer/world.hpp"
 #include "ray_packets.hpp"
 
@@ -48,13 +48,6 @@ class RaycastingScene {
     py::array compute_distance(const py::object& query_points, int nthreads);
     py::array compute_occupancy(const py::object& query_points, int nthreads, int nsamples);
     py::array compute_signed_distance(const py::object& query_points, int nthreads, int nsamples);
-    static py::array create_rays_pinhole(double fov_deg, const py::object& center, const py::object& eye,
-                                         const py::object& up, int width_px, int height_px);
-    // Open3D's other pinhole: a 3x3 intrinsic matrix K and a 4x4 world-to-camera transform [R t]; pixel
-    // (x, y)'s ray starts at the camera's centre, -R^T t, along R^T K^-1 (x + 0.5, y + 0.5, 1).
-    static py::array create_rays_pinhole(const py::object& intrinsic_matrix,
-                                         const py::object& extrinsic_matrix, int width_px, int height_px);
-
     // lancer's own: the `plucker` structure and its geometry as a `.plo` file (lancer convert's), and a scene
     // made from one, its triangles one geometry.
     void save_structure(const std::string& path);
@@ -66,11 +59,7 @@ class RaycastingScene {
 
   private:
     // work() on the threads the constructor's nthreads allows: building and updating the structures.
-    template <class Work>
-    void building(Work&& work) const {
-        tbb::task_arena arena(build_threads_ > 0 ? build_threads_ : tbb::task_arena::automatic);
-        arena.execute(std::forward<Work>(work));
-    }
+    void building(const std::function<void()>& work) const { run_with_threads(build_threads_, work); }
     std::uint32_t add_geometry(const py::object& vertices, const py::object& triangles,
                                const std::string& vertices_name, const std::string& triangles_name);
     // Builds the structure over every geometry added so far, once after each add_triangles. These and

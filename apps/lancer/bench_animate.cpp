@@ -2,7 +2,6 @@
 
 #include <fmt/core.h>
 #include <fmt/os.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <memory>
@@ -13,6 +12,7 @@
 #include "lancer/agreement.hpp"
 #include "lancer/animate.hpp"
 #include "lancer/camera.hpp"
+#include "lancer/parallel.hpp"
 #include "lancer/world.hpp"
 
 namespace lancer::cli {
@@ -120,97 +120,100 @@ void run_animated_bench(const std::vector<AnimatedBenchMesh>& meshes, const Anim
         const double ray_count = static_cast<double>(options.size) * options.size;
         const std::vector<Ray> rays = camera.pixel_centre_rays(0, 0, camera.width(), camera.height());
         for (const int threads : options.thread_counts) {
-            tbb::task_arena arena(threads);
-            std::vector<AnimatedRow> rows;
-            for (const std::string& accel : options.accels) {
-                for (AnimatedRow& row : rows_of(accel, options)) {
-                    arena.execute([&] { row.world.emplace(rest, row.accel, row.options); });
-                    rows.push_back(std::move(row));
-                }
-            }
-            std::vector<Hit> reference(rays.size()), hits(rays.size());
-            for (int frame = 1; frame <= options.frames; ++frame) {
-                const std::vector<std::vector<Vec3f>> moved = deformed_meshes(rest, wave, frame);
-                std::vector<MeshVertices> moves;
-                for (std::size_t m = 0; m < moved.size(); ++m)
-                    moves.push_back({m, moved[m]});
-                std::vector<AnimatedRecord> frame_records;
-                std::vector<double> sah_costs;  // each row's structure on this frame
-                for (std::size_t r = 0; r < rows.size(); ++r) {
-                    AnimatedRow& row = rows[r];
-                    UpdateReport report;
-                    double update_ms = 0.0;
-                    if (row.rebuild) {
-                        Scene moved_scene = rest;
-                        for (std::size_t m = 0; m < moved.size(); ++m)
-                            moved_scene.meshes[m].positions = moved[m];
-                        row.world.reset();  // the old structure's memory is freed before the clock starts
-                        const Stopwatch watch;
-                        arena.execute(
-                            [&] { row.world.emplace(std::move(moved_scene), row.accel, row.options); });
-                        update_ms = watch.elapsed_ms();
-                    } else {
-                        const Stopwatch watch;
-                        arena.execute([&] { report = row.world->update_vertices(moves); });
-                        update_ms = watch.elapsed_ms();
+            // One arena per thread count, so that the timed builds, updates and traces below all run in it.
+            run_with_threads(threads, [&] {
+                std::vector<AnimatedRow> rows;
+                for (const std::string& accel : options.accels) {
+                    for (AnimatedRow& row : rows_of(accel, options)) {
+                        row.world.emplace(rest, row.accel, row.options);
+                        rows.push_back(std::move(row));
                     }
-                    const Stopwatch trace_watch;
-                    trace_frame(row.world->accel(), camera, r == 0 ? reference : hits, arena);
-                    const double trace_ms = trace_watch.elapsed_ms();
-                    if (r > 0) {
-                        const Agreement agreement = compare_hits(rays, reference, hits);
-                        // Embree is a peer with its own triangle test: its differences are shown, not failed.
-                        const bool peer =
-                            row.accel.starts_with("embree") || rows[0].accel.starts_with("embree");
-                        if (agreement.mismatches > 0) {
-                            fmt::print(peer ? stdout : stderr, "bench: {} {} {} on {}, frame {}: {}\n",
-                                       row.label(), peer ? "differs from" : "disagrees with", rows[0].label(),
-                                       mesh.name, frame, agreement.summary());
-                            agreement_failed = agreement_failed || !peer;
+                }
+                std::vector<Hit> reference(rays.size()), hits(rays.size());
+                for (int frame = 1; frame <= options.frames; ++frame) {
+                    const std::vector<std::vector<Vec3f>> moved = deformed_meshes(rest, wave, frame);
+                    std::vector<MeshVertices> moves;
+                    for (std::size_t m = 0; m < moved.size(); ++m)
+                        moves.push_back({m, moved[m]});
+                    std::vector<AnimatedRecord> frame_records;
+                    std::vector<double> sah_costs;  // each row's structure on this frame
+                    for (std::size_t r = 0; r < rows.size(); ++r) {
+                        AnimatedRow& row = rows[r];
+                        UpdateReport report;
+                        double update_ms = 0.0;
+                        if (row.rebuild) {
+                            Scene moved_scene = rest;
+                            for (std::size_t m = 0; m < moved.size(); ++m)
+                                moved_scene.meshes[m].positions = moved[m];
+                            row.world.reset();  // the old structure's memory is freed before the clock starts
+                            const Stopwatch watch;
+                            row.world.emplace(std::move(moved_scene), row.accel, row.options);
+                            update_ms = watch.elapsed_ms();
+                        } else {
+                            const Stopwatch watch;
+                            report = row.world->update_vertices(moves);
+                            update_ms = watch.elapsed_ms();
                         }
+                        const Stopwatch trace_watch;
+                        trace_frame(row.world->accel(), camera, r == 0 ? reference : hits);
+                        const double trace_ms = trace_watch.elapsed_ms();
+                        if (r > 0) {
+                            const Agreement agreement = compare_hits(rays, reference, hits);
+                            // Embree is a peer with its own triangle test: its differences are shown, not
+                            // failed.
+                            const bool peer =
+                                row.accel.starts_with("embree") || rows[0].accel.starts_with("embree");
+                            if (agreement.mismatches > 0) {
+                                fmt::print(peer ? stdout : stderr, "bench: {} {} {} on {}, frame {}: {}\n",
+                                           row.label(), peer ? "differs from" : "disagrees with",
+                                           rows[0].label(), mesh.name, frame, agreement.summary());
+                                agreement_failed = agreement_failed || !peer;
+                            }
+                        }
+                        // Once a frame: a tree's stats walk the whole tree.
+                        const AccelStats stats = row.world->accel().stats();
+                        sah_costs.push_back(sah_cost_in(stats));
+                        const double structure_ms = row.rebuild ? stats.build_ms : report.structure_ms;
+                        row.update_ms.push_back(update_ms);
+                        row.structure_ms.push_back(structure_ms);
+                        row.trace_ms.push_back(trace_ms);
+                        row.sah_ratio.push_back(sah_costs.back() > 0.0 ? report.sah_ratio : 0.0);
+                        frame_records.push_back({mesh.name, row.label(),
+                                                 row.rebuild ? "build" : method_name(report.method), threads,
+                                                 frame, update_ms, structure_ms, trace_ms,
+                                                 ray_count / (trace_ms * 1e3), row.sah_ratio.back(), 0.0});
                     }
-                    // Once a frame: a tree's stats walk the whole tree.
-                    const AccelStats stats = row.world->accel().stats();
-                    sah_costs.push_back(sah_cost_in(stats));
-                    const double structure_ms = row.rebuild ? stats.build_ms : report.structure_ms;
-                    row.update_ms.push_back(update_ms);
-                    row.structure_ms.push_back(structure_ms);
-                    row.trace_ms.push_back(trace_ms);
-                    row.sah_ratio.push_back(sah_costs.back() > 0.0 ? report.sah_ratio : 0.0);
-                    frame_records.push_back({mesh.name, row.label(),
-                                             row.rebuild ? "build" : method_name(report.method), threads,
-                                             frame, update_ms, structure_ms, trace_ms,
-                                             ray_count / (trace_ms * 1e3), row.sah_ratio.back(), 0.0});
+                    // An updated tree's SAH cost over the one its rebuild row built afresh on the same frame.
+                    for (std::size_t r = 0; r + 1 < rows.size(); ++r) {
+                        if (rows[r].rebuild || !rows[r + 1].rebuild || rows[r].accel != rows[r + 1].accel)
+                            continue;
+                        if (sah_costs[r + 1] > 0.0)
+                            frame_records[r].sah_vs_fresh = sah_costs[r] / sah_costs[r + 1];
+                    }
+                    for (const AnimatedRecord& record : frame_records) {
+                        fmt::print(
+                            "{:<16} {:>3} {:>5} {:<20} {:<8} {:>10.2f} {:>9.2f} {:>9.2f} {:>9.2f} {:>9} "
+                            "{:>9}\n",
+                            record.mesh, record.threads, record.frame, record.row, record.method,
+                            record.update_ms, record.structure_ms, record.trace_ms, record.mrays,
+                            ratio_text(record.sah_ratio), ratio_text(record.sah_vs_fresh));
+                        records.push_back(record);
+                    }
+                    std::fflush(stdout);
                 }
-                // An updated tree's SAH cost over the one its rebuild row built afresh on the same frame.
-                for (std::size_t r = 0; r + 1 < rows.size(); ++r) {
-                    if (rows[r].rebuild || !rows[r + 1].rebuild || rows[r].accel != rows[r + 1].accel)
-                        continue;
-                    if (sah_costs[r + 1] > 0.0)
-                        frame_records[r].sah_vs_fresh = sah_costs[r] / sah_costs[r + 1];
-                }
-                for (const AnimatedRecord& record : frame_records) {
+                fmt::print("{:<16} {:>3} medians over {} frames:\n", mesh.name, threads, options.frames);
+                for (const AnimatedRow& row : rows) {
+                    std::vector<double> frame_ms;
+                    for (std::size_t f = 0; f < row.update_ms.size(); ++f)
+                        frame_ms.push_back(row.update_ms[f] + row.trace_ms[f]);
                     fmt::print(
-                        "{:<16} {:>3} {:>5} {:<20} {:<8} {:>10.2f} {:>9.2f} {:>9.2f} {:>9.2f} {:>9} {:>9}\n",
-                        record.mesh, record.threads, record.frame, record.row, record.method,
-                        record.update_ms, record.structure_ms, record.trace_ms, record.mrays,
-                        ratio_text(record.sah_ratio), ratio_text(record.sah_vs_fresh));
-                    records.push_back(record);
+                        "  {:<20} update {:>8.2f} ms (structure {:>8.2f}), trace {:>8.2f} ms, update + trace "
+                        "{:>8.2f} "
+                        "ms, SAH ratio {}\n",
+                        row.label(), median(row.update_ms), median(row.structure_ms), median(row.trace_ms),
+                        median(frame_ms), ratio_text(median(row.sah_ratio)));
                 }
-                std::fflush(stdout);
-            }
-            fmt::print("{:<16} {:>3} medians over {} frames:\n", mesh.name, threads, options.frames);
-            for (const AnimatedRow& row : rows) {
-                std::vector<double> frame_ms;
-                for (std::size_t f = 0; f < row.update_ms.size(); ++f)
-                    frame_ms.push_back(row.update_ms[f] + row.trace_ms[f]);
-                fmt::print(
-                    "  {:<20} update {:>8.2f} ms (structure {:>8.2f}), trace {:>8.2f} ms, update + trace "
-                    "{:>8.2f} "
-                    "ms, SAH ratio {}\n",
-                    row.label(), median(row.update_ms), median(row.structure_ms), median(row.trace_ms),
-                    median(frame_ms), ratio_text(median(row.sah_ratio)));
-            }
+            });
         }
     }
     if (!options.json_file.empty()) write_json(options.json_file, records);

@@ -6,7 +6,6 @@
 // COHERENT flag), the JSON and SVG reports in bench_report.hpp.
 #include <fmt/core.h>
 #include <fmt/os.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -26,6 +25,7 @@
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
 #include "lancer/isa.hpp"
+#include "lancer/parallel.hpp"
 
 namespace lancer::cli {
 namespace {
@@ -204,13 +204,12 @@ void run(const BenchOptions& options) {
         for (const std::string& name : accels) {
             AccelChoice choice{name, !options.moller_trumbore, options.settings};
             const BuiltAccel built = build_timed(choice, geometry.view());
-            // The build again inside an arena of each thread count, so that the build figure is that
-            // count's: once per structure and count, whatever the views.
+            // The build again on each thread count, so that the build figure is that count's: once per
+            // structure and count, whatever the views.
             std::vector<double> build_ms;
             for (int threads : thread_counts) {
-                tbb::task_arena arena(threads);
-                build_ms.push_back(
-                    arena.execute([&] { return build_timed(choice, geometry.view()).build_ms; }));
+                run_with_threads(threads,
+                                 [&] { build_ms.push_back(build_timed(choice, geometry.view()).build_ms); });
             }
             for (ViewRays& view : mesh_views) {
                 // Validate before timing, through the timed path: the same answers as the first structure
@@ -242,19 +241,20 @@ void run(const BenchOptions& options) {
                 const double ray_count = static_cast<double>(view.rays.size());
                 for (std::size_t t = 0; t < thread_counts.size(); ++t) {
                     const int threads = thread_counts[t];
-                    tbb::task_arena arena(threads);
                     std::vector<double> mrays;
-                    for (int frame = -1; frame < options.frames; ++frame) {  // frame -1: the warm-up
-                        Stopwatch watch;
-                        if (view.view == BenchView::Primary)
-                            trace_frame(*built.accel, camera, answers.hits, arena);
-                        else if (view.view == BenchView::Shadow)
-                            arena.execute(
-                                [&] { occluded_parallel(*built.accel, view.rays, answers.occluded); });
-                        else
-                            arena.execute([&] { intersect_parallel(*built.accel, view.rays, answers.hits); });
-                        if (frame >= 0) mrays.push_back(ray_count / (watch.elapsed_ms() * 1e3));
-                    }
+                    // One arena for every frame of this count, its set-up outside the frames' clocks.
+                    run_with_threads(threads, [&] {
+                        for (int frame = -1; frame < options.frames; ++frame) {  // frame -1: the warm-up
+                            Stopwatch watch;
+                            if (view.view == BenchView::Primary)
+                                trace_frame(*built.accel, camera, answers.hits);
+                            else if (view.view == BenchView::Shadow)
+                                occluded_parallel(*built.accel, view.rays, answers.occluded);
+                            else
+                                intersect_parallel(*built.accel, view.rays, answers.hits);
+                            if (frame >= 0) mrays.push_back(ray_count / (watch.elapsed_ms() * 1e3));
+                        }
+                    });
                     std::sort(mrays.begin(), mrays.end());
                     BenchRecord record;
                     record.mesh = mesh.name;

@@ -1,14 +1,13 @@
 #include "bench_trace.hpp"
 
 #include <fmt/core.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <optional>
 
 #include "common.hpp"
 #include "lancer/denormals.hpp"
+#include "lancer/parallel.hpp"
 #include "lancer/views.hpp"
 
 namespace lancer::cli {
@@ -92,16 +91,12 @@ void trace_tiles(const Accel& accel, const PinholeCamera& camera, int first_row,
 
 }  // namespace
 
-void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hit>& hits,
-                 tbb::task_arena& arena) {
+void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hit>& hits) {
     const bool flush_denormals = accel.name().starts_with("embree");
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<int>(0, tile_rows(camera), 1),
-                          [&](const tbb::blocked_range<int>& rows) {
-                              std::optional<DenormalsFlushed> flushed;
-                              if (flush_denormals) flushed.emplace();
-                              trace_tiles(accel, camera, rows.begin(), rows.end(), hits);
-                          });
+    parallel_for(static_cast<std::size_t>(tile_rows(camera)), 1, 0, [&](std::size_t first, std::size_t last) {
+        std::optional<DenormalsFlushed> flushed;
+        if (flush_denormals) flushed.emplace();
+        trace_tiles(accel, camera, static_cast<int>(first), static_cast<int>(last), hits);
     });
 }
 

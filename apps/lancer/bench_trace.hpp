@@ -1,9 +1,7 @@
 // The paths lancer bench times: the canonical view in 8x8 pixel tiles, one RayPacket each, tiles in
-// scanline order over the threads of an arena; and the secondary views, made once per mesh from its hits and
+// scanline order over the caller's threads; and the secondary views, made once per mesh from its hits and
 // traced from an array in memory.
 #pragma once
-
-#include <tbb/task_arena.h>
 
 #include <cstddef>
 #include <cstdint>
@@ -17,10 +15,10 @@
 namespace lancer::cli {
 
 // One frame as VIEWS.md times it: generate every ray from the camera, trace it, store its closest hit at its
-// pixel. One task per row of tiles. An Embree row's tasks set flush-to-zero once, as Embree's manual and
-// tutorials do (lancer/denormals.hpp); lancer's structures run in the IEEE mode.
-void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hit>& hits,
-                 tbb::task_arena& arena);
+// pixel. One task per row of tiles, on the threads of the run_with_threads the caller runs in. An Embree
+// row's task sets flush-to-zero once, as Embree's manual and tutorials do (lancer/denormals.hpp); lancer's
+// structures run in the IEEE mode.
+void trace_frame(const Accel& accel, const PinholeCamera& camera, std::vector<Hit>& hits);
 
 // One view of one mesh: its rays (in pixel order for the primary view, as its hits are stored) and the
 // first structure's answers, which every other structure must give. The shadow view's reference is the

@@ -3,9 +3,6 @@
 // NEAREST: 28 bytes per point: float32 x, y, z (the nearest point), float32 distance, int32 primitive (-1
 // for an empty scene), float32 u, v (its barycentric coordinates on that triangle) = lancer::NearestPoint.
 #include <fmt/core.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <bit>
 #include <cmath>
@@ -15,6 +12,7 @@
 
 #include "commands.hpp"
 #include "common.hpp"
+#include "lancer/parallel.hpp"
 #include "lancer/queries.hpp"
 
 namespace lancer::cli {
@@ -57,13 +55,9 @@ void run(const NearestOptions& options) {
     const std::vector<Vec3f> points = read_points(options.points_file);
     Stopwatch watch;
     std::vector<NearestPoint> nearest(points.size());
-    tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 1024),
-                          [&](const tbb::blocked_range<std::size_t>& range) {
-                              for (std::size_t i = range.begin(); i < range.end(); ++i)
-                                  nearest[i] = queries.nearest_point(points[i]);
-                          });
+    parallel_for(points.size(), 1024, options.threads, [&](std::size_t first, std::size_t last) {
+        for (std::size_t i = first; i < last; ++i)
+            nearest[i] = queries.nearest_point(points[i]);
     });
     const double query_ms = watch.elapsed_ms();
     std::ofstream out(options.nearest_file, std::ios::binary);

@@ -26,6 +26,11 @@ struct EmbreeOptions {
     EmbreeQuality quality = EmbreeQuality::High;
 };
 
+// The ids of lancer's triangles and spheres in Embree's scene, one geometry each: Embree numbers primitives
+// per geometry, and lancer's hits number the spheres after the triangles.
+inline constexpr unsigned int kEmbreeTriangleGeometry = 0;
+inline constexpr unsigned int kEmbreeSphereGeometry = 1;
+
 class EmbreeAccel final : public Accel {
   public:
     // The `--set` keys of this structure's option group (accel/options.hpp).
@@ -61,8 +66,10 @@ class EmbreeAccel final : public Accel {
 
     RTCDevice device_ = nullptr;
     RTCScene scene_ = nullptr;
-    Box3f scene_box_;  // grown by the geometric tolerance: where a ray with tnear < 0 starts (embree.cpp)
-    float scene_scale_ = 1.0f;  // the power of two Embree's copy of the scene is scaled by (embree.cpp)
+    Box3f
+        scene_box_;  // grown by the geometric tolerance: where a ray with tnear < 0 starts (embree_rays.cpp)
+    float scene_scale_ =
+        1.0f;  // the power of two Embree's copy of the scene is scaled by (embree.cpp, scene_scale)
     unsigned int triangle_count_ = 0;
     std::size_t primitive_count_ = 0;
     std::size_t buffer_bytes_ = 0;

@@ -15,6 +15,7 @@
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/parallel_sort.h>
+#include <tbb/partitioner.h>
 #include <tbb/task_arena.h>
 #include <tbb/task_group.h>
 #endif
@@ -39,6 +40,19 @@ void for_each_chunk(std::size_t begin, std::size_t end, std::size_t grain, Body&
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(begin, end, grain),
         [&](const tbb::blocked_range<std::size_t>& range) { body(range.begin(), range.end()); });
+}
+
+// body(from, to) for each block of `block` consecutive indices of [0, count) (the last one shorter), a block
+// a task: the blocks start at multiples of `block` whatever the threads, and a task never runs two of them.
+template <class Body>
+void for_each_block(std::size_t count, std::size_t block, Body&& body) {
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, (count + block - 1) / block, 1),
+        [&](const tbb::blocked_range<std::size_t>& blocks) {
+            for (std::size_t b = blocks.begin(); b < blocks.end(); ++b)
+                body(b * block, std::min(count, (b + 1) * block));
+        },
+        tbb::simple_partitioner());
 }
 
 // accumulate(from, to, value) over chunks of [begin, end), each starting from `identity`, the chunks'
@@ -107,6 +121,12 @@ void for_each_index(std::size_t begin, std::size_t end, Body&& body) {
 template <class Body>
 void for_each_chunk(std::size_t begin, std::size_t end, std::size_t /*grain*/, Body&& body) {
     if (begin < end) body(begin, end);
+}
+
+template <class Body>
+void for_each_block(std::size_t count, std::size_t block, Body&& body) {
+    for (std::size_t from = 0; from < count; from += block)
+        body(from, std::min(count, from + block));
 }
 
 template <class T, class Accumulate, class Combine>

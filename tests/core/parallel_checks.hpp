@@ -50,6 +50,21 @@ inline void check_chunks_tile_the_range(bool chunked) {
     }
 }
 
+inline void check_blocks_are_fixed() {
+    std::vector<std::atomic<int>> visits(kCount);
+    std::atomic<std::size_t> blocks = 0;
+    parallel::for_each_block(kCount, 1000, [&](std::size_t from, std::size_t to) {
+        EXPECT_EQ(from % 1000, 0u);
+        EXPECT_EQ(to, std::min(kCount, from + 1000));
+        blocks.fetch_add(1);
+        for (std::size_t i = from; i < to; ++i)
+            visits[i].fetch_add(1);
+    });
+    for (std::size_t i = 0; i < kCount; ++i)
+        ASSERT_EQ(visits[i].load(), 1) << i;
+    EXPECT_EQ(blocks.load(), kCount / 1000 + 1);
+}
+
 inline void check_with_threads_runs_its_body() {
     std::atomic<int> ran = 0;
     parallel::with_threads(1,

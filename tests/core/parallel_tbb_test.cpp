@@ -11,6 +11,9 @@ TEST(ParallelTbb, VisitsEveryIndexOnce) {
 TEST(ParallelTbb, ChunksTileTheRange) {
     check_chunks_tile_the_range(true);
 }
+TEST(ParallelTbb, BlocksAreFixed) {
+    check_blocks_are_fixed();
+}
 TEST(ParallelTbb, ReduceMergesEveryChunk) {
     check_reduce_merges_every_chunk();
 }

@@ -14,6 +14,9 @@ TEST(ParallelSerial, VisitsEveryIndexOnce) {
 TEST(ParallelSerial, ChunksTileTheRange) {
     check_chunks_tile_the_range(false);
 }
+TEST(ParallelSerial, BlocksAreFixed) {
+    check_blocks_are_fixed();
+}
 TEST(ParallelSerial, ReduceMergesEveryChunk) {
     check_reduce_merges_every_chunk();
 }
