@@ -112,7 +112,8 @@ struct NeighbourTables {
     // tie[f][octant]: the bit to use for an in-face component whose product is exactly 0 (the ray crosses
     // the face on a median line), so that the sub-face chosen is the one on the octant's side of that
     // median. For a zero direction component this keeps the walk in cells whose exit plane is not the
-    // ray's own coordinate (docs/accel/plucker.md, "Zero components"); otherwise either side is right.
+    // ray's own coordinate (docs/accel/plucker.md, "Zero direction components"); otherwise either side is
+    // right.
     std::array<std::array<std::uint8_t, 8>, 6> tie{};
 };
 
