@@ -5,7 +5,6 @@
 #pragma once
 
 #include <algorithm>
-#include <array>
 #include <cstddef>
 #include <span>
 
@@ -15,9 +14,9 @@ namespace lancer {
 
 // A node's references in the three centroid orders, each at positions [0, count) of `order(axis)`, whose
 // entries are indices the `Refs` view reads:
-//   typename Refs::Index, Refs::Box  the reference indices; a box type with extend(const Box&)
-//   static Box Refs::empty_box()      the box that bounds nothing
-//   static float Refs::area(Box)      the box's surface area
+//   typename Refs::Index              the reference indices
+//   static Refs::empty_box()          the box that bounds nothing, of a type with extend(box)
+//   static float Refs::area(box)      the box's surface area
 //   order(axis)                       the node's first entry of axis's order (Index*)
 //   box(index)                        the reference's box
 //   centroid(index, axis)             its centroid's coordinate on the axis
