@@ -1,4 +1,5 @@
-// The two SAH builders of the binary BVH. Both return the same depth-first layout.
+// The build of the binary BVH: build.cpp hands the primitives to the SAH builder the options name
+// (sweep_builder.cpp, binned_builder.cpp); both return the same depth-first layout.
 #pragma once
 
 #include <cstdint>

@@ -1,0 +1,268 @@
+// The binned SAH builder: centroid bins, the split at the cheapest bin boundary, and the recursion that hands
+// large nodes to spatial splits (spatial_splits.cpp) and small ones to SmallSubtree (small_subtree.cpp).
+#include "accel/bvh/binned_builder.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <tuple>
+
+#include "accel/bvh/bin_box.hpp"
+#include "accel/bvh/small_subtree.hpp"
+#include "core/parallel.hpp"
+
+namespace lancer {
+
+// Per axis, each bin's box and reference count; the first bins_ entries are used.
+struct BinnedBuilder::Bins {
+    std::array<std::array<BinBox, kMaxBins>, 3> boxes;
+    std::array<std::array<std::uint32_t, kMaxBins>, 3> counts;
+
+    explicit Bins(int bin_count) {
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            std::fill_n(boxes[axis].begin(), bin_count, BinBox::none());
+            std::fill_n(counts[axis].begin(), bin_count, 0u);
+        }
+    }
+    void merge(const Bins& other, int bin_count) {
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            for (std::size_t b = 0; b < static_cast<std::size_t>(bin_count); ++b) {
+                boxes[axis][b].extend(other.boxes[axis][b]);
+                counts[axis][b] += other.counts[axis][b];
+            }
+        }
+    }
+};
+
+// The bin of a centroid on each axis: a multiplication by bins / extent, computed once per node (Wald
+// 2007, section 3.2). Binning and partitioning use the same function, so they agree on every reference.
+struct BinnedBuilder::BinMap {
+    Vec3f origin, scale;
+    int bins;
+
+    BinMap(const Box3f& centroids, int bin_count) : origin(centroids.lo), bins(bin_count) {
+        for (int axis = 0; axis < 3; ++axis) {
+            const float extent = centroids.hi[axis] - centroids.lo[axis];
+            scale[axis] = extent > 0.0f ? static_cast<float>(bin_count) / extent : 0.0f;
+        }
+    }
+    [[nodiscard]] int bin(Vec3f centroid, int axis) const {
+        const float scaled = (centroid[axis] - origin[axis]) * scale[axis];
+        return std::clamp(static_cast<int>(scaled), 0, bins - 1);
+    }
+};
+
+BinnedBuilder::BinnedBuilder(std::vector<BuildRef>& refs, const Geometry& geometry, const BvhOptions& options)
+    : refs_(refs),
+      geometry_(geometry),
+      max_leaf_(leaf_size_limit(options)),
+      bins_(std::clamp(options.bins, 2, kMaxBins)),
+      spatial_splits_(options.spatial_splits) {}
+
+void BinnedBuilder::build(NodeSlots& slots, std::size_t primitives) {
+    const NodeBounds root = bounds_of(0, primitives);
+    min_overlap_area_ = kMinOverlap * root.first.surface_area();
+    build(slots, 0, {0, primitives, refs_.size()}, 0, root);
+}
+
+// Two-pointer partition by the split's bin, which accumulates both sides' boxes and centroid bounds on
+// the way: the children's NodeBounds without another pass over their references.
+std::tuple<std::size_t, BinnedBuilder::NodeBounds, BinnedBuilder::NodeBounds> BinnedBuilder::partition(
+    std::size_t begin, std::size_t end, const BinMap& map, const Split& split) {
+    BinBox left_boxes = BinBox::none(), right_boxes = BinBox::none();
+    BinBox left_centroids = BinBox::none(), right_centroids = BinBox::none();
+    auto goes_left = [&](const BuildRef& ref) { return map.bin(ref.centroid, split.axis) < split.bin; };
+    auto add = [](BinBox& boxes, BinBox& centroids, const BuildRef& ref) {
+        boxes.extend(BinBox::of(ref));
+        centroids.extend(BinBox::of_point(ref.centroid));
+    };
+    std::size_t i = begin, j = end;
+    while (true) {
+        for (; i < j && goes_left(refs_[i]); ++i)
+            add(left_boxes, left_centroids, refs_[i]);
+        for (; i < j && !goes_left(refs_[j - 1]); --j)
+            add(right_boxes, right_centroids, refs_[j - 1]);
+        if (i >= j) break;
+        std::swap(refs_[i], refs_[j - 1]);
+        add(left_boxes, left_centroids, refs_[i++]);
+        add(right_boxes, right_centroids, refs_[--j]);
+    }
+    return {i, {left_boxes.box(), left_centroids.box()}, {right_boxes.box(), right_centroids.box()}};
+}
+
+BinnedBuilder::NodeBounds BinnedBuilder::bounds_of(std::size_t begin, std::size_t end) const {
+    auto accumulate = [this](std::size_t from, std::size_t to, NodeBounds acc) {
+        for (std::size_t i = from; i < to; ++i)
+            acc.first.extend(refs_[i].bounds), acc.second.extend(refs_[i].centroid);
+        return acc;
+    };
+    if (end - begin > kParallelBinning) {
+        return parallel::reduce(begin, end, 1, NodeBounds{}, accumulate,
+                                [](NodeBounds a, const NodeBounds& b) {
+                                    a.first.extend(b.first), a.second.extend(b.second);
+                                    return a;
+                                });
+    }
+    return accumulate(begin, end, {});
+}
+
+// Fills `bins` (made empty by the caller). An out parameter, not a returned value: GCC does not elide
+// the copy of a returned Bins (27 KB, every node) from a function with two returns.
+void BinnedBuilder::bin(std::size_t begin, std::size_t end, const BinMap& map, const Box3f& centroids,
+                        Bins& bins) const {
+    std::array<bool, 3> splittable{};
+    for (int axis = 0; axis < 3; ++axis)
+        splittable[static_cast<std::size_t>(axis)] = centroids.hi[axis] > centroids.lo[axis];
+    auto fill = [&](std::size_t from, std::size_t to, Bins& into) {
+        for (std::size_t i = from; i < to; ++i) {
+            const BuildRef& ref = refs_[i];
+            const BinBox box = BinBox::of(ref);
+            for (std::size_t axis = 0; axis < 3; ++axis) {
+                if (!splittable[axis]) continue;
+                const auto b = static_cast<std::size_t>(map.bin(ref.centroid, static_cast<int>(axis)));
+                into.boxes[axis][b].extend(box);
+                ++into.counts[axis][b];
+            }
+        }
+    };
+    if (end - begin > kParallelBinning) {
+        bins = parallel::reduce(
+            begin, end, 16384, Bins(bins_),
+            [&](std::size_t from, std::size_t to, Bins chunk) {
+                fill(from, to, chunk);
+                return chunk;
+            },
+            [this](Bins a, const Bins& b) {
+                a.merge(b, bins_);
+                return a;
+            });
+        return;
+    }
+    fill(begin, end, bins);
+}
+
+BinnedBuilder::ObjectSplit BinnedBuilder::best_split(std::size_t begin, std::size_t end, const BinMap& map,
+                                                     const Box3f& centroids) const {
+    Bins bins(bins_);
+    bin(begin, end, map, centroids, bins);
+    Split best;
+    std::array<float, kMaxBins> right_costs{};
+    for (int axis = 0; axis < 3; ++axis) {
+        if (!(centroids.hi[axis] > centroids.lo[axis])) continue;
+        const auto& boxes = bins.boxes[static_cast<std::size_t>(axis)];
+        const auto& counts = bins.counts[static_cast<std::size_t>(axis)];
+        BinBox right = BinBox::none();
+        std::uint32_t right_count = 0;
+        for (int b = bins_ - 1; b > 0; --b) {
+            right.extend(boxes[static_cast<std::size_t>(b)]);
+            right_count += counts[static_cast<std::size_t>(b)];
+            right_costs[static_cast<std::size_t>(b)] = right.area() * static_cast<float>(right_count);
+        }
+        BinBox left = BinBox::none();
+        std::uint32_t left_count = 0;
+        for (int b = 1; b < bins_; ++b) {
+            left.extend(boxes[static_cast<std::size_t>(b - 1)]);
+            left_count += counts[static_cast<std::size_t>(b - 1)];
+            if (left_count == 0 || left_count == end - begin) continue;
+            const float cost =
+                left.area() * static_cast<float>(left_count) + right_costs[static_cast<std::size_t>(b)];
+            if (cost < best.cost) best = {axis, cost, left_count, b};
+        }
+    }
+    ObjectSplit object{best, {}, {}};
+    if (spatial_splits_ && best.axis >= 0) {
+        BinBox left = BinBox::none(), right = BinBox::none();
+        for (int b = 0; b < bins_; ++b)
+            (b < best.bin ? left : right).extend(bins.boxes[static_cast<std::size_t>(best.axis)][b]);
+        object.left_bounds = left.box(), object.right_bounds = right.box();
+    }
+    return object;
+}
+
+void BinnedBuilder::build(NodeSlots& slots, std::size_t slot, const RefRange& range, int depth,
+                          const NodeBounds& node) {
+    const auto& [bounds, centroids] = node;
+    const std::size_t count = range.size();
+    if (count <= kExactSplitBelow) {
+        // No spatial split here: the references are large beside the node and cross most of its bins, so
+        // chopped binning would cost the most per reference, for the least gain (docs/accel/bvh.md,
+        // "Spatial splits": half the bunny's build time, for at most 0.5% of the SAH cost).
+        SmallSubtree(refs_, max_leaf_, slots, range).build(slot, range, depth, bounds);
+        return;
+    }
+    const BinMap map(centroids, bins_);
+    ObjectSplit object;
+    SpatialSplit spatial;
+    if (depth < kMedianSplitDepth) {
+        object = best_split(range.begin, range.end, map, centroids);
+        if (worth_a_spatial_split(range, bounds, object)) spatial = best_spatial_split(range, bounds);
+    }
+    const bool spatial_is_better = spatial.split.cost < object.split.cost;
+    if (stays_leaf(count, bounds.surface_area(), spatial_is_better ? spatial.split : object.split,
+                   max_leaf_)) {
+        slots.set_leaf(slot, bounds, range.begin, count);
+        return;
+    }
+    std::optional<Children> children;
+    if (spatial_is_better) children = spatial_partition(range, bounds, spatial);
+    if (!children) children = object_partition(range, object.split, map, centroids);
+    const auto [first, second] = slots.set_inner(slot, bounds, children->axis, children->left.capacity());
+    if (count > kParallelSubtree) {
+        // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
+        parallel::invoke(
+            [&, first_slot = first] {
+                build(slots, first_slot, children->left, depth + 1, children->left_bounds);
+            },
+            [&, second_slot = second] {
+                build(slots, second_slot, children->right, depth + 1, children->right_bounds);
+            });
+        return;
+    }
+    build(slots, first, children->left, depth + 1, children->left_bounds);
+    build(slots, second, children->right, depth + 1, children->right_bounds);
+}
+
+// The object split's children: the binned partition, or an object median when nothing separates the
+// centroids.
+BinnedBuilder::Children BinnedBuilder::object_partition(const RefRange& range, Split split, const BinMap& map,
+                                                        const Box3f& centroids) {
+    const std::size_t begin = range.begin, end = range.end, count = range.size();
+    Children children;
+    std::size_t middle;
+    if (split.axis >= 0) {
+        std::tie(middle, children.left_bounds, children.right_bounds) = partition(begin, end, map, split);
+    } else {
+        split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
+        const int median_axis = split.axis;
+        std::nth_element(
+            refs_.begin() + static_cast<std::ptrdiff_t>(begin),
+            refs_.begin() + static_cast<std::ptrdiff_t>(begin + split.left_count),
+            refs_.begin() + static_cast<std::ptrdiff_t>(end),
+            [median_axis](const BuildRef& a, const BuildRef& b) { return centroid_less(a, b, median_axis); });
+        middle = begin + split.left_count;
+        children.left_bounds = bounds_of(begin, middle), children.right_bounds = bounds_of(middle, end);
+    }
+    children.axis = split.axis;
+    std::tie(children.left, children.right) = share_free_positions(range, middle - begin, end - middle);
+    if (children.right.begin != middle) {
+        // Make room for the left child's free positions: the right child's first references move past
+        // its last (Embree's moveExtentedRange), the others stay.
+        const std::size_t moved = std::min(children.right.begin - middle, end - middle);
+        std::copy(refs_.begin() + static_cast<std::ptrdiff_t>(middle),
+                  refs_.begin() + static_cast<std::ptrdiff_t>(middle + moved),
+                  refs_.begin() + static_cast<std::ptrdiff_t>(children.right.end - moved));
+    }
+    return children;
+}
+
+BvhBuildResult build_binned_sah(std::vector<BuildRef>& refs, std::size_t primitives, const Geometry& geometry,
+                                const BvhOptions& options) {
+    NodeSlots slots(refs.size());
+    BinnedBuilder builder(refs, geometry, options);
+    builder.build(slots, primitives);
+    return slots.compact([&](std::size_t i) { return refs[i].prim; }, refs.size());
+}
+
+}  // namespace lancer

@@ -1,0 +1,96 @@
+// The sweep builder: a full sweep over every centroid boundary at every node (full_sweep.hpp), serial.
+#include <algorithm>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <numeric>
+#include <span>
+#include <vector>
+
+#include "accel/bvh/build_common.hpp"
+#include "accel/bvh/full_sweep.hpp"
+#include "accel/bvh/node_slots.hpp"
+
+namespace lancer {
+namespace {
+
+// The references are sorted once per axis by centroid (ties by primitive index) and every node's are a range
+// of positions of the three orders.
+class SweepBuilder {
+  public:
+    SweepBuilder(std::vector<BuildRef>& refs, const BvhOptions& options)
+        : refs_(refs),
+          max_leaf_(leaf_size_limit(options)),
+          on_left_(refs.size()),
+          right_areas_(refs.size()),
+          scratch_(refs.size()) {
+        for (int axis = 0; axis < 3; ++axis) {
+            std::vector<std::uint32_t>& order = orders_[static_cast<std::size_t>(axis)];
+            order.resize(refs.size());
+            std::iota(order.begin(), order.end(), 0u);
+            std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+                return centroid_less(refs[a], refs[b], axis);
+            });
+        }
+    }
+
+    void build(NodeSlots& slots, std::size_t slot, std::size_t begin, std::size_t end, int depth) {
+        const NodeRefs node{*this, begin};
+        Box3f bounds;
+        for (std::size_t i = begin; i < end; ++i)
+            bounds.extend(refs_[orders_[0][i]].bounds);
+        const std::size_t count = end - begin;
+        Split split = depth >= kMedianSplitDepth
+                          ? Split{}
+                          : best_sweep_split(node, count, std::span(right_areas_).subspan(begin, count));
+        if (stays_leaf(count, bounds.surface_area(), split, max_leaf_)) {
+            slots.set_leaf(slot, bounds, begin, count);
+            return;
+        }
+        if (split.axis < 0) split = median_sweep_split(node, count);
+        partition_sweep_orders(node, count, split, on_left_.data(), scratch_.data());
+        const std::size_t middle = begin + split.left_count;
+        const auto [first, second] = slots.set_inner(slot, bounds, split.axis, split.left_count);
+        build(slots, first, begin, middle, depth + 1);
+        build(slots, second, middle, end, depth + 1);
+    }
+
+    // The primitive at position i of the leaves' ranges.
+    [[nodiscard]] std::uint32_t prim_at(std::size_t i) const { return refs_[orders_[0][i]].prim; }
+
+  private:
+    // A node's references, from position `begin` of each order, as full_sweep.hpp reads them.
+    struct NodeRefs {
+        using Index = std::uint32_t;
+
+        SweepBuilder& builder;
+        std::size_t begin;
+
+        [[nodiscard]] static Box3f empty_box() { return {}; }
+        [[nodiscard]] static float area(const Box3f& box) { return box.surface_area(); }
+        [[nodiscard]] Index* order(int axis) const {
+            return builder.orders_[static_cast<std::size_t>(axis)].data() + begin;
+        }
+        [[nodiscard]] const Box3f& box(Index ref) const { return builder.refs_[ref].bounds; }
+        [[nodiscard]] float centroid(Index ref, int axis) const { return builder.refs_[ref].centroid[axis]; }
+        [[nodiscard]] const Vec3f& centroid_point(Index ref) const { return builder.refs_[ref].centroid; }
+    };
+
+    std::vector<BuildRef>& refs_;
+    int max_leaf_;
+    std::array<std::vector<std::uint32_t>, 3> orders_;
+    std::vector<std::uint8_t> on_left_;
+    std::vector<float> right_areas_;
+    std::vector<std::uint32_t> scratch_;
+};
+
+}  // namespace
+
+BvhBuildResult build_sweep_sah(std::vector<BuildRef>& refs, const BvhOptions& options) {
+    NodeSlots slots(refs.size());
+    SweepBuilder builder(refs, options);
+    builder.build(slots, 0, 0, refs.size(), 0);
+    return slots.compact([&](std::size_t i) { return builder.prim_at(i); }, refs.size());
+}
+
+}  // namespace lancer
