@@ -13,7 +13,7 @@
 #include "accel/build_util.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
+#include "support/ray_sets.hpp"
 
 namespace lancer {
 namespace {

@@ -14,10 +14,10 @@
 #include <numeric>
 
 #include "accel/bvh/triangle_block.hpp"
-#include "configurations.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/load_scene.hpp"
-#include "ray_sets.hpp"
+#include "support/configurations.hpp"
+#include "support/ray_sets.hpp"
 
 namespace lancer {
 namespace {

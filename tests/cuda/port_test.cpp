@@ -11,8 +11,6 @@
 
 #include "accel/bvh/bvh.hpp"
 #include "accel/plucker/plucker.hpp"
-#include "accel/ray_sets.hpp"
-#include "accel/test_scenes.hpp"
 #include "core/intersect.hpp"
 #include "core/ray_conditioning.hpp"
 #include "cuda/bvh_traversal.hpp"
@@ -21,6 +19,8 @@
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
 #include "lancer/load_scene.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {

@@ -10,7 +10,7 @@
 #include "accel/brute.hpp"
 #include "lancer/render.hpp"
 #include "lancer/vec3d.hpp"
-#include "render/print_vec.hpp"
+#include "print_vec.hpp"
 
 namespace lancer {
 namespace {

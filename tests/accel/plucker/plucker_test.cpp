@@ -20,8 +20,8 @@
 #include "accel/plucker/walk.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
-#include "test_scenes.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {
@@ -152,9 +152,9 @@ TEST(PluckerBuild, BalanceKeepsAdjacentLeavesWithinOneLevel) {
     EXPECT_GE(unbalanced_before, 2);  // the scenes do need the balance
 }
 
-// Links (seed 000 section 2.2, Figure 2): across each face of a leaf, nothing on the root's boundary, else
-// one leaf of the same level or one coarser that contains the face, or the four leaves one level finer that
-// tile it, in sub-face order; and the relation is symmetric.
+// Links (Portalez & Duguet 2016, section 2.2, Figure 2): across each face of a leaf, nothing on the root's
+// boundary, else one leaf of the same level or one coarser that contains the face, or the four leaves one
+// level finer that tile it, in sub-face order; and the relation is symmetric.
 TEST(PluckerBuild, NeighbourLinksAreSymmetricAndPointAtTheCellsAcrossEachSubFace) {
     for (const TestScene& scene : scenes()) {
         for (const bool stored_boxes : {true, false}) {

@@ -1,8 +1,8 @@
-// The Plücker octree's layout variants (section 6 of seed 000: no 2:1 rule, no stored boxes, Morton order,
-// and their combinations) on the Stanford meshes: every ray of the canonical view and 10^6 random rays,
-// against the BVH (which stanford_test.cpp checks against brute force on a sample). The registry's default
-// layout is covered by stanford_test.cpp itself. A sanitized build traces 1/testing::kSanitizedStride of
-// each.
+// The Plücker octree's layout variants (section 6 of Portalez & Duguet 2016: no 2:1 rule, no stored boxes,
+// Morton order, and their combinations) on the Stanford meshes: every ray of the canonical view and 10^6
+// random rays, against the BVH (which stanford_test.cpp checks against brute force on a sample). The
+// registry's default layout is covered by stanford_test.cpp itself. A sanitized build traces
+// 1/testing::kSanitizedStride of each.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -10,7 +10,7 @@
 #include "accel/plucker/plucker.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/load_scene.hpp"
-#include "ray_sets.hpp"
+#include "support/ray_sets.hpp"
 
 namespace lancer {
 namespace {
