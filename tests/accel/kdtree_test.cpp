@@ -38,14 +38,7 @@ TestScene mixed_scene() {
 TestScene soup_scene(int count, std::uint32_t seed) {
     TestScene scene{"random triangle soup", {}, {}};
     std::mt19937 rng(seed);
-    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-    auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
-    for (int i = 0; i < count; ++i) {
-        const Vec3f base = point(10.0f);
-        const float size = i % 10 == 0 ? 3.0f : 0.5f;
-        scene.triangles.push_back(
-            {base, base + point(size) - Vec3f(size / 2), base + point(size) - Vec3f(size / 2)});
-    }
+    testing::append_triangle_soup(rng, count, 10.0f, 10, 3.0f, 0.5f, scene.triangles);
     return scene;
 }
 
