@@ -1,7 +1,7 @@
 // libFuzzer harness: reading a .plo Plücker octree file (src/accel/plucker/serialise.cpp). The contract:
 // a damaged file is a PluckerFileError; a file that reads is a structure that agrees with brute force on
 // its own geometry. The harness rewrites the header's checksum to match the bytes, so that mutations reach
-// the checks behind it (the checksum itself is tested in tests/accel/plucker_file_test.cpp).
+// the checks behind it (the checksum itself is tested in tests/accel/plucker/plucker_file_test.cpp).
 #include <cstdint>
 #include <cstring>
 #include <string>

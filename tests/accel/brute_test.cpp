@@ -4,7 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
+#include "support/ray_sets.hpp"
 
 namespace lancer {
 namespace {

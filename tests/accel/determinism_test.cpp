@@ -1,9 +1,9 @@
-// Style habit 7: the same scene and rays give bit-identical answers whatever the thread count of the build,
-// the thread count of the trace and the run. Each registered structure is built in a one-thread arena and
-// twice in a four-thread arena, and each build traces the same rays in batches (as `lancer rays` and the
-// renderer split them) over 1, 2 and 4 threads: every Hit array must equal the first byte for byte, every
-// occlusion array likewise. The structures built on the binary BVH run again with spatial splits. The
-// structural equality of parallel builds is tested beside each structure.
+// Deterministic answers (STYLE.md, habit 7): the same scene and rays give bit-identical answers whatever the
+// thread count of the build, the thread count of the trace and the run. Each registered structure is built in
+// a one-thread arena and twice in a four-thread arena, and each build traces the same rays in batches (as
+// `lancer rays` and the renderer split them) over 1, 2 and 4 threads: every Hit array must equal the first
+// byte for byte, every occlusion array likewise. The structures built on the binary BVH run again with
+// spatial splits. The structural equality of parallel builds is tested beside each structure.
 #include <gtest/gtest.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -14,11 +14,11 @@
 #include <optional>
 #include <random>
 
-#include "configurations.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
-#include "test_scenes.hpp"
+#include "support/configurations.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {

@@ -12,7 +12,7 @@
 
 #include "lancer/accel.hpp"
 #include "lancer/agreement.hpp"
-#include "test_scenes.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {

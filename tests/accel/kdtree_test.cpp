@@ -16,8 +16,8 @@
 #include "accel/build_util.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
-#include "test_scenes.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {
@@ -38,14 +38,7 @@ TestScene mixed_scene() {
 TestScene soup_scene(int count, std::uint32_t seed) {
     TestScene scene{"random triangle soup", {}, {}};
     std::mt19937 rng(seed);
-    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-    auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
-    for (int i = 0; i < count; ++i) {
-        const Vec3f base = point(10.0f);
-        const float size = i % 10 == 0 ? 3.0f : 0.5f;
-        scene.triangles.push_back(
-            {base, base + point(size) - Vec3f(size / 2), base + point(size) - Vec3f(size / 2)});
-    }
+    testing::append_triangle_soup(rng, count, 10.0f, 10, 3.0f, 0.5f, scene.triangles);
     return scene;
 }
 
@@ -247,7 +240,8 @@ TEST(KdTree, NodeLayoutRoundTrips) {
 TEST(KdTree, StructuralInvariantsOnSeveralScenes) {
     for (const TestScene& scene : {mixed_scene(), soup_scene(1500, 3), planar_scene(), coincident_scene()}) {
         for (KdTreeCost cost : {KdTreeCost::WaldHavran, KdTreeCost::Seed003}) {
-            SCOPED_TRACE(scene.name + (cost == KdTreeCost::Seed003 ? ", seed 003" : ", Wald-Havran"));
+            SCOPED_TRACE(scene.name +
+                         (cost == KdTreeCost::Seed003 ? ", Ferreira & Mendoza" : ", Wald-Havran"));
             KdTreeAccel accel;
             accel.build(scene.geometry(), with_cost(cost));
             expect_valid_tree(accel, scene.geometry());
@@ -340,7 +334,8 @@ TEST(KdTree, RootSplitHasTheMinimalCostOfANaiveSearch) {
     for (const TestScene& scene :
          {combined, planar, cubes_scene(4, 1), cubes_scene(12, 2), cubes_scene(30, 3), soup_scene(200, 4)}) {
         for (KdTreeCost cost : {KdTreeCost::WaldHavran, KdTreeCost::Seed003}) {
-            SCOPED_TRACE(scene.name + (cost == KdTreeCost::Seed003 ? ", seed 003" : ", Wald-Havran"));
+            SCOPED_TRACE(scene.name +
+                         (cost == KdTreeCost::Seed003 ? ", Ferreira & Mendoza" : ", Wald-Havran"));
             KdTreeAccel accel;
             accel.build(scene.geometry(), with_cost(cost));
             const KdNode& root = accel.tree().nodes[0];

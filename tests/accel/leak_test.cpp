@@ -16,7 +16,7 @@
 
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
+#include "support/ray_sets.hpp"
 
 namespace lancer {
 namespace {

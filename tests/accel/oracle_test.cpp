@@ -4,11 +4,11 @@
 
 #include <random>
 
-#include "configurations.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
-#include "test_scenes.hpp"
+#include "support/configurations.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {
@@ -22,48 +22,24 @@ std::vector<TestScene> make_scenes() {
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
 
-    TestScene mixed{"icosphere, knot and spheres", {}, {}};
-    make_icosphere(3, {0, 0, 0}, 1.0f).append_triangles(mixed.triangles);
-    make_torus_knot(300, 10).append_triangles(mixed.triangles);
-    for (int i = 0; i < 40; ++i)
-        mixed.spheres.push_back({point(4.0f) - Vec3f(2.0f), 0.05f + 0.2f * unit(rng), 0});
-    scenes.push_back(std::move(mixed));
+    scenes.push_back(testing::icosphere_knot_and_spheres(rng, {0, 0, 0}, 300, 10, 40));
 
     TestScene soup{"random triangle soup", {}, {}};
-    for (int i = 0; i < 3000; ++i) {
-        const Vec3f base = point(10.0f);
-        const float size = i % 10 == 0 ? 3.0f : 0.3f;
-        soup.triangles.push_back(
-            {base, base + point(size) - Vec3f(size / 2), base + point(size) - Vec3f(size / 2)});
-    }
+    testing::append_triangle_soup(rng, 3000, 10.0f, 10, 3.0f, 0.3f, soup.triangles);
     scenes.push_back(std::move(soup));
 
     scenes.push_back({"empty", {}, {}});
     scenes.push_back({"one triangle", {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}, {}});
     scenes.push_back({"one sphere", {}, {{{0, 0, 0}, 1.0f, 0}}});
 
-    TestScene plane{"all triangles in one plane", {}, {}};
-    for (int i = 0; i < 40; ++i) {
-        for (int j = 0; j < 40; ++j) {
-            const float x = static_cast<float>(i), y = static_cast<float>(j);
-            plane.triangles.push_back({{x, y, 0}, {x + 1, y, 0}, {x + 1, y + 1, 0}});
-            plane.triangles.push_back({{x, y, 0}, {x + 1, y + 1, 0}, {x, y + 1, 0}});
-        }
-    }
-    scenes.push_back(std::move(plane));
+    scenes.push_back({"all triangles in one plane", testing::planar_grid_triangles(40), {}});
 
     TestScene coincident{"thousands of coincident triangles", {}, {}};
     coincident.triangles.assign(3000, Triangle{{0, 0, 0}, {1, 0, 0.5f}, {0, 1, 1}});
     coincident.triangles.push_back({{-1, -1, 2}, {2, -1, 2}, {-1, 2, 2}});
     scenes.push_back(std::move(coincident));
 
-    TestScene huge{"huge triangle next to tiny ones", {}, {}};
-    huge.triangles.push_back({{-1e4f, -1e4f, 0.5f}, {1e4f, -1e4f, 0.5f}, {0, 1e4f, 0.5f}});
-    for (int i = 0; i < 2000; ++i) {
-        const Vec3f base = point(1.0f);
-        huge.triangles.push_back({base, base + Vec3f(1e-3f, 0, 0), base + Vec3f(0, 1e-3f, 1e-4f)});
-    }
-    scenes.push_back(std::move(huge));
+    scenes.push_back(testing::huge_triangle_next_to_tiny_ones(rng, 1e4f, 2000));
 
     TestScene degenerate{"degenerate and duplicate triangles", {}, {}};
     make_icosphere(2, {0, 0, 0}, 1.0f).append_triangles(degenerate.triangles);

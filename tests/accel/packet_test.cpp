@@ -16,8 +16,9 @@
 #include "lancer/agreement.hpp"
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
-#include "test_scenes.hpp"
+#include "support/configurations.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {
@@ -38,10 +39,7 @@ struct Pair {
         return label;
     }
     [[nodiscard]] BuildOptions options(TriangleTest test) const {
-        BuildOptions options = build_options(test);
-        options.group<BvhOptions>().spatial_splits = spatial_splits;
-        options.isa = isa;
-        return options;
+        return testing::Configuration{packet, spatial_splits, isa}.options(test);
     }
     [[nodiscard]] std::unique_ptr<Accel> make_packet() const { return make_accel(packet); }
 };
@@ -72,15 +70,7 @@ std::vector<TestScene> make_scenes() {
     for (int i = 0; i < 20; ++i)
         mixed.spheres.push_back({{unit(rng), unit(rng), unit(rng)}, 0.1f + 0.05f * unit(rng), 0});
     all.push_back(std::move(mixed));
-    TestScene plane{"triangles of one plane", {}, {}};
-    for (int i = 0; i < 30; ++i) {
-        for (int j = 0; j < 30; ++j) {
-            const float x = static_cast<float>(i), y = static_cast<float>(j);
-            plane.triangles.push_back({{x, y, 0}, {x + 1, y, 0}, {x + 1, y + 1, 0}});
-            plane.triangles.push_back({{x, y, 0}, {x + 1, y + 1, 0}, {x, y + 1, 0}});
-        }
-    }
-    all.push_back(std::move(plane));
+    all.push_back({"triangles of one plane", testing::planar_grid_triangles(30), {}});
     // Triangles smaller than a pixel of the test views: a leaf meets few rays of a group, and
     // bvh8_packet's Moller-Trumbore tests it a ray at a time (Bvh8PacketTraversal::test_rays).
     TestScene fine{"icosphere of 5120 triangles", {}, {}};

@@ -1,6 +1,6 @@
-// Deterministic parallel builds (STYLE.md habit 7; lancer issue 6): every structure built inside a
-// 1-thread task arena and inside a 4-thread one must be the same structure, array for array, and so give
-// the same answers bit for bit. The scenes are large enough to take every parallel path of the builds
+// Deterministic parallel builds (STYLE.md, habit 7; docs/accel/parallel-build.md): every structure built
+// inside a 1-thread task arena and inside a 4-thread one must be the same structure, array for array, and so
+// give the same answers bit for bit. The scenes are large enough to take every parallel path of the builds
 // (subtrees and blocks of more than a few thousand references), and the second one makes the grid exceed
 // its reference budget, so that its coarsening runs in parallel too.
 #include <gtest/gtest.h>
@@ -16,7 +16,7 @@
 #include "accel/kdtree.hpp"
 #include "accel/octree_build.hpp"
 #include "accel/plucker/plucker.hpp"
-#include "test_scenes.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {

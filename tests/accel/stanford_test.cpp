@@ -9,22 +9,17 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include <filesystem>
 #include <map>
 #include <numeric>
 
 #include "accel/bvh/triangle_block.hpp"
-#include "configurations.hpp"
 #include "lancer/agreement.hpp"
-#include "lancer/load_scene.hpp"
-#include "ray_sets.hpp"
+#include "support/configurations.hpp"
+#include "support/ray_sets.hpp"
+#include "support/stanford_meshes.hpp"
 
 namespace lancer {
 namespace {
-
-namespace fs = std::filesystem;
-
-const fs::path kMeshes = fs::path(LANCER_SHARED_DIR) / "data" / "meshes";
 
 // Brute force eight triangles at a time: every ray against every primitive, in index order, through the
 // triangle blocks of bvh8's leaves (accel/bvh/triangle_block.hpp), whose kernels the TriangleBlock tests
@@ -50,13 +45,10 @@ std::vector<Hit> brute_force_in_blocks(const Geometry& geometry, TriangleTest te
     return hits;
 }
 
-class StanfordMesh : public ::testing::TestWithParam<const char*> {};
+class StanfordMesh : public testing::StanfordMeshTest {};
 
 TEST_P(StanfordMesh, EveryStructureAgreesOnTheCanonicalViewAndOnRandomRays) {
-    const fs::path file = kMeshes / GetParam();
-    if (!fs::exists(file)) GTEST_SKIP() << file << " is absent (see README, 'The Stanford meshes')";
-    const Scene scene = load_scene(file);
-    const SceneGeometry geometry(scene);
+    const SceneGeometry& geometry = mesh();
     const Box3f bounds = geometry.view().bounds();
 
     std::vector<testing::RaySet> sets = {
@@ -120,11 +112,7 @@ TEST_P(StanfordMesh, EveryStructureAgreesOnTheCanonicalViewAndOnRandomRays) {
     }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Meshes, StanfordMesh, ::testing::Values("bunny.obj", "armadillo.off", "dragon.ply"),
-    [](const auto& param_info) {
-        return std::string(param_info.param).substr(0, std::string(param_info.param).find('.'));
-    });
+INSTANTIATE_TEST_SUITE_P(Meshes, StanfordMesh, testing::stanford_meshes(), testing::stanford_mesh_name);
 
 }  // namespace
 }  // namespace lancer

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "lancer/accel.hpp"
-#include "test_scenes.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {

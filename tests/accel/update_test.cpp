@@ -1,6 +1,6 @@
-// Accel::update and World::update_vertices (issue 27): after every update every structure agrees with the
-// brute-force oracle on the moved mesh, refitting back to the rest pose gives the first answers bit for bit,
-// the SAH watch rebuilds past its threshold, and bad input leaves the world as it was.
+// Accel::update and World::update_vertices (docs/accel/refit.md): after every update every structure agrees
+// with the brute-force oracle on the moved mesh, refitting back to the rest pose gives the first answers bit
+// for bit, the SAH watch rebuilds past its threshold, and bad input leaves the world as it was.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,12 +11,12 @@
 
 #include "accel/brute.hpp"
 #include "accel/bvh/bvh_wide.hpp"
-#include "configurations.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/animate.hpp"
 #include "lancer/generate.hpp"
 #include "lancer/world.hpp"
-#include "ray_sets.hpp"
+#include "support/configurations.hpp"
+#include "support/ray_sets.hpp"
 
 namespace lancer {
 namespace {

@@ -1,6 +1,6 @@
-// The kernels on a GPU against the CPU structures on the same rays (issue 7): the same hit or miss, the same
-// triangle or a tie, t within 1e-5 relative (compare_hits); bit-identical answers are counted and printed,
-// since the kernels are built to give them (--fmad=false, IEEE division and square root). Without a
+// The kernels on a GPU against the CPU structures on the same rays (docs/cuda.md): the same hit or miss, the
+// same triangle or a tie, t within 1e-5 relative (compare_hits); bit-identical answers are counted and
+// printed, since the kernels are built to give them (--fmad=false, IEEE division and square root). Without a
 // device these tests skip, saying why; the tracer's refusal without a device is tested everywhere.
 #include <gtest/gtest.h>
 
@@ -8,11 +8,11 @@
 #include <filesystem>
 #include <string>
 
-#include "accel/ray_sets.hpp"
-#include "accel/test_scenes.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/cuda.hpp"
 #include "lancer/load_scene.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {

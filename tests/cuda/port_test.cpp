@@ -11,8 +11,6 @@
 
 #include "accel/bvh/bvh.hpp"
 #include "accel/plucker/plucker.hpp"
-#include "accel/ray_sets.hpp"
-#include "accel/test_scenes.hpp"
 #include "core/intersect.hpp"
 #include "core/ray_conditioning.hpp"
 #include "cuda/bvh_traversal.hpp"
@@ -21,6 +19,8 @@
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
 #include "lancer/load_scene.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {
@@ -41,12 +41,7 @@ std::vector<TestScene> make_triangle_scenes() {
     scenes.push_back(std::move(smooth));
 
     TestScene soup{"triangle soup of mixed sizes", {}, {}};
-    for (int i = 0; i < 2500; ++i) {
-        const Vec3f base = point(8.0f);
-        const float size = i % 7 == 0 ? 2.5f : 0.25f;
-        soup.triangles.push_back(
-            {base, base + point(size) - Vec3f(size / 2), base + point(size) - Vec3f(size / 2)});
-    }
+    testing::append_triangle_soup(rng, 2500, 8.0f, 7, 2.5f, 0.25f, soup.triangles);
     scenes.push_back(std::move(soup));
 
     TestScene grid{"a flat grid with shared edges", {}, {}};

@@ -9,7 +9,7 @@
 #include <numbers>
 #include <set>
 
-#include "render/print_vec.hpp"
+#include "print_vec.hpp"
 
 namespace lancer {
 namespace {

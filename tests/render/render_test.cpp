@@ -10,7 +10,7 @@
 #include "accel/brute.hpp"
 #include "lancer/render.hpp"
 #include "lancer/vec3d.hpp"
-#include "render/print_vec.hpp"
+#include "print_vec.hpp"
 
 namespace lancer {
 namespace {
@@ -364,7 +364,14 @@ TEST(RenderParts, AssemblyRefusesPartsThatDoNotTileTheFrame) {
     const std::vector<FramePart> repeated = {part_of({0, 1, 2}), part_of({2, 3, 4, 5})};
     EXPECT_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, repeated)), std::invalid_argument);
     const std::vector<FramePart> whole = {part_of({5, 3, 1}), part_of({0, 2, 4})};
-    EXPECT_NO_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, whole)));
+    RenderStats whole_stats;
+    const Image assembled = assemble_frame(tiny_camera(), options, whole, &whole_stats);
+    const Image reference = render(scene, geometry, *accel, tiny_camera(), options);
+    ASSERT_EQ(assembled.pixels.size(), reference.pixels.size());
+    EXPECT_EQ(std::memcmp(assembled.pixels.data(), reference.pixels.data(),
+                          assembled.pixels.size() * sizeof(Vec3f)),
+              0);
+    EXPECT_EQ(whole_stats.primary_rays, 40u * 30u);
     std::vector<FramePart> cut_short = whole, padded = whole;
     cut_short[1].pixels.pop_back();
     EXPECT_THROW(static_cast<void>(assemble_frame(tiny_camera(), options, cut_short)), std::invalid_argument);
@@ -379,7 +386,30 @@ TEST(Render, StatsCountOneRayPerPixel) {
     EXPECT_EQ(image.width, 40);
     EXPECT_EQ(image.height, 30);
     EXPECT_EQ(stats.primary_rays, 40u * 30u);
-    EXPECT_GT(stats.trace_ms, 0.0);
+    // Whitted mode, but the tiny scene has no light, no mirror and no glass: no secondary ray.
+    EXPECT_EQ(stats.shadow_rays, 0u);
+    EXPECT_EQ(stats.reflection_rays, 0u);
+    EXPECT_EQ(stats.refraction_rays, 0u);
+}
+
+// A floor that mirrors and transmits, lit from above, under the 40x30 view: rows 15 to 29 look down onto it
+// (v < 0), rows 0 to 14 look up into empty sky. Each floor hit faces the light, so casts one shadow ray, and
+// spawns one mirror and one refracted ray, which leave upwards and downwards into nothing.
+TEST(Render, StatsCountRaysOfEachKind) {
+    Scene scene;
+    scene.planes.push_back({{0.0f, 1.0f, 0.0f}, static_cast<float>(kFloorY), 0, false});
+    scene.materials.resize(1);
+    scene.materials[0].ks = 0.5f;
+    scene.materials[0].kt = 0.3f;
+    scene.materials[0].ior = 1.5f;
+    scene.lights.push_back({{0.0f, 10.0f, 0.0f}, Vec3f(1.0f)});
+    RenderStats stats;
+    (void)render_with_brute(scene, tiny_camera(), with_mode(ShadingMode::Whitted), &stats);
+    const std::uint64_t floor_hits = 15u * 40u;
+    EXPECT_EQ(stats.primary_rays, 40u * 30u);
+    EXPECT_EQ(stats.shadow_rays, floor_hits);
+    EXPECT_EQ(stats.reflection_rays, floor_hits);
+    EXPECT_EQ(stats.refraction_rays, floor_hits);
 }
 
 TEST(Render, ProgressLineCountsTiles) {

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "accel/brute.hpp"
-#include "render/print_vec.hpp"
+#include "print_vec.hpp"
 
 namespace lancer {
 namespace {

@@ -12,7 +12,7 @@
 #include "lancer/camera.hpp"
 #include "lancer/generate.hpp"
 #include "lancer/render.hpp"
-#include "render/print_vec.hpp"
+#include "print_vec.hpp"
 
 namespace lancer {
 namespace {

@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "allocation_probe.hpp"
 #include "lancer/load_scene.hpp"
 #include "scene_test_util.hpp"
+#include "support/allocation_probe.hpp"
 
 namespace lancer {
 namespace {

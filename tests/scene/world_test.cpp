@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "../accel/ray_sets.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
+#include "support/ray_sets.hpp"
 
 namespace lancer {
 namespace {

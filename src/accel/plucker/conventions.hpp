@@ -1,8 +1,8 @@
 // The numbering of faces, vertices and sub-faces of a cell of the Plücker octree, and the lookup tables of
 // Portalez & Duguet 2016, section 4.2 (equations 6 to 10) derived from it at compile time: the seed's Figure
 // 4, which fixes its own numbering, is missing, so its tables (7), (8) and (9) cannot be copied. Derivation
-// and conventions: docs/accel/plucker.md; tests/accel/plucker_tables_test.cpp checks the tables against slab
-// computations.
+// and conventions: docs/accel/plucker.md; tests/accel/plucker/plucker_tables_test.cpp checks the tables
+// against slab computations.
 #pragma once
 
 #include <array>

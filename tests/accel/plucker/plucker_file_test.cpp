@@ -11,8 +11,8 @@
 #include "accel/plucker/plucker.hpp"
 #include "accel/plucker/serialise.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
-#include "scene/allocation_probe.hpp"
+#include "support/allocation_probe.hpp"
+#include "support/ray_sets.hpp"
 
 namespace lancer::plucker {
 namespace {

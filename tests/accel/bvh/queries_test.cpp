@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "accel/primitive_intersect.hpp"
-#include "ray_sets.hpp"
-#include "test_scenes.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {

@@ -1,4 +1,4 @@
-// Adversarial ray sets every structure is checked on against the brute-force oracle (style habit 5).
+// Adversarial ray sets every structure is checked on against the brute-force oracle (STYLE.md, habit 5).
 #pragma once
 
 #include <map>

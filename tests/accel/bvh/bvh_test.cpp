@@ -15,8 +15,8 @@
 #include "accel/bvh/build.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
-#include "test_scenes.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {
@@ -182,7 +182,8 @@ float root_split_cost(const BvhAccel& bvh) {
 }
 
 TEST(Bvh, FullSweepFindsARootSplitNoWorseThanBinning) {
-    // Binning only considers bin boundaries, a subset of the sweep's candidates (seed 002's sweep is exact).
+    // Binning only considers bin boundaries, a subset of the sweep's candidates (Iehl's sweep,
+    // "Intersections" 2011, is exact).
     for (int segments : {100, 250, 600}) {
         const std::vector<Triangle> triangles = knot_triangles(segments);
         BvhAccel sweep, binned;

@@ -20,8 +20,11 @@
 #include "accel/plucker/walk.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
-#include "ray_sets.hpp"
-#include "test_scenes.hpp"
+#include "support/brute_force_agreement.hpp"
+#include "support/cell_plane_rays.hpp"
+#include "support/crossed_leaves.hpp"
+#include "support/ray_sets.hpp"
+#include "support/test_scenes.hpp"
 
 namespace lancer {
 namespace {
@@ -33,44 +36,14 @@ using testing::TestScene;
 std::vector<TestScene> make_scenes() {
     std::vector<TestScene> scenes;
     std::mt19937 rng(17);
-    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-    auto point = [&](float scale) { return Vec3f(unit(rng), unit(rng), unit(rng)) * scale; };
-
-    TestScene mixed{"icosphere, knot and spheres", {}, {}};
-    make_icosphere(3, {0.2f, -0.1f, 0.3f}, 1.0f).append_triangles(mixed.triangles);
-    make_torus_knot(200, 8).append_triangles(mixed.triangles);
-    for (int i = 0; i < 20; ++i)
-        mixed.spheres.push_back({point(4.0f) - Vec3f(2.0f), 0.05f + 0.2f * unit(rng), 0});
-    scenes.push_back(std::move(mixed));
+    scenes.push_back(testing::icosphere_knot_and_spheres(rng, {0.2f, -0.1f, 0.3f}, 200, 8, 20));
 
     TestScene soup{"triangle soup", {}, {}};
-    for (int i = 0; i < 1500; ++i) {
-        const Vec3f base = point(10.0f);
-        const float size = i % 10 == 0 ? 3.0f : 0.3f;
-        soup.triangles.push_back(
-            {base, base + point(size) - Vec3f(size / 2), base + point(size) - Vec3f(size / 2)});
-    }
+    testing::append_triangle_soup(rng, 1500, 10.0f, 10, 3.0f, 0.3f, soup.triangles);
     scenes.push_back(std::move(soup));
-
-    // Tiny triangles clustered next to a huge one: leaves of very different levels side by side, the case
-    // the 2:1 rule is about.
-    TestScene huge{"huge triangle next to tiny ones", {}, {}};
-    huge.triangles.push_back({{-1e3f, -1e3f, 0.5f}, {1e3f, -1e3f, 0.5f}, {0, 1e3f, 0.5f}});
-    for (int i = 0; i < 800; ++i) {
-        const Vec3f base = point(1.0f);
-        huge.triangles.push_back({base, base + Vec3f(1e-3f, 0, 0), base + Vec3f(0, 1e-3f, 1e-4f)});
-    }
-    scenes.push_back(std::move(huge));
-
-    TestScene plane{"triangles in one plane", {}, {}};
-    for (int i = 0; i < 24; ++i) {
-        for (int j = 0; j < 24; ++j) {
-            const float x = static_cast<float>(i), y = static_cast<float>(j);
-            plane.triangles.push_back({{x, y, 0}, {x + 1, y, 0}, {x + 1, y + 1, 0}});
-            plane.triangles.push_back({{x, y, 0}, {x + 1, y + 1, 0}, {x, y + 1, 0}});
-        }
-    }
-    scenes.push_back(std::move(plane));
+    // Leaves of very different levels side by side: the case the 2:1 rule is about.
+    scenes.push_back(testing::huge_triangle_next_to_tiny_ones(rng, 1e3f, 800));
+    scenes.push_back({"triangles in one plane", testing::planar_grid_triangles(24), {}});
     return scenes;
 }
 
@@ -152,9 +125,9 @@ TEST(PluckerBuild, BalanceKeepsAdjacentLeavesWithinOneLevel) {
     EXPECT_GE(unbalanced_before, 2);  // the scenes do need the balance
 }
 
-// Links (seed 000 section 2.2, Figure 2): across each face of a leaf, nothing on the root's boundary, else
-// one leaf of the same level or one coarser that contains the face, or the four leaves one level finer that
-// tile it, in sub-face order; and the relation is symmetric.
+// Links (Portalez & Duguet 2016, section 2.2, Figure 2): across each face of a leaf, nothing on the root's
+// boundary, else one leaf of the same level or one coarser that contains the face, or the four leaves one
+// level finer that tile it, in sub-face order; and the relation is symmetric.
 TEST(PluckerBuild, NeighbourLinksAreSymmetricAndPointAtTheCellsAcrossEachSubFace) {
     for (const TestScene& scene : scenes()) {
         for (const bool stored_boxes : {true, false}) {
@@ -389,11 +362,7 @@ std::vector<std::uint32_t> leaves_by_slabs(std::span<const LeafBoxes> leaves, co
         if (entry + slack < exit && from + slack < to && entry + slack < to && exit > from + slack)
             crossed.emplace_back(entry, exit, leaf.address);
     }
-    std::sort(crossed.begin(), crossed.end());
-    std::vector<std::uint32_t> order;
-    for (const auto& [entry, exit, address] : crossed)
-        order.push_back(address);
-    return order;
+    return testing::in_order_of_entry(std::move(crossed));
 }
 
 TEST(PluckerWalk, VisitsTheLeavesTheRayCrossesInOrder) {
@@ -447,42 +416,14 @@ TEST(PluckerWalk, RaysInCellPlanesAndAlongEdges) {
         accel.build(geometry, options);
         const Octree octree = plucker::recover_octree(accel.layout());
         const auto leaves = leaves_by_address(accel.layout(), octree);
-        std::mt19937 rng(3);
-        std::uniform_int_distribution<int> level_of(0, 6), axis_of(0, 2);
-        std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-        std::vector<Ray> rays;
+        const std::vector<Ray> rays = testing::cell_plane_rays(octree, 3000, 3);
         const Box3f root = octree.cell_box(octree.cells[0]);
-        for (int i = 0; i < 3000; ++i) {
-            Vec3f origin = root.lo + Vec3f(unit(rng), unit(rng), unit(rng)) * root.extent().x;
-            if (i % 5 == 0) origin = origin - Vec3f(root.extent().x);  // from outside
-            Vec3f direction(unit(rng) - 0.5f, unit(rng) - 0.5f, unit(rng) - 0.5f);
-            const int plane_axis = axis_of(rng), level = level_of(rng);
-            std::uniform_int_distribution<std::uint32_t> face(0, 1u << level);
-            origin[plane_axis] = octree.cube.plane(plane_axis, level, face(rng));
-            direction[plane_axis] = i % 2 ? 0.0f : -0.0f;
-            if (i % 3 == 0) {  // along an edge: in two planes at once
-                const int second = (plane_axis + 1) % 3;
-                origin[second] = octree.cube.plane(second, level, face(rng));
-                direction[second] = i % 4 ? 0.0f : -0.0f;
-            }
-            rays.push_back({origin, direction, 0.0f, kInfinity});
-        }
         for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
             BuildOptions with_test = options;
             with_test.triangle_test = test;
             PluckerAccel tested;
             tested.build(geometry, with_test);
-            BruteAccel brute;
-            brute.build(geometry, build_options(test));
-            std::vector<Hit> expected(rays.size()), hits(rays.size());
-            std::vector<std::uint8_t> occluded(rays.size());
-            brute.intersect(rays, expected);
-            tested.intersect(rays, hits);
-            tested.occluded(rays, occluded);
-            const Agreement closest = compare_hits(rays, expected, hits);
-            EXPECT_EQ(closest.mismatches, 0u) << closest.summary();
-            EXPECT_GT(closest.hits, 200u);
-            EXPECT_EQ(compare_occlusion(rays, expected, occluded).mismatches, 0u);
+            testing::expect_brute_force_answers(tested, geometry, test, rays, 200);
         }
         for (std::size_t i = 0; i < rays.size(); ++i) {
             const std::vector<std::uint32_t> visited = accel.leaves_along(rays[i]);

@@ -1,29 +1,22 @@
-// The Plücker octree's layout variants (section 6 of seed 000: no 2:1 rule, no stored boxes, Morton order,
-// and their combinations) on the Stanford meshes: every ray of the canonical view and 10^6 random rays,
-// against the BVH (which stanford_test.cpp checks against brute force on a sample). The registry's default
-// layout is covered by stanford_test.cpp itself. A sanitized build traces 1/testing::kSanitizedStride of
-// each.
+// The Plücker octree's layout variants (section 6 of Portalez & Duguet 2016: no 2:1 rule, no stored boxes,
+// Morton order, and their combinations) on the Stanford meshes: every ray of the canonical view and 10^6
+// random rays, against the BVH (which stanford_test.cpp checks against brute force on a sample). The
+// registry's default layout is covered by stanford_test.cpp itself. A sanitized build traces
+// 1/testing::kSanitizedStride of each.
 #include <gtest/gtest.h>
-
-#include <filesystem>
 
 #include "accel/plucker/plucker.hpp"
 #include "lancer/agreement.hpp"
-#include "lancer/load_scene.hpp"
-#include "ray_sets.hpp"
+#include "support/ray_sets.hpp"
+#include "support/stanford_meshes.hpp"
 
 namespace lancer {
 namespace {
 
-namespace fs = std::filesystem;
-
-class PluckerStanford : public ::testing::TestWithParam<const char*> {};
+class PluckerStanford : public testing::StanfordMeshTest {};
 
 TEST_P(PluckerStanford, EveryLayoutAgreesWithTheBvh) {
-    const fs::path file = fs::path(LANCER_SHARED_DIR) / "data" / "meshes" / GetParam();
-    if (!fs::exists(file)) GTEST_SKIP() << file << " is absent (see README, 'The Stanford meshes')";
-    const Scene scene = load_scene(file);
-    const SceneGeometry geometry(scene);
+    const SceneGeometry& geometry = mesh();
     const Box3f bounds = geometry.view().bounds();
     std::vector<testing::RaySet> sets = {testing::canonical_view_rays(bounds),
                                          testing::random_rays(bounds, 1'000'000, 19)};
@@ -54,11 +47,7 @@ TEST_P(PluckerStanford, EveryLayoutAgreesWithTheBvh) {
     }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Meshes, PluckerStanford, ::testing::Values("bunny.obj", "armadillo.off", "dragon.ply"),
-    [](const auto& param_info) {
-        return std::string(param_info.param).substr(0, std::string(param_info.param).find('.'));
-    });
+INSTANTIATE_TEST_SUITE_P(Meshes, PluckerStanford, testing::stanford_meshes(), testing::stanford_mesh_name);
 
 }  // namespace
 }  // namespace lancer

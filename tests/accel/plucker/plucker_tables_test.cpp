@@ -1,7 +1,7 @@
-// The lookup tables of seed 000 section 4.2 (conventions.hpp) against slab computations: the exit face
-// (equations 6-8) must be an axis of smallest slab exit, the sub-face (equations 9-10) the quadrant of the
-// face that holds the ray's crossing point, on exhaustive integer samples (every octant, every order of
-// the three exits with ties and infinite exits, crossings on the median lines, zero and negative-zero
+// The lookup tables of Portalez & Duguet (2016), section 4.2 (conventions.hpp) against slab computations: the
+// exit face (equations 6-8) must be an axis of smallest slab exit, the sub-face (equations 9-10) the quadrant
+// of the face that holds the ray's crossing point, on exhaustive integer samples (every octant, every order
+// of the three exits with ties and infinite exits, crossings on the median lines, zero and negative-zero
 // components) and on random rays in floating point. Also: the seed's own tables (7)-(9) are ours after a
 // renumbering of faces and vertices, which fixes the conventions of its missing Figure 4.
 #include <gtest/gtest.h>
@@ -30,8 +30,9 @@ WalkRay walk_ray(const Vec3f& origin, const Vec3f& direction) {
 }
 
 TEST(PluckerTables, AreTheSeedsTablesRenumbered) {
-    // Seed 000, equations (7)-(9). Its faces 0..5 are our -y, -x, +y, +x, -z, +z; its row r of (8) is our
-    // octant 7 - r (its vertex bits are set for the lower coordinate); its 7 is "cannot happen".
+    // Portalez & Duguet (2016), equations (7)-(9). Its faces 0..5 are our -y, -x, +y, +x, -z, +z; its row r
+    // of (8) is our octant 7 - r (its vertex bits are set for the lower coordinate); its 7 is "cannot
+    // happen".
     constexpr int kSeedFace[6] = {2, 0, 3, 1, 4, 5};
     constexpr int kSeedExit[8][8] = {{7, 2, 5, 2, 3, 3, 5, 7}, {5, 7, 1, 1, 5, 2, 7, 2},
                                      {3, 3, 7, 5, 0, 7, 0, 5}, {0, 5, 0, 7, 7, 5, 1, 1},
