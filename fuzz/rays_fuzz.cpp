@@ -2,8 +2,8 @@
 // tests. The input is a tiny scene (up to 8 triangles and 2 spheres, finite, of any magnitude) and up
 // to 32 rays of arbitrary floats: NaN, infinities, zero and denormal directions, huge coordinates,
 // tnear > tfar. A scene beyond the coordinate domain must be refused by every structure; otherwise every
-// structure must agree with brute force (0 mismatches, include/lancer/agreement.hpp) on every ray and answer it
-// cleanly (invalid rays miss); Embree, with its own kernels, must answer cleanly (accel_check.hpp).
+// structure must agree with brute force (0 mismatches, include/lancer/agreement.hpp) on every ray and answer
+// it cleanly (invalid rays miss); Embree, with its own kernels, must answer cleanly (accel_check.hpp).
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
