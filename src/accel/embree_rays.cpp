@@ -436,12 +436,18 @@ void EmbreeAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
     {
         const DenormalsFlushed flushed;
         if (call_ == EmbreeCall::Stream) {
-            // The packet's rays as one stream, its invalid rays inactive records.
+            // The packet's rays as one stream, its invalid rays inactive records: the tests over all lanes
+            // at once (fill_from_packet, vectorized), then the records ray by ray from the tested packet.
+            alignas(64) RTCRayHitNt<RayPacket::kMaxSize> tested;
+            alignas(64) int valid[RayPacket::kMaxSize];
+            traced = fill_from_packet(*source, 0, tested, valid);
             alignas(64) RTCRayHitNt<1> stream[RayPacket::kMaxSize];
             for (int lane = 0; lane < rays.size && traced; ++lane) {
-                alignas(64) int valid[1];
-                traced = fill_from_packet(*source, lane, stream[lane], valid);
-                if (valid[0] == 0) fill_lane(kInactiveRay, stream[lane], 0);
+                const Ray ray{{tested.ray.org_x[lane], tested.ray.org_y[lane], tested.ray.org_z[lane]},
+                              {tested.ray.dir_x[lane], tested.ray.dir_y[lane], tested.ray.dir_z[lane]},
+                              tested.ray.tnear[lane],
+                              tested.ray.tfar[lane]};
+                fill_lane(valid[lane] != 0 ? ray : kInactiveRay, stream[lane], 0);
             }
             if (traced) {
                 stream_query(scene_, &context, stream, static_cast<unsigned int>(rays.size));
