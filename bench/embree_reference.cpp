@@ -15,9 +15,14 @@
 // canonical-view hits and traced from an array in memory, 4096 consecutive rays a task, as `lancer bench
 // --view` does: rtcIntersect1/8/16 (closest hit) or rtcOccluded1/8/16 (any hit, one byte stored) on
 // consecutive rays, without the COHERENT flag, as the tutorials trace secondary rays.
+// --calls 1M adds the stream calls, rtcIntersect1M and rtcOccluded1M on arrays of RTCRayHit or RTCRay: a
+// tile's 64 camera rays in scanline order with the COHERENT flag, as Embree's viewer_stream tutorial traces
+// them, and on the secondary views streams of 256 consecutive rays (as lancer's embree_stream). --context
+// coherent|incoherent sets one flag for every call instead, to measure which suits a view.
 //
-//   embree_reference MESH [--size 1024] [--frames 5] [--threads 1,2] [--calls 1,8,16] [--quality high]
-//                         [--view primary|diffuse|shadow] [--watertight] [--json FILE] [--animate N]
+//   embree_reference MESH [--size 1024] [--frames 5] [--threads 1,2] [--calls 1,8,16,1M] [--quality high]
+//                         [--view primary|diffuse|shadow] [--context auto|coherent|incoherent] [--watertight]
+//                         [--json FILE] [--animate N]
 #include <assimp/cimport.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -129,15 +134,39 @@ struct PixelHit {
 };
 
 constexpr int kTile = 8;  // tiles of 8x8 pixels, one task per row of tiles
+// The template argument and --calls value of the stream calls (rtcIntersect1M, rtcOccluded1M), beside the
+// lane counts 1, 8 and 16 of the others.
+constexpr int kStream = 0;
 
-// One call: rtcIntersect1 per pixel, or packets of kWidth x kHeight pixels (4x2 for 8 lanes, 4x4 for 16).
+// One call: rtcIntersect1 per pixel, packets of kWidth x kHeight pixels (4x2 for 8 lanes, 4x4 for 16), or
+// the tile's rays as one stream.
 template <int kLanes>
-void trace_tile(RTCScene scene, const Camera& camera, int x0, int y0, std::vector<PixelHit>& hits) {
+void trace_tile(RTCScene scene, const Camera& camera, RTCIntersectContextFlags flags, int x0, int y0,
+                std::vector<PixelHit>& hits) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
-    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    context.flags = flags;
     const int size = camera.size;
-    if constexpr (kLanes == 1) {
+    if constexpr (kLanes == kStream) {
+        RTCRayHit stream[kTile * kTile];
+        unsigned count = 0;
+        for (int j = y0; j < std::min(size, y0 + kTile); ++j) {
+            for (int i = x0; i < std::min(size, x0 + kTile); ++i, ++count) {
+                const Float3 d = camera.direction(i, j);
+                stream[count].ray = {camera.eye.x, camera.eye.y, camera.eye.z, 0.0f, d.x, d.y,
+                                     d.z,          0.0f,         INFINITY,     ~0u,  0,   0};
+                stream[count].hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            }
+        }
+        rtcIntersect1M(scene, &context, stream, count, sizeof(RTCRayHit));
+        count = 0;
+        for (int j = y0; j < std::min(size, y0 + kTile); ++j) {
+            for (int i = x0; i < std::min(size, x0 + kTile); ++i, ++count)
+                hits[static_cast<std::size_t>(j) * size + i] = {stream[count].ray.tfar,
+                                                                stream[count].hit.primID, stream[count].hit.u,
+                                                                stream[count].hit.v};
+        }
+    } else if constexpr (kLanes == 1) {
         for (int j = y0; j < std::min(size, y0 + kTile); ++j) {
             for (int i = x0; i < std::min(size, x0 + kTile); ++i) {
                 const Float3 d = camera.direction(i, j);
@@ -185,7 +214,8 @@ void trace_tile(RTCScene scene, const Camera& camera, int x0, int y0, std::vecto
 }
 
 template <int kLanes>
-void trace_frame(RTCScene scene, const Camera& camera, std::vector<PixelHit>& hits, tbb::task_arena& arena) {
+void trace_frame(RTCScene scene, const Camera& camera, RTCIntersectContextFlags flags,
+                 std::vector<PixelHit>& hits, tbb::task_arena& arena) {
     const int tiles = (camera.size + kTile - 1) / kTile;
     arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1), [&](const tbb::blocked_range<int>& rows) {
@@ -194,7 +224,7 @@ void trace_frame(RTCScene scene, const Camera& camera, std::vector<PixelHit>& hi
             _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
             for (int row = rows.begin(); row < rows.end(); ++row) {
                 for (int x0 = 0; x0 < camera.size; x0 += kTile)
-                    trace_tile<kLanes>(scene, camera, x0, row * kTile, hits);
+                    trace_tile<kLanes>(scene, camera, flags, x0, row * kTile, hits);
             }
         });
     });
@@ -257,15 +287,18 @@ std::vector<SecondaryRay> secondary_rays(const Mesh& mesh, const Camera& camera,
     return rays;
 }
 
-constexpr std::size_t kChunk = 4096;  // consecutive rays a task, as lancer bench's arrays
+constexpr std::size_t kChunk = 4096;      // consecutive rays a task, as lancer bench's arrays
+constexpr std::size_t kStreamRays = 256;  // rays a stream call, as lancer's embree_stream (embree_rays.cpp)
 
 // The rays [first, last) in calls of kLanes consecutive rays: closest hits into `hits` (diffuse), or
 // occlusion bytes into `occluded` (shadow).
 template <int kLanes>
-void trace_chunk(RTCScene scene, const std::vector<SecondaryRay>& rays, std::size_t first, std::size_t last,
-                 bool shadow, std::vector<PixelHit>& hits, std::vector<std::uint8_t>& occluded) {
+void trace_chunk(RTCScene scene, const std::vector<SecondaryRay>& rays, RTCIntersectContextFlags flags,
+                 std::size_t first, std::size_t last, bool shadow, std::vector<PixelHit>& hits,
+                 std::vector<std::uint8_t>& occluded) {
     RTCIntersectContext context;
-    rtcInitIntersectContext(&context);  // INCOHERENT: secondary rays
+    rtcInitIntersectContext(&context);
+    context.flags = flags;
     auto fill = [&](auto& ray, std::size_t index, int lane) {
         const SecondaryRay& r = rays[index];
         ray.org_x[lane] = r.origin.x, ray.org_y[lane] = r.origin.y, ray.org_z[lane] = r.origin.z;
@@ -273,49 +306,77 @@ void trace_chunk(RTCScene scene, const std::vector<SecondaryRay>& rays, std::siz
         ray.tnear[lane] = 0.0f, ray.tfar[lane] = r.tfar, ray.time[lane] = 0.0f, ray.mask[lane] = ~0u;
         ray.id[lane] = 0, ray.flags[lane] = 0;
     };
-    for (std::size_t base = first; base < last; base += kLanes) {
-        alignas(64) int valid[kLanes];
-        for (int lane = 0; lane < kLanes; ++lane)
-            valid[lane] = base + lane < last ? -1 : 0;
-        if (shadow) {
-            alignas(64) RTCRayNt<kLanes> packet;
-            for (int lane = 0; lane < kLanes; ++lane)
-                fill(packet, std::min(base + lane, last - 1), lane);
-            if constexpr (kLanes == 1) rtcOccluded1(scene, &context, reinterpret_cast<RTCRay*>(&packet));
-            if constexpr (kLanes == 8)
-                rtcOccluded8(valid, scene, &context, reinterpret_cast<RTCRay8*>(&packet));
-            if constexpr (kLanes == 16)
-                rtcOccluded16(valid, scene, &context, reinterpret_cast<RTCRay16*>(&packet));
-            for (int lane = 0; lane < kLanes && base + lane < last; ++lane)
-                occluded[base + lane] = packet.tfar[lane] == -INFINITY ? 1 : 0;
-        } else {
-            alignas(64) RTCRayHitNt<kLanes> packet;
-            for (int lane = 0; lane < kLanes; ++lane) {
-                fill(packet.ray, std::min(base + lane, last - 1), lane);
-                packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+    if constexpr (kLanes == kStream) {
+        // One-lane packets, laid out as RTCRay and RTCRayHit, so that `fill` writes them too.
+        for (std::size_t base = first; base < last; base += kStreamRays) {
+            const auto count = static_cast<unsigned>(std::min(kStreamRays, last - base));
+            if (shadow) {
+                alignas(16) RTCRayNt<1> stream[kStreamRays];
+                for (unsigned k = 0; k < count; ++k)
+                    fill(stream[k], base + k, 0);
+                rtcOccluded1M(scene, &context, reinterpret_cast<RTCRay*>(stream), count, sizeof(RTCRay));
+                for (unsigned k = 0; k < count; ++k)
+                    occluded[base + k] = stream[k].tfar[0] == -INFINITY ? 1 : 0;
+            } else {
+                alignas(16) RTCRayHitNt<1> stream[kStreamRays];
+                for (unsigned k = 0; k < count; ++k) {
+                    fill(stream[k].ray, base + k, 0);
+                    stream[k].hit.geomID[0] = RTC_INVALID_GEOMETRY_ID;
+                }
+                rtcIntersect1M(scene, &context, reinterpret_cast<RTCRayHit*>(stream), count,
+                               sizeof(RTCRayHit));
+                for (unsigned k = 0; k < count; ++k)
+                    hits[base + k] = {stream[k].ray.tfar[0], stream[k].hit.primID[0], stream[k].hit.u[0],
+                                      stream[k].hit.v[0]};
             }
-            if constexpr (kLanes == 1) rtcIntersect1(scene, &context, reinterpret_cast<RTCRayHit*>(&packet));
-            if constexpr (kLanes == 8)
-                rtcIntersect8(valid, scene, &context, reinterpret_cast<RTCRayHit8*>(&packet));
-            if constexpr (kLanes == 16)
-                rtcIntersect16(valid, scene, &context, reinterpret_cast<RTCRayHit16*>(&packet));
-            for (int lane = 0; lane < kLanes && base + lane < last; ++lane)
-                hits[base + lane] = {packet.ray.tfar[lane], packet.hit.primID[lane], packet.hit.u[lane],
-                                     packet.hit.v[lane]};
+        }
+    } else {
+        for (std::size_t base = first; base < last; base += kLanes) {
+            alignas(64) int valid[kLanes];
+            for (int lane = 0; lane < kLanes; ++lane)
+                valid[lane] = base + lane < last ? -1 : 0;
+            if (shadow) {
+                alignas(64) RTCRayNt<kLanes> packet;
+                for (int lane = 0; lane < kLanes; ++lane)
+                    fill(packet, std::min(base + lane, last - 1), lane);
+                if constexpr (kLanes == 1) rtcOccluded1(scene, &context, reinterpret_cast<RTCRay*>(&packet));
+                if constexpr (kLanes == 8)
+                    rtcOccluded8(valid, scene, &context, reinterpret_cast<RTCRay8*>(&packet));
+                if constexpr (kLanes == 16)
+                    rtcOccluded16(valid, scene, &context, reinterpret_cast<RTCRay16*>(&packet));
+                for (int lane = 0; lane < kLanes && base + lane < last; ++lane)
+                    occluded[base + lane] = packet.tfar[lane] == -INFINITY ? 1 : 0;
+            } else {
+                alignas(64) RTCRayHitNt<kLanes> packet;
+                for (int lane = 0; lane < kLanes; ++lane) {
+                    fill(packet.ray, std::min(base + lane, last - 1), lane);
+                    packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+                }
+                if constexpr (kLanes == 1)
+                    rtcIntersect1(scene, &context, reinterpret_cast<RTCRayHit*>(&packet));
+                if constexpr (kLanes == 8)
+                    rtcIntersect8(valid, scene, &context, reinterpret_cast<RTCRayHit8*>(&packet));
+                if constexpr (kLanes == 16)
+                    rtcIntersect16(valid, scene, &context, reinterpret_cast<RTCRayHit16*>(&packet));
+                for (int lane = 0; lane < kLanes && base + lane < last; ++lane)
+                    hits[base + lane] = {packet.ray.tfar[lane], packet.hit.primID[lane], packet.hit.u[lane],
+                                         packet.hit.v[lane]};
+            }
         }
     }
 }
 
 template <int kLanes>
-void trace_array(RTCScene scene, const std::vector<SecondaryRay>& rays, bool shadow,
-                 std::vector<PixelHit>& hits, std::vector<std::uint8_t>& occluded, tbb::task_arena& arena) {
+void trace_array(RTCScene scene, const std::vector<SecondaryRay>& rays, RTCIntersectContextFlags flags,
+                 bool shadow, std::vector<PixelHit>& hits, std::vector<std::uint8_t>& occluded,
+                 tbb::task_arena& arena) {
     arena.execute([&] {
         tbb::parallel_for(
             tbb::blocked_range<std::size_t>(0, rays.size(), kChunk),
             [&](const tbb::blocked_range<std::size_t>& range) {
                 _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
                 _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-                trace_chunk<kLanes>(scene, rays, range.begin(), range.end(), shadow, hits, occluded);
+                trace_chunk<kLanes>(scene, rays, flags, range.begin(), range.end(), shadow, hits, occluded);
             },
             tbb::simple_partitioner());
     });
@@ -360,11 +421,12 @@ void run_animation(const Mesh& mesh, RTCScene scene, RTCGeometry geometry, const
         });
         update_ms.push_back(milliseconds_since(start));
         const auto trace_start = std::chrono::steady_clock::now();
-        trace_frame<kLanes>(scene, camera, hits, arena);
+        trace_frame<kLanes>(scene, camera, RTC_INTERSECT_CONTEXT_FLAG_COHERENT, hits, arena);
         trace_ms.push_back(milliseconds_since(trace_start));
         frame_ms.push_back(update_ms.back() + trace_ms.back());
-        std::printf("frame %3d threads %d: update %8.2f ms, trace %8.2f ms (rtcIntersect%d)\n", frame,
-                    threads, update_ms.back(), trace_ms.back(), kLanes);
+        std::printf("frame %3d threads %d: update %8.2f ms, trace %8.2f ms (rtcIntersect%s)\n", frame,
+                    threads, update_ms.back(), trace_ms.back(),
+                    kLanes == kStream ? "1M" : std::to_string(kLanes).c_str());
     }
     auto median = [](std::vector<double> values) {
         std::sort(values.begin(), values.end());
@@ -380,7 +442,8 @@ std::vector<int> parse_list(const std::string& text) {
     std::size_t start = 0;
     while (start <= text.size()) {
         const std::size_t comma = std::min(text.find(',', start), text.size());
-        values.push_back(std::stoi(text.substr(start, comma - start)));
+        const std::string item = text.substr(start, comma - start);
+        values.push_back(item == "1M" ? kStream : std::stoi(item));
         start = comma + 1;
     }
     return values;
@@ -390,17 +453,22 @@ std::vector<int> parse_list(const std::string& text) {
 
 int main(int argc, char** argv) {
     CLI::App app("Embree on VIEWS.md's canonical view, called as its tutorials do (no lancer code)");
-    std::string file, thread_list = "1,2", call_list = "1,8,16", quality = "high", view = "primary",
-                      json_file;
+    std::string file, thread_list = "1,2", call_list = "1,8,16,1M", quality = "high", view = "primary",
+                      context = "auto", json_file;
     int size = 1024, frames = 5, animate = 0;
     bool watertight = false;
     app.add_option("mesh", file, "Mesh file (OBJ, OFF, PLY: read by assimp)")->required();
     app.add_option("--size", size, "Image side")->check(CLI::Range(1, 16384));
     app.add_option("--frames", frames, "Timed frames after one warm-up")->check(CLI::Range(1, 1000));
     app.add_option("--threads", thread_list, "Comma-separated thread counts");
-    app.add_option("--calls", call_list, "Comma-separated calls: 1 (rtcIntersect1), 8, 16");
+    app.add_option("--calls", call_list,
+                   "Comma-separated calls: 1 (rtcIntersect1), 8, 16, 1M (rtcIntersect1M)");
     app.add_option("--quality", quality, "Build quality")->check(CLI::IsMember({"high", "medium", "refit"}));
     app.add_option("--view", view, "VIEWS.md's view")->check(CLI::IsMember({"primary", "diffuse", "shadow"}));
+    app.add_option(
+           "--context", context,
+           "The context flag of every call; auto: COHERENT on the primary view, INCOHERENT on the others")
+        ->check(CLI::IsMember({"auto", "coherent", "incoherent"}));
     app.add_flag("--watertight", watertight, "Embree's robust mode (RTC_SCENE_FLAG_ROBUST)");
     app.add_option("--json", json_file, "Write one record per call and thread count");
     app.add_option("--animate", animate,
@@ -443,7 +511,9 @@ int main(int argc, char** argv) {
                     build_ms, watertight ? ", robust" : "");
         const int calls = parse_list(call_list).front();
         for (const int threads : parse_list(thread_list)) {
-            if (calls == 16)
+            if (calls == kStream)
+                run_animation<kStream>(mesh, scene, geometry, camera, animate, threads);
+            else if (calls == 16)
                 run_animation<16>(mesh, scene, geometry, camera, animate, threads);
             else if (calls == 8)
                 run_animation<8>(mesh, scene, geometry, camera, animate, threads);
@@ -461,9 +531,12 @@ int main(int argc, char** argv) {
     std::vector<SecondaryRay> secondary;
     std::vector<std::uint8_t> occluded;
     const bool primary = view == "primary", shadow = view == "shadow";
+    const RTCIntersectContextFlags flags = context == "coherent" || (context == "auto" && primary)
+                                               ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT
+                                               : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
     if (!primary) {
         tbb::task_arena arena;
-        trace_frame<1>(scene, camera, hits, arena);
+        trace_frame<1>(scene, camera, RTC_INTERSECT_CONTEXT_FLAG_COHERENT, hits, arena);
         secondary = secondary_rays(mesh, camera, hits, view == "diffuse");
         hits.assign(secondary.size(), {});
         occluded.assign(secondary.size(), 0);
@@ -472,8 +545,8 @@ int main(int argc, char** argv) {
     std::printf("embree_reference: %s, %zu triangles, %s build %.1f ms%s\n", mesh_name.c_str(), triangles,
                 quality.c_str(), build_ms, watertight ? ", robust" : "");
     for (const int calls : parse_list(call_list)) {
-        if (calls != 1 && calls != 8 && calls != 16) {
-            std::fprintf(stderr, "embree_reference: --calls: expected 1, 8 or 16, got %d\n", calls);
+        if (calls != 1 && calls != 8 && calls != 16 && calls != kStream) {
+            std::fprintf(stderr, "embree_reference: --calls: expected 1, 8, 16 or 1M, got %d\n", calls);
             return 2;
         }
         for (const int threads : parse_list(thread_list)) {
@@ -481,12 +554,17 @@ int main(int argc, char** argv) {
             std::vector<double> mrays;
             for (int frame = -1; frame < frames; ++frame) {  // frame -1: the warm-up
                 const auto start = std::chrono::steady_clock::now();
-                if (primary && calls == 1) trace_frame<1>(scene, camera, hits, arena);
-                if (primary && calls == 8) trace_frame<8>(scene, camera, hits, arena);
-                if (primary && calls == 16) trace_frame<16>(scene, camera, hits, arena);
-                if (!primary && calls == 1) trace_array<1>(scene, secondary, shadow, hits, occluded, arena);
-                if (!primary && calls == 8) trace_array<8>(scene, secondary, shadow, hits, occluded, arena);
-                if (!primary && calls == 16) trace_array<16>(scene, secondary, shadow, hits, occluded, arena);
+                if (primary && calls == 1) trace_frame<1>(scene, camera, flags, hits, arena);
+                if (primary && calls == 8) trace_frame<8>(scene, camera, flags, hits, arena);
+                if (primary && calls == 16) trace_frame<16>(scene, camera, flags, hits, arena);
+                if (primary && calls == kStream) trace_frame<kStream>(scene, camera, flags, hits, arena);
+                if (!primary) {
+                    if (calls == 1) trace_array<1>(scene, secondary, flags, shadow, hits, occluded, arena);
+                    if (calls == 8) trace_array<8>(scene, secondary, flags, shadow, hits, occluded, arena);
+                    if (calls == 16) trace_array<16>(scene, secondary, flags, shadow, hits, occluded, arena);
+                    if (calls == kStream)
+                        trace_array<kStream>(scene, secondary, flags, shadow, hits, occluded, arena);
+                }
                 const double seconds =
                     std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
                 if (frame >= 0) mrays.push_back(static_cast<double>(hits.size()) / seconds * 1e-6);
@@ -501,8 +579,8 @@ int main(int argc, char** argv) {
             }
             const double median = mrays[mrays.size() / 2];
             const double hit_fraction = static_cast<double>(hit_count) / static_cast<double>(hits.size());
-            const std::string call =
-                std::string(shadow ? "rtcOccluded" : "rtcIntersect") + std::to_string(calls);
+            const std::string call = std::string(shadow ? "rtcOccluded" : "rtcIntersect") +
+                                     (calls == kStream ? "1M" : std::to_string(calls));
             std::printf("%-16s %-8s %-14s threads %d: %8.2f Mrays/s (min %.2f, max %.2f), hits %.2f%%\n",
                         mesh_name.c_str(), view.c_str(), call.c_str(), threads, median, mrays.front(),
                         mrays.back(), 100.0 * hit_fraction);
@@ -510,7 +588,8 @@ int main(int argc, char** argv) {
             json += std::string(json.size() > 2 ? ",\n" : "") + "  {\"mesh\": \"" + mesh_name +
                     "\", \"view\": \"" + view + "\", \"rays\": " + std::to_string(hits.size()) +
                     ", \"triangles\": " + std::to_string(triangles) + ", \"call\": \"" + call +
-                    "\", \"packet\": " + std::to_string(calls) + ", \"threads\": " + std::to_string(threads) +
+                    "\", \"packet\": " + std::to_string(calls == kStream ? 1 : calls) +
+                    ", \"threads\": " + std::to_string(threads) +
                     ", \"build_ms\": " + std::to_string(build_ms) +
                     ", \"mrays_per_s\": " + std::to_string(median) +
                     ", \"hit_fraction\": " + std::to_string(hit_fraction) + "}";

@@ -26,8 +26,10 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MESHES = ["bunny.obj", "armadillo.off", "dragon.ply"]
 # lancer bench's row name for each Embree call of the reference.
 ROW_OF_CALL = {"rtcIntersect1": "embree", "rtcIntersect8": "embree8", "rtcIntersect16": "embree16",
-               "rtcOccluded1": "embree", "rtcOccluded8": "embree8", "rtcOccluded16": "embree16"}
-EMBREE_ROWS = ["embree", "embree8", "embree16"]
+               "rtcIntersect1M": "embree_stream",
+               "rtcOccluded1": "embree", "rtcOccluded8": "embree8", "rtcOccluded16": "embree16",
+               "rtcOccluded1M": "embree_stream"}
+EMBREE_ROWS = ["embree", "embree8", "embree16", "embree_stream"]
 
 
 def cpu_name():

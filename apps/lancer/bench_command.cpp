@@ -2,8 +2,9 @@
 // lancer in the same process on the same rays and threads. Every structure's answers are checked against
 // the first structure's before it is timed, ray by ray; a disagreement fails the bench (exit code 1). The
 // timed paths are in bench_trace.hpp (the secondary views go 4096 consecutive rays a task through
-// intersect_parallel and occluded_parallel: Embree's rows then call rtcIntersectN or rtcOccludedN without the
-// COHERENT flag), the JSON and SVG reports in bench_report.hpp.
+// intersect_parallel and occluded_parallel: Embree's rows then call rtcIntersectN or rtcOccludedN, or the
+// stream calls rtcIntersect1M or rtcOccluded1M, without the COHERENT flag), the JSON and SVG reports in
+// bench_report.hpp.
 #include <fmt/core.h>
 #include <fmt/os.h>
 

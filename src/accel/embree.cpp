@@ -60,17 +60,24 @@ void check(RTCDevice device, const char* what) {
 
 }  // namespace
 
-EmbreeAccel::EmbreeAccel(int packet_width) : packet_width_(packet_width) {
-    if (packet_width != 1 && packet_width != 8 && packet_width != 16)
-        throw std::invalid_argument("embree: packet width " + std::to_string(packet_width) +
-                                    ", expected 1, 8 or 16");
+EmbreeAccel::EmbreeAccel(EmbreeCall call) : call_(call) {
     device_ = rtcNewDevice(nullptr);
     if (device_ == nullptr) throw std::runtime_error("embree: cannot create a device");
     rtcSetDeviceMemoryMonitorFunction(device_, monitor_memory, nullptr);
 }
 
 std::string_view EmbreeAccel::name() const {
-    return packet_width_ == 16 ? "embree16" : packet_width_ == 8 ? "embree8" : "embree";
+    switch (call_) {
+        case EmbreeCall::Packet8:
+            return "embree8";
+        case EmbreeCall::Packet16:
+            return "embree16";
+        case EmbreeCall::Stream:
+            return "embree_stream";
+        case EmbreeCall::Single:
+            break;
+    }
+    return "embree";
 }
 
 EmbreeAccel::~EmbreeAccel() {

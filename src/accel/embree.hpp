@@ -2,10 +2,12 @@
 // threads as lancer's own structures (docs/results.md), called the way its manual asks for speed
 // (docs/results.md, "Embree at its best"): one structure per call, `embree` (rtcIntersect1, rtcOccluded1),
 // `embree8` and `embree16` (packets of 8 and 16 consecutive rays: 4x2 and 4x4 pixels in a coherent batch,
-// which gets the COHERENT flag). Compiled in when Debian's Embree 3 is found (LANCER_EMBREE). Embree uses its
-// own triangle test (watertight when --watertight sets its robust mode) and its own traversal: it is a peer
-// to compare with, not one of our kernels, so it is checked against brute force by
-// tests/accel/embree_test.cpp rather than held to the bit-exact oracle test.
+// which gets the COHERENT flag), `embree_stream` (rtcIntersect1M, rtcOccluded1M on streams of consecutive
+// rays: a coherent batch with the COHERENT flag, the call Embree's overview recommends for coherent rays; the
+// others without it, where the overview expects streams to beat single rays too). Compiled in when Debian's
+// Embree 3 is found (LANCER_EMBREE). Embree uses its own triangle test (watertight when --watertight sets its
+// robust mode) and its own traversal: it is a peer to compare with, not one of our kernels, so it is checked
+// against brute force by tests/accel/embree_test.cpp rather than held to the bit-exact oracle test.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -31,12 +33,14 @@ struct EmbreeOptions {
 inline constexpr unsigned int kEmbreeTriangleGeometry = 0;
 inline constexpr unsigned int kEmbreeSphereGeometry = 1;
 
+// The Embree call a structure traces with: one ray at a time, packets of 8 or 16 rays, or streams.
+enum class EmbreeCall { Single, Packet8, Packet16, Stream };
+
 class EmbreeAccel final : public Accel {
   public:
     // The `--set` keys of this structure's option group (accel/options.hpp).
     [[nodiscard]] static std::vector<BuildOptionRow> option_rows();
-    // packet_width: 1 (single-ray calls), 8 or 16.
-    explicit EmbreeAccel(int packet_width);
+    explicit EmbreeAccel(EmbreeCall call);
     ~EmbreeAccel() override;
     EmbreeAccel(const EmbreeAccel&) = delete;
     EmbreeAccel& operator=(const EmbreeAccel&) = delete;
@@ -74,7 +78,7 @@ class EmbreeAccel final : public Accel {
     std::size_t primitive_count_ = 0;
     std::size_t buffer_bytes_ = 0;
     double build_ms_ = 0.0;
-    int packet_width_ = 1;
+    EmbreeCall call_ = EmbreeCall::Single;
     EmbreeQuality quality_ = EmbreeQuality::High;
     TriangleTest triangle_test_ = TriangleTest::MollerTrumbore;
 };

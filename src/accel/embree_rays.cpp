@@ -252,12 +252,12 @@ void query(const int* valid, RTCScene scene, RTCIntersectContext* context, RTCRa
     rtcOccluded16(valid, scene, context, reinterpret_cast<RTCRay16*>(&packet));
 }
 
-// Calls body(std::integral_constant<int, N>) with N the packet width (1, 8 or 16).
+// Calls body(std::integral_constant<int, N>) with N the packet width of a packet call (1, 8 or 16).
 template <class Body>
-void with_packet_width(int width, Body&& body) {
-    if (width == 16) {
+void with_packet_width(EmbreeCall call, Body&& body) {
+    if (call == EmbreeCall::Packet16) {
         body(std::integral_constant<int, 16>{});
-    } else if (width == 8) {
+    } else if (call == EmbreeCall::Packet8) {
         body(std::integral_constant<int, 8>{});
     } else {
         body(std::integral_constant<int, 1>{});
@@ -306,6 +306,75 @@ void trace_packets(RTCScene scene, RTCIntersectContext& context, const Box3f& sc
     }
 }
 
+// Rays per stream call of embree_stream on a batch. Embree 3.13's stream filter works on 64 rays at a time:
+// it cuts a COHERENT stream into streams of 64, and sorts the rays of an incoherent occlusion stream into
+// groups of up to 64 that share their direction octant (kernels/bvh/bvh_intersector_stream_filters.cpp); a
+// chunk of four such groups lets the sorted groups fill while its records (80 bytes a ray) stay in the
+// caches.
+constexpr std::size_t kStreamChunk = 256;
+
+// A record Embree skips: a stream's ray is inactive when its tnear exceeds its tfar (rtcIntersect1M's manual
+// page). Its fields stay finite, so that no assertion of Embree's sees a malformed ray, and Embree leaves its
+// answer as written: no geometry (fill_lane), tfar not -inf (not occluded).
+constexpr Ray kInactiveRay{{0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 1.0f, 0.0f};
+
+// A stream of records laid out as Embree's single ray (RTCRayHitNt<1> as RTCRayHit, RTCRayNt<1> as RTCRay),
+// which the stream calls take 16-byte aligned.
+static_assert(sizeof(RTCRayHitNt<1>) % 16 == 0 && sizeof(RTCRayNt<1>) % 16 == 0);
+void stream_query(RTCScene scene, RTCIntersectContext* context, RTCRayHitNt<1>* stream, unsigned int count) {
+    rtcIntersect1M(scene, context, reinterpret_cast<RTCRayHit*>(stream), count, sizeof(RTCRayHit));
+}
+void stream_query(RTCScene scene, RTCIntersectContext* context, RTCRayNt<1>* stream, unsigned int count) {
+    rtcOccluded1M(scene, context, reinterpret_cast<RTCRay*>(stream), count, sizeof(RTCRay));
+}
+
+// The rays in streams of kStreamChunk consecutive rays, one rtcIntersect1M or rtcOccluded1M call each, with
+// flush-to-zero set once for the batch; `answer` as trace_packets', each record a packet of one lane. A ray
+// outside Embree's domain is an inactive record, which answer reads as a miss.
+template <class Record, class Answer>
+void trace_stream(RTCScene scene, RTCIntersectContext& context, const Box3f& scene_box, float scene_scale,
+                  std::span<const Ray> rays, Answer&& answer) {
+    const DenormalsFlushed flushed;
+    const bool unscaled = scene_scale == 1.0f;
+    alignas(64) Record stream[kStreamChunk];
+    std::optional<EmbreeRay> mapped[kStreamChunk];
+    for (std::size_t first = 0; first < rays.size(); first += kStreamChunk) {
+        const std::size_t count = std::min(kStreamChunk, rays.size() - first);
+        for (std::size_t i = 0; i < count; ++i) {
+            const Ray& ray = rays[first + i];
+            if (unscaled && taken_as_is(ray)) {
+                mapped[i].reset();
+                fill_lane(ray, stream[i], 0);
+                continue;
+            }
+            mapped[i] = to_embree(ray, scene_box, scene_scale);
+            fill_lane(mapped[i] ? mapped[i]->ray : kInactiveRay, stream[i], 0);
+        }
+        stream_query(scene, &context, stream, static_cast<unsigned int>(count));
+        for (std::size_t i = 0; i < count; ++i)
+            answer(first + i, stream[i], 0, mapped[i] ? &*mapped[i] : nullptr);
+    }
+}
+
+// A packet's hits into lanes [first, first + N) of `hits`: to_hit lane by lane, without branches, for rays
+// taken as they are in a scene that is not scaled, where t is finite on a hit.
+template <int N>
+void store_hits(const RTCRayHitNt<N>& packet, const RayPacket& rays, int first, std::int32_t sphere_offset,
+                HitPacket& hits) {
+    for (int lane = 0; lane < N; ++lane) {
+        const auto geometry = static_cast<std::int32_t>(packet.hit.geomID[lane]);
+        const auto primitive = static_cast<std::int32_t>(packet.hit.primID[lane]);
+        const int hit = geometry != static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID);
+        const int sphere = geometry == static_cast<std::int32_t>(kEmbreeSphereGeometry);
+        hits.t[first + lane] =
+            hit ? as_is_t(packet.ray.tfar[lane], rays.tnear[first + lane], rays.tfar[first + lane])
+                : kInfinity;
+        hits.prim[first + lane] = hit ? primitive + sphere * sphere_offset : -1;
+        hits.u[first + lane] = hit ? packet.hit.u[lane] : 0.0f;
+        hits.v[first + lane] = hit ? packet.hit.v[lane] : 0.0f;
+    }
+}
+
 }  // namespace
 
 void EmbreeAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
@@ -325,22 +394,25 @@ void EmbreeAccel::intersect_with_flags(std::span<const Ray> rays, std::span<Hit>
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = flags;
-    with_packet_width(packet_width_, [&](auto width) {
+    const auto answer = [&](std::size_t index, const auto& packet, int lane, const EmbreeRay* mapped) {
+        const float t = packet.ray.tfar[lane];
+        hits[index] = to_hit(mapped ? mapped->lancer_t(t) : as_is_t(t, rays[index].tnear, rays[index].tfar),
+                             packet.hit.geomID[lane], packet.hit.primID[lane], packet.hit.u[lane],
+                             packet.hit.v[lane], triangle_count_);
+    };
+    if (call_ == EmbreeCall::Stream) {
+        trace_stream<RTCRayHitNt<1>>(scene_, context, scene_box_, scene_scale_, rays, answer);
+        return;
+    }
+    with_packet_width(call_, [&](auto width) {
         constexpr int N = decltype(width)::value;
-        trace_packets<N, RTCRayHitNt<N>>(
-            scene_, context, scene_box_, scene_scale_, rays,
-            [&](std::size_t index, const RTCRayHitNt<N>& packet, int lane, const EmbreeRay* mapped) {
-                const float t = packet.ray.tfar[lane];
-                hits[index] =
-                    to_hit(mapped ? mapped->lancer_t(t) : as_is_t(t, rays[index].tnear, rays[index].tfar),
-                           packet.hit.geomID[lane], packet.hit.primID[lane], packet.hit.u[lane],
-                           packet.hit.v[lane], triangle_count_);
-            });
+        trace_packets<N, RTCRayHitNt<N>>(scene_, context, scene_box_, scene_scale_, rays, answer);
     });
 }
 
-// Each run of N lanes of the packet through one packet call, the rays read in place; when some valid ray is
-// not taken as it is, or the scene is scaled, the packet takes the batch path, which maps rays one by one.
+// Each run of N lanes of the packet through one packet call, the rays read in place, or the whole packet as
+// one stream (embree_stream); when some valid ray is not taken as it is, or the scene is scaled, the packet
+// takes the batch path, which maps rays one by one.
 void EmbreeAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                                         TraversalCounters* counters) const {
     if (scene_scale_ != 1.0f) {
@@ -360,31 +432,42 @@ void EmbreeAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     bool traced = true;
-    with_packet_width(packet_width_, [&](auto width) {
-        constexpr int N = decltype(width)::value;
+    const auto sphere_offset = static_cast<std::int32_t>(triangle_count_);
+    {
         const DenormalsFlushed flushed;
-        for (int first = 0; first < rays.size && traced; first += N) {
-            alignas(64) RTCRayHitNt<N> packet;
-            alignas(64) int valid[N];
-            traced = fill_from_packet(*source, first, packet, valid);
-            if (!traced) break;
-            query(valid, scene_, &context, packet);
-            // to_hit lane by lane, without branches: t is finite on a hit, as the scene is not scaled.
-            const auto sphere_offset = static_cast<std::int32_t>(triangle_count_);
-            for (int lane = 0; lane < N; ++lane) {
-                const auto geometry = static_cast<std::int32_t>(packet.hit.geomID[lane]);
-                const auto primitive = static_cast<std::int32_t>(packet.hit.primID[lane]);
-                const int hit = geometry != static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID);
-                const int sphere = geometry == static_cast<std::int32_t>(kEmbreeSphereGeometry);
-                hits.t[first + lane] = hit ? as_is_t(packet.ray.tfar[lane], source->tnear[first + lane],
-                                                     source->tfar[first + lane])
-                                           : kInfinity;
-                hits.prim[first + lane] = hit ? primitive + sphere * sphere_offset : -1;
-                hits.u[first + lane] = hit ? packet.hit.u[lane] : 0.0f;
-                hits.v[first + lane] = hit ? packet.hit.v[lane] : 0.0f;
+        if (call_ == EmbreeCall::Stream) {
+            // The packet's rays as one stream, its invalid rays inactive records: the tests over all lanes
+            // at once (fill_from_packet, vectorized), then the records ray by ray from the tested packet.
+            alignas(64) RTCRayHitNt<RayPacket::kMaxSize> tested;
+            alignas(64) int valid[RayPacket::kMaxSize];
+            traced = fill_from_packet(*source, 0, tested, valid);
+            alignas(64) RTCRayHitNt<1> stream[RayPacket::kMaxSize];
+            for (int lane = 0; lane < rays.size && traced; ++lane) {
+                const Ray ray{{tested.ray.org_x[lane], tested.ray.org_y[lane], tested.ray.org_z[lane]},
+                              {tested.ray.dir_x[lane], tested.ray.dir_y[lane], tested.ray.dir_z[lane]},
+                              tested.ray.tnear[lane],
+                              tested.ray.tfar[lane]};
+                fill_lane(valid[lane] != 0 ? ray : kInactiveRay, stream[lane], 0);
             }
+            if (traced) {
+                stream_query(scene_, &context, stream, static_cast<unsigned int>(rays.size));
+                for (int lane = 0; lane < rays.size; ++lane)
+                    store_hits(stream[lane], *source, lane, sphere_offset, hits);
+            }
+        } else {
+            with_packet_width(call_, [&](auto width) {
+                constexpr int N = decltype(width)::value;
+                for (int first = 0; first < rays.size && traced; first += N) {
+                    alignas(64) RTCRayHitNt<N> packet;
+                    alignas(64) int valid[N];
+                    traced = fill_from_packet(*source, first, packet, valid);
+                    if (!traced) break;
+                    query(valid, scene_, &context, packet);
+                    store_hits(packet, *source, first, sphere_offset, hits);
+                }
+            });
         }
-    });
+    }
     if (!traced) {
         Accel::intersect_packet_rays(rays, hits, counters);
         return;
@@ -398,13 +481,16 @@ void EmbreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8
     if (counters != nullptr) counters->rays += rays.size();
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
-    with_packet_width(packet_width_, [&](auto width) {
+    const auto answer = [&](std::size_t index, const auto& packet, int lane, const EmbreeRay*) {
+        occluded[index] = packet.tfar[lane] == -kInfinity ? 1 : 0;
+    };
+    if (call_ == EmbreeCall::Stream) {
+        trace_stream<RTCRayNt<1>>(scene_, context, scene_box_, scene_scale_, rays, answer);
+        return;
+    }
+    with_packet_width(call_, [&](auto width) {
         constexpr int N = decltype(width)::value;
-        trace_packets<N, RTCRayNt<N>>(
-            scene_, context, scene_box_, scene_scale_, rays,
-            [&](std::size_t index, const RTCRayNt<N>& packet, int lane, const EmbreeRay*) {
-                occluded[index] = packet.tfar[lane] == -kInfinity ? 1 : 0;
-            });
+        trace_packets<N, RTCRayNt<N>>(scene_, context, scene_box_, scene_scale_, rays, answer);
     });
 }
 

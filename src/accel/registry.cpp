@@ -57,11 +57,13 @@ const std::vector<Entry>& registry() {
          [] { return std::make_unique<Bvh8PacketAccel>(); }, &BvhAccel::option_rows},
 #if LANCER_HAS_EMBREE
         {"embree", "Intel Embree 3, rtcIntersect1 and rtcOccluded1",
-         [] { return std::make_unique<EmbreeAccel>(1); }, &EmbreeAccel::option_rows},
+         [] { return std::make_unique<EmbreeAccel>(EmbreeCall::Single); }, &EmbreeAccel::option_rows},
         {"embree8", "Intel Embree 3, rtcIntersect8 and rtcOccluded8",
-         [] { return std::make_unique<EmbreeAccel>(8); }, &EmbreeAccel::option_rows},
+         [] { return std::make_unique<EmbreeAccel>(EmbreeCall::Packet8); }, &EmbreeAccel::option_rows},
         {"embree16", "Intel Embree 3, rtcIntersect16 and rtcOccluded16",
-         [] { return std::make_unique<EmbreeAccel>(16); }, &EmbreeAccel::option_rows},
+         [] { return std::make_unique<EmbreeAccel>(EmbreeCall::Packet16); }, &EmbreeAccel::option_rows},
+        {"embree_stream", "Intel Embree 3, rtcIntersect1M and rtcOccluded1M on streams of rays",
+         [] { return std::make_unique<EmbreeAccel>(EmbreeCall::Stream); }, &EmbreeAccel::option_rows},
 #endif
     };
     return entries;

@@ -1,9 +1,11 @@
 // Embree behind lancer's interface: the same answers as brute force on random rays (within Embree's own
-// rounding), the global primitive numbering, the ray contract, and packets equal to single rays.
+// rounding), the global primitive numbering, the ray contract, and packets and streams equal to single rays.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <string>
+#include <utility>
 
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
@@ -44,9 +46,12 @@ TEST(Embree, AgreesWithBruteForceOnRandomRays) {
     const TestScene scene = mixed_scene();
     const testing::RaySet set = testing::random_rays(scene.geometry().bounds(), 20000, 7);
     const float scale = length(scene.geometry().bounds().extent());
-    for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+    for (const auto& [name, test] : {std::pair{"embree", TriangleTest::MollerTrumbore},
+                                     {"embree", TriangleTest::Watertight},
+                                     {"embree_stream", TriangleTest::MollerTrumbore},
+                                     {"embree_stream", TriangleTest::Watertight}}) {
         const std::vector<Hit> expected = trace("brute", scene.geometry(), build_options(test), set.rays);
-        const std::vector<Hit> actual = trace("embree", scene.geometry(), build_options(test), set.rays);
+        const std::vector<Hit> actual = trace(name, scene.geometry(), build_options(test), set.rays);
         std::size_t mismatches = 0, hits = 0;
         for (std::size_t i = 0; i < set.rays.size(); ++i) {
             hits += expected[i].hit() ? 1 : 0;
@@ -57,10 +62,10 @@ TEST(Embree, AgreesWithBruteForceOnRandomRays) {
                                                          1e-5f * (std::fabs(expected[i].t) + scale));
             if (!same && mismatches++ < 3) {
                 ADD_FAILURE() << "ray " << i << ": brute prim " << expected[i].prim << " t " << expected[i].t
-                              << ", embree prim " << actual[i].prim << " t " << actual[i].t;
+                              << ", " << name << " prim " << actual[i].prim << " t " << actual[i].t;
             }
         }
-        std::printf("embree vs brute (%s): %zu random rays, %zu hits, %zu mismatches\n",
+        std::printf("%s vs brute (%s): %zu random rays, %zu hits, %zu mismatches\n", name,
                     test == TriangleTest::Watertight ? "watertight/robust" : "moller/default",
                     set.rays.size(), hits, mismatches);
         EXPECT_EQ(mismatches, 0u);
@@ -95,7 +100,7 @@ TEST(Embree, HugeAndTinyScenesAreScaledIntoItsRange) {
         const std::vector<Ray> rays = {{Vec3f(0, 0, 2) * size, {0, 0, -1}, 0.0f, kInfinity},
                                        {Vec3f(3, 0, 5) * size, {0, 0, -1}, 0.0f, kInfinity},
                                        {Vec3f(0, 0, 2) * size, {0, 0, -1}, -kInfinity, size}};
-        for (const char* name : {"embree", "embree8", "embree16"}) {
+        for (const char* name : {"embree", "embree8", "embree16", "embree_stream"}) {
             for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
                 const std::vector<Hit> hits = trace(name, {triangles, spheres}, build_options(test), rays);
                 const std::string context = "scene size 2^" + std::to_string(exponent);
@@ -117,7 +122,7 @@ TEST(Embree, PacketsAnswerLikeSingleRays) {
         set.rays.push_back(hostile);
     const std::vector<Hit> single = trace("embree", scene.geometry(), {}, set.rays);
     const float scale = length(scene.geometry().bounds().extent());
-    for (const char* name : {"embree", "embree8", "embree16"}) {
+    for (const char* name : {"embree", "embree8", "embree16", "embree_stream"}) {
         const std::unique_ptr<Accel> accel = make_accel(name);
         accel->build(scene.geometry(), {});
         // The plain call, the coherent one (Embree's COHERENT flag, which keeps packets together longer) and
@@ -126,6 +131,11 @@ TEST(Embree, PacketsAnswerLikeSingleRays) {
         accel->intersect(set.rays, packed);
         accel->intersect_coherent(set.rays, coherent);
         std::vector<Hit> in_packets = testing::intersect_in_packets(*accel, set.rays);
+        // Occlusion: any hit exactly where rtcIntersect1 finds the closest one.
+        std::vector<std::uint8_t> occluded(set.rays.size());
+        accel->occluded(set.rays, occluded);
+        for (std::size_t i = 0; i < set.rays.size(); ++i)
+            ASSERT_EQ(static_cast<int>(occluded[i]), single[i].hit() ? 1 : 0) << name << " ray " << i;
         for (const std::vector<Hit>* answers : {&packed, &coherent, &in_packets}) {
             for (std::size_t i = 0; i < set.rays.size(); ++i) {
                 ASSERT_EQ(single[i].prim, (*answers)[i].prim) << name << " ray " << i;
