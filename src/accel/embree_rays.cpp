@@ -1,5 +1,8 @@
 // EmbreeAccel's ray calls: lancer's rays converted into Embree's domain and packets, traced, and the hits
-// converted back into lancer's numbering and intervals; embree.cpp holds the scene.
+// converted back into lancer's numbering and intervals; embree.cpp holds the scene. Every call runs with
+// flush-to-zero and denormals-are-zero (lancer/denormals.hpp), the mode Embree's manual asks for: without it
+// a denormal can make its triangle test report a hit at t = NaN, on which the next geometry's traversal
+// asserts `ray.valid()` and aborts. A call sets it for its duration, unless its caller has already.
 #include "accel/embree.hpp"
 
 #if defined(__AVX2__)
@@ -21,6 +24,7 @@
 #include "accel/simd_float.hpp"
 #include "core/intersect.hpp"
 #include "lancer/denormals.hpp"
+
 namespace lancer {
 namespace {
 
@@ -91,11 +95,6 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float
     query.ray.tnear *= scene_scale, query.ray.tfar *= scene_scale;
     return query;
 }
-
-// Embree runs with flush-to-zero and denormals-are-zero (lancer/denormals.hpp), the mode its manual asks for:
-// without it a denormal can make its triangle test report a hit at t = NaN, on which the next geometry's
-// traversal asserts `ray.valid()` and aborts. Every call sets it for its duration, unless the caller has
-// already.
 
 // Embree numbers primitives per geometry; lancer's global numbering puts the spheres after the triangles.
 Hit to_hit(float t, unsigned int geometry, unsigned int primitive, float u, float v,
