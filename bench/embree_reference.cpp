@@ -465,9 +465,9 @@ int main(int argc, char** argv) {
                    "Comma-separated calls: 1 (rtcIntersect1), 8, 16, 1M (rtcIntersect1M)");
     app.add_option("--quality", quality, "Build quality")->check(CLI::IsMember({"high", "medium", "refit"}));
     app.add_option("--view", view, "VIEWS.md's view")->check(CLI::IsMember({"primary", "diffuse", "shadow"}));
-    app.add_option(
-           "--context", context,
-           "The context flag of every call; auto: COHERENT on the primary view, INCOHERENT on the others")
+    app.add_option("--context", context,
+                   "The context flag of every call; auto: COHERENT on the primary view and for 8- and 16-ray "
+                   "occlusion packets, INCOHERENT otherwise")
         ->check(CLI::IsMember({"auto", "coherent", "incoherent"}));
     app.add_flag("--watertight", watertight, "Embree's robust mode (RTC_SCENE_FLAG_ROBUST)");
     app.add_option("--json", json_file, "Write one record per call and thread count");
@@ -531,9 +531,13 @@ int main(int argc, char** argv) {
     std::vector<SecondaryRay> secondary;
     std::vector<std::uint8_t> occluded;
     const bool primary = view == "primary", shadow = view == "shadow";
-    const RTCIntersectContextFlags flags = context == "coherent" || (context == "auto" && primary)
-                                               ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT
-                                               : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    // auto: the flag under which each call is fastest on the view (docs/results.md, "Which context flag suits
+    // which view"), the one lancer's Embree rows use.
+    const auto flags_of = [&](int calls) {
+        const bool coherent = context == "coherent" ||
+                              (context == "auto" && (primary || (shadow && (calls == 8 || calls == 16))));
+        return coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    };
     if (!primary) {
         tbb::task_arena arena;
         trace_frame<1>(scene, camera, RTC_INTERSECT_CONTEXT_FLAG_COHERENT, hits, arena);
@@ -549,6 +553,7 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "embree_reference: --calls: expected 1, 8, 16 or 1M, got %d\n", calls);
             return 2;
         }
+        const RTCIntersectContextFlags flags = flags_of(calls);
         for (const int threads : parse_list(thread_list)) {
             tbb::task_arena arena(threads);
             std::vector<double> mrays;

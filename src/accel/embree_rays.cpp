@@ -474,12 +474,17 @@ void EmbreeAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
     if (counters != nullptr) counters->rays += static_cast<std::uint64_t>(rays.size);
 }
 
-// Embree marks an occluded ray with tfar = -inf.
+// Embree marks an occluded ray with tfar = -inf. Occlusion rays are shadow rays, towards a light, and each
+// call gets the flag under which it is fastest on VIEWS.md's shadow view (docs/results.md, "Which context
+// flag suits which view"): COHERENT for the 8- and 16-ray packets, INCOHERENT (the default) for a stream,
+// which Embree then sorts by direction itself.
 void EmbreeAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                  TraversalCounters* counters) const {
     if (counters != nullptr) counters->rays += rays.size();
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
+    if (call_ == EmbreeCall::Packet8 || call_ == EmbreeCall::Packet16)
+        context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     const auto answer = [&](std::size_t index, const auto& packet, int lane, const EmbreeRay*) {
         occluded[index] = packet.tfar[lane] == -kInfinity ? 1 : 0;
     };
