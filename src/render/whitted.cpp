@@ -17,8 +17,8 @@
 #include <optional>
 #include <vector>
 
+#include "render/grouped_batch.hpp"
 #include "render/optics.hpp"
-#include "render/shadow_batch.hpp"
 
 namespace lancer {
 namespace {
@@ -213,7 +213,7 @@ RayCounts WhittedTracer::render_tile(int x0, int y0, int x1, int y1, Image& imag
     std::vector<Ray> rays;
     std::vector<Hit> hits;
     std::vector<std::uint8_t> blocked;
-    ShadowBatch shadows;
+    GroupedBatch<std::uint8_t> shadows;
     const LevelShader shader(scene_, intersector_, options_, radiance, out);
     // The first level holds the camera rays, in pixel order: the structure's coherent path.
     bool primary = true;
