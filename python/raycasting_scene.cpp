@@ -4,6 +4,7 @@
 #include <cmath>
 #include <mutex>
 #include <optional>
+#include <shared_mutex>
 #include <stdexcept>
 
 #include "array_arguments.hpp"
@@ -150,7 +151,7 @@ std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py
         mesh.indices.push_back(static_cast<std::uint32_t>(index[k]));
     }
     py::gil_scoped_release released;
-    const std::lock_guard lock(mutex_);
+    const std::unique_lock lock = writing();
     const std::size_t total = first_triangle_.back() + mesh.triangle_count();
     if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         throw std::invalid_argument(triangles_name + ": more triangles than a hit's 32-bit id can number");
@@ -169,7 +170,7 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
     std::optional<UpdateReport> report;  // none while the structure is not built yet
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::unique_lock lock = writing();
         if (geometry_id >= scene_.meshes.size()) {
             throw py::value_error("geometry_id: " + std::to_string(geometry_id) + ", the scene has " +
                                   std::to_string(scene_.meshes.size()) + " geometries");
@@ -202,23 +203,39 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
                     "ms"_a = report->ms, "sah_ratio"_a = report->sah_ratio);
 }
 
-const Accel& RaycastingScene::committed() {
+std::shared_lock<std::shared_mutex> RaycastingScene::reading() {
+    const std::lock_guard turn(turnstile_);
+    return std::shared_lock(mutex_);
+}
+
+std::unique_lock<std::shared_mutex> RaycastingScene::writing() {
+    const std::lock_guard turn(turnstile_);
+    return std::unique_lock(mutex_);
+}
+
+bool RaycastingScene::ready(unsigned needs) const {
+    return world_ && (!(needs & kQueries) || queries_) && (!(needs & kNormals) || !unit_normals_.empty());
+}
+
+std::shared_lock<std::shared_mutex> RaycastingScene::prepared(unsigned needs) {
+    // Readers cannot turn their lock into a writer's, so a query that finds something missing lets go and
+    // builds it under the exclusive lock; a change of the triangles may come in between, hence the loop.
+    for (;;) {
+        std::shared_lock lock = reading();
+        if (ready(needs)) return lock;
+        lock.unlock();
+        const std::unique_lock exclusive = writing();
+        prepare(needs);
+    }
+}
+
+void RaycastingScene::prepare(unsigned needs) {
     if (first_triangle_.back() == 0) throw std::invalid_argument("the scene is empty: add_triangles first");
     if (!world_)
         building([&] { world_ = std::make_unique<World>(scene_, accel_name_, build_options(test_)); });
-    return world_->accel();
-}
-
-const GeometryQueries& RaycastingScene::queries() {
-    committed();
-    if (!queries_)
+    if ((needs & kQueries) && !queries_)
         building([&] { queries_ = std::make_unique<GeometryQueries>(world_->geometry().view(), test_); });
-    return *queries_;
-}
-
-NormalTable RaycastingScene::unit_normals() {
-    committed();
-    if (unit_normals_.empty()) {
+    if ((needs & kNormals) && unit_normals_.empty()) {
         const std::span<const Triangle> triangles = world_->geometry().view().triangles;
         // NormalTable's layout: a miss's zero normal, the triangles', one float for the last 4-float load.
         unit_normals_.reserve(3 * triangles.size() + 4);
@@ -229,7 +246,6 @@ NormalTable RaycastingScene::unit_normals() {
         }
         unit_normals_.push_back(0.0f);
     }
-    return {unit_normals_.data() + 3};
 }
 
 std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t prim) const {
@@ -253,7 +269,7 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
         // chunk of rays is loaded, traced and answered by one task, so that the conversions run in parallel
         // too.
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kNormals);
         const Accel& accel = committed();
         const HitTables tables{unit_normals(), GeometryStarts{first_triangle_}};
         parallel_for(chunks.size(), 1, nthreads, [&](std::size_t index, std::size_t) {
@@ -285,7 +301,7 @@ py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, 
     bool* out = result.mutable_data();
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kStructure);
         const Accel& accel = committed();
         for_each_ray_chunk(rows, nthreads, tnear, tfar,
                            [&](std::size_t first, const std::vector<Ray>& chunk) {
@@ -304,7 +320,7 @@ py::array RaycastingScene::count_intersections(const py::object& rays, int nthre
     std::int32_t* count = counts.mutable_data();
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kQueries);
         const GeometryQueries& all = queries();
         for_each_ray_chunk(rows, nthreads, 0.0f, kInfinity,
                            [&](std::size_t first, const std::vector<Ray>& chunk) {
@@ -326,7 +342,7 @@ py::dict RaycastingScene::list_intersections(const py::object& rays, int nthread
     std::vector<std::pair<std::uint32_t, std::uint32_t>> ids;  // geometry and primitive of each hit, in order
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kQueries);
         const GeometryQueries& all = queries();
         for_each_ray_chunk(rows, nthreads, 0.0f, kInfinity,
                            [&](std::size_t first, const std::vector<Ray>& chunk) {
@@ -375,7 +391,7 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
     std::uint32_t* primitive = primitive_ids.mutable_data();
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kQueries | kNormals);
         const GeometryQueries& all = queries();
         const NormalTable unit_normal = unit_normals();
         parallel_for(
@@ -423,7 +439,7 @@ py::array RaycastingScene::map_points(const py::object& query_points, int nthrea
     const float* q = rows.data();
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kQueries);
         const GeometryQueries& all = queries();
         parallel_for(static_cast<std::size_t>(rows.size() / 3), kChunk, nthreads,
                      [&](std::size_t first, std::size_t last) {
@@ -460,8 +476,7 @@ py::array RaycastingScene::compute_signed_distance(const py::object& query_point
 
 void RaycastingScene::save_structure(const std::string& path) {
     py::gil_scoped_release released;
-    const std::lock_guard lock(mutex_);
-    committed();
+    const std::shared_lock lock = prepared(kStructure);
     try {
         world_->save_structure(path);
     } catch (const StructureFileError& error) {
@@ -496,7 +511,7 @@ py::dict RaycastingScene::stats() {
     std::size_t memory_bytes = 0;
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kStructure);
         stats = committed().stats();
         memory_bytes = committed().memory_bytes();
     }
