@@ -95,6 +95,8 @@ class Array(numpy.ndarray):
             py::arg("watertight") = py::none(),
             "lancer's own: a `plucker` scene read from a .plo file (lancer convert's), its triangles one "
             "geometry; watertight None keeps the file's triangle test")
+        .def(py::pickle([](RaycastingScene& scene) -> py::object { return scene.pickled(); },
+                        [](const py::object& state) { return RaycastingScene::unpickled(state); }))
         .def_property_readonly("accel", &RaycastingScene::accel)
         .def("stats", &RaycastingScene::stats, "The structure's build statistics");
     module.def(

@@ -56,6 +56,13 @@ class RaycastingScene {
     static std::unique_ptr<RaycastingScene> load_structure(const std::string& path,
                                                            const py::object& watertight);
 
+    // pickle's state and back (scene_state.cpp): the format's name and version, the structure's name, the
+    // triangle test and the build threads, and each geometry's vertices float32 (N, 3) and triangles uint32
+    // (M, 3) in id order. The structure is rebuilt by the first query (docs/python.md, "pickle"). A state of
+    // another version, or one that is not what pickled() makes, raises ValueError naming what is wrong.
+    [[nodiscard]] py::dict pickled();
+    [[nodiscard]] static std::unique_ptr<RaycastingScene> unpickled(const py::object& state);
+
     [[nodiscard]] const std::string& accel() const { return accel_name_; }
     [[nodiscard]] py::dict stats();
 

@@ -94,3 +94,98 @@ def test_first_queries_from_many_threads_build_the_scene_once_and_agree(spheres,
         assert not errors, errors
         for name in calls:
             assert np.array_equal(answers[name], expected[name]), name
+
+
+# pickle and copy.deepcopy.
+
+def every_answer(scene, rays):
+    """cast_rays' answers and test_occlusions', as bytes: equal means equal bit for bit."""
+    answers = {key: value.tobytes() for key, value in scene.cast_rays(rays).items()}
+    answers["occluded"] = scene.test_occlusions(rays).tobytes()
+    return answers
+
+
+@pytest.mark.parametrize("accel", lancer.accel_names())
+def test_pickle_and_deepcopy_give_the_same_answers_bit_for_bit(spheres, accel):
+    import copy
+    import pickle
+    from test_raycasting_scene import adversarial_rays
+    rays = np.vstack([random_rays(3000, 30), adversarial_rays(*spheres[0])]).astype(np.float32)
+    for watertight in (True, False):
+        scene = scene_of(accel, *spheres, watertight=watertight)
+        expected = every_answer(scene, rays)
+        for twin in (pickle.loads(pickle.dumps(scene)), copy.deepcopy(scene), copy.copy(scene)):
+            assert type(twin) is lancer.RaycastingScene and twin is not scene
+            assert twin.accel == accel
+            assert every_answer(twin, rays) == expected, (accel, watertight)
+            # Their own geometry: a mesh added to the copy is not the original's.
+            assert twin.add_triangles(*spheres[0]) == 2
+        assert every_answer(scene, rays) == expected
+
+
+def test_a_pickle_holds_the_moved_vertices_and_scenes_loaded_from_files(spheres, tmp_path):
+    import pickle
+    from test_raycasting_scene import waved
+    rays = random_rays(3000, 31)
+    moved = scene_of("bvh8", *spheres)
+    moved.cast_rays(rays[:1])
+    moved.update_vertices(1, waved(spheres[1][0], 0.4))
+    assert every_answer(pickle.loads(pickle.dumps(moved)), rays) == every_answer(moved, rays)
+    # An empty scene pickles too, and stays empty.
+    with pytest.raises(ValueError, match="the scene is empty"):
+        pickle.loads(pickle.dumps(lancer.RaycastingScene("plucker"))).cast_rays(rays)
+    scene_of("plucker", *spheres).save_structure(str(tmp_path / "spheres.plo"))
+    loaded = lancer.RaycastingScene.load_structure(str(tmp_path / "spheres.plo"))
+    assert every_answer(pickle.loads(pickle.dumps(loaded)), rays) == every_answer(loaded, rays)
+
+
+def answers_in_worker(scene, rays):
+    """In a worker process: the answers of a scene it received pickled."""
+    return every_answer(scene, rays)
+
+
+@pytest.mark.parametrize("method", ["fork", "spawn", "forkserver"])
+def test_a_pickled_scene_answers_the_same_in_a_worker_process(spheres, method):
+    import multiprocessing
+    rays = random_rays(2000, 32)
+    scene = scene_of("bvh8_packet", *spheres)
+    with multiprocessing.get_context(method).Pool(1) as pool:
+        # A worker that cannot unpickle its task dies and the pool waits for it forever: hence the timeout.
+        answers = pool.apply_async(answers_in_worker, (scene, rays)).get(timeout=120)
+    assert answers == every_answer(scene, rays)
+
+
+def test_corrupt_and_other_version_pickles_raise_value_error(spheres):
+    import pickle
+    scene = scene_of("bvh", *spheres)
+    state = scene.__getstate__()
+    assert isinstance(state, dict) and state["version"] == 1
+
+    def changed(**changes):
+        return dict(state, **changes)
+
+    vertices, triangles = spheres[0]
+    bad = [
+        (changed(version=2), "version 2"),
+        (changed(version="1"), "version"),
+        (changed(format="open3d"), "format"),
+        ({k: v for k, v in state.items() if k != "geometries"}, "geometries"),
+        (changed(accel="nope"), "accel: unknown structure 'nope'"),
+        (changed(accel=7), "accel"),
+        (changed(watertight="yes"), "watertight"),
+        (changed(nthreads=-2), "nthreads"),
+        (changed(geometries=[(vertices, triangles, 0)]), r"geometries\[0\]"),
+        (changed(geometries=[(vertices[:, :2], triangles)]), r"geometries\[0\]\[0\]: expected shape"),
+        (changed(geometries=[(vertices, triangles + np.uint32(1000))]), r"geometries\[0\]\[1\]: row 0 names vertex"),
+        (changed(geometries=[(vertices, triangles.astype(np.float32))]), r"geometries\[0\]\[1\]"),
+        (changed(geometries=None), "geometries"),
+        ((1, 2, 3), "a dict"),
+        (None, "a dict"),
+    ]
+    for state_, message in bad:
+        fresh = lancer.RaycastingScene.__new__(lancer.RaycastingScene)
+        with pytest.raises(ValueError, match=message):
+            fresh.__setstate__(state_)
+    # A pickle cut short is pickle's own error, before lancer sees it.
+    with pytest.raises(Exception):
+        pickle.loads(pickle.dumps(scene)[:-40])
