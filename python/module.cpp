@@ -1,6 +1,7 @@
 // The `lancer` Python module (docs/python.md): RaycastingScene with Open3D's signatures and defaults.
 #include <pybind11/eval.h>
 #include <pybind11/pybind11.h>
+#include <pybind11/stl/filesystem.h>
 
 #include <limits>
 

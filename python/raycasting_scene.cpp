@@ -18,14 +18,14 @@ namespace {
 
 // Rays first to last of the (..., 6) rows, with the interval [tnear, tfar]. Throws std::invalid_argument
 // (ValueError) for a row with a NaN or infinite value, as float_rows does.
-void rays_of(const float* rows, std::size_t first, std::size_t last, float tnear, float tfar,
-             std::vector<Ray>& rays) {
+void rays_of(const py::array_t<float, py::array::c_style>& rows, std::size_t first, std::size_t last,
+             float tnear, float tfar, std::vector<Ray>& rays) {
     rays.clear();
     for (std::size_t i = first; i < last; ++i) {
-        const float* r = rows + 6 * i;
+        const float* r = rows.data() + 6 * i;
         if (!(std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2]) && std::isfinite(r[3]) &&
               std::isfinite(r[4]) && std::isfinite(r[5])))
-            throw std::invalid_argument("rays: row " + std::to_string(i) + " holds a NaN or infinite value");
+            throw std::invalid_argument("rays: " + row_name(rows, i) + " holds a NaN or infinite value");
         rays.push_back({{r[0], r[1], r[2]}, {r[3], r[4], r[5]}, tnear, tfar});
     }
 }
@@ -42,7 +42,7 @@ void for_each_ray_chunk(const py::array_t<float, py::array::c_style>& rows, int 
     parallel_for(static_cast<std::size_t>(rows.size() / 6), kChunk, threads,
                  [&](std::size_t first, std::size_t last) {
                      std::vector<Ray> rays;
-                     rays_of(rows.data(), first, last, tnear, tfar, rays);
+                     rays_of(rows, first, last, tnear, tfar, rays);
                      body(first, rays);
                  });
 }
@@ -60,6 +60,23 @@ std::vector<Vec3f> sample_directions(int samples) {
             Vec3f(component(0.6180339887, 0.1), component(0.4142135623, 0.3), component(0.7320508075, 0.7))));
     }
     return directions;
+}
+
+// The indices of an (M, 3) integer array, checked against the vertex count, read as Index: int64, or uint64
+// for unsigned dtypes, so that an index is reported as given (2**63 + 1, not wrapped to a negative).
+template <class Index>
+void read_indices(const py::array& array, std::size_t vertex_count, const std::string& name,
+                  std::vector<std::uint32_t>& indices) {
+    const auto rows = py::array_t<Index, py::array::c_style | py::array::forcecast>::ensure(array);
+    const Index* index = rows.data();
+    indices.reserve(static_cast<std::size_t>(rows.size()));
+    for (py::ssize_t k = 0; k < rows.size(); ++k) {
+        if (std::cmp_less(index[k], 0) || std::cmp_greater_equal(index[k], vertex_count))
+            throw py::value_error(name + ": row " + std::to_string(k / 3) + " names vertex " +
+                                  std::to_string(index[k]) + ", outside [0, " + std::to_string(vertex_count) +
+                                  ")");
+        indices.push_back(static_cast<std::uint32_t>(index[k]));
+    }
 }
 
 void check_samples(int nsamples) {
@@ -115,9 +132,12 @@ std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py
                                             const std::string& vertices_name,
                                             const std::string& triangles_name) {
     const auto points = float_rows(vertices, vertices_name, 3);
-    const py::object indices_object = numpy_of(triangles);
-    if (!py::isinstance<py::array>(indices_object))
-        throw py::type_error(triangles_name + ": expected a numpy array of integers");
+    py::object indices_object = numpy_of(triangles);
+    try {
+        indices_object = py::module_::import("numpy").attr("asarray")(indices_object);  // lists too
+    } catch (const py::error_already_set&) {
+        throw py::type_error(triangles_name + ": expected an array of integers");
+    }
     const auto indices_array = py::reinterpret_borrow<py::array>(indices_object);
     const char kind = indices_array.dtype().kind();
     if (kind != 'i' && kind != 'u')
@@ -127,9 +147,7 @@ std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py
         throw py::value_error(triangles_name + ": expected shape (M, 3), got " + shape_text(indices_array));
     if (points.ndim() != 2)
         throw py::value_error(vertices_name + ": expected shape (N, 3), got " + shape_text(points));
-    const auto indices =
-        py::array_t<std::int64_t, py::array::c_style>::ensure(indices_array.attr("astype")("int64"));
-    const auto vertex_count = static_cast<std::int64_t>(points.shape(0));
+    const auto vertex_count = static_cast<std::size_t>(points.shape(0));
     const float* p = points.data();
     for (py::ssize_t i = 0; i < points.shape(0); ++i) {
         if (!in_coordinate_domain({p[3 * i], p[3 * i + 1], p[3 * i + 2]}))
@@ -141,15 +159,10 @@ std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py
     mesh.positions.reserve(static_cast<std::size_t>(points.shape(0)));
     for (py::ssize_t i = 0; i < points.shape(0); ++i)
         mesh.positions.emplace_back(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
-    const std::int64_t* index = indices.data();
-    mesh.indices.reserve(static_cast<std::size_t>(indices.size()));
-    for (py::ssize_t k = 0; k < indices.size(); ++k) {
-        if (index[k] < 0 || index[k] >= vertex_count)
-            throw py::value_error(triangles_name + ": row " + std::to_string(k / 3) + " names vertex " +
-                                  std::to_string(index[k]) + ", outside [0, " + std::to_string(vertex_count) +
-                                  ")");
-        mesh.indices.push_back(static_cast<std::uint32_t>(index[k]));
-    }
+    if (kind == 'u')
+        read_indices<std::uint64_t>(indices_array, vertex_count, triangles_name, mesh.indices);
+    else
+        read_indices<std::int64_t>(indices_array, vertex_count, triangles_name, mesh.indices);
     py::gil_scoped_release released;
     const std::unique_lock lock = writing();
     const std::size_t total = first_triangle_.back() + mesh.triangle_count();
@@ -163,7 +176,8 @@ std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py
     return static_cast<std::uint32_t>(first_triangle_.size() - 2);
 }
 
-py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::object& vertices) {
+py::dict RaycastingScene::update_vertices(const py::object& geometry_id, const py::object& vertices) {
+    const IndexArgument id = index_argument(geometry_id, "geometry_id");
     const auto points = float_rows(vertices, "vertices", 3);
     if (points.ndim() != 2)
         throw py::value_error("vertices: expected shape (N, 3), got " + shape_text(points));
@@ -171,15 +185,16 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
     {
         py::gil_scoped_release released;
         const std::unique_lock lock = writing();
-        if (geometry_id >= scene_.meshes.size()) {
-            throw py::value_error("geometry_id: " + std::to_string(geometry_id) + ", the scene has " +
+        if (!id.value || *id.value >= scene_.meshes.size()) {
+            throw py::value_error("geometry_id: " + id.text + ", the scene has " +
                                   std::to_string(scene_.meshes.size()) + " geometries");
         }
-        TriangleMesh& mesh = scene_.meshes[geometry_id];
+        const auto geometry = static_cast<std::size_t>(*id.value);
+        TriangleMesh& mesh = scene_.meshes[geometry];
         const auto count = static_cast<std::size_t>(points.shape(0));
         if (count != mesh.positions.size()) {
             throw py::value_error("vertices: " + std::to_string(count) + " rows for geometry " +
-                                  std::to_string(geometry_id) + ", which has " +
+                                  std::to_string(geometry) + ", which has " +
                                   std::to_string(mesh.positions.size()) + " vertices");
         }
         const float* p = points.data();
@@ -194,7 +209,7 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
         if (world_) {
             queries_.reset();  // its own tree is over the triangles about to move
             unit_normals_.clear();
-            building([&] { report = world_->update_vertices(geometry_id, positions); });
+            building([&] { report = world_->update_vertices(geometry, positions); });
         }
         mesh.positions = std::move(positions);
     }
@@ -278,8 +293,7 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
             RayPacket packet;
             const auto trace = [&](const PacketRows& where, HitPacket& hits) {
                 if (!load_rays(rows.data(), where, packet)) {
-                    throw std::invalid_argument("rays: row " +
-                                                std::to_string(first_bad_row(rows.data(), where)) +
+                    throw std::invalid_argument("rays: " + row_name(rows, first_bad_row(rows.data(), where)) +
                                                 " holds a NaN or infinite value");
                 }
                 accel.intersect_packet(packet, hits);
@@ -474,7 +488,7 @@ py::array RaycastingScene::compute_signed_distance(const py::object& query_point
     });
 }
 
-void RaycastingScene::save_structure(const std::string& path) {
+void RaycastingScene::save_structure(const std::filesystem::path& path) {
     py::gil_scoped_release released;
     const std::shared_lock lock = prepared(kStructure);
     try {
@@ -484,7 +498,7 @@ void RaycastingScene::save_structure(const std::string& path) {
     }
 }
 
-std::unique_ptr<RaycastingScene> RaycastingScene::load_structure(const std::string& path,
+std::unique_ptr<RaycastingScene> RaycastingScene::load_structure(const std::filesystem::path& path,
                                                                  const py::object& watertight) {
     std::optional<TriangleTest> test;
     if (!watertight.is_none())

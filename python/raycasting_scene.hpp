@@ -10,6 +10,7 @@
 #include <pybind11/pybind11.h>
 
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -40,8 +41,8 @@ class RaycastingScene {
     // triangle["indices"].
     std::uint32_t add_mesh(const py::object& mesh);
     // lancer's own: new positions for a geometry's vertices, its triangles kept (World::update_vertices: the
-    // BVHs refit). Returns what the update did.
-    py::dict update_vertices(std::uint32_t geometry_id, const py::object& vertices);
+    // BVHs refit). Returns what the update did. geometry_id: any integer (index_argument).
+    py::dict update_vertices(const py::object& geometry_id, const py::object& vertices);
     py::dict cast_rays(const py::object& rays, int nthreads);
     py::array test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads);
     py::array count_intersections(const py::object& rays, int nthreads);
@@ -52,8 +53,8 @@ class RaycastingScene {
     py::array compute_signed_distance(const py::object& query_points, int nthreads, int nsamples);
     // lancer's own: the `plucker` structure and its geometry as a `.plo` file (lancer convert's), and a scene
     // made from one, its triangles one geometry.
-    void save_structure(const std::string& path);
-    static std::unique_ptr<RaycastingScene> load_structure(const std::string& path,
+    void save_structure(const std::filesystem::path& path);
+    static std::unique_ptr<RaycastingScene> load_structure(const std::filesystem::path& path,
                                                            const py::object& watertight);
 
     // pickle's state and back (scene_state.cpp): the format's name and version, the structure's name, the

@@ -189,3 +189,127 @@ def test_corrupt_and_other_version_pickles_raise_value_error(spheres):
     # A pickle cut short is pickle's own error, before lancer sees it.
     with pytest.raises(Exception):
         pickle.loads(pickle.dumps(scene)[:-40])
+
+
+# What users type.
+
+def test_float64_arrays_and_lists_are_converted_to_float32_once(spheres):
+    """float64 rays, points and vertices, and Python lists of them, answer as their float32 roundings do."""
+    rays64 = np.random.default_rng(40).uniform(-2.0, 2.0, (500, 6))
+    points64 = np.random.default_rng(41).uniform(-2.0, 2.0, (300, 3))
+    scene = scene_of("bvh8", *spheres)
+    rays32, points32 = rays64.astype(np.float32), points64.astype(np.float32)
+    for rays in (rays64, rays64.tolist(), rays64.reshape(20, 25, 6)):
+        answer = scene.cast_rays(rays)
+        assert answer["t_hit"].shape == np.shape(rays)[:-1]
+        assert np.array_equal(answer["t_hit"].ravel(), scene.cast_rays(rays32)["t_hit"])
+        assert np.array_equal(scene.test_occlusions(rays).ravel(), scene.test_occlusions(rays32))
+        assert np.array_equal(scene.count_intersections(rays).ravel(), scene.count_intersections(rays32))
+    for points in (points64, points64.tolist()):
+        assert np.array_equal(scene.compute_distance(points), scene.compute_distance(points32))
+        assert np.array_equal(scene.compute_closest_points(points)["points"],
+                              scene.compute_closest_points(points32)["points"])
+    integers = np.arange(-3, 3, dtype=np.int16)[:, None].repeat(6, axis=1)
+    assert np.array_equal(scene.cast_rays(integers)["t_hit"], scene.cast_rays(integers.astype(np.float32))["t_hit"])
+    vertices, triangles = spheres[0]
+    from_lists = lancer.RaycastingScene()
+    from_lists.add_triangles(vertices.astype(np.float64).tolist(), triangles.tolist())
+    assert np.array_equal(from_lists.cast_rays(rays32)["t_hit"], scene_of("bvh", spheres[0]).cast_rays(rays32)["t_hit"])
+    from_lists.update_vertices(0, (vertices * 2.0).astype(np.float64))
+    grown = scene_of("bvh", ((vertices * 2.0).astype(np.float32), triangles))
+    assert np.array_equal(from_lists.cast_rays(rays32)["t_hit"], grown.cast_rays(rays32)["t_hit"])
+
+
+@pytest.mark.parametrize("rays, error, message", [
+    (np.float32(1.0), ValueError, r"rays: expected an array of shape \(\.\.\., 6\), got a scalar \(numpy.float32\)"),
+    (3.0, ValueError, r"rays: expected an array of shape \(\.\.\., 6\), got a scalar \(float\)"),
+    (np.zeros((4, 6), np.complex64), TypeError, "rays: expected real numbers .*, got complex64"),
+    (np.zeros((4, 6), bool), TypeError, "rays: expected real numbers .*, got bool"),
+    ("rays", TypeError, "rays: expected an array of numbers, got str"),
+    ([[0, 0, 0, 1, 0]], ValueError, r"rays: expected shape \(\.\.\., 6\), got \(1, 5\)"),
+    ([[0, 0, 0, 1, 0, 0], [1, 2]], TypeError, "rays: expected an array of numbers, got list"),
+])
+def test_what_is_not_rays_is_named_clearly(spheres, rays, error, message):
+    scene = scene_of("bvh", *spheres)
+    with pytest.raises(error, match=message) as raised:
+        scene.cast_rays(rays)
+    assert "float32, got float32" not in str(raised.value)
+
+
+@pytest.mark.parametrize("query", ["cast_rays", "test_occlusions", "count_intersections", "list_intersections"])
+def test_a_bad_ray_in_an_image_is_named_by_its_pixel(spheres, query):
+    rays = lancer.RaycastingScene.create_rays_pinhole(40.0, [0, 0, 0], [0, 0, 4.0], [0, 1, 0], 20, 10)
+    rays[3, 14, 4] = np.nan
+    with pytest.raises(ValueError, match=r"rays: pixel \(row 3, column 14\) holds a NaN or infinite value"):
+        getattr(scene_of("bvh8_packet", *spheres), query)(rays)
+    points = rays[..., :3].copy()
+    points[2, 5, 1] = np.inf
+    with pytest.raises(ValueError, match=r"query_points: pixel \(row 2, column 5\) holds a NaN"):
+        scene_of("bvh", *spheres).compute_distance(points)
+    volume = np.zeros((2, 3, 4, 6), np.float32)
+    volume[1, 2, 3, 0] = np.nan
+    with pytest.raises(ValueError, match=r"rays: index \(1, 2, 3\) holds a NaN"):
+        getattr(scene_of("bvh8_packet", *spheres), query)(volume)
+
+
+def test_indices_are_reported_as_given_not_wrapped_or_printed_whole(spheres):
+    vertices, triangles = spheres[0]
+    scene = scene_of("bvh", *spheres)
+    for geometry_id, text in ((-1, "-1"), (2, "2"), (np.uint64(2**63 + 1), "9223372036854775809"), (2**70, str(2**70))):
+        with pytest.raises(ValueError, match=rf"^geometry_id: {text}, the scene has 2 geometries$"):
+            scene.update_vertices(geometry_id, vertices)
+    with pytest.raises(TypeError, match="geometry_id: expected an integer, got float"):
+        scene.update_vertices(0.0, vertices)
+    assert scene.update_vertices(np.int64(1), vertices)["method"] == "deferred"
+    huge = triangles.astype(np.uint64)
+    huge[4, 1] = 2**63 + 1
+    with pytest.raises(ValueError, match=f"triangle_indices: row 4 names vertex {2**63 + 1}, outside"):
+        scene.add_triangles(vertices, huge)
+    negative = triangles.astype(np.int64)
+    negative[5, 2] = -7
+    with pytest.raises(ValueError, match="triangle_indices: row 5 names vertex -7, outside"):
+        scene.add_triangles(vertices, negative)
+
+
+def test_paths_may_be_pathlike(spheres, tmp_path):
+    vertices, triangles = spheres[0]
+    off = tmp_path / "sphere.off"
+    off.write_text(f"OFF\n{len(vertices)} {len(triangles)} 0\n" +
+                   "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in vertices.tolist()) +
+                   "".join(f"3 {a} {b} {c}\n" for a, b, c in triangles.tolist()))
+    loaded_vertices, loaded_triangles = lancer.load_mesh(off)
+    assert np.array_equal(loaded_vertices, vertices) and np.array_equal(loaded_triangles, triangles)
+    lancer.save_png(tmp_path / "image.png", np.zeros((4, 5)))
+    assert (tmp_path / "image.png").stat().st_size > 0
+    scene_of("plucker", spheres[0]).save_structure(tmp_path / "sphere.plo")
+    rays = random_rays(500, 42)
+    loaded = lancer.RaycastingScene.load_structure(tmp_path / "sphere.plo")
+    assert np.array_equal(loaded.cast_rays(rays)["t_hit"], scene_of("plucker", spheres[0]).cast_rays(rays)["t_hit"])
+    with pytest.raises(ValueError, match="path: .*missing.off"):
+        lancer.load_mesh(tmp_path / "missing.off")
+
+
+def test_more_threads_than_the_machine_has_are_clamped_silently(spheres):
+    """oneTBB prints a warning for an arena wider than the machine: nthreads is clamped to the CPUs this
+    process may run on, quietly, with the answers of nthreads=0. Its own process: oneTBB warns once."""
+    import os
+    import subprocess
+    import sys
+    program = """if True:
+        import sys
+        sys.path.insert(0, sys.argv[1])
+        import numpy as np
+        from test_raycasting_scene import icosphere, random_rays
+        import lancer
+        rays = random_rays(5000, 43)
+        scene = lancer.RaycastingScene(accel="bvh8", nthreads=1000)
+        scene.add_triangles(*icosphere(2))
+        assert np.array_equal(scene.cast_rays(rays, nthreads=1000)["t_hit"], scene.cast_rays(rays)["t_hit"])
+        assert np.array_equal(scene.compute_distance(rays[:, :3], nthreads=1000), scene.compute_distance(rays[:, :3]))
+        print("answered")
+    """
+    here = os.path.dirname(os.path.abspath(__file__))
+    run = subprocess.run([sys.executable, "-c", program, here], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and run.stdout.strip() == "answered", run.stderr
+    assert run.stderr == "", run.stderr
+
