@@ -32,6 +32,20 @@ std::string type_name(const py::handle& object) {
 
 }  // namespace
 
+py::object tensors_like(const py::object& argument, const py::object& answer) {
+    const py::handle type = py::type::of(argument);
+    const std::string module = py::str(type.attr("__module__"));
+    if (module.rfind("open3d.", 0) != 0 || std::string(py::str(type.attr("__name__"))) != "Tensor")
+        return answer;
+    const py::object from_numpy = py::module_::import("open3d.core").attr("Tensor").attr("from_numpy");
+    const auto tensor = [&](const py::handle& array) { return from_numpy(array.attr("numpy")()); };
+    if (!py::isinstance<py::dict>(answer)) return tensor(answer);
+    py::dict tensors;
+    for (const auto& [key, array] : py::reinterpret_borrow<py::dict>(answer))
+        tensors[key] = tensor(array);
+    return tensors;
+}
+
 py::array_t<float, py::array::c_style> float_rows(const py::object& argument, const std::string& name,
                                                   py::ssize_t width, bool check_finite) {
     const std::string shape = "(..., " + std::to_string(width) + ")";

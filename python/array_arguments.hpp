@@ -30,6 +30,11 @@ namespace py = pybind11;
 // written for Open3D's answers runs on lancer's as it is.
 [[nodiscard]] py::array open3d_like(const py::array& array);
 
+// `answer` (an array, or a dict of them) as Open3D tensors sharing its memory where `argument` is an
+// open3d.core.Tensor (tensors in, tensors out), as it is otherwise. Open3D is imported only then: a tensor is
+// told by its type's module, so that NumPy users never load it.
+[[nodiscard]] py::object tensors_like(const py::object& argument, const py::object& answer);
+
 // A float32 array of shape (..., width), C-contiguous (read in place when it already is), from an array, a
 // tensor (numpy_of), or anything NumPy makes an array of real numbers of (nested lists, float64 or integer
 // arrays: converted once, float64 rounded to nearest). Throws TypeError or ValueError naming `name`, and with

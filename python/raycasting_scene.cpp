@@ -499,10 +499,9 @@ void RaycastingScene::save_structure(const std::filesystem::path& path) {
 }
 
 std::unique_ptr<RaycastingScene> RaycastingScene::load_structure(const std::filesystem::path& path,
-                                                                 const py::object& watertight) {
+                                                                 std::optional<bool> watertight) {
     std::optional<TriangleTest> test;
-    if (!watertight.is_none())
-        test = watertight.cast<bool>() ? TriangleTest::Watertight : TriangleTest::MollerTrumbore;
+    if (watertight) test = *watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore;
     std::unique_ptr<World> world;
     {
         py::gil_scoped_release released;

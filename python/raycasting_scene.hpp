@@ -14,6 +14,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <shared_mutex>
 #include <span>
 #include <string>
@@ -55,7 +56,7 @@ class RaycastingScene {
     // made from one, its triangles one geometry.
     void save_structure(const std::filesystem::path& path);
     static std::unique_ptr<RaycastingScene> load_structure(const std::filesystem::path& path,
-                                                           const py::object& watertight);
+                                                           std::optional<bool> watertight);
 
     // pickle's state and back (scene_state.cpp): the format's name and version, the structure's name, the
     // triangle test and the build threads, and each geometry's vertices float32 (N, 3) and triangles uint32

@@ -313,3 +313,166 @@ def test_more_threads_than_the_machine_has_are_clamped_silently(spheres):
     assert run.returncode == 0 and run.stdout.strip() == "answered", run.stderr
     assert run.stderr == "", run.stderr
 
+
+# Docs in the interpreter, and stubs.
+
+def signatures(function):
+    """The argument names and annotations of each signature pybind11 writes atop a function's docstring."""
+    import re
+    found = []
+    for line in function.__doc__.splitlines():
+        match = re.match(rf"^(?:\d+\. )?{function.__name__}\((.*)\) -> (.*)$", line)
+        if match:
+            arguments = [part.split("=")[0].strip() for part in re.split(r", (?![^\[]*\])", match.group(1)) if part]
+            found.append([tuple(part.split(": ", 1)) for part in arguments])
+    return found
+
+
+def public_methods():
+    return [name for name in dir(lancer.RaycastingScene)
+            if not name.startswith("_") and callable(getattr(lancer.RaycastingScene, name))]
+
+
+def test_help_documents_the_class_and_every_argument():
+    assert "Open3D" in lancer.RaycastingScene.__doc__ and "accel_names" in lancer.RaycastingScene.__doc__
+    text = __import__("pydoc").render_doc(lancer.RaycastingScene)
+    for name in public_methods() + ["__init__"]:
+        function = getattr(lancer.RaycastingScene, name)
+        found = signatures(function)
+        assert found, name
+        for arguments in found:
+            for argument in arguments:
+                assert len(argument) == 2 and not argument[0].startswith("arg"), (name, argument)
+                assert argument[1] != "object", (name, argument)  # a precise type, not `object`
+        assert name in text
+    for name in ("cast_rays", "test_occlusions", "count_intersections", "list_intersections"):
+        doc = getattr(lancer.RaycastingScene, name).__doc__
+        assert "(..., 6)" in doc and "float64" in doc and "open3d.core.Tensor" in doc, name
+    for name in ("compute_closest_points", "compute_distance", "compute_occupancy", "compute_signed_distance"):
+        doc = getattr(lancer.RaycastingScene, name).__doc__
+        assert "(..., 3)" in doc and "float64" in doc and "open3d.core.Tensor" in doc, name
+    for name in ("load_mesh", "save_png", "accel_names"):
+        for arguments in signatures(getattr(lancer, name)):
+            assert all(argument[1] != "object" for argument in arguments), name
+
+
+def stub_definitions():
+    """The stub's names: module level, and each class's, with the argument names of each function
+    (several for an overloaded one). From the stub beside the module, as installed."""
+    import ast
+    import pathlib
+    stub = pathlib.Path(lancer.__file__).with_name("lancer.pyi")
+    assert stub.is_file(), f"no stub beside {lancer.__file__}"
+    assert pathlib.Path(lancer.__file__).with_name("lancer-stubs").joinpath("__init__.pyi").read_text() == stub.read_text()
+    tree = ast.parse(stub.read_text())
+
+    def names(body):
+        found = {}
+        for node in body:
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+                arguments = [a.arg for a in node.args.args] if isinstance(node, ast.FunctionDef) else None
+                found.setdefault(node.name, []).append(arguments)
+            elif isinstance(node, ast.AnnAssign):
+                found[node.target.id] = [None]
+            elif isinstance(node, ast.Assign):
+                found.update({target.id: [None] for target in node.targets})
+        return found
+
+    classes = {node.name: names(node.body) for node in tree.body if isinstance(node, ast.ClassDef)}
+    return names(tree.body), classes
+
+
+def test_the_stubs_name_every_public_attribute_with_its_arguments():
+    module_names, classes = stub_definitions()
+    public = {name for name in dir(lancer) if not name.startswith("_")}
+    assert public <= set(module_names), public - set(module_names)
+    assert {name for name in module_names if not name.startswith("_")} == public
+    scene_stub = classes["RaycastingScene"]
+    scene_public = {name for name in dir(lancer.RaycastingScene) if not name.startswith("_")}
+    assert {name for name in scene_stub if not name.startswith("_")} == scene_public
+    array_own = {name for name in vars(lancer.Array) if not name.startswith("_")}
+    assert {name for name in classes["Array"] if not name.startswith("_")} == array_own
+    # Each function's arguments as the module names them, overload by overload.
+    for owner, stub in ((lancer, module_names), (lancer.RaycastingScene, scene_stub)):
+        for name, stubbed in stub.items():
+            if name.startswith("_") and name != "__init__":
+                continue  # pybind11 names pickle's arguments arg0: the stub gives them names
+            if stubbed == [None]:
+                continue
+            function = getattr(owner, name)
+            if isinstance(function, property):
+                continue
+            runtime = {tuple(argument[0] for argument in arguments) for arguments in signatures(function)}
+            assert {tuple(arguments) for arguments in stubbed} == runtime, name
+
+
+# Open3D's tensors in, tensors out.
+
+def test_open3d_tensors_in_give_open3d_tensors_out(spheres):
+    o3d = pytest.importorskip("open3d", reason="Open3D is missing: scripts/deps.sh installs python3-open3d")
+    scene = scene_of("bvh8", *spheres)
+    rays, points = random_rays(3000, 50).reshape(50, 60, 6), random_points(2000, 51).reshape(40, 50, 3)
+    tensor_rays, tensor_points = o3d.core.Tensor(rays), o3d.core.Tensor(points)
+    calls = [
+        ("cast_rays", rays, tensor_rays, {}), ("test_occlusions", rays, tensor_rays, {"tfar": 2.0}),
+        ("count_intersections", rays, tensor_rays, {}), ("list_intersections", rays, tensor_rays, {}),
+        ("compute_closest_points", points, tensor_points, {}), ("compute_distance", points, tensor_points, {}),
+        ("compute_occupancy", points, tensor_points, {"nsamples": 3}),
+        ("compute_signed_distance", points, tensor_points, {}),
+    ]
+    dtypes = {np.dtype(np.float32): o3d.core.Dtype.Float32, np.dtype(np.uint32): o3d.core.Dtype.UInt32,
+              np.dtype(np.int32): o3d.core.Dtype.Int32, np.dtype(bool): o3d.core.Dtype.Bool}
+    for name, array, tensor, keywords in calls:
+        expected = getattr(scene, name)(array, **keywords)
+        answer = getattr(scene, name)(tensor, **keywords)
+        if isinstance(expected, dict):
+            assert isinstance(answer, dict) and answer.keys() == expected.keys(), name
+            pairs = [(answer[key], expected[key]) for key in expected]
+        else:
+            pairs = [(answer, expected)]
+        for theirs, ours in pairs:
+            assert isinstance(theirs, o3d.core.Tensor), name
+            assert theirs.dtype == dtypes[ours.dtype] and tuple(theirs.shape) == ours.shape, name
+            assert np.array_equal(theirs.numpy(), ours), name
+
+
+def test_open3ds_tutorial_last_cell_runs_unchanged(spheres):
+    """The tutorial's virtual point cloud, with its rays from Open3D (a tensor) and from lancer (an array)."""
+    o3d = pytest.importorskip("open3d", reason="Open3D is missing: scripts/deps.sh installs python3-open3d")
+    cube = o3d.t.geometry.TriangleMesh.from_legacy(o3d.geometry.TriangleMesh.create_box().translate([-0.5, -0.5, -0.5]))
+    scene = lancer.RaycastingScene()
+    scene.add_triangles(cube)
+    counts = []
+    for RaycastingScene in (o3d.t.geometry.RaycastingScene, lancer.RaycastingScene):
+        rays = RaycastingScene.create_rays_pinhole(fov_deg=90, center=[0, 0, 2], eye=[2, 3, 0], up=[0, 1, 0],
+                                                   width_px=64, height_px=48)
+        ans = scene.cast_rays(rays)
+        # The tutorial's last cell, as it is.
+        hit = ans['t_hit'].isfinite()
+        points = rays[hit][:, :3] + rays[hit][:, 3:] * ans['t_hit'][hit].reshape((-1, 1))
+        pcd = o3d.t.geometry.PointCloud(points)
+        cloud = pcd.point["positions"].numpy()
+        assert len(cloud) == int(np.isfinite(np.asarray(ans["t_hit"].numpy())).sum()) > 100
+        assert np.all(np.abs(cloud) <= 0.5 + 1e-5)  # on the cube
+        counts.append(len(cloud))
+    assert abs(counts[0] - counts[1]) <= 2  # the two cameras' rays agree to a rounding
+
+
+def test_open3d_is_imported_only_when_given_its_tensors(spheres):
+    import os
+    import subprocess
+    import sys
+    program = """if True:
+        import sys
+        sys.path.insert(0, sys.argv[1])
+        from test_raycasting_scene import icosphere, random_rays
+        import lancer
+        scene = lancer.RaycastingScene()
+        scene.add_triangles(*icosphere(1))
+        scene.cast_rays(random_rays(10, 1)), scene.compute_distance(random_rays(10, 1)[:, :3])
+        assert "open3d" not in sys.modules
+        print("no open3d")
+    """
+    here = os.path.dirname(os.path.abspath(__file__))
+    run = subprocess.run([sys.executable, "-c", program, here], capture_output=True, text=True, timeout=120)
+    assert run.stdout.strip() == "no open3d", run.stderr
