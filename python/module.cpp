@@ -201,8 +201,11 @@ class Array(numpy.ndarray):
             py::arg("watertight") = py::none(),
             "lancer's own: a `plucker` scene read from a .plo file (lancer convert's), its triangles one\n"
             "geometry; watertight None keeps the file's triangle test.")
-        .def(py::pickle([](RaycastingScene& scene) -> py::object { return scene.pickled(); },
-                        [](const py::object& state) { return RaycastingScene::unpickled(state); }))
+        .def(py::pickle(
+            [](RaycastingScene& scene) { return Named<lancer::python::StateName>{scene.pickled()}; },
+            [](const Named<lancer::python::StateName>& state) {
+                return RaycastingScene::unpickled(state.object);
+            }))
         .def_property_readonly("accel", &RaycastingScene::accel,
                                "The structure's name (lancer.accel_names()).")
         .def("stats", &RaycastingScene::stats,

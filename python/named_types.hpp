@@ -29,6 +29,9 @@ struct IndexName {
 struct AnswerArrayName {
     static constexpr auto name = py::detail::const_name("lancer.Array");
 };
+struct StateName {  // pickle's (RaycastingScene::pickled)
+    static constexpr auto name = py::detail::const_name("dict[str, typing.Any]");
+};
 struct AnswerDictName {
     static constexpr auto name = py::detail::const_name("dict[str, lancer.Array]");
 };

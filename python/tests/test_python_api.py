@@ -351,6 +351,8 @@ def test_help_documents_the_class_and_every_argument():
     for name in ("compute_closest_points", "compute_distance", "compute_occupancy", "compute_signed_distance"):
         doc = getattr(lancer.RaycastingScene, name).__doc__
         assert "(..., 3)" in doc and "float64" in doc and "open3d.core.Tensor" in doc, name
+    for name in ("__getstate__", "__setstate__"):  # pybind11 names pickle's argument arg0, but types it
+        assert "object" not in getattr(lancer.RaycastingScene, name).__doc__, name
     for name in ("load_mesh", "save_png", "accel_names"):
         for arguments in signatures(getattr(lancer, name)):
             assert all(argument[1] != "object" for argument in arguments), name
