@@ -61,6 +61,33 @@ def test_a_short_query_does_not_wait_for_another_threads_long_one():
     assert np.array_equal(answers["distances"], expected_distances)
 
 
+def test_a_stream_of_queries_does_not_starve_add_triangles():
+    """Three threads query without pause; add_triangles from a fourth gets in after the queries under way
+    (a shared mutex alone prefers readers here: it waited until they stopped, 2.8 s of 3)."""
+    scene = scene_of("bvh8", icosphere(3))
+    rays = random_rays(40_000, 26)
+    scene.count_intersections(rays)
+    stop = threading.Event()
+
+    def stream():
+        while not stop.is_set():
+            scene.count_intersections(rays)
+
+    threads = [threading.Thread(target=stream) for _ in range(3)]
+    guard = threading.Timer(4.0, stop.set)  # a starved writer gets in once the queries stop
+    for thread in threads + [guard]:
+        thread.start()
+    time.sleep(0.3)
+    start = time.perf_counter()
+    scene.add_triangles(*icosphere(1))
+    waited = time.perf_counter() - start
+    stop.set()
+    guard.cancel()
+    for thread in threads:
+        thread.join()
+    assert waited < 2.0, f"add_triangles waited {waited:.2f} s for a stream of queries"
+
+
 @pytest.mark.parametrize("accel", ["bvh8_packet", "plucker"])
 def test_first_queries_from_many_threads_build_the_scene_once_and_agree(spheres, accel):
     """The structure, the point queries' tree and the normals' table are built by the first query that needs
