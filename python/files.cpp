@@ -4,6 +4,7 @@
 
 #include <string>
 
+#include "array_arguments.hpp"
 #include "lancer/load_scene.hpp"
 #include "lancer/render.hpp"
 
@@ -37,12 +38,17 @@ py::tuple load_mesh(const std::filesystem::path& path) {
 }
 
 void save_png(const std::filesystem::path& path, const py::object& image) {
-    if (!py::isinstance<py::array>(image)) throw py::type_error("image: expected a numpy array");
-    const auto array = py::reinterpret_borrow<py::array>(image);
-    const bool grey = array.ndim() == 2, colour = array.ndim() == 3 && array.shape(2) == 3;
-    if (!grey && !colour) throw py::value_error("image: expected shape (H, W) or (H, W, 3)");
+    py::object converted;
+    try {
+        converted = py::module_::import("numpy").attr("asarray")(numpy_of(image));  // lists, tensors too
+    } catch (const py::error_already_set&) {
+        throw py::type_error("image: expected an array of numbers");
+    }
+    const auto array = py::reinterpret_borrow<py::array>(converted);
     if (array.dtype().kind() != 'f')
         throw py::type_error("image: expected a float array (linear values in [0, 1])");
+    const bool grey = array.ndim() == 2, colour = array.ndim() == 3 && array.shape(2) == 3;
+    if (!grey && !colour) throw py::value_error("image: expected shape (H, W) or (H, W, 3)");
     const auto pixels = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(array);
     Image out(static_cast<int>(array.shape(1)), static_cast<int>(array.shape(0)));
     const float* p = pixels.data();

@@ -308,6 +308,10 @@ def test_paths_may_be_pathlike(spheres, tmp_path):
     assert np.array_equal(loaded_vertices, vertices) and np.array_equal(loaded_triangles, triangles)
     lancer.save_png(tmp_path / "image.png", np.zeros((4, 5)))
     assert (tmp_path / "image.png").stat().st_size > 0
+    lancer.save_png(tmp_path / "list.png", [[0.0, 0.5], [1.0, 0.25]])  # any array-like, as its signature says
+    assert (tmp_path / "list.png").stat().st_size > 0
+    with pytest.raises(TypeError, match="image: expected a float array"):
+        lancer.save_png(tmp_path / "text.png", "not an image")
     scene_of("plucker", spheres[0]).save_structure(tmp_path / "sphere.plo")
     rays = random_rays(500, 42)
     loaded = lancer.RaycastingScene.load_structure(tmp_path / "sphere.plo")
