@@ -4,12 +4,13 @@
 
 #include <string>
 
+#include "array_arguments.hpp"
 #include "lancer/load_scene.hpp"
 #include "lancer/render.hpp"
 
 namespace lancer::python {
 
-py::tuple load_mesh(const std::string& path) {
+py::tuple load_mesh(const std::filesystem::path& path) {
     Scene scene;
     try {
         scene = load_scene(path);
@@ -19,7 +20,7 @@ py::tuple load_mesh(const std::string& path) {
     std::size_t vertex_count = 0, triangle_count = 0;
     for (const TriangleMesh& mesh : scene.meshes)
         vertex_count += mesh.positions.size(), triangle_count += mesh.triangle_count();
-    if (triangle_count == 0) throw py::value_error("path: " + path + " holds no triangles");
+    if (triangle_count == 0) throw py::value_error("path: " + path.string() + " holds no triangles");
     py::array_t<float> vertices(std::vector<py::ssize_t>{static_cast<py::ssize_t>(vertex_count), 3});
     py::array_t<std::uint32_t> triangles(
         std::vector<py::ssize_t>{static_cast<py::ssize_t>(triangle_count), 3});
@@ -36,13 +37,18 @@ py::tuple load_mesh(const std::string& path) {
     return py::make_tuple(vertices, triangles);
 }
 
-void save_png(const std::string& path, const py::object& image) {
-    if (!py::isinstance<py::array>(image)) throw py::type_error("image: expected a numpy array");
-    const auto array = py::reinterpret_borrow<py::array>(image);
-    const bool grey = array.ndim() == 2, colour = array.ndim() == 3 && array.shape(2) == 3;
-    if (!grey && !colour) throw py::value_error("image: expected shape (H, W) or (H, W, 3)");
+void save_png(const std::filesystem::path& path, const py::object& image) {
+    py::object converted;
+    try {
+        converted = py::module_::import("numpy").attr("asarray")(numpy_of(image));  // lists, tensors too
+    } catch (const py::error_already_set&) {
+        throw py::type_error("image: expected an array of numbers");
+    }
+    const auto array = py::reinterpret_borrow<py::array>(converted);
     if (array.dtype().kind() != 'f')
         throw py::type_error("image: expected a float array (linear values in [0, 1])");
+    const bool grey = array.ndim() == 2, colour = array.ndim() == 3 && array.shape(2) == 3;
+    if (!grey && !colour) throw py::value_error("image: expected shape (H, W) or (H, W, 3)");
     const auto pixels = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(array);
     Image out(static_cast<int>(array.shape(1)), static_cast<int>(array.shape(0)));
     const float* p = pixels.data();
