@@ -25,9 +25,34 @@ const Bvh8PacketKernels* kernels_for(SimdIsa isa) {
 
 }  // namespace
 
+// The mean diagonal of the tree's leaf boxes: the scale below which a packet's rays share leaves.
+float mean_leaf_diagonal(const Bvh8Accel& bvh) {
+    double sum = 0.0;
+    std::size_t leaves = 0;
+    for (const WideBvhNode<8>& node : bvh.nodes()) {
+        for (int slot = 0; slot < 8; ++slot) {
+            if (node.is_empty(slot) || node.prim_count[slot] == 0) continue;
+            sum += static_cast<double>(length(node.child_bounds(slot).extent()));
+            ++leaves;
+        }
+    }
+    return leaves == 0 ? 0.0f : static_cast<float>(sum / static_cast<double>(leaves));
+}
+
 void Bvh8PacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     kernels_ = kernels_for(options.isa);
     PacketAccel::build_structure(geometry, options);
+    leaf_diagonal_ = mean_leaf_diagonal(single_ray_);
+}
+
+UpdateReport Bvh8PacketAccel::update_structure(const Geometry& geometry) {
+    const UpdateReport report = PacketAccel::update_structure(geometry);
+    leaf_diagonal_ = mean_leaf_diagonal(single_ray_);
+    return report;
+}
+
+Bvh8PacketTarget Bvh8PacketAccel::target() const {
+    return {single_ray_, geometry_, triangle_test_, leaf_diagonal_};
 }
 
 int Bvh8PacketAccel::lane_count() const {
@@ -37,19 +62,19 @@ int Bvh8PacketAccel::lane_count() const {
 void Bvh8PacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                       TraversalCounters* counters) const {
     if (kernels_ == nullptr) return single_ray_.intersect(rays, hits, counters);
-    kernels_->intersect(single_ray_, geometry_, triangle_test_, rays, hits, counters);
+    kernels_->intersect(target(), rays, hits, counters);
 }
 
 void Bvh8PacketAccel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                                             TraversalCounters* counters) const {
     if (kernels_ == nullptr) return Accel::intersect_packet_rays(rays, hits, counters);
-    kernels_->intersect_packet(single_ray_, geometry_, triangle_test_, rays, hits, counters);
+    kernels_->intersect_packet(target(), rays, hits, counters);
 }
 
 void Bvh8PacketAccel::occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                                      TraversalCounters* counters) const {
     if (kernels_ == nullptr) return single_ray_.occluded(rays, occluded, counters);
-    kernels_->occluded(single_ray_, geometry_, triangle_test_, rays, occluded, counters);
+    kernels_->occluded(target(), rays, occluded, counters);
 }
 
 }  // namespace lancer

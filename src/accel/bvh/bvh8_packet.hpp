@@ -31,6 +31,8 @@ class Bvh8PacketAccel final : public PacketAccel<Bvh8Accel> {
 
   private:
     void build_structure(const Geometry& geometry, const BuildOptions& options) override;
+    UpdateReport update_structure(const Geometry& geometry) override;
+    [[nodiscard]] Bvh8PacketTarget target() const;
     void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                          TraversalCounters* counters) const override;
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
@@ -39,6 +41,7 @@ class Bvh8PacketAccel final : public PacketAccel<Bvh8Accel> {
                                TraversalCounters* counters) const override;
 
     const Bvh8PacketKernels* kernels_ = nullptr;
+    float leaf_diagonal_ = 0.0f;  // mean_leaf_diagonal: the scale of Bvh8PacketTarget::coherent_width
 };
 
 }  // namespace lancer

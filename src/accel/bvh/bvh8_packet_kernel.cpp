@@ -104,17 +104,22 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
 };
 
 // Cuts the batch into packets of consecutive rays. A packet whose rays go together (the same direction signs,
-// finite reciprocals, directions close together: LoadedPacket::directions_agree) walks with the interval
-// cull; any other goes in groups of Ops::kWidth rays through the hybrid walk (bvh8_packet_hybrid.hpp), which
-// takes any rays. Answer: Hit (closest hit) or std::uint8_t (occlusion, kAnyHit). docs/accel/stream.md has
-// the measurements behind the spread and the handover.
+// finite reciprocals, directions close together, origins close together beside the tree's leaves) walks with
+// the interval cull; any other goes in groups of Ops::kWidth rays through the hybrid walk
+// (bvh8_packet_hybrid.hpp), which takes any rays. Answer: Hit (closest hit) or std::uint8_t (occlusion,
+// kAnyHit). docs/accel/stream.md has the measurements behind the spread and the handover.
 template <class Ops, bool kAnyHit, class Answer>
-void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test, std::span<const Ray> rays,
-                 std::span<Answer> answers, TraversalCounters* counters) {
+void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<Answer> answers,
+                 TraversalCounters* counters) {
+    // The interval cull takes a packet whose directions agree to half their largest component and whose
+    // origins lie within 4 mean leaf diagonals: beyond, its rays share few leaves (docs/accel/stream.md).
     constexpr float kAgreeingSpread = 0.5f;
+    constexpr float kCoherentLeaves = 4.0f;
+    const Bvh8Accel& bvh = target.bvh;
+    const Geometry& geometry = target.geometry;
     constexpr auto kPacketRays = static_cast<std::size_t>(kPacketSize);
     constexpr auto kLanes = static_cast<std::size_t>(Ops::kWidth);
-    dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+    dispatch_policies(target.test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
         Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry);
         HybridPacket<Ops, TriangleTestT> hybrid(bvh, geometry);
@@ -123,7 +128,8 @@ void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest te
             const std::span<const Ray> packet_rays = rays.subspan(first, count);
             const std::span<Answer> packet_answers = answers.subspan(first, count);
             if constexpr (kCount) counts.rays += count;
-            if (tracer.load(packet_rays) && tracer.directions_agree(kAgreeingSpread)) {
+            if (tracer.load(packet_rays) && tracer.directions_agree(kAgreeingSpread) &&
+                tracer.origin_width() <= kCoherentLeaves * target.coherent_width) {
                 if constexpr (kAnyHit) {
                     std::fill(packet_answers.begin(), packet_answers.end(), Answer{});
                     tracer.template trace<true, kCount>(packet_answers, counts);
@@ -146,11 +152,11 @@ void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest te
 // One packet in the caller's SoA layout, traced in place, or as a batch (trace_batch) when its rays cannot go
 // together.
 template <class Ops>
-void trace_soa_packet(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
-                      const RayPacket& rays, HitPacket& hits, TraversalCounters* counters) {
-    dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
+void trace_soa_packet(const Bvh8PacketTarget& target, const RayPacket& rays, HitPacket& hits,
+                      TraversalCounters* counters) {
+    dispatch_policies(target.test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
-        Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry);
+        Bvh8PacketTraversal<Ops, TriangleTestT> tracer(target.bvh, target.geometry);
         if (tracer.load(rays)) {
             tracer.template trace<false, kCount>(std::span<Hit>(), counts);
             tracer.store_hits(hits);
@@ -161,7 +167,7 @@ void trace_soa_packet(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTe
             return;
         }
         trace_packet_as_batch(rays, hits, [&](std::span<const Ray> batch, std::span<Hit> batch_hits) {
-            trace_batch<Ops, false>(bvh, geometry, test, batch, batch_hits, counters);
+            trace_batch<Ops, false>(target, batch, batch_hits, counters);
         });
     });
 }
@@ -172,19 +178,19 @@ using KernelOps = simd::Avx512;
 using KernelOps = simd::Avx2;
 #endif
 
-void intersect(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test, std::span<const Ray> rays,
-               std::span<Hit> hits, TraversalCounters* counters) {
-    trace_batch<KernelOps, false>(bvh, geometry, test, rays, hits, counters);
+void intersect(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<Hit> hits,
+               TraversalCounters* counters) {
+    trace_batch<KernelOps, false>(target, rays, hits, counters);
 }
 
-void occluded(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test, std::span<const Ray> rays,
-              std::span<std::uint8_t> occluded, TraversalCounters* counters) {
-    trace_batch<KernelOps, true>(bvh, geometry, test, rays, occluded, counters);
+void occluded(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+              TraversalCounters* counters) {
+    trace_batch<KernelOps, true>(target, rays, occluded, counters);
 }
 
-void intersect_packet(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
-                      const RayPacket& rays, HitPacket& hits, TraversalCounters* counters) {
-    trace_soa_packet<KernelOps>(bvh, geometry, test, rays, hits, counters);
+void intersect_packet(const Bvh8PacketTarget& target, const RayPacket& rays, HitPacket& hits,
+                      TraversalCounters* counters) {
+    trace_soa_packet<KernelOps>(target, rays, hits, counters);
 }
 
 }  // namespace

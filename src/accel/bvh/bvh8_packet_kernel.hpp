@@ -16,15 +16,23 @@ namespace lancer {
 inline constexpr int kBvh8PacketSize = 64;
 static_assert(kBvh8PacketSize == RayPacket::kMaxSize, "a RayPacket is traced as one packet");
 
+// What a batch call needs besides its rays: the tree, the geometry and triangle test it was built with, and
+// the scale of a coherent packet's width: the mean diagonal of the tree's leaf boxes (docs/accel/stream.md).
+struct Bvh8PacketTarget {
+    const Bvh8Accel& bvh;
+    const Geometry& geometry;
+    TriangleTest test;
+    float coherent_width;
+};
+
 struct Bvh8PacketKernels {
     int lane_count;  // rays per instruction of the box and triangle tests
-    void (*intersect)(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
-                      std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters);
-    void (*occluded)(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
-                     std::span<const Ray> rays, std::span<std::uint8_t> occluded,
-                     TraversalCounters* counters);
-    void (*intersect_packet)(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
-                             const RayPacket& rays, HitPacket& hits, TraversalCounters* counters);
+    void (*intersect)(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<Hit> hits,
+                      TraversalCounters* counters);
+    void (*occluded)(const Bvh8PacketTarget& target, std::span<const Ray> rays,
+                     std::span<std::uint8_t> occluded, TraversalCounters* counters);
+    void (*intersect_packet)(const Bvh8PacketTarget& target, const RayPacket& rays, HitPacket& hits,
+                             TraversalCounters* counters);
 };
 
 // Each compilation's table in its instruction set's namespace (core/isa_namespace.hpp). The namespace of the

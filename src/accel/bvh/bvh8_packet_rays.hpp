@@ -181,6 +181,14 @@ class LoadedPacket {
         return widest <= spread * largest;
     }
 
+    // The largest extent of the box of the loaded rays' origins.
+    [[nodiscard]] float origin_width() const {
+        float widest = 0.0f;
+        for (std::size_t axis = 0; axis < 3; ++axis)
+            widest = std::max(widest, std::abs(interval_.exit_origin[axis] - interval_.entry_origin[axis]));
+        return widest;
+    }
+
   protected:
     [[nodiscard]] float max_tlimit() const {
         auto most = Ops::load(&packet_.tlimit[0]);
