@@ -64,6 +64,7 @@ class HybridPacket {
             const Ray& ray = rays[index];
             valid |= LaneBits{1} << lane;
             prepared_[index].emplace(ray);
+            block_rays_[index].reset();
             const SlabRay slab(ray);
             for (int axis = 0; axis < 3; ++axis) {
                 origin_[axis][index] = slab.origin[axis];
@@ -196,7 +197,9 @@ class HybridPacket {
         for (LaneBits rest = lanes; rest != 0; rest &= rest - 1) {
             const auto lane = static_cast<std::size_t>(std::countr_zero(rest));
             if constexpr (kCount) ++counts.nodes_visited, counts.prims_tested += leaf.prim_count;
-            const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(*prepared_[lane], geometry_);
+            // Made at the lane's first leaf and kept for the others: most rays of a packet reach several.
+            if (!block_rays_[lane]) block_rays_[lane].emplace(*prepared_[lane], geometry_);
+            const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes>& block_ray = *block_rays_[lane];
             for (std::uint32_t b = leaf.child; b < end; ++b) {
                 if constexpr (kAnyHit) {
                     if (occludes_block(geometry_, blocks_[b], block_ray)) {
@@ -219,6 +222,7 @@ class HybridPacket {
     alignas(64) std::array<float, kLanes> tnear_;
     alignas(64) std::array<float, kLanes> tlimit_;  // the closest hit so far, or tfar
     std::array<std::optional<PreparedRay<TriangleTestT>>, kLanes> prepared_;
+    std::array<std::optional<BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes>>, kLanes> block_rays_;
     std::array<Hit, kLanes> best_;
     LaneBits alive_ = 0;  // occlusion: the valid lanes not yet blocked
 };
