@@ -224,8 +224,12 @@ NormalTable RaycastingScene::unit_normals() {
         unit_normals_.reserve(3 * triangles.size() + 4);
         unit_normals_.assign(3, 0.0f);
         for (const Triangle& tri : triangles) {
-            const Vec3f normal = normalize(tri.geometric_normal());
-            unit_normals_.insert(unit_normals_.end(), {normal.x, normal.y, normal.z});
+            // A triangle of zero area has no direction to normalise (0 / 0): its normal is the zero vector,
+            // as a miss's, rather than NaN (docs/python.md).
+            const Vec3f normal = tri.geometric_normal();
+            const float norm = length(normal);
+            const Vec3f unit = norm > 0.0f ? normal / norm : Vec3f(0.0f);
+            unit_normals_.insert(unit_normals_.end(), {unit.x, unit.y, unit.z});
         }
         unit_normals_.push_back(0.0f);
     }
