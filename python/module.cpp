@@ -31,12 +31,16 @@ class Array(numpy.ndarray):
     module.attr("Array") = scope["Array"];
     py::class_<RaycastingScene>(module, "RaycastingScene")
         .def(
-            py::init<std::string, bool, int>(), py::arg("accel") = "bvh", py::arg("watertight") = true,
-            py::arg("nthreads") = 0,
+            py::init<std::string, bool, int>(), py::arg("accel") = std::string(lancer::python::kDefaultAccel),
+            py::arg("watertight") = true, py::arg("nthreads") = 0,
             "A scene traced by lancer structure `accel` (lancer.accel_names()), with the watertight triangle "
             "test (Woop et al. 2013) or Moller-Trumbore; nthreads builds the structures (0: all)")
-        .def(py::init([](int nthreads) { return std::make_unique<RaycastingScene>("bvh", true, nthreads); }),
-             py::arg("nthreads"), "Open3D's constructor: a `bvh` scene, built on nthreads threads (0: all)")
+        .def(py::init([](int nthreads) {
+                 return std::make_unique<RaycastingScene>(std::string(lancer::python::kDefaultAccel), true,
+                                                          nthreads);
+             }),
+             py::arg("nthreads"),
+             "Open3D's constructor: a scene of the default structure, built on nthreads threads (0: all)")
         .def_readonly_static("INVALID_ID", &lancer::python::kInvalidId)
         .def("add_triangles", &RaycastingScene::add_triangles, py::arg("vertex_positions"),
              py::arg("triangle_indices"),

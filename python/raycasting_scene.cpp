@@ -212,7 +212,9 @@ const Accel& RaycastingScene::committed() {
 const GeometryQueries& RaycastingScene::queries() {
     committed();
     if (!queries_)
-        building([&] { queries_ = std::make_unique<GeometryQueries>(world_->geometry().view(), test_); });
+        building([&] {
+            queries_ = std::make_unique<GeometryQueries>(world_->accel(), world_->geometry().view(), test_);
+        });
     return *queries_;
 }
 
@@ -404,7 +406,8 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
 bool RaycastingScene::inside(const GeometryQueries& all, const Vec3f& p,
                              std::span<const Vec3f> directions) const {
     std::size_t odd = 0;
-    std::vector<Hit> hits;
+    // One buffer a thread rather than an allocation and its growth a point.
+    thread_local std::vector<Hit> hits;
     for (const Vec3f& direction : directions) {
         hits.clear();
         all.all_hits({p, direction, 0.0f, kInfinity}, hits);
