@@ -47,6 +47,9 @@ def main():
     parser.add_argument("--queries", default=",".join(QUERIES), help="comma-separated queries")
     parser.add_argument("--accel", default=None, help="lancer's structure (default: the default's)")
     parser.add_argument("--builds", type=int, default=5, help="timed builds of each engine (median)")
+    parser.add_argument("--open3d-points", type=int, default=None,
+                        help="time Open3D on the first N points only (Debian's aborts on the dragon's: "
+                             "docs/python.md); Mpoints/s compared")
     args = parser.parse_args()
     import open3d as o3d
 
@@ -60,7 +63,8 @@ def main():
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         margin = 0.1 * np.linalg.norm(hi - lo)
         points = np.random.default_rng(1).uniform(lo - margin, hi + margin, (args.points, 3)).astype(np.float32)
-        o3d_points = o3d.core.Tensor(points)
+        o3d_count = min(args.points, args.open3d_points or args.points)
+        o3d_points = o3d.core.Tensor(points[:o3d_count])
 
         def make_lancer():
             scene = lancer.RaycastingScene() if args.accel is None else lancer.RaycastingScene(accel=args.accel)
@@ -89,18 +93,20 @@ def main():
             theirs_call = getattr(o3d_scene, query)
             answer = ours_call(points)  # warm-up, and the check
             reference = theirs_call(o3d_points)
+            checked = points[:o3d_count]
             if query == "compute_closest_points":
-                ours_points, theirs_points = answer["points"], reference["points"].numpy()
-                distance_gap = np.abs(np.linalg.norm(ours_points - points, axis=1) -
-                                      np.linalg.norm(theirs_points - points, axis=1))
+                ours_points, theirs_points = answer["points"][:o3d_count], reference["points"].numpy()
+                distance_gap = np.abs(np.linalg.norm(ours_points - checked, axis=1) -
+                                      np.linalg.norm(theirs_points - checked, axis=1))
                 assert distance_gap.max() <= 1e-5 * diagonal, (query, distance_gap.max())
             elif query == "compute_distance":
-                assert np.abs(answer - reference.numpy()).max() <= 1e-5 * diagonal, query
+                assert np.abs(answer[:o3d_count] - reference.numpy()).max() <= 1e-5 * diagonal, query
             timings = {"lancer": [], "open3d": []}
             for _ in range(args.repeats):
                 timings["lancer"].append(seconds(lambda: ours_call(points))[0])
                 timings["open3d"].append(seconds(lambda: theirs_call(o3d_points))[0])
-            ours, theirs = (args.points / statistics.median(timings[k]) / 1e6 for k in ("lancer", "open3d"))
+            ours = args.points / statistics.median(timings["lancer"]) / 1e6
+            theirs = o3d_count / statistics.median(timings["open3d"]) / 1e6
             print(f"{mesh.name:<14} {query:<26} {ours:9.3f} {theirs:9.3f} {ours / theirs:7.2f}", flush=True)
 
 

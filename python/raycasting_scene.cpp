@@ -262,19 +262,25 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
         const std::lock_guard lock(mutex_);
         const Accel& accel = committed();
         const HitTables tables{unit_normals(), GeometryStarts{first_triangle_}};
+        // A chunk's rays are one Accel::intersect batch call, where a structure regroups the rays its
+        // packets cannot trace together (docs/python.md, "Speed"); its answers then go packet by packet.
         parallel_for(chunks.size(), 1, nthreads, [&](std::size_t index, std::size_t) {
-            std::vector<PacketRows> packets;
+            thread_local std::vector<PacketRows> packets;
+            thread_local std::vector<Ray> batch;
+            thread_local std::vector<Hit> batch_hits;
             chunks.chunk(index, packets);
-            RayPacket packet;
-            const auto trace = [&](const PacketRows& where, HitPacket& hits) {
-                if (!load_rays(rows.data(), where, packet)) {
-                    throw std::invalid_argument("rays: row " +
-                                                std::to_string(first_bad_row(rows.data(), where)) +
-                                                " holds a NaN or infinite value");
-                }
-                accel.intersect_packet(packet, hits);
+            const std::size_t bad = load_ray_records(rows.data(), packets, batch);
+            if (bad < packets.size()) {
+                throw std::invalid_argument("rays: row " +
+                                            std::to_string(first_bad_row(rows.data(), packets[bad])) +
+                                            " holds a NaN or infinite value");
+            }
+            batch_hits.resize(batch.size());
+            accel.intersect(batch, batch_hits);
+            const auto gather = [&](const PacketRows& where, HitPacket& hits) {
+                gather_hits(batch_hits, static_cast<std::size_t>(&where - packets.data()), hits);
             };
-            answer_chunk(chunks, packets, answers, tables, trace);
+            answer_chunk(chunks, packets, answers, tables, gather);
         });
     }
     return py::dict("t_hit"_a = open3d_like(t_hit), "geometry_ids"_a = open3d_like(geometry_ids),
