@@ -126,3 +126,37 @@ def test_the_default_structure_is_the_fastest_and_its_queries_walk_it(mesh_and_p
     built = lancer.RaycastingScene()
     built.add_triangles(*mesh)
     assert np.array_equal(built.compute_distance(points), scene("grid", mesh).compute_distance(points))
+
+
+def first_sample_direction():
+    """sample_directions(1)[0] as raycasting_scene.cpp makes it: components in double, rounded to float32,
+    normalised in float32."""
+    import math
+
+    def component(irrational, offset):
+        x = irrational + offset
+        return np.float32(x - math.floor(x) - 0.5)
+
+    d = np.array([component(0.6180339887, 0.1), component(0.4142135623, 0.3), component(0.7320508075, 0.7)],
+                 np.float32)
+    length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2], dtype=np.float32)
+    return d / length
+
+
+def test_occupancy_is_the_parity_of_the_listed_crossings(mesh_and_points):
+    """Occupancy counts crossings by closest hits; the listing counts every hit: the same parity, hits at one
+    t one crossing, on a closed mesh and on an open one (a sphere without some triangles)."""
+    (vertices, triangles), points = mesh_and_points
+    open_mesh = (vertices, triangles[::3].copy())
+    direction = first_sample_direction()
+    rays = np.hstack([points, np.broadcast_to(direction, points.shape)]).astype(np.float32)
+    for mesh in ((vertices, triangles), open_mesh):
+        for accel in ("bvh8_packet", "bvh", "grid"):
+            built = scene(accel, mesh)
+            listed = built.list_intersections(rays)
+            odd = np.zeros(len(points), bool)
+            for i in range(len(points)):
+                t = listed["t_hit"][listed["ray_splits"][i]:listed["ray_splits"][i + 1]]
+                odd[i] = len(np.unique(t)) % 2 == 1
+            assert odd.any() and not odd.all()
+            assert np.array_equal(built.compute_occupancy(points) == 1, odd), accel
