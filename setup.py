@@ -27,6 +27,9 @@ class CMakeBuild(build_ext):
         target = pathlib.Path(self.get_ext_fullpath(ext.name))
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(built, target)
+        # The type stubs, beside the module and as the stub-only package lancer-stubs (python/CMakeLists.txt).
+        shutil.copyfile(build_dir / "python" / "lancer.pyi", target.with_name("lancer.pyi"))
+        shutil.copytree(build_dir / "python" / "lancer-stubs", target.with_name("lancer-stubs"), dirs_exist_ok=True)
 
 
 (ROOT / "build-python").mkdir(exist_ok=True)

@@ -21,26 +21,103 @@ py::array open3d_like(const py::array& array) {
     return array.attr("view")(py::module_::import("lancer").attr("Array"));
 }
 
+namespace {
+
+std::string type_name(const py::handle& object) {
+    const py::handle type = py::type::of(object);
+    const std::string module = py::str(type.attr("__module__"));
+    const std::string qualname = py::str(type.attr("__qualname__"));
+    return module == "builtins" ? qualname : module + "." + qualname;
+}
+
+}  // namespace
+
+py::object tensors_like(const py::object& argument, const py::object& answer) {
+    const py::handle type = py::type::of(argument);
+    const std::string module = py::str(type.attr("__module__"));
+    if (module.rfind("open3d.", 0) != 0 || std::string(py::str(type.attr("__name__"))) != "Tensor")
+        return answer;
+    const py::object from_numpy = py::module_::import("open3d.core").attr("Tensor").attr("from_numpy");
+    const auto tensor = [&](const py::handle& array) { return from_numpy(array.attr("numpy")()); };
+    if (!py::isinstance<py::dict>(answer)) return tensor(answer);
+    py::dict tensors;
+    for (const auto& [key, array] : py::reinterpret_borrow<py::dict>(answer))
+        tensors[key] = tensor(array);
+    return tensors;
+}
+
 py::array_t<float, py::array::c_style> float_rows(const py::object& argument, const std::string& name,
                                                   py::ssize_t width, bool check_finite) {
-    const py::object object = numpy_of(argument);
-    if (!py::isinstance<py::array>(object))
-        throw py::type_error(name + ": expected a numpy array of float32, got " +
-                             std::string(py::str(py::type::of(object).attr("__name__"))));
+    const std::string shape = "(..., " + std::to_string(width) + ")";
+    py::object object = numpy_of(argument);
+    if (py::isinstance<py::str>(object) || py::isinstance<py::bytes>(object))
+        throw py::type_error(name + ": expected an array of numbers, got " + type_name(object));
+    // A NumPy scalar (np.float32(1)) or a number is an array of no axes: named as the scalar it is.
+    if (!py::isinstance<py::array>(object) &&
+        (py::isinstance<py::float_>(object) || py::isinstance<py::int_>(object) ||
+         py::isinstance(object, py::module_::import("numpy").attr("generic"))))
+        throw py::value_error(name + ": expected an array of shape " + shape + ", got a scalar (" +
+                              type_name(object) + ")");
+    if (!py::isinstance<py::array>(object)) {
+        try {
+            object = py::module_::import("numpy").attr("asarray")(object);
+        } catch (const py::error_already_set&) {  // ragged lists, objects NumPy cannot make an array of
+            throw py::type_error(name + ": expected an array of numbers, got " + type_name(object));
+        }
+    }
     const auto array = py::reinterpret_borrow<py::array>(object);
-    if (array.dtype().kind() != 'f' || array.itemsize() != 4)
-        throw py::type_error(name + ": expected dtype float32, got " + std::string(py::str(array.dtype())));
+    const char kind = array.dtype().kind();
+    if (kind != 'f' && kind != 'i' && kind != 'u') {
+        throw py::type_error(name +
+                             ": expected real numbers (float32; float64, integers and lists are "
+                             "converted), got " +
+                             (kind == 'O' ? type_name(argument) : std::string(py::str(array.dtype()))));
+    }
     if (array.ndim() < 1 || array.shape(array.ndim() - 1) != width)
-        throw py::value_error(name + ": expected shape (..., " + std::to_string(width) + "), got " +
-                              shape_text(array));
-    auto rows = py::array_t<float, py::array::c_style>::ensure(array);
+        throw py::value_error(name + ": expected shape " + shape + ", got " + shape_text(array));
+    // float32 C-contiguous arrays are read in place; anything else is converted once, here.
+    auto rows = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(array);
+    if (!rows) throw py::error_already_set();
     const float* data = rows.data();
     for (py::ssize_t i = 0; check_finite && i < rows.size(); ++i) {
         if (!std::isfinite(data[i]))
-            throw py::value_error(name + ": row " + std::to_string(i / width) +
+            throw py::value_error(name + ": " + row_name(rows, static_cast<std::size_t>(i / width)) +
                                   " holds a NaN or infinite value");
     }
     return rows;
+}
+
+std::string row_name(const py::array& rows, std::size_t row) {
+    const py::ssize_t leading = rows.ndim() - 1;
+    if (leading == 1) return "row " + std::to_string(row);
+    std::vector<std::size_t> index(static_cast<std::size_t>(std::max<py::ssize_t>(leading, 0)));
+    for (py::ssize_t axis = leading - 1; axis >= 0; --axis) {
+        const auto extent = static_cast<std::size_t>(rows.shape(axis));
+        index[static_cast<std::size_t>(axis)] = row % extent;
+        row /= extent;
+    }
+    if (leading == 2)
+        return "pixel (row " + std::to_string(index[0]) + ", column " + std::to_string(index[1]) + ")";
+    std::string text = "index (";
+    for (std::size_t axis = 0; axis < index.size(); ++axis)
+        text.append(axis == 0 ? "" : ", ").append(std::to_string(index[axis]));
+    return text + ")";
+}
+
+IndexArgument index_argument(const py::object& object, const std::string& name) {
+    PyObject* index = PyNumber_Index(object.ptr());
+    if (index == nullptr) {
+        PyErr_Clear();
+        throw py::type_error(name + ": expected an integer, got " + type_name(object));
+    }
+    const auto integer = py::reinterpret_steal<py::int_>(index);
+    IndexArgument argument{std::nullopt, std::string(py::str(integer.ptr()))};
+    const unsigned long long value = PyLong_AsUnsignedLongLong(integer.ptr());
+    if (PyErr_Occurred() != nullptr)
+        PyErr_Clear();  // OverflowError: negative, or beyond 64 bits
+    else
+        argument.value = value;
+    return argument;
 }
 
 Vec3f vec3_argument(const py::object& object, const char* name) {

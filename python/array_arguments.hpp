@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <initializer_list>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,12 +30,33 @@ namespace py = pybind11;
 // written for Open3D's answers runs on lancer's as it is.
 [[nodiscard]] py::array open3d_like(const py::array& array);
 
-// A float32 array of shape (..., width), C-contiguous (read in place when it already is), from an array or a
-// tensor (numpy_of). Throws TypeError or ValueError naming `name`, and with `check_finite` for a NaN or
-// infinite value (the ray queries check their rows as each task converts them instead).
+// `answer` (an array, or a dict of them) as Open3D tensors sharing its memory where `argument` is an
+// open3d.core.Tensor (tensors in, tensors out), as it is otherwise. Open3D is imported only then: a tensor is
+// told by its type's module, so that NumPy users never load it.
+[[nodiscard]] py::object tensors_like(const py::object& argument, const py::object& answer);
+
+// A float32 array of shape (..., width), C-contiguous (read in place when it already is), from an array, a
+// tensor (numpy_of), or anything NumPy makes an array of real numbers of (nested lists, float64 or integer
+// arrays: converted once, float64 rounded to nearest). Throws TypeError or ValueError naming `name`, and with
+// `check_finite` for a NaN or infinite value, named by row_name (the ray queries check their rows as each
+// task converts them instead).
 [[nodiscard]] py::array_t<float, py::array::c_style> float_rows(const py::object& argument,
                                                                 const std::string& name, py::ssize_t width,
                                                                 bool check_finite = true);
+
+// Where row `row` (a flat index over the leading axes) of an array of shape (..., width) is, for errors:
+// "row 7" in (N, width), "pixel (row 3, column 14)" in an image (H, W, width), "index (1, 2, 3)" beyond.
+// Reads the shape alone, so that it serves without the GIL.
+[[nodiscard]] std::string row_name(const py::array& rows, std::size_t row);
+
+// An integer argument as given (Python's, NumPy's: any object with __index__) for a range check: its value
+// where it fits 64 unsigned bits, and its text, so that an error reports 2**63 + 1 or -1 as the user wrote
+// it. Throws TypeError naming `name` for what is not an integer.
+struct IndexArgument {
+    std::optional<std::uint64_t> value;  // none: negative, or beyond 64 bits
+    std::string text;
+};
+[[nodiscard]] IndexArgument index_argument(const py::object& object, const std::string& name);
 
 // Any sequence of 3 numbers, as Open3D takes them; NumPy's own error for what is not one.
 [[nodiscard]] Vec3f vec3_argument(const py::object& object, const char* name);
@@ -44,7 +66,8 @@ namespace py = pybind11;
 [[nodiscard]] std::vector<double> matrix_argument(const py::object& object, const char* name,
                                                   py::ssize_t rows, py::ssize_t cols);
 
-// Open3D's nthreads: 0 (all) or a thread count; ValueError for a negative one.
+// Open3D's nthreads: 0 (all) or a thread count; ValueError for a negative one. A count above the machine's
+// CPUs is taken, and used as that many (lancer::parallel_for).
 void check_threads(int nthreads);
 
 // The shape of `rows` without its last axis, then `extra` (the shape of one answer, empty for a scalar).

@@ -8,12 +8,13 @@
 #include <filesystem>
 #include <string>
 
+#include "array_arguments.hpp"
 #include "lancer/load_scene.hpp"
 #include "lancer/render.hpp"
 
 namespace lancer::python {
 
-py::tuple load_mesh(const std::string& path) {
+py::tuple load_mesh(const std::filesystem::path& path) {
     Scene scene;
     try {
         scene = load_scene(path);
@@ -23,7 +24,7 @@ py::tuple load_mesh(const std::string& path) {
     std::size_t vertex_count = 0, triangle_count = 0;
     for (const TriangleMesh& mesh : scene.meshes)
         vertex_count += mesh.positions.size(), triangle_count += mesh.triangle_count();
-    if (triangle_count == 0) throw py::value_error("path: " + path + " holds no triangles");
+    if (triangle_count == 0) throw py::value_error("path: " + path.string() + " holds no triangles");
     py::array_t<float> vertices(std::vector<py::ssize_t>{static_cast<py::ssize_t>(vertex_count), 3});
     py::array_t<std::uint32_t> triangles(
         std::vector<py::ssize_t>{static_cast<py::ssize_t>(triangle_count), 3});
@@ -40,20 +41,24 @@ py::tuple load_mesh(const std::string& path) {
     return py::make_tuple(vertices, triangles);
 }
 
-void save_png(const std::string& path, const py::object& image) {
-    if (!py::isinstance<py::array>(image)) throw py::type_error("image: expected a numpy array");
-    const auto array = py::reinterpret_borrow<py::array>(image);
-    const bool grey = array.ndim() == 2, colour = array.ndim() == 3 && array.shape(2) == 3;
-    if (!grey && !colour) throw py::value_error("image: expected shape (H, W) or (H, W, 3)");
+void save_png(const std::filesystem::path& path, const py::object& image) {
+    py::object converted;
+    try {
+        converted = py::module_::import("numpy").attr("asarray")(numpy_of(image));  // lists, tensors too
+    } catch (const py::error_already_set&) {
+        throw py::type_error("image: expected an array of numbers");
+    }
+    const auto array = py::reinterpret_borrow<py::array>(converted);
     if (array.dtype().kind() != 'f')
         throw py::type_error("image: expected a float array (linear values in [0, 1])");
+    const bool grey = array.ndim() == 2, colour = array.ndim() == 3 && array.shape(2) == 3;
+    if (!grey && !colour) throw py::value_error("image: expected shape (H, W) or (H, W, 3)");
     // A name that promises another format would hold a PNG all the same: refused before anything is written.
-    const std::filesystem::path file(path);
-    std::string extension = file.extension().string();
+    std::string extension = path.extension().string();
     std::transform(extension.begin(), extension.end(), extension.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
     if (extension != ".png")
-        throw py::value_error("path: " + path +
+        throw py::value_error("path: " + path.string() +
                               ": expected a name ending in .png (save_png writes PNG only)");
     const auto pixels = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(array);
     const auto width = static_cast<std::size_t>(array.shape(1));

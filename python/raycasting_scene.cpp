@@ -4,6 +4,7 @@
 #include <cmath>
 #include <mutex>
 #include <optional>
+#include <shared_mutex>
 #include <stdexcept>
 
 #include "array_arguments.hpp"
@@ -17,14 +18,14 @@ namespace {
 
 // Rays first to last of the (..., 6) rows, with the interval [tnear, tfar]. Throws std::invalid_argument
 // (ValueError) for a row with a NaN or infinite value, as float_rows does.
-void rays_of(const float* rows, std::size_t first, std::size_t last, float tnear, float tfar,
-             std::vector<Ray>& rays) {
+void rays_of(const py::array_t<float, py::array::c_style>& rows, std::size_t first, std::size_t last,
+             float tnear, float tfar, std::vector<Ray>& rays) {
     rays.clear();
     for (std::size_t i = first; i < last; ++i) {
-        const float* r = rows + 6 * i;
+        const float* r = rows.data() + 6 * i;
         if (!(std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2]) && std::isfinite(r[3]) &&
               std::isfinite(r[4]) && std::isfinite(r[5])))
-            throw std::invalid_argument("rays: row " + std::to_string(i) + " holds a NaN or infinite value");
+            throw std::invalid_argument("rays: " + row_name(rows, i) + " holds a NaN or infinite value");
         rays.push_back({{r[0], r[1], r[2]}, {r[3], r[4], r[5]}, tnear, tfar});
     }
 }
@@ -41,7 +42,7 @@ void for_each_ray_chunk(const py::array_t<float, py::array::c_style>& rows, int 
     parallel_for(static_cast<std::size_t>(rows.size() / 6), kChunk, threads,
                  [&](std::size_t first, std::size_t last) {
                      std::vector<Ray> rays;
-                     rays_of(rows.data(), first, last, tnear, tfar, rays);
+                     rays_of(rows, first, last, tnear, tfar, rays);
                      body(first, rays);
                  });
 }
@@ -59,6 +60,23 @@ std::vector<Vec3f> sample_directions(int samples) {
             Vec3f(component(0.6180339887, 0.1), component(0.4142135623, 0.3), component(0.7320508075, 0.7))));
     }
     return directions;
+}
+
+// The indices of an (M, 3) integer array, checked against the vertex count, read as Index: int64, or uint64
+// for unsigned dtypes, so that an index is reported as given (2**63 + 1, not wrapped to a negative).
+template <class Index>
+void read_indices(const py::array& array, std::size_t vertex_count, const std::string& name,
+                  std::vector<std::uint32_t>& indices) {
+    const auto rows = py::array_t<Index, py::array::c_style | py::array::forcecast>::ensure(array);
+    const Index* index = rows.data();
+    indices.reserve(static_cast<std::size_t>(rows.size()));
+    for (py::ssize_t k = 0; k < rows.size(); ++k) {
+        if (std::cmp_less(index[k], 0) || std::cmp_greater_equal(index[k], vertex_count))
+            throw py::value_error(name + ": row " + std::to_string(k / 3) + " names vertex " +
+                                  std::to_string(index[k]) + ", outside [0, " + std::to_string(vertex_count) +
+                                  ")");
+        indices.push_back(static_cast<std::uint32_t>(index[k]));
+    }
 }
 
 void check_samples(int nsamples) {
@@ -114,9 +132,12 @@ std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py
                                             const std::string& vertices_name,
                                             const std::string& triangles_name) {
     const auto points = float_rows(vertices, vertices_name, 3);
-    const py::object indices_object = numpy_of(triangles);
-    if (!py::isinstance<py::array>(indices_object))
-        throw py::type_error(triangles_name + ": expected a numpy array of integers");
+    py::object indices_object = numpy_of(triangles);
+    try {
+        indices_object = py::module_::import("numpy").attr("asarray")(indices_object);  // lists too
+    } catch (const py::error_already_set&) {
+        throw py::type_error(triangles_name + ": expected an array of integers");
+    }
     const auto indices_array = py::reinterpret_borrow<py::array>(indices_object);
     const char kind = indices_array.dtype().kind();
     if (kind != 'i' && kind != 'u')
@@ -126,9 +147,7 @@ std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py
         throw py::value_error(triangles_name + ": expected shape (M, 3), got " + shape_text(indices_array));
     if (points.ndim() != 2)
         throw py::value_error(vertices_name + ": expected shape (N, 3), got " + shape_text(points));
-    const auto indices =
-        py::array_t<std::int64_t, py::array::c_style>::ensure(indices_array.attr("astype")("int64"));
-    const auto vertex_count = static_cast<std::int64_t>(points.shape(0));
+    const auto vertex_count = static_cast<std::size_t>(points.shape(0));
     const float* p = points.data();
     for (py::ssize_t i = 0; i < points.shape(0); ++i) {
         if (!in_coordinate_domain({p[3 * i], p[3 * i + 1], p[3 * i + 2]}))
@@ -140,17 +159,12 @@ std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py
     mesh.positions.reserve(static_cast<std::size_t>(points.shape(0)));
     for (py::ssize_t i = 0; i < points.shape(0); ++i)
         mesh.positions.emplace_back(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
-    const std::int64_t* index = indices.data();
-    mesh.indices.reserve(static_cast<std::size_t>(indices.size()));
-    for (py::ssize_t k = 0; k < indices.size(); ++k) {
-        if (index[k] < 0 || index[k] >= vertex_count)
-            throw py::value_error(triangles_name + ": row " + std::to_string(k / 3) + " names vertex " +
-                                  std::to_string(index[k]) + ", outside [0, " + std::to_string(vertex_count) +
-                                  ")");
-        mesh.indices.push_back(static_cast<std::uint32_t>(index[k]));
-    }
+    if (kind == 'u')
+        read_indices<std::uint64_t>(indices_array, vertex_count, triangles_name, mesh.indices);
+    else
+        read_indices<std::int64_t>(indices_array, vertex_count, triangles_name, mesh.indices);
     py::gil_scoped_release released;
-    const std::lock_guard lock(mutex_);
+    const std::unique_lock lock = writing();
     const std::size_t total = first_triangle_.back() + mesh.triangle_count();
     if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         throw std::invalid_argument(triangles_name + ": more triangles than a hit's 32-bit id can number");
@@ -162,23 +176,25 @@ std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py
     return static_cast<std::uint32_t>(first_triangle_.size() - 2);
 }
 
-py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::object& vertices) {
+py::dict RaycastingScene::update_vertices(const py::object& geometry_id, const py::object& vertices) {
+    const IndexArgument id = index_argument(geometry_id, "geometry_id");
     const auto points = float_rows(vertices, "vertices", 3);
     if (points.ndim() != 2)
         throw py::value_error("vertices: expected shape (N, 3), got " + shape_text(points));
     std::optional<UpdateReport> report;  // none while the structure is not built yet
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
-        if (geometry_id >= scene_.meshes.size()) {
-            throw py::value_error("geometry_id: " + std::to_string(geometry_id) + ", the scene has " +
+        const std::unique_lock lock = writing();
+        if (!id.value || *id.value >= scene_.meshes.size()) {
+            throw py::value_error("geometry_id: " + id.text + ", the scene has " +
                                   std::to_string(scene_.meshes.size()) + " geometries");
         }
-        TriangleMesh& mesh = scene_.meshes[geometry_id];
+        const auto geometry = static_cast<std::size_t>(*id.value);
+        TriangleMesh& mesh = scene_.meshes[geometry];
         const auto count = static_cast<std::size_t>(points.shape(0));
         if (count != mesh.positions.size()) {
             throw py::value_error("vertices: " + std::to_string(count) + " rows for geometry " +
-                                  std::to_string(geometry_id) + ", which has " +
+                                  std::to_string(geometry) + ", which has " +
                                   std::to_string(mesh.positions.size()) + " vertices");
         }
         const float* p = points.data();
@@ -193,7 +209,7 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
         if (world_) {
             queries_.reset();  // its own tree is over the triangles about to move
             unit_normals_.clear();
-            building([&] { report = world_->update_vertices(geometry_id, positions); });
+            building([&] { report = world_->update_vertices(geometry, positions); });
         }
         mesh.positions = std::move(positions);
     }
@@ -202,25 +218,41 @@ py::dict RaycastingScene::update_vertices(std::uint32_t geometry_id, const py::o
                     "ms"_a = report->ms, "sah_ratio"_a = report->sah_ratio);
 }
 
-const Accel& RaycastingScene::committed() {
+std::shared_lock<std::shared_mutex> RaycastingScene::reading() {
+    const std::lock_guard turn(turnstile_);
+    return std::shared_lock(mutex_);
+}
+
+std::unique_lock<std::shared_mutex> RaycastingScene::writing() {
+    const std::lock_guard turn(turnstile_);
+    return std::unique_lock(mutex_);
+}
+
+bool RaycastingScene::ready(unsigned needs) const {
+    return world_ && (!(needs & kQueries) || queries_) && (!(needs & kNormals) || !unit_normals_.empty());
+}
+
+std::shared_lock<std::shared_mutex> RaycastingScene::prepared(unsigned needs) {
+    // Readers cannot turn their lock into a writer's, so a query that finds something missing lets go and
+    // builds it under the exclusive lock; a change of the triangles may come in between, hence the loop.
+    for (;;) {
+        std::shared_lock lock = reading();
+        if (ready(needs)) return lock;
+        lock.unlock();
+        const std::unique_lock exclusive = writing();
+        prepare(needs);
+    }
+}
+
+void RaycastingScene::prepare(unsigned needs) {
     if (first_triangle_.back() == 0) throw std::invalid_argument("the scene is empty: add_triangles first");
     if (!world_)
         building([&] { world_ = std::make_unique<World>(scene_, accel_name_, build_options(test_)); });
-    return world_->accel();
-}
-
-const GeometryQueries& RaycastingScene::queries() {
-    committed();
-    if (!queries_)
+    if ((needs & kQueries) && !queries_)
         building([&] {
             queries_ = std::make_unique<GeometryQueries>(world_->accel(), world_->geometry().view(), test_);
         });
-    return *queries_;
-}
-
-NormalTable RaycastingScene::unit_normals() {
-    committed();
-    if (unit_normals_.empty()) {
+    if ((needs & kNormals) && unit_normals_.empty()) {
         const std::span<const Triangle> triangles = world_->geometry().view().triangles;
         // NormalTable's layout: a miss's zero normal, the triangles', one float for the last 4-float load.
         unit_normals_.reserve(3 * triangles.size() + 4);
@@ -235,7 +267,6 @@ NormalTable RaycastingScene::unit_normals() {
         }
         unit_normals_.push_back(0.0f);
     }
-    return {unit_normals_.data() + 3};
 }
 
 std::pair<std::uint32_t, std::uint32_t> RaycastingScene::locate(std::int32_t prim) const {
@@ -259,7 +290,7 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
         // chunk of rays is loaded, traced and answered by one task, so that the conversions run in parallel
         // too.
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kNormals);
         const Accel& accel = committed();
         const HitTables tables{unit_normals(), GeometryStarts{first_triangle_}};
         // A chunk's rays are one Accel::intersect batch call, where a structure regroups the rays its
@@ -271,9 +302,9 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
             chunks.chunk(index, packets);
             const std::size_t bad = load_ray_records(rows.data(), packets, batch);
             if (bad < packets.size()) {
-                throw std::invalid_argument("rays: row " +
-                                            std::to_string(first_bad_row(rows.data(), packets[bad])) +
-                                            " holds a NaN or infinite value");
+                throw std::invalid_argument(
+                    "rays: " + row_name(rows, first_bad_row(rows.data(), packets[bad])) +
+                    " holds a NaN or infinite value");
             }
             batch_hits.resize(batch.size());
             accel.intersect(batch, batch_hits);
@@ -297,7 +328,7 @@ py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, 
     bool* out = result.mutable_data();
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kStructure);
         const Accel& accel = committed();
         for_each_ray_chunk(rows, nthreads, tnear, tfar,
                            [&](std::size_t first, const std::vector<Ray>& chunk) {
@@ -316,7 +347,7 @@ py::array RaycastingScene::count_intersections(const py::object& rays, int nthre
     std::int32_t* count = counts.mutable_data();
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kQueries);
         const GeometryQueries& all = queries();
         for_each_ray_chunk(rows, nthreads, 0.0f, kInfinity,
                            [&](std::size_t first, const std::vector<Ray>& chunk) {
@@ -338,7 +369,7 @@ py::dict RaycastingScene::list_intersections(const py::object& rays, int nthread
     std::vector<std::pair<std::uint32_t, std::uint32_t>> ids;  // geometry and primitive of each hit, in order
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kQueries);
         const GeometryQueries& all = queries();
         for_each_ray_chunk(rows, nthreads, 0.0f, kInfinity,
                            [&](std::size_t first, const std::vector<Ray>& chunk) {
@@ -387,7 +418,7 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
     std::uint32_t* primitive = primitive_ids.mutable_data();
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kQueries | kNormals);
         const GeometryQueries& all = queries();
         const NormalTable unit_normal = unit_normals();
         parallel_for(
@@ -436,7 +467,7 @@ py::array RaycastingScene::map_points(const py::object& query_points, int nthrea
     const float* q = rows.data();
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kQueries);
         const GeometryQueries& all = queries();
         parallel_for(static_cast<std::size_t>(rows.size() / 3), kChunk, nthreads,
                      [&](std::size_t first, std::size_t last) {
@@ -471,10 +502,9 @@ py::array RaycastingScene::compute_signed_distance(const py::object& query_point
     });
 }
 
-void RaycastingScene::save_structure(const std::string& path) {
+void RaycastingScene::save_structure(const std::filesystem::path& path) {
     py::gil_scoped_release released;
-    const std::lock_guard lock(mutex_);
-    committed();
+    const std::shared_lock lock = prepared(kStructure);
     try {
         world_->save_structure(path);
     } catch (const StructureFileError& error) {
@@ -482,11 +512,10 @@ void RaycastingScene::save_structure(const std::string& path) {
     }
 }
 
-std::unique_ptr<RaycastingScene> RaycastingScene::load_structure(const std::string& path,
-                                                                 const py::object& watertight) {
+std::unique_ptr<RaycastingScene> RaycastingScene::load_structure(const std::filesystem::path& path,
+                                                                 std::optional<bool> watertight) {
     std::optional<TriangleTest> test;
-    if (!watertight.is_none())
-        test = watertight.cast<bool>() ? TriangleTest::Watertight : TriangleTest::MollerTrumbore;
+    if (watertight) test = *watertight ? TriangleTest::Watertight : TriangleTest::MollerTrumbore;
     std::unique_ptr<World> world;
     {
         py::gil_scoped_release released;
@@ -509,7 +538,7 @@ py::dict RaycastingScene::stats() {
     std::size_t memory_bytes = 0;
     {
         py::gil_scoped_release released;
-        const std::lock_guard lock(mutex_);
+        const std::shared_lock lock = prepared(kStructure);
         stats = committed().stats();
         memory_bytes = committed().memory_bytes();
     }

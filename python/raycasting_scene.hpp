@@ -2,16 +2,20 @@
 // list_intersections) over lancer's structures, so that its users switch by changing one import
 // (docs/python.md). Arrays are NumPy's, or tensors that give one (Open3D's, torch's): float32 rays (..., 6)
 // and points (..., 3), read in place when C-contiguous; results keep the leading shape, as NumPy arrays with
-// Open3D's Tensor.numpy() (lancer.Array). The GIL is released while C++ traces.
+// Open3D's Tensor.numpy() (lancer.Array). The GIL is released while C++ traces, and queries from several
+// Python threads on one scene run at once (a shared lock: docs/python.md, "Threads").
 #pragma once
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
+#include <shared_mutex>
 #include <span>
 #include <string>
 #include <string_view>
@@ -44,8 +48,8 @@ class RaycastingScene {
     // triangle["indices"].
     std::uint32_t add_mesh(const py::object& mesh);
     // lancer's own: new positions for a geometry's vertices, its triangles kept (World::update_vertices: the
-    // BVHs refit). Returns what the update did.
-    py::dict update_vertices(std::uint32_t geometry_id, const py::object& vertices);
+    // BVHs refit). Returns what the update did. geometry_id: any integer (index_argument).
+    py::dict update_vertices(const py::object& geometry_id, const py::object& vertices);
     py::dict cast_rays(const py::object& rays, int nthreads);
     py::array test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads);
     py::array count_intersections(const py::object& rays, int nthreads);
@@ -56,9 +60,16 @@ class RaycastingScene {
     py::array compute_signed_distance(const py::object& query_points, int nthreads, int nsamples);
     // lancer's own: the `plucker` structure and its geometry as a `.plo` file (lancer convert's), and a scene
     // made from one, its triangles one geometry.
-    void save_structure(const std::string& path);
-    static std::unique_ptr<RaycastingScene> load_structure(const std::string& path,
-                                                           const py::object& watertight);
+    void save_structure(const std::filesystem::path& path);
+    static std::unique_ptr<RaycastingScene> load_structure(const std::filesystem::path& path,
+                                                           std::optional<bool> watertight);
+
+    // pickle's state and back (scene_state.cpp): the format's name and version, the structure's name, the
+    // triangle test and the build threads, and each geometry's vertices float32 (N, 3) and triangles uint32
+    // (M, 3) in id order. The structure is rebuilt by the first query (docs/python.md, "pickle"). A state of
+    // another version, or one that is not what pickled() makes, raises ValueError naming what is wrong.
+    [[nodiscard]] py::dict pickled();
+    [[nodiscard]] static std::unique_ptr<RaycastingScene> unpickled(const py::object& state);
 
     [[nodiscard]] const std::string& accel() const { return accel_name_; }
     [[nodiscard]] py::dict stats();
@@ -68,11 +79,23 @@ class RaycastingScene {
     void building(const std::function<void()>& work) const { run_with_threads(build_threads_, work); }
     std::uint32_t add_geometry(const py::object& vertices, const py::object& triangles,
                                const std::string& vertices_name, const std::string& triangles_name);
-    // Builds the structure over every geometry added so far, once after each add_triangles. These and
-    // the members below are used under mutex_, taken with the GIL released: queries trace without the GIL,
-    // and another Python thread's add_triangles must not move the triangles under them.
-    const Accel& committed();
-    const GeometryQueries& queries();
+    // What a query reads besides the structure, each built by the first query that needs it after a change
+    // of the triangles: GeometryQueries' tree, the unit normals' table.
+    enum Needs : unsigned { kStructure = 0, kQueries = 1, kNormals = 2 };
+    // The scene's lock, shared by the queries, which trace without the GIL, and held alone by whatever
+    // changes the triangles or builds on them. Taken with the GIL released. A writer waits in the turnstile,
+    // which new readers pass through, so that a stream of queries from other threads cannot starve it.
+    [[nodiscard]] std::shared_lock<std::shared_mutex> reading();
+    [[nodiscard]] std::unique_lock<std::shared_mutex> writing();
+    // A shared lock under which the structure and what `needs` names are built: built first, under the
+    // exclusive lock, by the first query that finds them missing (the others wait for it, then read).
+    // Throws std::invalid_argument for an empty scene.
+    [[nodiscard]] std::shared_lock<std::shared_mutex> prepared(unsigned needs);
+    [[nodiscard]] bool ready(unsigned needs) const;
+    void prepare(unsigned needs);
+    // The built state, under prepared()'s lock.
+    [[nodiscard]] const Accel& committed() const { return world_->accel(); }
+    [[nodiscard]] const GeometryQueries& queries() const { return *queries_; }
     // A float per query point (..., 3): per_point(queries, p) on nthreads threads, under the lock.
     template <class PerPoint>
     py::array map_points(const py::object& query_points, int nthreads, PerPoint&& per_point);
@@ -81,9 +104,9 @@ class RaycastingScene {
     [[nodiscard]] bool inside(const GeometryQueries& all, const Vec3f& p,
                               std::span<const Vec3f> directions) const;
     // The unit geometric normal of each triangle, by global index, (v1 - v0) x (v2 - v0) as Embree's, laid
-    // out as NormalTable says: made once after each change of the triangles, so that an answer loads 12
-    // bytes instead of its triangle's 36 and a square root.
-    NormalTable unit_normals();
+    // out as NormalTable says: made once after each change of the triangles (prepare), so that an answer
+    // loads 12 bytes instead of its triangle's 36 and a square root.
+    [[nodiscard]] NormalTable unit_normals() const { return {unit_normals_.data() + 3}; }
     // The geometry and primitive ids of a global triangle index.
     [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> locate(std::int32_t prim) const;
 
@@ -95,7 +118,8 @@ class RaycastingScene {
     std::unique_ptr<World> world_;               // scene_ flattened and its structure, once built
     std::unique_ptr<GeometryQueries> queries_;
     std::vector<float> unit_normals_;  // of world_'s triangles once made; empty before
-    std::mutex mutex_;
+    std::shared_mutex mutex_;
+    std::mutex turnstile_;
 };
 
 }  // namespace lancer::python

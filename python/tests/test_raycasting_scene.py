@@ -161,13 +161,6 @@ def test_each_ray_gets_its_own_answers_whatever_the_leading_shape(spheres, accel
     assert hits >= max(1, count // 5)
 
 
-def test_a_bad_ray_in_an_image_is_named_by_its_row(spheres):
-    rays = lancer.RaycastingScene.create_rays_pinhole(40.0, [0, 0, 0], [0, 0, 4.0], [0, 1, 0], 20, 10)
-    rays[3, 14, 4] = np.inf
-    with pytest.raises(ValueError, match="rays: row 74 holds a NaN or infinite value"):
-        scene_of("bvh8_packet", *spheres).cast_rays(rays)
-
-
 def test_occlusions_are_hits_within_the_interval(spheres):
     rays = random_rays(2000, 4)
     scene = scene_of("bvh8", *spheres)
@@ -220,13 +213,14 @@ def test_pinhole_rays_are_open3ds():
 
 
 @pytest.mark.parametrize("call, message", [
-    (lambda s, v, t: s.add_triangles(v.astype(np.float64), t), "vertex_positions: expected dtype float32"),
+    (lambda s, v, t: s.add_triangles(v.astype(np.complex128), t), "vertex_positions: expected real numbers"),
     (lambda s, v, t: s.add_triangles(v[:, :2], t), "vertex_positions: expected shape (..., 3)"),
     (lambda s, v, t: s.add_triangles(v, t.astype(np.float32)), "triangle_indices: expected an integer dtype"),
     (lambda s, v, t: s.add_triangles(v, t + np.uint32(len(v))), "triangle_indices: row 0 names vertex"),
     (lambda s, v, t: s.add_triangles(np.where(np.arange(len(v))[:, None] == 3, np.nan, v).astype(np.float32), t),
      "vertex_positions: row 3 holds a NaN"),
-    (lambda s, v, t: s.add_triangles("not an array", t), "vertex_positions: expected a numpy array"),
+    (lambda s, v, t: s.add_triangles("not an array", t), "vertex_positions: expected an array of numbers, got str"),
+    (lambda s, v, t: s.add_triangles(v, [[0, 1], [2]]), "triangle_indices: expected an array of integers"),
     (lambda s, v, t: s.add_triangles(mesh=v), "mesh: expected an open3d.t.geometry.TriangleMesh .*, got numpy.ndarray"),
 ])
 def test_bad_geometry_raises_naming_the_argument(spheres, call, message):
@@ -237,8 +231,8 @@ def test_bad_geometry_raises_naming_the_argument(spheres, call, message):
 
 def test_bad_rays_and_scenes_raise_naming_the_argument(spheres):
     scene = scene_of("bvh8", *spheres)
-    with pytest.raises(TypeError, match="rays: expected dtype float32"):
-        scene.cast_rays(random_rays(4, 6).astype(np.float64))
+    with pytest.raises(TypeError, match="rays: expected real numbers"):
+        scene.cast_rays(random_rays(4, 6).astype(np.complex64))
     with pytest.raises(ValueError, match="rays: expected shape"):
         scene.cast_rays(np.zeros((4, 5), np.float32))
     bad = random_rays(4, 6)
@@ -544,8 +538,8 @@ def test_bad_updates_raise_naming_the_argument_and_change_nothing(spheres):
     with pytest.raises(ValueError, match=f"vertices: {len(vertices) - 1} rows for geometry 0, which has "
                                          f"{len(vertices)} vertices"):
         scene.update_vertices(0, vertices[:-1])
-    with pytest.raises(TypeError, match="vertices: expected dtype float32"):
-        scene.update_vertices(0, vertices.astype(np.float64))
+    with pytest.raises(TypeError, match="vertices: expected real numbers"):
+        scene.update_vertices(0, vertices.astype(np.complex64))
     bad = vertices.copy()
     for value in (np.nan, np.inf):
         bad[3, 0] = value

@@ -3,6 +3,7 @@
 #include "accel/embree.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
@@ -39,14 +40,18 @@ float scene_scale(const Box3f& bounds) {
 
 // Embree's allocations count against --max-memory (include/lancer/memory_limit.hpp) like operator new's. A
 // request refused before it is made (post == false) fails the build with RTC_ERROR_OUT_OF_MEMORY; one
-// reported after the fact cannot be refused, only counted.
-bool monitor_memory(void*, ssize_t bytes, bool post) {
+// reported after the fact cannot be refused, only counted. `device_bytes` (the structure's counter) follows
+// what its device holds: Embree's only account of its BVH's size.
+bool monitor_memory(void* device_bytes, ssize_t bytes, bool post) {
+    auto& held = *static_cast<std::atomic<std::int64_t>*>(device_bytes);
     if (bytes < 0) {
         memory::subtract(static_cast<std::size_t>(-bytes));
+        held -= static_cast<std::int64_t>(-bytes);
         return true;
     }
     if (!post && !memory::fits(static_cast<std::size_t>(bytes))) return false;
     memory::add(static_cast<std::size_t>(bytes));
+    held += static_cast<std::int64_t>(bytes);
     return true;
 }
 
@@ -63,7 +68,7 @@ void check(RTCDevice device, const char* what) {
 EmbreeAccel::EmbreeAccel(EmbreeCall call) : call_(call) {
     device_ = rtcNewDevice(nullptr);
     if (device_ == nullptr) throw std::runtime_error("embree: cannot create a device");
-    rtcSetDeviceMemoryMonitorFunction(device_, monitor_memory, nullptr);
+    rtcSetDeviceMemoryMonitorFunction(device_, monitor_memory, &device_bytes_);
 }
 
 std::string_view EmbreeAccel::name() const {
@@ -213,8 +218,16 @@ AccelStats EmbreeAccel::stats() const {
     AccelStats stats;
     stats.build_ms = build_ms_;
     stats.primitives = primitive_count_;
-    stats.memory_by_array = {{"embree buffers", buffer_bytes_}};
+    const std::size_t held = memory_bytes();
+    stats.memory_by_array = {{"embree bvh and internal arrays", held - std::min(held, buffer_bytes_)},
+                             {"embree buffers", buffer_bytes_}};
     return stats;
+}
+
+std::size_t EmbreeAccel::memory_bytes() const {
+    // The buffers are Embree's own copies of the geometry, allocated by the device (rtcSetNewGeometryBuffer),
+    // so the device's count holds them; it is never below them.
+    return std::max(static_cast<std::size_t>(std::max<std::int64_t>(device_bytes_.load(), 0)), buffer_bytes_);
 }
 
 std::vector<BuildOptionRow> EmbreeAccel::option_rows() {

@@ -10,6 +10,8 @@
 // against brute force by tests/accel/embree_test.cpp rather than held to the bit-exact oracle test.
 #pragma once
 
+#include <atomic>
+
 #include <embree3/rtcore.h>
 
 #include <string_view>
@@ -47,8 +49,10 @@ class EmbreeAccel final : public Accel {
 
     [[nodiscard]] std::string_view name() const override;
     [[nodiscard]] AccelStats stats() const override;
-    // Embree does not expose its node memory; this counts the vertex and index buffers it was given.
-    [[nodiscard]] std::size_t memory_bytes() const override { return buffer_bytes_; }
+    // What Embree's device holds, by its memory monitor (rtcSetDeviceMemoryMonitorFunction): the BVH, its
+    // copies of the vertices and indices, and its other internal arrays. Unlike lancer's structures this
+    // includes a copy of the geometry, which Embree traces from.
+    [[nodiscard]] std::size_t memory_bytes() const override;
     [[nodiscard]] UpdateMethod update_method() const override {
         return quality_ == EmbreeQuality::Refit ? UpdateMethod::Refit : UpdateMethod::Rebuild;
     }
@@ -77,6 +81,7 @@ class EmbreeAccel final : public Accel {
     unsigned int triangle_count_ = 0;
     std::size_t primitive_count_ = 0;
     std::size_t buffer_bytes_ = 0;
+    std::atomic<std::int64_t> device_bytes_{0};  // what the device holds (monitor_memory)
     double build_ms_ = 0.0;
     EmbreeCall call_ = EmbreeCall::Single;
     EmbreeQuality quality_ = EmbreeQuality::High;

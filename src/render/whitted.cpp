@@ -12,9 +12,12 @@
 #include "render/whitted.hpp"
 
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <vector>
 
+#include "render/grouped_batch.hpp"
 #include "render/optics.hpp"
 
 namespace lancer {
@@ -40,10 +43,11 @@ struct LightContribution {
 struct LevelOutput {
     std::vector<RayNode> children;
     std::vector<Ray> shadow_rays;
-    std::vector<LightContribution> shadow_light;  // one per shadow ray
-    RayCounts counts;                             // not cleared between levels
+    std::vector<LightContribution> shadow_light;    // one per shadow ray
+    std::vector<std::uint32_t> shadow_light_index;  // the scene light each shadow ray goes to
+    RayCounts counts;                               // not cleared between levels
 
-    void clear() { children.clear(), shadow_rays.clear(), shadow_light.clear(); }
+    void clear() { children.clear(), shadow_rays.clear(), shadow_light.clear(), shadow_light_index.clear(); }
 };
 
 // The surface as the arriving ray sees it: which side it came from is decided by the geometric normal (the
@@ -115,7 +119,8 @@ class LevelShader {
         if (material.kd <= 0.0f && !highlight) return;
         const Vec3f view_mirror = reflect(node.ray.direction, surface.shading);
         const Vec3f origin = offset_ray_origin(surface.position, surface.geometric);
-        for (const Light& light : scene_.lights) {
+        for (std::size_t light_index = 0; light_index < scene_.lights.size(); ++light_index) {
+            const Light& light = scene_.lights[light_index];
             const Vec3f to_light = normalize(light.position - surface.position);
             const float cos_light = dot(surface.shading, to_light);
             if (!(cos_light > 0.0f) || !(dot(surface.geometric, to_light) > 0.0f)) continue;
@@ -128,6 +133,7 @@ class LevelShader {
             // t in [0, 1] reaches the light exactly: the direction is not normalised.
             out_.shadow_rays.push_back({origin, light.position - origin, 0.0f, 1.0f});
             out_.shadow_light.push_back({node.weight * (reflected * light.color), node.sample});
+            out_.shadow_light_index.push_back(static_cast<std::uint32_t>(light_index));
         }
     }
 
@@ -207,6 +213,7 @@ RayCounts WhittedTracer::render_tile(int x0, int y0, int x1, int y1, Image& imag
     std::vector<Ray> rays;
     std::vector<Hit> hits;
     std::vector<std::uint8_t> blocked;
+    GroupedBatch<std::uint8_t> shadows;
     const LevelShader shader(scene_, intersector_, options_, radiance, out);
     // The first level holds the camera rays, in pixel order: the structure's coherent path.
     bool primary = true;
@@ -226,8 +233,10 @@ RayCounts WhittedTracer::render_tile(int x0, int y0, int x1, int y1, Image& imag
         for (std::size_t i = 0; i < level.size(); ++i)
             shader.shade(level[i], hits[i]);
 
-        blocked.assign(out.shadow_rays.size(), 0);
-        intersector_.occluded(out.shadow_rays, blocked);
+        shadows.trace(out.shadow_rays, out.shadow_light_index, scene_.lights.size(), blocked,
+                      [&](std::span<const Ray> batch, std::span<std::uint8_t> batch_blocked) {
+                          intersector_.occluded(batch, batch_blocked);
+                      });
         for (std::size_t i = 0; i < blocked.size(); ++i) {
             if (blocked[i] == 0) radiance[out.shadow_light[i].sample] += out.shadow_light[i].radiance;
         }

@@ -73,6 +73,31 @@ TEST(Embree, AgreesWithBruteForceOnRandomRays) {
     }
 }
 
+// memory_bytes is what the structure's own device holds, its BVH included: more than the vertex and index
+// buffers (Embree's BVH takes tens of bytes a triangle), the sum of the arrays stats() lists, and not changed
+// by a second structure built beside it.
+TEST(Embree, MemoryCountsItsBvhAndOnlyItsOwn) {
+    if (!has_embree()) GTEST_SKIP() << "built without Embree";
+    TestScene scene;
+    make_torus_knot(2000, 20).append_triangles(scene.triangles);  // 80,000 triangles
+    const std::unique_ptr<Accel> accel = make_accel("embree");
+    accel->build(scene.geometry(), {});
+    const std::size_t triangles = scene.triangles.size();
+    const std::size_t held = accel->memory_bytes();
+    const AccelStats stats = accel->stats();
+    std::size_t listed = 0, buffers = 0;
+    for (const auto& [name, bytes] : stats.memory_by_array) {
+        listed += bytes;
+        if (name == "embree buffers") buffers = bytes;
+    }
+    EXPECT_EQ(listed, held);
+    EXPECT_GT(buffers, 0u);
+    EXPECT_GT(held, buffers + 16 * triangles) << held << " bytes for " << triangles << " triangles";
+    const std::unique_ptr<Accel> beside = make_accel("embree");
+    beside->build(scene.geometry(), {});
+    EXPECT_EQ(accel->memory_bytes(), held);
+}
+
 TEST(Embree, SpheresAreNumberedAfterTrianglesAndInvalidRaysMiss) {
     if (!has_embree()) GTEST_SKIP() << "built without Embree";
     const std::vector<Triangle> triangles = {{{-1, -1, -5}, {1, -1, -5}, {0, 1, -5}}};

@@ -2,7 +2,8 @@
 // with the kernels of each instruction set, plucker_packet / plucker; the BVH pairs again built with spatial
 // splits), and against brute force, on the batches that reach the packet code: tiles of a pinhole camera
 // (coherent), rays of mixed direction signs (bvh_packet's fallback), batches that end in a partial packet,
-// rays clipped by tnear and tfar, zero direction components and invalid rays inside coherent packets. The
+// rays clipped by tnear and tfar, zero direction components and invalid rays inside coherent packets,
+// incoherent streams of every size (bvh8_packet's hybrid walk). The
 // oracle test's ray sets have random directions, so most of their packets are incoherent: here the same
 // adversarial sets are sorted by direction octant, which makes their packets coherent.
 #include <gtest/gtest.h>
@@ -234,6 +235,67 @@ TEST_P(PacketTest, ZeroComponentsAndInvalidRaysInsideAPacket) {
         packet.intersect(rays, hits);
         EXPECT_FALSE(hits[5].hit() || hits[70].hit() || hits[140].hit());
     });
+}
+
+// Incoherent rays in the order a path tracer's bounce makes them: random directions from origins in a small
+// region, with the hostile rays (NaN, infinite, zero or denormal direction, tnear > tfar), rays with a zero
+// direction component, rays starting behind their origin (tnear < 0) and clipped rays spread through the
+// stream, so that they share packets (of the interval cull or the hybrid walk) with ordinary rays.
+std::vector<Ray> incoherent_stream(const Box3f& bounds, std::size_t count, std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f), share(0.0f, 1.0f);
+    const Vec3f centre = 0.5f * (bounds.lo + bounds.hi), extent = bounds.hi - bounds.lo;
+    const std::vector<Ray> hostile = testing::hostile_rays(bounds).rays;
+    std::vector<Ray> rays;
+    rays.reserve(count);
+    for (std::size_t i = 0; i < count; ++i) {
+        const float kind = share(rng);
+        if (kind < 0.02f) {
+            rays.push_back(hostile[i % hostile.size()]);
+            continue;
+        }
+        Ray ray{centre + 0.2f * Vec3f(unit(rng) * extent.x, unit(rng) * extent.y, unit(rng) * extent.z),
+                {unit(rng), unit(rng), unit(rng)},
+                0.0f,
+                kInfinity};
+        if (kind < 0.04f) ray.direction[static_cast<int>(i % 3)] = 0.0f;
+        if (kind > 0.97f) ray.tnear = -0.5f * share(rng);
+        if (kind > 0.94f && kind <= 0.97f) ray.tfar = 0.3f * share(rng) * extent.x;
+        rays.push_back(ray);
+    }
+    return rays;
+}
+
+// Batches of every size around the packet's and the lane group's (1, 15, 16, 17, 63, 65, 4096 rays) of
+// incoherent rays: the single-ray answers, bit for bit, through the batch, packet and occlusion calls.
+TEST_P(PacketTest, IncoherentStreamsOfEverySize) {
+    for_each_build([](const Accel& packet, const Accel& single, const TestScene& scene, TriangleTest) {
+        const std::vector<Ray> rays = incoherent_stream(scene.geometry().bounds(), 4096 + 200, 21);
+        for (std::size_t size : {1u, 15u, 16u, 17u, 63u, 65u, 4096u}) {
+            const std::span<const Ray> batch(rays.data() + 100, size);
+            EXPECT_EQ(bitwise_differences(packet, single, batch), 0u) << size << " rays";
+        }
+        EXPECT_GT(hit_count(packet, rays), rays.size() / 10);
+    });
+}
+
+// A million incoherent rays through bvh8_packet with each instruction set's kernels and both triangle tests:
+// bvh8's answers bit for bit.
+TEST(Bvh8Packet, AMillionIncoherentRaysGiveBvh8sAnswers) {
+    const TestScene& scene = scenes()[0];
+    const std::vector<Ray> rays =
+        incoherent_stream(scene.geometry().bounds(), 1'000'000 / testing::kSanitizedShare, 22);
+    for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        Bvh8Accel single;
+        single.build(scene.geometry(), build_options(test));
+        for (SimdIsa isa : available_isas()) {
+            BuildOptions options = build_options(test);
+            options.isa = isa;
+            Bvh8PacketAccel packet;
+            packet.build(scene.geometry(), options);
+            EXPECT_EQ(bitwise_differences(packet, single, rays), 0u) << isa_name(isa);
+        }
+    }
 }
 
 // The oracle's adversarial sets (vertex and edge rays, axis-parallel rays, clipped rays), sorted so that

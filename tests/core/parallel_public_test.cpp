@@ -59,6 +59,17 @@ TEST(ParallelFor, HonoursTheThreadCap) {
     EXPECT_LE(most_at_once(2), 2);
 }
 
+// oneTBB warns on stderr, once a process, for an arena wider than the machine: a thread count above the CPUs
+// is clamped, quietly (the Python module's nthreads=1000 relies on it).
+TEST(ParallelFor, ClampsAThreadCountAboveTheMachineQuietly) {
+    ::testing::internal::CaptureStderr();
+    std::atomic<std::size_t> visited = 0;
+    parallel_for(kCount, 64, 100'000, [&](std::size_t first, std::size_t last) { visited += last - first; });
+    run_with_threads(100'000, [&] { parallel_for(kCount, 64, 0, [](std::size_t, std::size_t) {}); });
+    EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+    EXPECT_EQ(visited.load(), kCount);
+}
+
 TEST(ParallelFor, RejectsAZeroBlock) {
     EXPECT_THROW(parallel_for(10, 0, 0, [](std::size_t, std::size_t) {}), std::invalid_argument);
 }

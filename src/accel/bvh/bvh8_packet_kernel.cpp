@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "accel/build_util.hpp"
+#include "accel/bvh/bvh8_packet_hybrid.hpp"
 #include "accel/bvh/bvh8_packet_leaf_tests.hpp"
 #include "accel/bvh/bvh8_packet_node_test.hpp"
 #include "accel/bvh/bvh8_packet_rays.hpp"
@@ -102,18 +103,27 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
     const std::vector<Node>& nodes_;
 };
 
-// Cuts the batch into packets of consecutive rays, traces those that can go together and hands the others
-// to bvh8. Answer: Hit (closest hit) or std::uint8_t (occlusion, kAnyHit).
+// Cuts the batch into packets of consecutive rays. A packet whose rays go together (the same direction signs,
+// finite reciprocals, directions close together: LoadedPacket::directions_agree) walks with the interval
+// cull; any other goes in groups of Ops::kWidth rays through the hybrid walk (bvh8_packet_hybrid.hpp), which
+// takes any rays. Answer: Hit (closest hit) or std::uint8_t (occlusion, kAnyHit). docs/accel/stream.md has
+// the measurements behind the spread and the handover.
 template <class Ops, bool kAnyHit, class Answer>
 void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test, std::span<const Ray> rays,
                  std::span<Answer> answers, TraversalCounters* counters) {
+    constexpr float kAgreeingSpread = 0.5f;
+    constexpr auto kPacketRays = static_cast<std::size_t>(kPacketSize);
+    constexpr auto kLanes = static_cast<std::size_t>(Ops::kWidth);
     dispatch_policies(test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
         Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry);
-        for_each_packet<static_cast<std::size_t>(kPacketSize), kAnyHit, kCount>(
-            rays, answers, bvh, counts,
-            [&](std::span<const Ray> packet_rays, std::span<Answer> packet_answers) {
-                if (!tracer.load(packet_rays)) return false;
+        HybridPacket<Ops, TriangleTestT> hybrid(bvh, geometry);
+        for (std::size_t first = 0; first < rays.size(); first += kPacketRays) {
+            const std::size_t count = std::min(kPacketRays, rays.size() - first);
+            const std::span<const Ray> packet_rays = rays.subspan(first, count);
+            const std::span<Answer> packet_answers = answers.subspan(first, count);
+            if constexpr (kCount) counts.rays += count;
+            if (tracer.load(packet_rays) && tracer.directions_agree(kAgreeingSpread)) {
                 if constexpr (kAnyHit) {
                     std::fill(packet_answers.begin(), packet_answers.end(), Answer{});
                     tracer.template trace<true, kCount>(packet_answers, counts);
@@ -121,14 +131,20 @@ void trace_batch(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest te
                     tracer.template trace<false, kCount>(packet_answers, counts);
                     tracer.store_hits(packet_answers);
                 }
-                return true;
-            });
+                continue;
+            }
+            for (std::size_t part = 0; part < count; part += kLanes) {
+                const std::size_t part_count = std::min(kLanes, count - part);
+                hybrid.template trace<kAnyHit, kCount>(packet_rays.subspan(part, part_count),
+                                                       packet_answers.subspan(part, part_count), counts);
+            }
+        }
         if constexpr (kCount) *counters += counts;
     });
 }
 
-// One packet in the caller's SoA layout, traced in place, or through bvh8 a ray at a time when its rays
-// cannot go together.
+// One packet in the caller's SoA layout, traced in place, or as a batch (trace_batch) when its rays cannot go
+// together.
 template <class Ops>
 void trace_soa_packet(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTest test,
                       const RayPacket& rays, HitPacket& hits, TraversalCounters* counters) {
@@ -145,7 +161,7 @@ void trace_soa_packet(const Bvh8Accel& bvh, const Geometry& geometry, TriangleTe
             return;
         }
         trace_packet_as_batch(rays, hits, [&](std::span<const Ray> batch, std::span<Hit> batch_hits) {
-            bvh.intersect(batch, batch_hits, counters);
+            trace_batch<Ops, false>(bvh, geometry, test, batch, batch_hits, counters);
         });
     });
 }

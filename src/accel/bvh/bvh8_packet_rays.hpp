@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -162,6 +163,22 @@ class LoadedPacket {
             Ops::store(&hits.u[first], answer.u);
             Ops::store(&hits.v[first], answer.v);
         }
+    }
+
+    // Whether the loaded rays' directions lie close enough together for the packet to beat its rays traced
+    // one at a time: on every axis the spread of the direction component over the packet is at most
+    // `spread` times the largest component's magnitude (a scale-free bound: shadow rays aimed at one light
+    // have directions of different lengths). The bounds are those of the node test's intervals, so the
+    // test costs a few operations once the packet is loaded. A packet without valid rays agrees.
+    [[nodiscard]] bool directions_agree(float spread) const {
+        if (valid_ == 0) return true;
+        float largest = 0.0f, widest = 0.0f;
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            const float a = 1.0f / interval_.inv_lo[axis], b = 1.0f / interval_.inv_hi[axis];
+            largest = std::max(largest, std::max(std::abs(a), std::abs(b)));
+            widest = std::max(widest, std::abs(a - b));
+        }
+        return widest <= spread * largest;
     }
 
   protected:

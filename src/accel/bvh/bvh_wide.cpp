@@ -5,6 +5,7 @@
 #include <bit>
 
 #include "accel/bvh/build.hpp"
+#include "accel/bvh/bvh_wide_walk.hpp"
 #include "accel/bvh/refit.hpp"
 #include "accel/primitive_intersect.hpp"
 
@@ -105,117 +106,6 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
     return index;
 }
 
-// A child as the traversal holds it: an inner node (prim_count 0) or a leaf's first block.
-struct ChildRef {
-    std::uint32_t child;
-    std::uint32_t prim_count;
-};
-
-struct StackEntry {
-    ChildRef ref;
-    float t_entry;  // where the ray enters the child's box: the child is skipped once a hit is closer
-};
-
-// Each wide level pushes at most W - 1 children, and the wide tree is no deeper than the binary one.
-template <int W>
-constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
-
-// Front to back, as the binary BVH (docs/accel/bvh.md): all W child boxes are tested at once, the hit ones
-// are ordered by entry distance (insertion sort: ties keep slot order; occlusion keeps slot order), the
-// nearest is visited and the others pushed, farthest first. A popped child is skipped when it is entered
-// beyond the best hit. kForward: the ray has tnear >= 0, which allows clip_slab's cheaper exit widening.
-template <int W, bool kAnyHit, bool kCount, bool kForward, class TriangleTestT>
-bool traverse_from(const std::vector<WideBvhNode<W>>& nodes,
-                   const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
-                   const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters) {
-    constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
-    if (nodes.empty()) return false;
-    const Ray& ray = prepared.ray;
-    const WideRay wide_ray{SlabRay(ray)};
-    const BlockRay<TriangleTestT, kLanes> block_ray(prepared, geometry);
-    std::array<StackEntry, kStackSize<W>> stack;
-    int stack_size = 0;
-    ChildRef current{0, 0};
-    while (true) {
-        if constexpr (kCount) ++counters.nodes_visited;
-        if (current.prim_count > 0) {
-            // LEAF: one SIMD test per block of kBlockLanes primitives.
-            if constexpr (kCount) counters.prims_tested += current.prim_count;
-            const std::uint32_t end = current.child + block_count(current.prim_count, kLanes);
-            for (std::uint32_t b = current.child; b < end; ++b) {
-                if constexpr (kAnyHit) {
-                    if (occludes_block(geometry, blocks[b], block_ray)) return true;
-                } else {
-                    intersect_block(geometry, blocks[b], block_ray, best);
-                }
-            }
-        } else {
-            // INNER: test the W boxes, visit the nearest hit child, push the others.
-            const WideBvhNode<W>& node = nodes[current.child];
-            const float t_limit = best.hit() ? best.t : ray.tfar;
-            alignas(32) float entry[W];
-            const unsigned hit_mask =
-                intersect_children<W, kForward>(node, wide_ray, ray.tnear, t_limit, entry);
-            if constexpr (kAnyHit) {
-                // Any hit ends the walk, so the order only decides where the first is found: the children
-                // go in slot order, without the sort.
-                if (hit_mask != 0) {
-                    const int first_slot = std::countr_zero(hit_mask);
-                    for (unsigned rest = hit_mask & (hit_mask - 1); rest != 0; rest &= rest - 1) {
-                        const int slot = std::countr_zero(rest);
-                        stack[stack_size++] = {{node.child[slot], node.prim_count[slot]}, entry[slot]};
-                    }
-                    current = {node.child[first_slot], node.prim_count[first_slot]};
-                    continue;
-                }
-            } else if (hit_mask != 0) {
-                // One or two hit children, the common cases on incoherent rays, without the sort's loops,
-                // whose trip counts the branch predictor cannot learn.
-                const int first_slot = std::countr_zero(hit_mask);
-                const unsigned rest = hit_mask & (hit_mask - 1);
-                if (rest == 0) {
-                    current = {node.child[first_slot], node.prim_count[first_slot]};
-                    continue;
-                }
-                if ((rest & (rest - 1)) == 0) {
-                    const int second_slot = std::countr_zero(rest);
-                    // Equal entries keep slot order, as order_by_entry.
-                    const bool swap = entry[second_slot] < entry[first_slot];
-                    const int near = swap ? second_slot : first_slot, far = swap ? first_slot : second_slot;
-                    stack[stack_size++] = {{node.child[far], node.prim_count[far]}, entry[far]};
-                    current = {node.child[near], node.prim_count[near]};
-                    continue;
-                }
-                std::array<int, W> order;
-                const int hit_count = order_by_entry<W>(hit_mask, entry, order);
-                for (int k = hit_count - 1; k > 0; --k) {
-                    const int slot = order[k];
-                    stack[stack_size++] = {{node.child[slot], node.prim_count[slot]}, entry[slot]};
-                }
-                current = {node.child[order[0]], node.prim_count[order[0]]};
-                continue;
-            }
-        }
-        // POP the next child that may still hold a hit no farther than the best one.
-        do {
-            if (stack_size == 0) return best.hit();
-            const StackEntry popped = stack[--stack_size];
-            current = popped.ref;
-            if (!best.hit() || popped.t_entry <= best.t) break;
-        } while (true);
-    }
-}
-
-// The walk, with the box test's cheaper exit widening for the rays that start at tnear >= 0 (all but a few).
-template <int W, bool kAnyHit, bool kCount, class TriangleTestT>
-bool traverse(const std::vector<WideBvhNode<W>>& nodes,
-              const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
-              const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters) {
-    if (prepared.ray.tnear >= 0.0f)
-        return traverse_from<W, kAnyHit, kCount, true>(nodes, blocks, geometry, prepared, best, counters);
-    return traverse_from<W, kAnyHit, kCount, false>(nodes, blocks, geometry, prepared, best, counters);
-}
-
 }  // namespace
 
 template <int W>
@@ -252,7 +142,7 @@ template <int W>
 template <bool kAnyHit, bool kCount, class TriangleTestT>
 bool WideBvhAccel<W>::trace(const PreparedRay<TriangleTestT>& prepared, Hit& best,
                             TraversalCounters& counts) const {
-    return traverse<W, kAnyHit, kCount>(nodes_, blocks_, geometry_, prepared, best, counts);
+    return wide_walk::traverse<W, kAnyHit, kCount>(nodes_, blocks_, geometry_, prepared, best, counts);
 }
 
 template <int W>
