@@ -51,6 +51,16 @@ def canonical_rays(vertices, size):
     return np.concatenate([origins, directions], axis=2).astype(np.float32)
 
 
+def incoherent_rays(vertices, count):
+    """`count` rays (count, 6) from points uniform in the mesh's box towards uniform directions: no two
+    neighbours alike, what a packet kernel cannot trace together."""
+    rng = np.random.default_rng(7)
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    directions = rng.normal(size=(count, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return np.hstack([rng.uniform(lo, hi, (count, 3)), directions]).astype(np.float32)
+
+
 def median_mrays(call, ray_count, frames):
     call()  # warm-up
     seconds = []
@@ -92,6 +102,8 @@ def main():
     parser.add_argument("--against-bench", type=pathlib.Path, metavar="LANCER",
                         help="also time LANCER's `bench` on the same work, alternated with Python")
     parser.add_argument("--rounds", type=int, default=1, help="alternations with --against-bench")
+    parser.add_argument("--incoherent", action="store_true",
+                        help="also trace as many rays of random origins and directions (flat)")
     parser.add_argument("--threads", type=int, default=0,
                         help="threads of every engine (0, the default: all the machine's)")
     args = parser.parse_args()
@@ -121,6 +133,7 @@ def main():
         vertices, triangles = lancer.load_mesh(str(mesh))
         rays = canonical_rays(vertices, args.size)
         ray_count = args.size * args.size
+        incoherent = incoherent_rays(vertices, ray_count)
         scenes = {}
         for accel in args.accel.split(","):
             scenes[accel] = lancer.RaycastingScene(accel=accel)
@@ -129,7 +142,8 @@ def main():
         for round_index in range(args.rounds if args.against_bench is not None else 1):
             for accel, scene in scenes.items():
                 timed = []
-                for shaped in (rays, rays.reshape(-1, 6)):
+                shapes = [rays, rays.reshape(-1, 6)] + ([incoherent] if args.incoherent else [])
+                for shaped in shapes:
                     hits = np.isfinite(scene.cast_rays(shaped)["t_hit"]).mean()
                     call = functools.partial(scene.cast_rays, shaped, nthreads=threads)
                     timed.append((shaped.shape, hits, median_mrays(call, ray_count, args.frames)))
@@ -140,9 +154,10 @@ def main():
                     if abs(bench_hits - timed[0][1]) * ray_count > 2 + 1e-5 * ray_count:
                         sys.exit(f"{mesh.name}, {accel}: the image's rays hit {timed[0][1]:.6f} of the view and "
                                  f"`lancer bench`'s {bench_hits:.6f}: not the same rays")
-                for shape, hits, mrays in timed:
-                    line = f"{mesh.name:<16} {'lancer ' + accel:<24} {str(shape):<16} {mrays:8.2f} {hits:7.1%}"
-                    if bench is not None:
+                for index, (shape, hits, mrays) in enumerate(timed):
+                    kind = str(shape) if index < 2 else "random rays"
+                    line = f"{mesh.name:<16} {'lancer ' + accel:<24} {kind:<16} {mrays:8.2f} {hits:7.1%}"
+                    if bench is not None and index < 2:
                         line += f" {round_index + 1:5d} {bench:8.2f} {mrays / bench:7.3f}"
                         ratios.setdefault((accel, str(shape)), []).append(mrays / bench)
                     print(line, flush=True)
@@ -157,6 +172,11 @@ def main():
             mrays = median_mrays(functools.partial(scene.cast_rays, tensor, nthreads=threads), ray_count,
                                  args.frames)
             print(f"{mesh.name:<16} {'open3d ' + o3d.__version__:<24} {str(rays.shape):<16} {mrays:8.2f} {hits:7.1%}")
+            if args.incoherent:
+                tensor = o3d.core.Tensor(incoherent)
+                mrays = median_mrays(functools.partial(scene.cast_rays, tensor, nthreads=threads), ray_count,
+                                     args.frames)
+                print(f"{mesh.name:<16} {'open3d ' + o3d.__version__:<24} {'random rays':<16} {mrays:8.2f}")
 
 
 if __name__ == "__main__":

@@ -2,6 +2,10 @@
 
 #include <pybind11/numpy.h>
 
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
 #include <string>
 
 #include "array_arguments.hpp"
@@ -49,11 +53,24 @@ void save_png(const std::filesystem::path& path, const py::object& image) {
         throw py::type_error("image: expected a float array (linear values in [0, 1])");
     const bool grey = array.ndim() == 2, colour = array.ndim() == 3 && array.shape(2) == 3;
     if (!grey && !colour) throw py::value_error("image: expected shape (H, W) or (H, W, 3)");
+    // A name that promises another format would hold a PNG all the same: refused before anything is written.
+    std::string extension = path.extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (extension != ".png")
+        throw py::value_error("path: " + path.string() +
+                              ": expected a name ending in .png (save_png writes PNG only)");
     const auto pixels = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(array);
-    Image out(static_cast<int>(array.shape(1)), static_cast<int>(array.shape(0)));
+    const auto width = static_cast<std::size_t>(array.shape(1));
+    Image out(static_cast<int>(width), static_cast<int>(array.shape(0)));
     const float* p = pixels.data();
-    for (Vec3f& pixel : out.pixels) {
-        pixel = grey ? Vec3f(p[0]) : Vec3f(p[0], p[1], p[2]);
+    for (std::size_t i = 0; i < out.pixels.size(); ++i) {
+        const Vec3f pixel = grey ? Vec3f(p[0]) : Vec3f(p[0], p[1], p[2]);
+        // A NaN has no 8-bit value: the PNG would show whatever the conversion made of it.
+        if (std::isnan(pixel.x) || std::isnan(pixel.y) || std::isnan(pixel.z))
+            throw py::value_error("image: pixel (" + std::to_string(i / width) + ", " +
+                                  std::to_string(i % width) + ") is NaN");
+        out.pixels[i] = pixel;
         p += grey ? 1 : 3;
     }
     try {

@@ -93,15 +93,21 @@ class Array(numpy.ndarray):
         "from several threads; a scene pickles (its meshes; the structure is rebuilt). docs/python.md has "
         "the\n"
         "details.")
-        .def(py::init<std::string, bool, int>(), py::arg("accel") = "bvh", py::arg("watertight") = true,
+        .def(py::init<std::string, bool, int>(),
+             py::arg("accel") = std::string(lancer::python::kDefaultAccel), py::arg("watertight") = true,
              py::arg("nthreads") = 0,
              "A scene traced by lancer structure `accel` (lancer.accel_names()), with the watertight "
              "triangle\n"
              "test (Woop et al. 2013) or Moller-Trumbore; nthreads: the threads that build the structures "
              "(0:\n"
              "all).")
-        .def(py::init([](int nthreads) { return std::make_unique<RaycastingScene>("bvh", true, nthreads); }),
-             py::arg("nthreads"), "Open3D's constructor: a `bvh` scene, built on nthreads threads (0: all).")
+        .def(py::init([](int nthreads) {
+                 return std::make_unique<RaycastingScene>(std::string(lancer::python::kDefaultAccel), true,
+                                                          nthreads);
+             }),
+             py::arg("nthreads"),
+             "Open3D's constructor: a scene of the default structure (bvh8_packet), built on nthreads "
+             "threads (0: all).")
         .def_readonly_static("INVALID_ID", &lancer::python::kInvalidId)
         .def(
             "add_triangles",

@@ -41,6 +41,14 @@ py::array pinhole_rays(std::span<const double, 9> intrinsic, std::span<const dou
     const auto transform = [&](int row, int column) {
         return extrinsic[static_cast<std::size_t>(4 * row + column)];
     };
+    // A singular R (an all-zero matrix, a dropped row) maps every pixel into a plane or onto zero: rays of
+    // zero or parallel directions, which trace as misses without a word.
+    const double rotation_determinant =
+        transform(0, 0) * (transform(1, 1) * transform(2, 2) - transform(1, 2) * transform(2, 1)) -
+        transform(0, 1) * (transform(1, 0) * transform(2, 2) - transform(1, 2) * transform(2, 0)) +
+        transform(0, 2) * (transform(1, 0) * transform(2, 1) - transform(1, 1) * transform(2, 0));
+    if (!(std::abs(rotation_determinant) > 0.0) || !std::isfinite(1.0 / rotation_determinant))
+        throw py::value_error("extrinsic_matrix: expected an invertible rotation R in its upper left 3 x 3");
     double to_world[3][3];  // R^T K^-1
     for (int row = 0; row < 3; ++row) {
         for (int column = 0; column < 3; ++column) {

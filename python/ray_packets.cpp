@@ -232,6 +232,64 @@ std::size_t first_bad_row(const float* rows, const PacketRows& where) {
     return first;
 }
 
+std::size_t load_ray_records(const float* rows, std::span<const PacketRows> packets, std::vector<Ray>& rays) {
+    rays.resize(packets.size() * RayPacket::kMaxSize);
+    std::size_t first_bad = packets.size();
+    Ray* ray = rays.data();
+    for (std::size_t packet = 0; packet < packets.size(); ++packet) {
+        const PacketRows& where = packets[packet];
+        bool finite = true;
+        for (std::size_t g = 0; g < where.row.size(); ++g) {
+            const float* row = rows + kFields * where.row[g];
+            for (int index = 0; index < kGroupLanes; ++index, ++ray) {
+#if defined(__AVX2__)
+                // A record is one 8-float store: the row's six floats (a masked load reads nothing past
+                // them), then tnear 0 and tfar inf.
+                static_assert(sizeof(Ray) == 8 * sizeof(float));
+                if (index < where.count[g]) {
+                    const __m256 fields =
+                        _mm256_maskload_ps(row, _mm256_setr_epi32(-1, -1, -1, -1, -1, -1, 0, 0));
+                    finite &= _mm256_movemask_ps(finite_lanes(fields)) == 0xFF;
+                    _mm256_storeu_ps(reinterpret_cast<float*>(ray),
+                                     _mm256_or_ps(fields, _mm256_setr_ps(0, 0, 0, 0, 0, 0, 0, kInfinity)));
+                    row += kFields;
+                    continue;
+                }
+#endif
+                if (index < where.count[g]) {
+                    finite &= finite_row(row);
+                    *ray = {{row[0], row[1], row[2]}, {row[3], row[4], row[5]}, 0.0f, kInfinity};
+                    row += kFields;
+                } else {
+                    *ray = {{0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 0.0f, kInfinity};
+                }
+            }
+        }
+        if (!finite && first_bad == packets.size()) first_bad = packet;
+    }
+    return first_bad;
+}
+
+void gather_hits(std::span<const Hit> hits, std::size_t packet, HitPacket& out) {
+    const Hit* first = hits.data() + packet * RayPacket::kMaxSize;
+    for (int lane = 0; lane < RayPacket::kMaxSize; lane += 4) {
+#if defined(__SSE2__)
+        // Four records are a 4x4 matrix of t, prim, u, v: one transpose gives the four fields' rows.
+        const auto* record = reinterpret_cast<const float*>(first + lane);
+        __m128 t = _mm_loadu_ps(record), prim = _mm_loadu_ps(record + 4), u = _mm_loadu_ps(record + 8),
+               v = _mm_loadu_ps(record + 12);
+        _MM_TRANSPOSE4_PS(t, prim, u, v);
+        _mm_storeu_ps(out.t + lane, t);
+        _mm_storeu_ps(reinterpret_cast<float*>(out.prim + lane), prim);
+        _mm_storeu_ps(out.u + lane, u);
+        _mm_storeu_ps(out.v + lane, v);
+#else
+        for (int k = 0; k < 4; ++k)
+            out.set(lane + k, first[lane + k]);
+#endif
+    }
+}
+
 void prefetch_answers(const PacketRows& where, const CastAnswers& answers) {
     const auto prefetch_range = [](const void* first, std::size_t bytes) {
         const auto* const begin = static_cast<const char*>(first);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "lancer/packet.hpp"
+#include "lancer/ray.hpp"
 
 namespace lancer::python {
 
@@ -48,6 +49,15 @@ struct CastAnswers {
 [[nodiscard]] bool load_rays(const float* rows, const PacketRows& where, RayPacket& rays);
 // The first row of the packet holding a NaN or an infinity.
 [[nodiscard]] std::size_t first_bad_row(const float* rows, const PacketRows& where);
+
+// The rays of `packets` as `Ray` records for one Accel::intersect batch call, RayPacket::kMaxSize a packet
+// in its lane order (lanes without a row get a ray of zero direction, which misses), with the interval
+// [0, inf): the batch call is where a structure regroups rays its packets cannot trace together. Returns the
+// index of the first packet holding a NaN or an infinity, or packets.size().
+[[nodiscard]] std::size_t load_ray_records(const float* rows, std::span<const PacketRows> packets,
+                                           std::vector<Ray>& rays);
+// Packet `packet`'s lanes of the batch's `Hit` records.
+void gather_hits(std::span<const Hit> hits, std::size_t packet, HitPacket& out);
 
 // Asks for the lines the packet's answers go to, for writing: called before the trace, it overlaps their
 // fetch with the trace instead of stalling the stores after it.
@@ -107,7 +117,7 @@ void finish_streamed_stores();
 // packets of 64 consecutive rays.
 class RayChunks {
   public:
-    static constexpr std::size_t kChunkPackets = 32;
+    static constexpr std::size_t kChunkPackets = 64;  // 4096 rays, one batch call
 
     // `shape`: the array's leading shape, its last axis (6) left out.
     explicit RayChunks(std::span<const std::size_t> shape);

@@ -249,15 +249,21 @@ void RaycastingScene::prepare(unsigned needs) {
     if (!world_)
         building([&] { world_ = std::make_unique<World>(scene_, accel_name_, build_options(test_)); });
     if ((needs & kQueries) && !queries_)
-        building([&] { queries_ = std::make_unique<GeometryQueries>(world_->geometry().view(), test_); });
+        building([&] {
+            queries_ = std::make_unique<GeometryQueries>(world_->accel(), world_->geometry().view(), test_);
+        });
     if ((needs & kNormals) && unit_normals_.empty()) {
         const std::span<const Triangle> triangles = world_->geometry().view().triangles;
         // NormalTable's layout: a miss's zero normal, the triangles', one float for the last 4-float load.
         unit_normals_.reserve(3 * triangles.size() + 4);
         unit_normals_.assign(3, 0.0f);
         for (const Triangle& tri : triangles) {
-            const Vec3f normal = normalize(tri.geometric_normal());
-            unit_normals_.insert(unit_normals_.end(), {normal.x, normal.y, normal.z});
+            // A triangle of zero area has no direction to normalise (0 / 0): its normal is the zero vector,
+            // as a miss's, rather than NaN (docs/python.md).
+            const Vec3f normal = tri.geometric_normal();
+            const float norm = length(normal);
+            const Vec3f unit = norm > 0.0f ? normal / norm : Vec3f(0.0f);
+            unit_normals_.insert(unit_normals_.end(), {unit.x, unit.y, unit.z});
         }
         unit_normals_.push_back(0.0f);
     }
@@ -287,18 +293,25 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
         const std::shared_lock lock = prepared(kNormals);
         const Accel& accel = committed();
         const HitTables tables{unit_normals(), GeometryStarts{first_triangle_}};
+        // A chunk's rays are one Accel::intersect batch call, where a structure regroups the rays its
+        // packets cannot trace together (docs/python.md, "Speed"); its answers then go packet by packet.
         parallel_for(chunks.size(), 1, nthreads, [&](std::size_t index, std::size_t) {
-            std::vector<PacketRows> packets;
+            thread_local std::vector<PacketRows> packets;
+            thread_local std::vector<Ray> batch;
+            thread_local std::vector<Hit> batch_hits;
             chunks.chunk(index, packets);
-            RayPacket packet;
-            const auto trace = [&](const PacketRows& where, HitPacket& hits) {
-                if (!load_rays(rows.data(), where, packet)) {
-                    throw std::invalid_argument("rays: " + row_name(rows, first_bad_row(rows.data(), where)) +
-                                                " holds a NaN or infinite value");
-                }
-                accel.intersect_packet(packet, hits);
+            const std::size_t bad = load_ray_records(rows.data(), packets, batch);
+            if (bad < packets.size()) {
+                throw std::invalid_argument(
+                    "rays: " + row_name(rows, first_bad_row(rows.data(), packets[bad])) +
+                    " holds a NaN or infinite value");
+            }
+            batch_hits.resize(batch.size());
+            accel.intersect(batch, batch_hits);
+            const auto gather = [&](const PacketRows& where, HitPacket& hits) {
+                gather_hits(batch_hits, static_cast<std::size_t>(&where - packets.data()), hits);
             };
-            answer_chunk(chunks, packets, answers, tables, trace);
+            answer_chunk(chunks, packets, answers, tables, gather);
         });
     }
     return py::dict("t_hit"_a = open3d_like(t_hit), "geometry_ids"_a = open3d_like(geometry_ids),
@@ -430,7 +443,8 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
 bool RaycastingScene::inside(const GeometryQueries& all, const Vec3f& p,
                              std::span<const Vec3f> directions) const {
     std::size_t odd = 0;
-    std::vector<Hit> hits;
+    // One buffer a thread rather than an allocation and its growth a point.
+    thread_local std::vector<Hit> hits;
     for (const Vec3f& direction : directions) {
         hits.clear();
         all.all_hits({p, direction, 0.0f, kInfinity}, hits);

@@ -18,6 +18,7 @@
 #include <shared_mutex>
 #include <span>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -31,6 +32,11 @@
 namespace lancer::python {
 
 namespace py = pybind11;
+
+// The structure of RaycastingScene() and of Open3D's RaycastingScene(nthreads): the fastest here for every
+// query (docs/python.md, "Speed"): packets of coherent rays, bvh8 a ray at a time for the others, and its
+// bvh8 tree for the point queries.
+inline constexpr std::string_view kDefaultAccel = "bvh8_packet";
 
 class RaycastingScene {
   public:

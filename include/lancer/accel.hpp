@@ -138,8 +138,10 @@ struct UpdateReport {
     double sah_ratio = 1.0;
 };
 
+class Accel;
 class World;
 class CudaTracer;
+class GeometryQueries;
 class BvhAccel;
 namespace plucker {
 struct PluckerLayout;
@@ -151,6 +153,9 @@ struct PluckerLayout;
 struct ExportedLayout {
     const BvhAccel* bvh = nullptr;
     const plucker::PluckerLayout* plucker = nullptr;
+    // A packet structure's single-ray structure, whose arrays its packets trace as they are (bvh8_packet's
+    // bvh8): what GeometryQueries walks for the packet structure.
+    const Accel* single_ray = nullptr;
 };
 
 class Accel {
@@ -225,6 +230,7 @@ class Accel {
     // from them, so it updates through update_within instead of going over every triangle again.
     friend class World;
     friend class CudaTracer;
+    friend class GeometryQueries;  // walks a BVH's own arrays for the point queries
 
     // The arrays this structure lends as they are; none by default.
     [[nodiscard]] virtual ExportedLayout exported_layout() const { return {}; }

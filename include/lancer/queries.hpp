@@ -1,5 +1,6 @@
 // Queries beyond the closest hit, for the Python module's Open3D-style API (docs/python.md): every hit
-// along a ray and the nearest point of the geometry, over a binary SAH BVH of the geometry built once.
+// along a ray and the nearest point of the geometry, over a structure's own BVH where it has one (bvh,
+// bvh_packet, bvh4, bvh8, bvh8_packet), else over a binary SAH BVH of the geometry built once.
 #pragma once
 
 #include <memory>
@@ -23,6 +24,10 @@ class GeometryQueries {
   public:
     // Builds the BVH on `geometry`, whose arrays must outlive this object. Throws as Accel::build does.
     GeometryQueries(const Geometry& geometry, TriangleTest test);
+    // Walks `accel`'s own tree, built on `geometry`, when it is a BVH (walks_accel), and builds one as above
+    // otherwise. Both must outlive this object; an update of `accel` (a refit, a rebuild) is followed, as
+    // the tree is read at each query.
+    GeometryQueries(const Accel& accel, const Geometry& geometry, TriangleTest test);
     ~GeometryQueries();
     GeometryQueries(const GeometryQueries&) = delete;
     GeometryQueries& operator=(const GeometryQueries&) = delete;
@@ -36,6 +41,9 @@ class GeometryQueries {
     // The nearest point of any primitive to `p` (ties by primitive index), computed in double and rounded
     // once; a sphere's is on its surface along the direction from its centre (its centre itself for p there).
     [[nodiscard]] NearestPoint nearest_point(const Vec3f& p) const;
+
+    // Whether the queries walk the structure they were given instead of a tree of their own.
+    [[nodiscard]] bool walks_accel() const;
 
   private:
     struct Impl;

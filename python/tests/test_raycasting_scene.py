@@ -342,8 +342,8 @@ def test_open3d_call_forms_give_the_same_answers(spheres):
     for vertices, triangles in spheres:
         by_keywords.add_triangles(vertex_positions=vertices, triangle_indices=triangles)
     assert np.array_equal(by_keywords.cast_rays(rays=rays, nthreads=1)["t_hit"], expected)
-    open3ds = lancer.RaycastingScene(2)  # Open3D's positional nthreads: a `bvh` scene
-    assert open3ds.accel == "bvh"
+    open3ds = lancer.RaycastingScene(2)  # Open3D's positional nthreads: a scene of the default structure
+    assert open3ds.accel == "bvh8_packet"
     with pytest.raises(ValueError, match="nthreads: expected 0"):
         lancer.RaycastingScene(nthreads=-1)
     o3d = pytest.importorskip("open3d", reason="Open3D is missing: scripts/deps.sh installs python3-open3d")

@@ -25,8 +25,12 @@ class PacketAccel : public Accel {
         geometry_ = geometry;
         return update_held(single_ray_, geometry);
     }
-    // The single-ray structure's arrays, which the packets trace untouched.
-    [[nodiscard]] ExportedLayout exported_layout() const override { return layout_of(single_ray_); }
+    // The single-ray structure's arrays, which the packets trace untouched, and the structure itself.
+    [[nodiscard]] ExportedLayout exported_layout() const override {
+        ExportedLayout layout = layout_of(single_ray_);
+        layout.single_ray = &single_ray_;
+        return layout;
+    }
 
     SingleRay single_ray_;
     Geometry geometry_;

@@ -251,5 +251,54 @@ TEST(RayPackets, AnyNonFiniteValueIsFoundWithItsRow) {
     }
 }
 
+// cast_rays's batch records are the packets' rays lane for lane (load_rays's), the first packet with a NaN
+// or an infinity is named, and gather_hits gives back each packet's lanes of the batch's hits.
+TEST(RayPackets, BatchRecordsAreThePacketsRaysAndHitsComeBackByLane) {
+    for (const std::vector<std::size_t>& shape :
+         {std::vector<std::size_t>{5000}, std::vector<std::size_t>{37, 45}}) {
+        std::size_t count = 1;
+        for (const std::size_t extent : shape)
+            count *= extent;
+        std::vector<float> rows(6 * count);
+        fill_rows(rows);
+        const RayChunks chunks(shape);
+        std::vector<PacketRows> packets;
+        std::vector<Ray> records;
+        for (std::size_t index = 0; index < chunks.size(); ++index) {
+            chunks.chunk(index, packets);
+            ASSERT_EQ(load_ray_records(rows.data(), packets, records), packets.size());
+            ASSERT_EQ(records.size(), packets.size() * RayPacket::kMaxSize);
+            std::vector<Hit> hits(records.size());
+            for (std::size_t k = 0; k < hits.size(); ++k)
+                hits[k] = {static_cast<float>(k), static_cast<std::int32_t>(k), 0.5f * static_cast<float>(k),
+                           -1.0f};
+            for (std::size_t p = 0; p < packets.size(); ++p) {
+                RayPacket rays;
+                ASSERT_TRUE(load_rays(rows.data(), packets[p], rays));
+                HitPacket gathered;
+                gather_hits(hits, p, gathered);
+                for (int lane = 0; lane < RayPacket::kMaxSize; ++lane) {
+                    const Ray& record = records[p * RayPacket::kMaxSize + static_cast<std::size_t>(lane)];
+                    const Ray expected = rays.ray(lane);
+                    EXPECT_EQ(record.origin, expected.origin);
+                    EXPECT_EQ(record.direction, expected.direction);
+                    EXPECT_EQ(record.tnear, 0.0f);
+                    EXPECT_EQ(record.tfar, kInfinity);
+                    const Hit& hit = hits[p * RayPacket::kMaxSize + static_cast<std::size_t>(lane)];
+                    EXPECT_EQ(gathered.t[lane], hit.t);
+                    EXPECT_EQ(gathered.prim[lane], hit.prim);
+                    EXPECT_EQ(gathered.u[lane], hit.u);
+                    EXPECT_EQ(gathered.v[lane], hit.v);
+                }
+            }
+        }
+        rows[6 * (count - 1) + 4] = std::numeric_limits<float>::quiet_NaN();
+        chunks.chunk(chunks.size() - 1, packets);
+        const std::size_t bad = load_ray_records(rows.data(), packets, records);
+        ASSERT_LT(bad, packets.size());
+        EXPECT_EQ(first_bad_row(rows.data(), packets[bad]), count - 1);
+    }
+}
+
 }  // namespace
 }  // namespace lancer::python

@@ -2,183 +2,295 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <limits>
 
 #include "accel/bvh/bvh.hpp"
+#include "accel/bvh/bvh_wide.hpp"
+#include "accel/bvh/nearest_point.hpp"
 #include "accel/primitive_intersect.hpp"
+#include "accel/simd_float.hpp"
 
 namespace lancer {
 
+// One of the trees below is walked: the structure's own (binary, bvh4's or bvh8's), or `own`.
 struct GeometryQueries::Impl {
     Geometry geometry;
     TriangleTest test = TriangleTest::MollerTrumbore;
-    BvhAccel bvh;
+    BvhAccel own;  // built only for a structure that has no BVH
+    const BvhAccel* binary = nullptr;
+    const Bvh4Accel* bvh4 = nullptr;
+    const Bvh8Accel* bvh8 = nullptr;
+    bool walks_accel = false;
 };
 
 GeometryQueries::GeometryQueries(const Geometry& geometry, TriangleTest test)
     : impl_(std::make_unique<Impl>()) {
     impl_->geometry = geometry;
     impl_->test = test;
-    impl_->bvh.build(geometry, build_options(test));
+    impl_->own.build(geometry, build_options(test));
+    impl_->binary = &impl_->own;
+}
+
+GeometryQueries::GeometryQueries(const Accel& accel, const Geometry& geometry, TriangleTest test)
+    : impl_(std::make_unique<Impl>()) {
+    impl_->geometry = geometry;
+    impl_->test = test;
+    // A packet structure traces its single-ray structure's tree as it is: that tree is the one to walk.
+    const ExportedLayout layout = accel.exported_layout();
+    const Accel& tree = layout.single_ray != nullptr ? *layout.single_ray : accel;
+    impl_->binary = layout.bvh;
+    impl_->bvh4 = dynamic_cast<const Bvh4Accel*>(&tree);
+    impl_->bvh8 = dynamic_cast<const Bvh8Accel*>(&tree);
+    impl_->walks_accel = impl_->binary != nullptr || impl_->bvh4 != nullptr || impl_->bvh8 != nullptr;
+    if (!impl_->walks_accel) {
+        impl_->own.build(geometry, build_options(test));
+        impl_->binary = &impl_->own;
+    }
 }
 
 GeometryQueries::~GeometryQueries() = default;
 
-void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
-    const std::vector<BvhNode>& nodes = impl_->bvh.nodes();
-    const std::vector<std::uint32_t>& prim_indices = impl_->bvh.prim_indices();
-    if (!is_valid(ray) || nodes.empty()) return;
-    const std::size_t first = hits.size();
-    dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
-        const PreparedRay<TriangleTestT> prepared(ray);
-        const SlabRay slab(ray);
-        // Every node whose box the ray crosses within [tnear, tfar], in any order: both children of a node
-        // may wait, so the stack holds at most one node per level and the root.
-        std::array<std::uint32_t, BvhAccel::kMaxDepth + 2> stack;
-        std::size_t size = 0;
-        float t_entry, t_exit;
-        if (intersect_box(slab, nodes[0].bounds(), ray.tnear, ray.tfar, t_entry, t_exit)) stack[size++] = 0;
-        while (size > 0) {
-            const std::uint32_t current = stack[--size];
-            const BvhNode& node = nodes[current];
-            if (node.is_leaf()) {
-                for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i) {
-                    Hit hit;
-                    if (intersect_primitive(impl_->geometry, prim_indices[i], prepared, hit))
-                        hits.push_back(hit);
-                }
-                continue;
-            }
-            for (const std::uint32_t child : {current + 1, node.offset}) {
-                if (intersect_box(slab, nodes[child].bounds(), ray.tnear, ray.tfar, t_entry, t_exit))
-                    stack[size++] = child;
-            }
-        }
-    });
-    std::sort(hits.begin() + static_cast<std::ptrdiff_t>(first), hits.end(),
-              [](const Hit& a, const Hit& b) { return a.t < b.t || (a.t == b.t && a.prim < b.prim); });
+bool GeometryQueries::walks_accel() const {
+    return impl_->walks_accel;
 }
 
 namespace {
 
-struct Vec3 {
-    double x, y, z;
-};
-Vec3 operator-(const Vec3& a, const Vec3& b) {
-    return {a.x - b.x, a.y - b.y, a.z - b.z};
-}
-double dot(const Vec3& a, const Vec3& b) {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-Vec3 in_double(const Vec3f& a) {
-    return {a.x, a.y, a.z};
-}
-
-// The barycentric weights (of v1, v2) of the point of triangle `tri` nearest to p: the Voronoi regions of
-// its vertices, then of its edges, then its face (Ericson, Real-Time Collision Detection, 5.1.5). A
-// degenerate triangle falls in a vertex's or an edge's region; a zero denominator there means two equal
-// vertices, and either end is nearest.
-std::pair<double, double> nearest_weights(const Triangle& tri, const Vec3& p) {
-    const Vec3 a = in_double(tri.v0), b = in_double(tri.v1), c = in_double(tri.v2);
-    const Vec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
-    if (d1 <= 0.0 && d2 <= 0.0) return {0.0, 0.0};
-    const Vec3 bp = p - b;
-    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
-    if (d3 >= 0.0 && d4 <= d3) return {1.0, 0.0};
-    const auto ratio = [](double n, double d) { return d == 0.0 ? 0.0 : n / d; };
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return {ratio(d1, d1 - d3), 0.0};
-    const Vec3 cp = p - c;
-    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
-    if (d6 >= 0.0 && d5 <= d6) return {0.0, 1.0};
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return {0.0, ratio(d2, d2 - d6)};
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) {
-        const double w = ratio(d4 - d3, (d4 - d3) + (d5 - d6));
-        return {1.0 - w, w};
+// Every primitive the ray hits, by the binary tree: every node whose box the ray crosses within [tnear,
+// tfar], in any order. Both children of a node may wait, so the stack holds at most one node per level and
+// the root.
+template <class TriangleTestT>
+void binary_hits(const BvhAccel& bvh, const Geometry& geometry, const PreparedRay<TriangleTestT>& prepared,
+                 std::vector<Hit>& hits) {
+    const std::vector<BvhNode>& nodes = bvh.nodes();
+    const std::vector<std::uint32_t>& prim_indices = bvh.prim_indices();
+    const Ray& ray = prepared.ray;
+    const SlabRay slab(ray);
+    std::array<std::uint32_t, BvhAccel::kMaxDepth + 2> stack;
+    std::size_t size = 0;
+    float t_entry, t_exit;
+    if (intersect_box(slab, nodes[0].bounds(), ray.tnear, ray.tfar, t_entry, t_exit)) stack[size++] = 0;
+    while (size > 0) {
+        const std::uint32_t current = stack[--size];
+        const BvhNode& node = nodes[current];
+        if (node.is_leaf()) {
+            for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i) {
+                Hit hit;
+                if (intersect_primitive(geometry, prim_indices[i], prepared, hit)) hits.push_back(hit);
+            }
+            continue;
+        }
+        for (const std::uint32_t child : {current + 1, node.offset}) {
+            if (intersect_box(slab, nodes[child].bounds(), ray.tnear, ray.tfar, t_entry, t_exit))
+                stack[size++] = child;
+        }
     }
-    const double sum = va + vb + vc;
-    return {vb / sum, vc / sum};
 }
 
-// The nearest point of primitive `prim` to p, and its squared distance in double.
-NearestPoint nearest_on(const Geometry& geometry, std::uint32_t prim, const Vec3& p, double& distance2) {
-    NearestPoint nearest;
-    nearest.prim = static_cast<std::int32_t>(prim);
-    Vec3 q;
-    if (prim < geometry.triangles.size()) {
-        const Triangle& tri = geometry.triangles[prim];
-        const auto [u, v] = nearest_weights(tri, p);
-        const Vec3 a = in_double(tri.v0), b = in_double(tri.v1), c = in_double(tri.v2);
-        q = {a.x + u * (b.x - a.x) + v * (c.x - a.x), a.y + u * (b.y - a.y) + v * (c.y - a.y),
-             a.z + u * (b.z - a.z) + v * (c.z - a.z)};
-        nearest.u = static_cast<float>(u), nearest.v = static_cast<float>(v);
-    } else {
-        const Sphere& sphere = geometry.spheres[prim - geometry.triangles.size()];
-        const Vec3 centre = in_double(sphere.center), d = p - centre;
-        const double length = std::sqrt(dot(d, d));
-        const double scale = length > 0.0 ? std::max(0.0, static_cast<double>(sphere.radius)) / length : 0.0;
-        q = {centre.x + scale * d.x, centre.y + scale * d.y, centre.z + scale * d.z};
+// The same by a wide tree: all W child boxes at once, a leaf's triangles a block at a time with the block
+// kernel (the scalar kernel's bits), its scalar lanes and spheres by the scalar test.
+template <int W, class TriangleTestT>
+void wide_hits(const WideBvhAccel<W>& bvh, const Geometry& geometry,
+               const PreparedRay<TriangleTestT>& prepared, std::vector<Hit>& hits) {
+    const auto& nodes = bvh.nodes();
+    const auto& blocks = bvh.blocks();
+    const Ray& ray = prepared.ray;
+    const WideRay wide(SlabRay{ray});
+    const BlockRay<TriangleTestT, W> block_ray(prepared, geometry);
+    std::array<std::uint32_t, (W - 1) * BvhAccel::kMaxDepth + 1> stack;
+    std::size_t size = 0;
+    stack[size++] = 0;
+    while (size > 0) {
+        const WideBvhNode<W>& node = nodes[stack[--size]];
+        alignas(32) float entry[W];
+        for (unsigned mask = intersect_children<W>(node, wide, ray.tnear, ray.tfar, entry); mask != 0;
+             mask &= mask - 1) {
+            const int slot = std::countr_zero(mask);
+            if (node.prim_count[slot] == 0) {
+                stack[size++] = node.child[slot];
+                continue;
+            }
+            const std::uint32_t last = node.child[slot] + block_count(node.prim_count[slot], W);
+            for (std::uint32_t b = node.child[slot]; b < last; ++b) {
+                const TriangleBlock<W>& block = blocks[b];
+                BlockHits<W> found;
+                block_ray.kernel.test(block, ray.tnear, ray.tfar, found);
+                for (unsigned lanes = found.hit_lanes; lanes != 0; lanes &= lanes - 1) {
+                    const int lane = std::countr_zero(lanes);
+                    hits.push_back({found.t[lane], static_cast<std::int32_t>(block.prim[lane]), found.u[lane],
+                                    found.v[lane]});
+                }
+                for (unsigned lanes =
+                         scalar_lanes(block, geometry, block_ray.has_spheres, found.scalar_lanes);
+                     lanes != 0; lanes &= lanes - 1) {
+                    Hit hit;
+                    if (intersect_primitive(geometry, block.prim[std::countr_zero(lanes)], prepared, hit))
+                        hits.push_back(hit);
+                }
+            }
+        }
     }
-    const Vec3 e = p - q;
-    distance2 = dot(e, e);
-    nearest.point = {static_cast<float>(q.x), static_cast<float>(q.y), static_cast<float>(q.z)};
-    nearest.distance = static_cast<float>(std::sqrt(distance2));
-    return nearest;
 }
 
-// The squared distance from p to the box, 0 inside.
-double box_distance2(const Box3f& box, const Vec3& p) {
-    double sum = 0.0;
-    for (int axis = 0; axis < 3; ++axis) {
-        const double x = axis == 0 ? p.x : (axis == 1 ? p.y : p.z);
-        const double outside = std::max({static_cast<double>(box.lo[axis]) - x, 0.0, x - box.hi[axis]});
-        sum += outside * outside;
-    }
-    return sum;
-}
-
-}  // namespace
-
-NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
-    const std::vector<BvhNode>& nodes = impl_->bvh.nodes();
-    const std::vector<std::uint32_t>& prim_indices = impl_->bvh.prim_indices();
-    NearestPoint best;
-    if (nodes.empty()) return best;
-    const Vec3 p = in_double(point);
-    double best2 = std::numeric_limits<double>::infinity();
-    // Nodes by the distance to their box: the nearer child is taken first, a node no nearer than the best
-    // point found is skipped.
+// The binary tree's nearest point: nodes by the distance to their box, the nearer child first, a node no
+// nearer than the best point found skipped.
+NearestPoint binary_nearest(const BvhAccel& bvh, nearest::Search& search) {
+    const std::vector<BvhNode>& nodes = bvh.nodes();
+    const std::vector<std::uint32_t>& prim_indices = bvh.prim_indices();
+    // The squared distance from p to the box, 0 inside.
+    const auto box_distance2 = [&](const Box3f& box) {
+        double sum = 0.0;
+        for (int axis = 0; axis < 3; ++axis) {
+            const double x = axis == 0 ? search.p.x : (axis == 1 ? search.p.y : search.p.z);
+            const double outside = std::max({static_cast<double>(box.lo[axis]) - x, 0.0, x - box.hi[axis]});
+            sum += outside * outside;
+        }
+        return sum;
+    };
     struct Entry {
         std::uint32_t node;
         double distance2;
     };
     std::array<Entry, BvhAccel::kMaxDepth + 2> stack;
     std::size_t size = 0;
-    stack[size++] = {0, box_distance2(nodes[0].bounds(), p)};
+    stack[size++] = {0, box_distance2(nodes[0].bounds())};
     while (size > 0) {
         const Entry entry = stack[--size];
-        if (entry.distance2 > best2) continue;
+        if (entry.distance2 > search.best2) continue;
         const BvhNode& node = nodes[entry.node];
         if (node.is_leaf()) {
-            for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i) {
-                double distance2;
-                const NearestPoint candidate = nearest_on(impl_->geometry, prim_indices[i], p, distance2);
-                if (distance2 < best2 || (distance2 == best2 && candidate.prim < best.prim))
-                    best = candidate, best2 = distance2;
-            }
+            for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i)
+                search.primitive(prim_indices[i]);
             continue;
         }
-        Entry near{entry.node + 1, box_distance2(nodes[entry.node + 1].bounds(), p)};
-        Entry far{node.offset, box_distance2(nodes[node.offset].bounds(), p)};
+        Entry near{entry.node + 1, box_distance2(nodes[entry.node + 1].bounds())};
+        Entry far{node.offset, box_distance2(nodes[node.offset].bounds())};
         if (far.distance2 < near.distance2) std::swap(near, far);
-        if (far.distance2 <= best2) stack[size++] = far;
-        if (near.distance2 <= best2) stack[size++] = near;
+        if (far.distance2 <= search.best2) stack[size++] = far;
+        if (near.distance2 <= search.best2) stack[size++] = near;
     }
-    return best;
+    return search.best;
+}
+
+// A lower bound of the squared distance from p to each child box of `node`, in float: the rounding of its
+// five operations (at most 5 units of 2^-24, relative) is taken off by kShrink, so that the bound never
+// exceeds the double distance to any point in the box. Bit i of the result: child i is no farther than
+// `limit` (an empty slot, whose inverted box gives an infinite bound, never is).
+constexpr float kShrink = 1.0f - 0x1p-20f;
+
+#if defined(__AVX2__) || defined(__SSE4_1__)
+template <class Ops, int W>
+unsigned child_bounds_simd(const WideBvhNode<W>& node, const Vec3f& p, float limit, float (&bound)[W]) {
+    using Float = typename Ops::Float;
+    const Float zero = Ops::broadcast(0.0f);
+    Float sum = zero;
+    for (int axis = 0; axis < 3; ++axis) {
+        const Float x = Ops::broadcast(p[axis]);
+        const Float outside =
+            Ops::max(Ops::max(Ops::sub(Ops::load(node.bounds[WideBvhNode<W>::kLo][axis]), x),
+                              Ops::sub(x, Ops::load(node.bounds[WideBvhNode<W>::kHi][axis]))),
+                     zero);
+        sum = Ops::add(sum, Ops::mul(outside, outside));
+    }
+    sum = Ops::mul(sum, Ops::broadcast(kShrink));
+    Ops::store(bound, sum);
+    return Ops::bits(Ops::less_equal(sum, Ops::broadcast(limit)));
+}
+#endif
+
+template <int W>
+unsigned child_bounds(const WideBvhNode<W>& node, const Vec3f& p, float limit, float (&bound)[W]) {
+#if defined(__AVX2__)
+    if constexpr (W == 8) return child_bounds_simd<simd::Avx2>(node, p, limit, bound);
+#endif
+#if defined(__SSE4_1__)
+    if constexpr (W == 4) return child_bounds_simd<simd::Sse4>(node, p, limit, bound);
+#endif
+    unsigned mask = 0;
+    for (int slot = 0; slot < W; ++slot) {
+        float sum = 0.0f;
+        for (int axis = 0; axis < 3; ++axis) {
+            const float outside = std::max(std::max(node.bounds[WideBvhNode<W>::kLo][axis][slot] - p[axis],
+                                                    p[axis] - node.bounds[WideBvhNode<W>::kHi][axis][slot]),
+                                           0.0f);
+            sum += outside * outside;
+        }
+        bound[slot] = sum * kShrink;
+        if (bound[slot] <= limit) mask |= 1u << slot;
+    }
+    return mask;
+}
+
+// The wide tree's nearest point: the children of a node bounded at once, pushed farthest first so that
+// the nearest is taken next (the first leaf reached is the greedy descent's, whose point bounds the rest),
+// and a leaf's triangles four at a time in double (nearest::Search::block).
+template <int W>
+NearestPoint wide_nearest(const WideBvhAccel<W>& bvh, const Vec3f& point, nearest::Search& search) {
+    const auto& nodes = bvh.nodes();
+    const auto& blocks = bvh.blocks();
+    struct Entry {
+        float bound;
+        std::uint32_t child, prim_count;
+    };
+    std::array<Entry, (W - 1) * BvhAccel::kMaxDepth + 1> stack;
+    std::size_t size = 0;
+    const WideBvhNode<W>* node = &nodes[0];
+    while (true) {
+        alignas(32) float bound[W];
+        std::array<int, W> order;
+        const int count =
+            order_by_entry<W>(child_bounds(*node, point, search.float_limit(), bound), bound, order);
+        for (int k = count - 1; k >= 0; --k) {
+            const auto slot = static_cast<std::size_t>(order[static_cast<std::size_t>(k)]);
+            stack[size++] = {bound[slot], node->child[slot], node->prim_count[slot]};
+        }
+        while (true) {
+            if (size == 0) return search.best;
+            const Entry entry = stack[--size];
+            if (static_cast<double>(entry.bound) > search.best2) continue;
+            if (entry.prim_count == 0) {
+                node = &nodes[entry.child];
+                break;
+            }
+            const std::uint32_t last = entry.child + block_count(entry.prim_count, W);
+            for (std::uint32_t b = entry.child; b < last; ++b)
+                search.block(blocks[b]);
+        }
+    }
+}
+
+}  // namespace
+
+void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
+    if (!is_valid(ray) || impl_->geometry.size() == 0) return;
+    const std::size_t first = hits.size();
+    dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
+        const PreparedRay<TriangleTestT> prepared(ray);
+        if (impl_->bvh8 != nullptr) {
+            wide_hits(*impl_->bvh8, impl_->geometry, prepared, hits);
+        } else if (impl_->bvh4 != nullptr) {
+            wide_hits(*impl_->bvh4, impl_->geometry, prepared, hits);
+        } else {
+            binary_hits(*impl_->binary, impl_->geometry, prepared, hits);
+        }
+    });
+    const auto begin = hits.begin() + static_cast<std::ptrdiff_t>(first);
+    std::sort(begin, hits.end(),
+              [](const Hit& a, const Hit& b) { return a.t < b.t || (a.t == b.t && a.prim < b.prim); });
+    // A tree with spatial splits holds a primitive in several leaves: one hit each.
+    hits.erase(std::unique(begin, hits.end(),
+                           [](const Hit& a, const Hit& b) { return a.prim == b.prim && a.t == b.t; }),
+               hits.end());
+}
+
+NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
+    nearest::Search search(impl_->geometry, point);
+    if (impl_->geometry.size() == 0) return search.best;
+    if (impl_->bvh8 != nullptr) return wide_nearest(*impl_->bvh8, point, search);
+    if (impl_->bvh4 != nullptr) return wide_nearest(*impl_->bvh4, point, search);
+    return binary_nearest(*impl_->binary, search);
 }
 
 }  // namespace lancer

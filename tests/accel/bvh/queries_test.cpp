@@ -7,10 +7,15 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <random>
+#include <span>
+#include <string_view>
 #include <vector>
 
+#include "accel/bvh/nearest_point.hpp"
 #include "accel/primitive_intersect.hpp"
+#include "lancer/accel.hpp"
 #include "support/ray_sets.hpp"
 #include "support/test_scenes.hpp"
 
@@ -137,6 +142,74 @@ TEST(GeometryQueries, NearestPointIsTheNearestOfEveryTriangle) {
         EXPECT_LE(nearest.u + nearest.v, 1.0f + 1e-6f);
     }
     EXPECT_EQ(GeometryQueries({}, TriangleTest::Watertight).nearest_point({0, 0, 0}).prim, -1);
+}
+
+// The nearest point by every primitive in turn, with the tree walks' own kernel and tie rule.
+NearestPoint brute_nearest(const Geometry& geometry, const Vec3f& p) {
+    nearest::Search search(geometry, p);
+    for (std::uint32_t prim = 0; prim < geometry.size(); ++prim)
+        search.primitive(prim);
+    return search.best;
+}
+
+// Points around the knot, on its vertices, edge midpoints and centroids, and far away.
+std::vector<Vec3f> query_points(std::span<const Triangle> triangles, const Box3f& bounds) {
+    std::mt19937 rng(43);
+    std::uniform_real_distribution<float> unit(-0.5f, 1.5f);
+    std::vector<Vec3f> points;
+    for (int n = 0; n < 600; ++n)
+        points.push_back(bounds.lo + Vec3f(unit(rng), unit(rng), unit(rng)) * bounds.extent());
+    for (std::size_t i = 0; i < triangles.size(); i += 7) {
+        const Triangle& tri = triangles[i];
+        points.push_back(tri.v0);
+        points.push_back((tri.v1 + tri.v2) * 0.5f);
+        points.push_back((tri.v0 + tri.v1 + tri.v2) / 3.0f);
+    }
+    for (int n = 0; n < 50; ++n)
+        points.push_back(Vec3f(unit(rng), unit(rng), unit(rng)) * 1e5f);
+    return points;
+}
+
+// The BVH family's queries walk the structure's own tree (no second tree built) and give brute force's
+// answers bit for bit; the others build their own.
+TEST(GeometryQueries, WalkTheStructuresOwnBvhWithBruteForcesAnswers) {
+    std::vector<Triangle> triangles = testing::knot_triangles(48);
+    triangles.push_back({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}});  // zero area
+    const std::vector<Sphere> spheres = {{{3, 0, 0}, 0.5f, 0}};
+    const Geometry geometry{triangles, spheres};
+    const std::vector<Vec3f> points = query_points(triangles, geometry.bounds());
+    std::vector<NearestPoint> expected;
+    for (const Vec3f& p : points)
+        expected.push_back(brute_nearest(geometry, p));
+    for (const std::string_view name : accel_names()) {
+        if (name.starts_with("embree")) continue;
+        const std::unique_ptr<Accel> accel = make_accel(name);
+        accel->build(geometry, build_options(TriangleTest::Watertight));
+        const GeometryQueries queries(*accel, geometry, TriangleTest::Watertight);
+        const bool bvh_family = name.starts_with("bvh");
+        EXPECT_EQ(queries.walks_accel(), bvh_family) << name;
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            const NearestPoint nearest = queries.nearest_point(points[i]);
+            ASSERT_EQ(nearest.prim, expected[i].prim) << name << " point " << i;
+            ASSERT_EQ(nearest.distance, expected[i].distance) << name << " point " << i;
+            ASSERT_EQ(nearest.point.x, expected[i].point.x) << name << " point " << i;
+            ASSERT_EQ(nearest.point.y, expected[i].point.y) << name << " point " << i;
+            ASSERT_EQ(nearest.point.z, expected[i].point.z) << name << " point " << i;
+            ASSERT_EQ(nearest.u, expected[i].u) << name << " point " << i;
+            ASSERT_EQ(nearest.v, expected[i].v) << name << " point " << i;
+        }
+        const testing::RaySet rays = testing::random_rays(geometry.bounds(), 1000, 44);
+        for (const Ray& ray : rays.rays) {
+            std::vector<Hit> hits;
+            queries.all_hits(ray, hits);
+            const std::vector<Hit> all = every_hit(geometry, ray, TriangleTest::Watertight);
+            ASSERT_EQ(hits.size(), all.size()) << name;
+            for (std::size_t k = 0; k < hits.size(); ++k) {
+                ASSERT_EQ(hits[k].prim, all[k].prim) << name;
+                ASSERT_EQ(hits[k].t, all[k].t) << name;
+            }
+        }
+    }
 }
 
 }  // namespace
