@@ -9,6 +9,7 @@
 // "The numerical contract"). Included by the packet kernel's source alone (bvh8_packet_kernel.cpp).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cstdint>
@@ -48,11 +49,14 @@ class HybridPacket {
     static constexpr int kHandover = 4;
 
     // Traces rays.size() <= kLanes rays of any directions; invalid rays miss. answers[i]: ray i's closest hit
-    // (Hit) or occlusion (std::uint8_t, kAnyHit).
+    // (Hit) or occlusion (std::uint8_t, kAnyHit). Rays whose origins' box is wider than `shared_width` walk
+    // alone from the root.
     template <bool kAnyHit, bool kCount, class Answer>
-    void trace(std::span<const Ray> rays, std::span<Answer> answers, TraversalCounters& counts) {
+    void trace(std::span<const Ray> rays, std::span<Answer> answers, float shared_width,
+               TraversalCounters& counts) {
         LaneBits valid = 0;
         bool forward = true;
+        std::array<float, 3> lo{kInfinity, kInfinity, kInfinity}, hi{-kInfinity, -kInfinity, -kInfinity};
         for (int lane = 0; lane < kLanes; ++lane) {
             const auto index = static_cast<std::size_t>(lane);
             best_[index] = Hit{};
@@ -69,12 +73,23 @@ class HybridPacket {
             for (int axis = 0; axis < 3; ++axis) {
                 origin_[axis][index] = slab.origin[axis];
                 inv_direction_[axis][index] = slab.inv_direction[axis];
+                const auto a = static_cast<std::size_t>(axis);
+                lo[a] = std::min(lo[a], slab.origin[axis]), hi[a] = std::max(hi[a], slab.origin[axis]);
             }
             tnear_[index] = ray.tnear, tlimit_[index] = ray.tfar;
             forward = forward && ray.tnear >= 0.0f;
         }
         alive_ = valid;
-        if (valid != 0 && !nodes_.empty()) {
+        const float width = std::max(hi[0] - lo[0], std::max(hi[1] - lo[1], hi[2] - lo[2]));
+        if (valid != 0 && !nodes_.empty() && width > shared_width) {
+            // Rays that start apart share no node below the root's: each walks alone.
+            for (LaneBits rest = valid; rest != 0; rest &= rest - 1) {
+                const auto lane = static_cast<std::size_t>(std::countr_zero(rest));
+                const bool hit = wide_walk::traverse<kWidth, kAnyHit, kCount>(
+                    nodes_, blocks_, geometry_, *prepared_[lane], best_[lane], counts);
+                if (kAnyHit && hit) alive_ &= ~(LaneBits{1} << lane);
+            }
+        } else if (valid != 0 && !nodes_.empty()) {
             if (forward) {
                 walk<kAnyHit, kCount, true>(valid, counts);
             } else {

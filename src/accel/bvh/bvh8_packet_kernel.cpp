@@ -112,9 +112,12 @@ template <class Ops, bool kAnyHit, class Answer>
 void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<Answer> answers,
                  TraversalCounters* counters) {
     // The interval cull takes a packet whose directions agree to half their largest component and whose
-    // origins lie within 4 mean leaf diagonals: beyond, its rays share few leaves (docs/accel/stream.md).
+    // origins lie within 4 mean leaf diagonals: beyond, its rays share few leaves. The hybrid walks a group
+    // together when its origins lie within 32: beyond, they share no more than the root
+    // (docs/accel/stream.md).
     constexpr float kAgreeingSpread = 0.5f;
     constexpr float kCoherentLeaves = 4.0f;
+    constexpr float kSharedLeaves = 32.0f;
     const Bvh8Accel& bvh = target.bvh;
     const Geometry& geometry = target.geometry;
     constexpr auto kPacketRays = static_cast<std::size_t>(kPacketSize);
@@ -142,7 +145,8 @@ void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std:
             for (std::size_t part = 0; part < count; part += kLanes) {
                 const std::size_t part_count = std::min(kLanes, count - part);
                 hybrid.template trace<kAnyHit, kCount>(packet_rays.subspan(part, part_count),
-                                                       packet_answers.subspan(part, part_count), counts);
+                                                       packet_answers.subspan(part, part_count),
+                                                       kSharedLeaves * target.coherent_width, counts);
             }
         }
         if constexpr (kCount) *counters += counts;
