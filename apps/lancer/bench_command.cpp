@@ -1,7 +1,8 @@
 // lancer bench: the throughput of every structure on the views of shared/bench/VIEWS.md, Embree beside
 // lancer in the same process on the same rays and threads. Every structure's answers are checked against
 // the first structure's before it is timed, ray by ray; a disagreement fails the bench (exit code 1). The
-// timed paths are in bench_trace.hpp (the secondary views go 4096 consecutive rays a task through
+// structures of a mesh take turns frame by frame, so that their ratios hold on a machine whose speed drifts.
+// The timed paths are in bench_trace.hpp (the secondary views go 4096 consecutive rays a task through
 // intersect_parallel and occluded_parallel: Embree's rows then call rtcIntersectN or rtcOccludedN, or the
 // stream calls rtcIntersect1M or rtcOccluded1M, without the COHERENT flag), the JSON and SVG reports in
 // bench_report.hpp.
@@ -135,6 +136,13 @@ std::vector<BenchMesh> load_meshes(const BenchOptions& options) {
     return meshes;
 }
 
+// A structure of one mesh's run, built, with its build time on each thread count.
+struct BenchedAccel {
+    std::string name;
+    BuiltAccel built;
+    std::vector<double> build_ms;
+};
+
 std::string cpu_name() {
     std::ifstream cpuinfo("/proc/cpuinfo");
     std::string line;
@@ -202,79 +210,100 @@ void run(const BenchOptions& options) {
         const PinholeCamera camera(canonical_view(geometry.view().bounds(), options.size, options.size));
         std::vector<ViewRays> mesh_views =
             make_views(views, geometry.view(), camera, !options.moller_trumbore);
+        // Every structure of the mesh is built before any is timed, so that their frames can take turns.
+        std::vector<BenchedAccel> benched;
         for (const std::string& name : accels) {
             AccelChoice choice{name, !options.moller_trumbore, options.settings};
-            const BuiltAccel built = build_timed(choice, geometry.view());
+            BenchedAccel entry{name, build_timed(choice, geometry.view()), {}};
             // The build again on each thread count, so that the build figure is that count's: once per
             // structure and count, whatever the views.
-            std::vector<double> build_ms;
             for (int threads : thread_counts) {
-                run_with_threads(threads,
-                                 [&] { build_ms.push_back(build_timed(choice, geometry.view()).build_ms); });
+                run_with_threads(threads, [&] {
+                    entry.build_ms.push_back(build_timed(choice, geometry.view()).build_ms);
+                });
             }
-            for (ViewRays& view : mesh_views) {
-                // Validate before timing, through the timed path: the same answers as the first structure
-                // measured.
-                ViewAnswers answers = answer_view(*built.accel, view, camera);
+            benched.push_back(std::move(entry));
+        }
+        for (ViewRays& view : mesh_views) {
+            // Validate before timing, through the timed path: the same answers as the first structure
+            // measured. A structure that disagrees is not timed.
+            std::vector<ViewAnswers> answers;
+            std::vector<Agreement> agreements;
+            std::vector<bool> timed;
+            for (const BenchedAccel& entry : benched) {
+                answers.push_back(answer_view(*entry.built.accel, view, camera));
                 if (view.reference_name.empty()) {
-                    view.reference_name = name;
-                    view.reference = answers.hits;  // a shadow view's: the closest hits, made just below
-                    if (view.view == BenchView::Shadow) built.accel->intersect(view.rays, view.reference);
+                    view.reference_name = entry.name;
+                    view.reference =
+                        answers.back().hits;  // a shadow view's: the closest hits, made just below
+                    if (view.view == BenchView::Shadow)
+                        entry.built.accel->intersect(view.rays, view.reference);
                 }
-                const Agreement agreement =
+                agreements.push_back(
                     view.view == BenchView::Shadow
-                        ? compare_occlusion(view.rays, view.reference, answers.occluded)
-                        : compare_hits(view.rays, view.reference, answers.hits);
+                        ? compare_occlusion(view.rays, view.reference, answers.back().occluded)
+                        : compare_hits(view.rays, view.reference, answers.back().hits));
+                const Agreement& agreement = agreements.back();
                 // Embree is a peer with its own triangle test, not one of lancer's kernels: its row is kept,
                 // with the count of rays on which it answers otherwise.
-                if (agreement.mismatches > 0 && name.starts_with("embree")) {
+                timed.push_back(agreement.mismatches == 0 || entry.name.starts_with("embree"));
+                if (agreement.mismatches > 0 && entry.name.starts_with("embree")) {
                     fmt::print(
                         "bench: {} differs from {} on {}, {} view, on {} of {} rays (its own triangle "
                         "test); first: {}\n",
-                        name, view.reference_name, mesh.name, view_name(view.view), agreement.mismatches,
-                        agreement.rays, agreement.first_mismatch);
+                        entry.name, view.reference_name, mesh.name, view_name(view.view),
+                        agreement.mismatches, agreement.rays, agreement.first_mismatch);
                 } else if (agreement.mismatches > 0) {
-                    fmt::print(stderr, "bench: {} disagrees with {} on {}, {} view: {}\n", name,
+                    fmt::print(stderr, "bench: {} disagrees with {} on {}, {} view: {}\n", entry.name,
                                view.reference_name, mesh.name, view_name(view.view), agreement.summary());
                     agreement_failed = true;
-                    continue;
                 }
-                const double ray_count = static_cast<double>(view.rays.size());
-                for (std::size_t t = 0; t < thread_counts.size(); ++t) {
-                    const int threads = thread_counts[t];
-                    std::vector<double> mrays;
-                    // One arena for every frame of this count, its set-up outside the frames' clocks.
-                    run_with_threads(threads, [&] {
-                        for (int frame = -1; frame < options.frames; ++frame) {  // frame -1: the warm-up
+            }
+            const double ray_count = static_cast<double>(view.rays.size());
+            for (std::size_t t = 0; t < thread_counts.size(); ++t) {
+                const int threads = thread_counts[t];
+                std::vector<std::vector<double>> mrays(benched.size());
+                // The structures take turns frame by frame, so that a machine whose speed drifts (a shared
+                // VM: up to 40%) slows them alike and their ratios hold. One arena for every frame of this
+                // count, its set-up outside the frames' clocks.
+                run_with_threads(threads, [&] {
+                    for (int frame = -1; frame < options.frames; ++frame) {  // frame -1: the warm-ups
+                        for (std::size_t i = 0; i < benched.size(); ++i) {
+                            if (!timed[i]) continue;
+                            const Accel& accel = *benched[i].built.accel;
                             Stopwatch watch;
                             if (view.view == BenchView::Primary)
-                                trace_frame(*built.accel, camera, answers.hits);
+                                trace_frame(accel, camera, answers[i].hits);
                             else if (view.view == BenchView::Shadow)
-                                occluded_parallel(*built.accel, view.rays, answers.occluded);
+                                occluded_parallel(accel, view.rays, answers[i].occluded);
                             else
-                                intersect_parallel(*built.accel, view.rays, answers.hits);
-                            if (frame >= 0) mrays.push_back(ray_count / (watch.elapsed_ms() * 1e3));
+                                intersect_parallel(accel, view.rays, answers[i].hits);
+                            if (frame >= 0) mrays[i].push_back(ray_count / (watch.elapsed_ms() * 1e3));
                         }
-                    });
-                    std::sort(mrays.begin(), mrays.end());
+                    }
+                });
+                for (std::size_t i = 0; i < benched.size(); ++i) {
+                    if (!timed[i]) continue;
+                    std::sort(mrays[i].begin(), mrays[i].end());
+                    const ViewAnswers& answer = answers[i];
                     BenchRecord record;
                     record.mesh = mesh.name;
                     record.view = view.view;
                     record.triangles = geometry.triangle_count();
-                    record.accel = name;
+                    record.accel = benched[i].name;
                     record.threads = threads;
-                    record.build_ms = build_ms[t];
-                    record.memory_bytes = built.accel->memory_bytes();
+                    record.build_ms = benched[i].build_ms[t];
+                    record.memory_bytes = benched[i].built.accel->memory_bytes();
                     record.geometry_bytes = geometry.view().triangles.size() * sizeof(Triangle) +
                                             geometry.view().spheres.size() * sizeof(Sphere);
-                    record.mrays_median = mrays[mrays.size() / 2];
-                    record.mrays_min = mrays.front();
-                    record.mrays_max = mrays.back();
-                    record.hit_fraction = static_cast<double>(answers.hit_count) / ray_count;
-                    record.nodes_per_ray = static_cast<double>(answers.counters.nodes_visited) / ray_count;
-                    record.prims_per_ray = static_cast<double>(answers.counters.prims_tested) / ray_count;
-                    record.counted = answers.counters.nodes_visited > 0;
-                    record.mismatches = agreement.mismatches;
+                    record.mrays_median = mrays[i][mrays[i].size() / 2];
+                    record.mrays_min = mrays[i].front();
+                    record.mrays_max = mrays[i].back();
+                    record.hit_fraction = static_cast<double>(answer.hit_count) / ray_count;
+                    record.nodes_per_ray = static_cast<double>(answer.counters.nodes_visited) / ray_count;
+                    record.prims_per_ray = static_cast<double>(answer.counters.prims_tested) / ray_count;
+                    record.counted = answer.counters.nodes_visited > 0;
+                    record.mismatches = agreements[i].mismatches;
                     fmt::print(
                         "{:<16} {:<7} {:>9} {:<8} {:>3} {:>10.1f} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f} "
                         "{:>9.2f} "
