@@ -53,7 +53,8 @@ const std::vector<Entry>& registry() {
          [] { return std::make_unique<Bvh4Accel>(); }, &BvhAccel::option_rows},
         {"bvh8", "8-wide BVH collapsed from the binary one, SIMD boxes and triangle blocks",
          [] { return std::make_unique<Bvh8Accel>(); }, &BvhAccel::option_rows},
-        {"bvh8_packet", "the 8-wide BVH for packets of 64 coherent rays, 8 or 16 a SIMD instruction",
+        {"bvh8_packet",
+         "the 8-wide BVH for packets: 64 coherent rays at once, others 16 or 8 together until they part",
          [] { return std::make_unique<Bvh8PacketAccel>(); }, &BvhAccel::option_rows},
 #if LANCER_HAS_EMBREE
         {"embree", "Intel Embree 3, rtcIntersect1 and rtcOccluded1",
