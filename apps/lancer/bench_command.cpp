@@ -41,6 +41,7 @@ struct BenchOptions {
     std::string view_list = "primary";
     int size = 1024;
     int frames = 5;
+    int subdivide = 0;  // levels of midpoint subdivision of every mesh (4^N times its triangles)
     bool moller_trumbore = false;
     std::vector<std::string> settings;
     std::string json_file;
@@ -124,6 +125,14 @@ std::vector<BenchMesh> load_meshes(const BenchOptions& options) {
     }
     for (const std::string& file : files)
         meshes.push_back({fs::path(file).filename().string(), load_timed(file).scene});
+    for (BenchMesh& mesh : meshes) {
+        if (options.subdivide == 0) continue;
+        for (TriangleMesh& part : mesh.scene.meshes) {
+            for (int level = 0; level < options.subdivide; ++level)
+                part = subdivided(part);
+        }
+        mesh.name += fmt::format("/s{}", options.subdivide);
+    }
     if (meshes.empty()) {
         for (const auto& [name, segments] :
              {std::pair{"knot-70k", 1750}, {"knot-350k", 8750}, {"knot-870k", 21800}}) {
@@ -453,6 +462,12 @@ void add_bench_command(CLI::App& app) {
         ->capture_default_str();
     command->add_option("--frames", options->frames, "Timed frames (median, min, max)")
         ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
+    command
+        ->add_option("--subdivide", options->subdivide,
+                     "Split every triangle of every mesh into 4 at its edges' midpoints, N times: meshes of "
+                     "4^N times the triangles, the same shape (the dragon's 871k: 3.5M, 14M, 56M)")
+        ->check(CLI::Range(0, 4))
         ->capture_default_str();
     command->add_flag("--moller-trumbore", options->moller_trumbore,
                       "Moller-Trumbore instead of the default watertight test (Embree then runs its fast, "

@@ -9,6 +9,12 @@ namespace lancer {
 // by exactly two triangles, vertices shared by index), outward counter-clockwise winding, vertex normals.
 [[nodiscard]] TriangleMesh make_icosphere(int subdivisions, Vec3f center = Vec3f(0.0f), float radius = 1.0f);
 
+// `mesh` with each triangle split into four at its edges' midpoints (Loop's pattern without the smoothing):
+// an edge's midpoint is one vertex shared by the triangles of the edge, numbered in the order the triangles
+// first meet it, so a closed mesh stays closed; vertex normals, where given, are the normalised sums of the
+// edge's two; a triangle's material id goes to its four. The larger meshes of `lancer bench --subdivide`.
+[[nodiscard]] TriangleMesh subdivided(const TriangleMesh& mesh);
+
 // A (p, q) torus knot swept by a circle: a closed tube of 2 * segments * sides triangles with vertex
 // normals. About 70k, 350k and 870k triangles for segments = 1750, 8750, 21800 with 20 sides.
 [[nodiscard]] TriangleMesh make_torus_knot(int segments, int sides, int p = 2, int q = 3,

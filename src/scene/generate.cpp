@@ -1,48 +1,73 @@
 #include "lancer/generate.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
-#include <map>
+#include <cstdint>
 #include <numbers>
+#include <unordered_map>
 #include <utility>
 
 namespace lancer {
 
+TriangleMesh subdivided(const TriangleMesh& mesh) {
+    TriangleMesh finer;
+    finer.name = mesh.name;
+    finer.material = mesh.material;
+    finer.positions = mesh.positions;
+    finer.normals = mesh.normals;
+    const std::size_t triangles = mesh.triangle_count();
+    std::unordered_map<std::uint64_t, std::uint32_t> midpoints;
+    midpoints.reserve(triangles * 3 / 2 + 3);
+    const auto midpoint = [&](std::uint32_t a, std::uint32_t b) {
+        const auto [low, high] = std::minmax(a, b);
+        const std::uint64_t key = (static_cast<std::uint64_t>(low) << 32) | high;
+        const auto [it, inserted] =
+            midpoints.try_emplace(key, static_cast<std::uint32_t>(finer.positions.size()));
+        if (inserted) {
+            finer.positions.push_back(0.5f * (mesh.positions[a] + mesh.positions[b]));
+            if (!mesh.normals.empty()) finer.normals.push_back(normalize(mesh.normals[a] + mesh.normals[b]));
+        }
+        return it->second;
+    };
+    finer.indices.reserve(mesh.indices.size() * 4);
+    for (std::size_t i = 0; i < mesh.indices.size(); i += 3) {
+        const std::uint32_t a = mesh.indices[i], b = mesh.indices[i + 1], c = mesh.indices[i + 2];
+        const std::uint32_t ab = midpoint(a, b), bc = midpoint(b, c), ca = midpoint(c, a);
+        finer.indices.insert(finer.indices.end(), {a, ab, ca, b, bc, ab, c, ca, bc, ab, bc, ca});
+    }
+    finer.material_ids.reserve(mesh.material_ids.size() * 4);
+    for (const std::uint32_t id : mesh.material_ids)
+        finer.material_ids.insert(finer.material_ids.end(), {id, id, id, id});
+    return finer;
+}
+
 TriangleMesh make_icosphere(int subdivisions, Vec3f center, float radius) {
     // The 12 vertices of an icosahedron: cyclic permutations of (0, +-1, +-phi).
     const float phi = (1.0f + std::sqrt(5.0f)) / 2.0f;
-    std::vector<Vec3f> unit = {{-1, phi, 0}, {1, phi, 0}, {-1, -phi, 0}, {1, -phi, 0},
-                               {0, -1, phi}, {0, 1, phi}, {0, -1, -phi}, {0, 1, -phi},
-                               {phi, 0, -1}, {phi, 0, 1}, {-phi, 0, -1}, {-phi, 0, 1}};
-    for (Vec3f& p : unit)
+    TriangleMesh unit;
+    unit.name = "icosphere";
+    unit.positions = {{-1, phi, 0},  {1, phi, 0},  {-1, -phi, 0}, {1, -phi, 0}, {0, -1, phi},  {0, 1, phi},
+                      {0, -1, -phi}, {0, 1, -phi}, {phi, 0, -1},  {phi, 0, 1},  {-phi, 0, -1}, {-phi, 0, 1}};
+    for (Vec3f& p : unit.positions)
         p = normalize(p);
-    std::vector<std::uint32_t> indices = {0, 11, 5,  0, 5,  1, 0, 1, 7, 0, 7,  10, 0, 10, 11, 1, 5, 9, 5, 11,
-                                          4, 11, 10, 2, 10, 7, 6, 7, 1, 8, 3,  9,  4, 3,  4,  2, 3, 2, 6, 3,
-                                          6, 8,  3,  8, 9,  4, 9, 5, 2, 4, 11, 6,  2, 10, 8,  6, 7, 9, 8, 1};
+    unit.indices = {0, 11, 5,  0, 5,  1, 0, 1, 7, 0, 7,  10, 0, 10, 11, 1, 5, 9, 5, 11,
+                    4, 11, 10, 2, 10, 7, 6, 7, 1, 8, 3,  9,  4, 3,  4,  2, 3, 2, 6, 3,
+                    6, 8,  3,  8, 9,  4, 9, 5, 2, 4, 11, 6,  2, 10, 8,  6, 7, 9, 8, 1};
     for (int level = 0; level < subdivisions; ++level) {
-        // One midpoint per edge, shared by the two triangles of the edge: the mesh stays closed.
-        std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> midpoints;
-        auto midpoint = [&](std::uint32_t a, std::uint32_t b) {
-            const auto key = std::minmax(a, b);
-            auto [it, inserted] = midpoints.try_emplace(key, static_cast<std::uint32_t>(unit.size()));
-            if (inserted) unit.push_back(normalize(unit[a] + unit[b]));
-            return it->second;
-        };
-        std::vector<std::uint32_t> finer;
-        finer.reserve(indices.size() * 4);
-        for (std::size_t i = 0; i < indices.size(); i += 3) {
-            const std::uint32_t a = indices[i], b = indices[i + 1], c = indices[i + 2];
-            const std::uint32_t ab = midpoint(a, b), bc = midpoint(b, c), ca = midpoint(c, a);
-            finer.insert(finer.end(), {a, ab, ca, b, bc, ab, c, ca, bc, ab, bc, ca});
-        }
-        indices = std::move(finer);
+        // Each new midpoint projected back on the sphere: normalize((a + b) / 2) is normalize(a + b) bit for
+        // bit, the halving being exact.
+        const std::size_t coarse = unit.positions.size();
+        unit = subdivided(unit);
+        for (std::size_t v = coarse; v < unit.positions.size(); ++v)
+            unit.positions[v] = normalize(unit.positions[v]);
     }
     TriangleMesh mesh;
     mesh.name = "icosphere";
-    mesh.indices = std::move(indices);
-    mesh.normals = unit;
-    mesh.positions.reserve(unit.size());
-    for (const Vec3f& p : unit)
+    mesh.indices = std::move(unit.indices);
+    mesh.normals = unit.positions;
+    mesh.positions.reserve(unit.positions.size());
+    for (const Vec3f& p : unit.positions)
         mesh.positions.push_back(center + radius * p);
     return mesh;
 }

@@ -338,6 +338,21 @@ TEST_F(Cli, AnimationsTimeUpdatesAndWriteOneFramePerFile) {
     EXPECT_NE(result.output.find("must name each frame with one %d"), std::string::npos) << result.output;
 }
 
+// --subdivide N: each mesh with 4^N times its triangles, named with the level; beyond 4, refused.
+TEST_F(Cli, BenchSubdividesTheMeshes) {
+    const fs::path mesh = write("mesh.off", kMesh);
+    const fs::path json = dir_ / "subdivided.json";
+    const Result result =
+        run("bench --mesh " + mesh.string() +
+            " --accel bvh --threads 1 --size 16 --frames 1 --subdivide 2 --json " + json.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    std::ostringstream text;
+    text << std::ifstream(json).rdbuf();
+    EXPECT_NE(text.str().find("\"triangles\": 48"), std::string::npos) << text.str();  // 3 x 16
+    EXPECT_NE(text.str().find("mesh.off/s2"), std::string::npos) << text.str();
+    EXPECT_EQ(run("bench --mesh " + mesh.string() + " --subdivide 5").exit_code, 2);
+}
+
 // --view adds the secondary sets of VIEWS.md, one record per view; their answers are checked across
 // structures like the camera rays'. A floor under a floating triangle: some diffuse rays come back to the
 // scene and some shadow rays are blocked.

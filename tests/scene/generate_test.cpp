@@ -50,5 +50,35 @@ TEST(Generate, TorusKnotIsAClosedTube) {
     EXPECT_GT(signed_volume(mesh, {0, 0, 0}), 0.0);
 }
 
+// Subdivision keeps the shape: a closed mesh stays closed and wound the same way, with the same volume (the
+// midpoints lie on the faces), four times the triangles, one new vertex per edge, each triangle's material on
+// its four, unit normals; the corners of the coarse mesh keep their indices.
+TEST(Generate, SubdivisionSplitsEachTriangleInFourAndKeepsTheShape) {
+    TriangleMesh mesh = make_torus_knot(40, 6);
+    mesh.material_ids.resize(mesh.triangle_count());
+    for (std::size_t tri = 0; tri < mesh.triangle_count(); ++tri)
+        mesh.material_ids[tri] = static_cast<std::uint32_t>(tri % 5);
+    const TriangleMesh finer = subdivided(mesh);
+    EXPECT_EQ(finer.triangle_count(), 4 * mesh.triangle_count());
+    // A closed mesh of T triangles has 3T / 2 edges.
+    EXPECT_EQ(finer.positions.size(), mesh.positions.size() + 3 * mesh.triangle_count() / 2);
+    EXPECT_EQ(finer.normals.size(), finer.positions.size());
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v)
+        EXPECT_EQ(finer.positions[v], mesh.positions[v]);
+    for (const Vec3f& normal : finer.normals)
+        EXPECT_NEAR(length(normal), 1.0f, 1e-6f);
+    ASSERT_EQ(finer.material_ids.size(), finer.triangle_count());
+    for (std::size_t tri = 0; tri < finer.triangle_count(); ++tri)
+        EXPECT_EQ(finer.material_ids[tri], mesh.material_ids[tri / 4]) << tri;
+    expect_closed(finer);
+    const double coarse_volume = signed_volume(mesh, {0, 0, 0});
+    EXPECT_NEAR(signed_volume(finer, {0, 0, 0}), coarse_volume, 1e-5 * coarse_volume);
+    EXPECT_GT(coarse_volume, 0.0);
+    // Twice: 16 times the triangles, still closed.
+    const TriangleMesh finest = subdivided(finer);
+    EXPECT_EQ(finest.triangle_count(), 16 * mesh.triangle_count());
+    expect_closed(finest);
+}
+
 }  // namespace
 }  // namespace lancer
