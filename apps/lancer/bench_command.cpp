@@ -464,9 +464,11 @@ void add_bench_command(CLI::App& app) {
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
     command
-        ->add_option("--subdivide", options->subdivide,
-                     "Split every triangle of every mesh into 4 at its edges' midpoints, N times: meshes of "
-                     "4^N times the triangles, the same shape (the dragon's 871k: 3.5M, 14M, 56M)")
+        ->add_option(
+            "--subdivide", options->subdivide,
+            "Split every triangle of every mesh into 4 at its edges' midpoints, N times: meshes of "
+            "4^N times the triangles, the same shape (the dragon's 871k: 3.5M, 14M, 56M). Every structure "
+            "of --accel is held at once: name few for large N, or bound --max-memory")
         ->check(CLI::Range(0, 4))
         ->capture_default_str();
     command->add_flag("--moller-trumbore", options->moller_trumbore,
