@@ -1,4 +1,4 @@
-"""Inputs that once gave silent wrong answers (issue 50): each is now a defined answer or a ValueError that
+"""Inputs that once gave silent wrong answers: each is now a defined answer or a ValueError that
 names the argument. Run by CTest (python_tests) with the built module on PYTHONPATH."""
 import pytest
 

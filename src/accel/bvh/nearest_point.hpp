@@ -18,38 +18,26 @@
 #include "accel/bvh/triangle_block.hpp"
 #include "lancer/queries.hpp"
 #include "lancer/scene.hpp"
+#include "lancer/vec3d.hpp"
 
 namespace lancer::nearest {
-
-struct Vec3 {
-    double x, y, z;
-};
-inline Vec3 operator-(const Vec3& a, const Vec3& b) {
-    return {a.x - b.x, a.y - b.y, a.z - b.z};
-}
-inline double dot(const Vec3& a, const Vec3& b) {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-inline Vec3 in_double(const Vec3f& a) {
-    return {a.x, a.y, a.z};
-}
 
 // The barycentric weights (of v1, v2) of the point of triangle `tri` nearest to p: the Voronoi regions of
 // its vertices, then of its edges, then its face (Ericson, Real-Time Collision Detection, 5.1.5). A
 // degenerate triangle falls in a vertex's or an edge's region; a zero denominator there means two equal
 // vertices, and either end is nearest.
-inline std::pair<double, double> nearest_weights(const Triangle& tri, const Vec3& p) {
-    const Vec3 a = in_double(tri.v0), b = in_double(tri.v1), c = in_double(tri.v2);
-    const Vec3 ab = b - a, ac = c - a, ap = p - a;
+inline std::pair<double, double> nearest_weights(const Triangle& tri, const Vec3d& p) {
+    const Vec3d a = Vec3d(tri.v0), b = Vec3d(tri.v1), c = Vec3d(tri.v2);
+    const Vec3d ab = b - a, ac = c - a, ap = p - a;
     const double d1 = dot(ab, ap), d2 = dot(ac, ap);
     if (d1 <= 0.0 && d2 <= 0.0) return {0.0, 0.0};
-    const Vec3 bp = p - b;
+    const Vec3d bp = p - b;
     const double d3 = dot(ab, bp), d4 = dot(ac, bp);
     if (d3 >= 0.0 && d4 <= d3) return {1.0, 0.0};
     const auto ratio = [](double n, double d) { return d == 0.0 ? 0.0 : n / d; };
     const double vc = d1 * d4 - d3 * d2;
     if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return {ratio(d1, d1 - d3), 0.0};
-    const Vec3 cp = p - c;
+    const Vec3d cp = p - c;
     const double d5 = dot(ab, cp), d6 = dot(ac, cp);
     if (d6 >= 0.0 && d5 <= d6) return {0.0, 1.0};
     const double vb = d5 * d2 - d1 * d6;
@@ -64,26 +52,26 @@ inline std::pair<double, double> nearest_weights(const Triangle& tri, const Vec3
 }
 
 // The nearest point of primitive `prim` to p, and its squared distance in double.
-inline NearestPoint nearest_on(const Geometry& geometry, std::uint32_t prim, const Vec3& p,
+inline NearestPoint nearest_on(const Geometry& geometry, std::uint32_t prim, const Vec3d& p,
                                double& distance2) {
     NearestPoint nearest;
     nearest.prim = static_cast<std::int32_t>(prim);
-    Vec3 q;
+    Vec3d q{0.0, 0.0, 0.0};
     if (prim < geometry.triangles.size()) {
         const Triangle& tri = geometry.triangles[prim];
         const auto [u, v] = nearest_weights(tri, p);
-        const Vec3 a = in_double(tri.v0), b = in_double(tri.v1), c = in_double(tri.v2);
+        const Vec3d a = Vec3d(tri.v0), b = Vec3d(tri.v1), c = Vec3d(tri.v2);
         q = {a.x + u * (b.x - a.x) + v * (c.x - a.x), a.y + u * (b.y - a.y) + v * (c.y - a.y),
              a.z + u * (b.z - a.z) + v * (c.z - a.z)};
         nearest.u = static_cast<float>(u), nearest.v = static_cast<float>(v);
     } else {
         const Sphere& sphere = geometry.spheres[prim - geometry.triangles.size()];
-        const Vec3 centre = in_double(sphere.center), d = p - centre;
+        const Vec3d centre = Vec3d(sphere.center), d = p - centre;
         const double length = std::sqrt(dot(d, d));
         const double scale = length > 0.0 ? std::max(0.0, static_cast<double>(sphere.radius)) / length : 0.0;
         q = {centre.x + scale * d.x, centre.y + scale * d.y, centre.z + scale * d.z};
     }
-    const Vec3 e = p - q;
+    const Vec3d e = p - q;
     distance2 = dot(e, e);
     nearest.point = {static_cast<float>(q.x), static_cast<float>(q.y), static_cast<float>(q.z)};
     nearest.distance = static_cast<float>(std::sqrt(distance2));
@@ -94,11 +82,11 @@ inline NearestPoint nearest_on(const Geometry& geometry, std::uint32_t prim, con
 // primitive index.
 struct Search {
     const Geometry& geometry;
-    Vec3 p;
+    Vec3d p;
     NearestPoint best;
     double best2 = std::numeric_limits<double>::infinity();
 
-    Search(const Geometry& g, const Vec3f& point) : geometry(g), p(in_double(point)) {}
+    Search(const Geometry& g, const Vec3f& point) : geometry(g), p(Vec3d(point)) {}
 
     void consider(const NearestPoint& candidate, double distance2) {
         if (distance2 < best2 || (distance2 == best2 && candidate.prim < best.prim))
@@ -160,7 +148,7 @@ struct FourNearest {
     alignas(32) double u[4], v[4], x[4], y[4], z[4], distance2[4];
 
     template <int K>
-    FourNearest(const TriangleBlock<K>& block, int first, const Vec3& point) {
+    FourNearest(const TriangleBlock<K>& block, int first, const Vec3d& point) {
         const Vec3d4 p = {_mm256_set1_pd(point.x), _mm256_set1_pd(point.y), _mm256_set1_pd(point.z)};
         const Vec3d4 a = corner(block, 0, first), b = corner(block, 1, first), c = corner(block, 2, first);
         const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
