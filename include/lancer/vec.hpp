@@ -2,6 +2,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -80,8 +81,18 @@ struct Vec3f {
 [[nodiscard]] constexpr float max_component(Vec3f a) {
     return std::max(a.x, std::max(a.y, a.z));
 }
+// The axis of the largest component, the first of equal ones: x if x >= y and x >= z, else y if y >= z, else
+// z. By arithmetic on the comparisons, not branches: the watertight test takes the dominant axis of every
+// ray's direction, random on incoherent rays, where branches mispredicted (docs/accel/stream.md).
 [[nodiscard]] constexpr int max_axis(Vec3f a) {
-    return a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+    const int x_ge_y = a.x >= a.y, x_ge_z = a.x >= a.z, y_ge_z = a.y >= a.z;
+    const int if_x_ge_y = (1 - x_ge_z) << 1, otherwise = 2 - y_ge_z;
+    return otherwise ^ ((if_x_ge_y ^ otherwise) & -x_ge_y);
+}
+// The components as an array, for an index computed at run time: Vec3f::operator[]'s ternaries compile to
+// branches, which mispredict where the index varies from ray to ray.
+[[nodiscard]] constexpr std::array<float, 3> as_array(Vec3f a) {
+    return {a.x, a.y, a.z};
 }
 // Whether `a` is neither infinite nor NaN (which fails both comparisons). By comparisons rather than
 // std::isfinite, so that these and lancer/ray.hpp's is_valid are constexpr: nvcc compiles them for the

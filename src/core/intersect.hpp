@@ -187,9 +187,12 @@ struct Watertight {
     // The axes {kx, ky, kz} of a ray whose direction is dominant along kz: kx and ky the next two in cyclic
     // order, swapped when the dominant component is negative, to keep the winding. The packet kernels
     // (bvh/bvh8_packet.cpp) choose per lane from the same table.
+    // By arithmetic, not a choice between two arrays, which compiled to a branch on the ray's sign.
     [[nodiscard]] static constexpr std::array<int, 3> permutation(int kz, bool negative) {
-        const int next = kz == 2 ? 0 : kz + 1, last = next == 2 ? 0 : next + 1;
-        return negative ? std::array<int, 3>{last, next, kz} : std::array<int, 3>{next, last, kz};
+        const int next = (kz + 1) & -static_cast<int>(kz != 2),
+                  last = (next + 1) & -static_cast<int>(next != 2);
+        const int swapped = (next ^ last) & -static_cast<int>(negative);
+        return {next ^ swapped, last ^ swapped, kz};
     }
 
     struct RayData {
@@ -197,13 +200,16 @@ struct Watertight {
         int kx, ky, kz;  // kz: the dominant axis of the direction
         float shear_x, shear_y, shear_z;
 
+        // Without branches (max_axis, permutation and as_array's indexing): on incoherent rays the dominant
+        // axis and its sign are random, and branches mispredicted at every ray (docs/accel/stream.md).
         LANCER_HOST_DEVICE explicit RayData(const Ray& ray) : origin(ray.origin) {
             kz = max_axis(magnitude(ray.direction));
-            const std::array<int, 3> axes = permutation(kz, ray.direction[kz] < 0.0f);
+            const std::array<float, 3> direction = as_array(ray.direction);
+            const std::array<int, 3> axes = permutation(kz, direction[kz] < 0.0f);
             kx = axes[0], ky = axes[1];
-            shear_x = ray.direction[kx] / ray.direction[kz];
-            shear_y = ray.direction[ky] / ray.direction[kz];
-            shear_z = 1.0f / ray.direction[kz];
+            shear_x = direction[kx] / direction[kz];
+            shear_y = direction[ky] / direction[kz];
+            shear_z = 1.0f / direction[kz];
         }
     };
 

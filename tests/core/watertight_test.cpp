@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <limits>
 
 #include <random>
 
@@ -83,6 +84,25 @@ TEST(Watertight, PermutationOfEveryDominantAxisAndSign) {
             EXPECT_EQ(data.kz, kz);
             EXPECT_EQ(data.kx, axes[0]);
             EXPECT_EQ(data.ky, axes[1]);
+        }
+    }
+}
+
+// max_axis, computed without branches, against its rule written as branches (x if x >= y and x >= z, else y
+// if y >= z, else z) on every triple of magnitudes from a set with ties, infinities and NaN.
+TEST(Watertight, DominantAxisIsTheFirstOfTheLargestComponents) {
+    const float values[] = {0.0f, 1.0f, 2.0f, kInfinity, std::numeric_limits<float>::quiet_NaN()};
+    for (const float x : values) {
+        for (const float y : values) {
+            for (const float z : values) {
+                int expected = 2;
+                if (x >= y && x >= z) {
+                    expected = 0;
+                } else if (y >= z) {
+                    expected = 1;
+                }
+                EXPECT_EQ(max_axis(Vec3f(x, y, z)), expected) << x << " " << y << " " << z;
+            }
         }
     }
 }

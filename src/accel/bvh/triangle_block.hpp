@@ -304,9 +304,12 @@ struct WatertightBlock {
     int kx, ky, kz;
 
     explicit WatertightBlock(const Watertight::RayData& ray)
-        : lanes{Ops::broadcast(ray.origin[ray.kx]), Ops::broadcast(ray.origin[ray.ky]),
-                Ops::broadcast(ray.origin[ray.kz]), Ops::broadcast(ray.shear_x),
-                Ops::broadcast(ray.shear_y),        Ops::broadcast(ray.shear_z)},
+        : lanes{Ops::broadcast(as_array(ray.origin)[ray.kx]),
+                Ops::broadcast(as_array(ray.origin)[ray.ky]),
+                Ops::broadcast(as_array(ray.origin)[ray.kz]),
+                Ops::broadcast(ray.shear_x),
+                Ops::broadcast(ray.shear_y),
+                Ops::broadcast(ray.shear_z)},
           kx(ray.kx),
           ky(ray.ky),
           kz(ray.kz) {}
