@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <stdexcept>
@@ -17,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "accel/bvh/nearest_point.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/packet.hpp"
 #include "lancer/queries.hpp"
@@ -196,6 +198,59 @@ TEST_P(DomainTest, ScaledSceneIsAnsweredAsTheOrdinaryOne) {
     }
 }
 
+// A scene moved across the ordinary range's edge and back by Accel::update: when the scale at which the
+// structure sees it changes, the structure is built again at the new one; within one scale, the scaled copy
+// is rewritten in place (and the BVHs refit it). Each update answers as a build on the moved geometry does.
+TEST_P(DomainTest, UpdatesAcrossScalesAnswerAsBuilds) {
+    const TestScene ordinary = ordinary_scene();
+    const auto times = [&](float factor) {
+        TestScene moved = ordinary;
+        for (Triangle& t : moved.triangles)
+            t = {t.v0 * factor, t.v1 * factor, t.v2 * factor};
+        for (Sphere& sphere : moved.spheres)
+            sphere = {sphere.center * factor, sphere.radius * factor, sphere.material};
+        return moved;
+    };
+    // Sides 16 (ordinary), then 1.5 2^54 and 1.25 2^54 (one scale), 2^-70 (another), and 16 again.
+    const std::vector<TestScene> frames = {ordinary, times(0x1.8p50f), times(0x1.4p50f), times(0x1p-74f),
+                                           ordinary};
+    for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+        const std::unique_ptr<Accel> updated = make_accel(GetParam());
+        updated->build(frames[0].geometry(), build_options(test));
+        for (std::size_t f = 1; f < frames.size(); ++f) {
+            static_cast<void>(updated->update(frames[f].geometry()));
+            const std::vector<Ray> rays = testing::random_rays(frames[f].geometry().bounds(), 2000, 80).rays;
+            const std::unique_ptr<Accel> built = make_accel(GetParam());
+            built->build(frames[f].geometry(), build_options(test));
+            std::vector<Hit> expected(rays.size()), got(rays.size());
+            built->intersect(rays, expected);
+            updated->intersect(rays, got);
+            std::size_t differences = 0, hits = 0;
+            for (std::size_t i = 0; i < rays.size(); ++i) {
+                hits += expected[i].hit() ? 1 : 0;
+                differences += std::memcmp(&expected[i], &got[i], sizeof(Hit)) == 0 ? 0 : 1;
+            }
+            EXPECT_EQ(differences, 0u) << "frame " << f;
+            EXPECT_GT(hits, rays.size() / 10) << "frame " << f;
+            // The queries walk the updated tree of a BVH (another tree of their own otherwise).
+            const GeometryQueries updated_queries(*updated, frames[f].geometry(), test);
+            const GeometryQueries built_queries(*built, frames[f].geometry(), test);
+            std::size_t query_differences = 0;
+            for (std::size_t i = 0; i < 200; ++i) {
+                std::vector<Hit> all, all_built;
+                updated_queries.all_hits(rays[i], all);
+                built_queries.all_hits(rays[i], all_built);
+                query_differences += all.size() == all_built.size() ? 0 : 1;
+                const Vec3f p = rays[i].origin;
+                query_differences +=
+                    updated_queries.nearest_point(p).distance == built_queries.nearest_point(p).distance ? 0
+                                                                                                         : 1;
+            }
+            EXPECT_EQ(query_differences, 0u) << "frame " << f;
+        }
+    }
+}
+
 // The case, against the exact answer: a triangle 4e13 across hit straight on, t = 3e13, and its
 // barycentrics.
 TEST_P(DomainTest, HugeTriangleHitStraightOn) {
@@ -231,6 +286,28 @@ TEST_P(DomainTest, HugeTriangleHitStraightOn) {
         const NearestPoint nearest = queries.nearest_point({0, 0, 3e13f});
         EXPECT_EQ(nearest.prim, 0);
         EXPECT_EQ(nearest.distance, 3e13f);
+    }
+}
+
+// Query points far from the scene (not bounded by the domain): the nearest point is brute force's, in the
+// ordinary scene and in one scaled up, where the point scaled with it passes the float range. The wide
+// BVHs bounded their boxes by squared distances in float, which overflowed to +inf, and found nothing.
+TEST_P(DomainTest, FarQueryPointsFindTheNearestPoint) {
+    for (const int exponent : {0, -60}) {
+        const TestScene scene = scaled_scene(ordinary_scene(), exponent);
+        const Geometry geometry = scene.geometry();
+        const std::unique_ptr<Accel> accel = make_accel(GetParam());
+        accel->build(geometry, build_options(TriangleTest::MollerTrumbore));
+        const GeometryQueries queries(*accel, geometry, TriangleTest::MollerTrumbore);
+        for (const Vec3f p : {Vec3f(1e30f, 0, 0), Vec3f(-3e38f, 2e38f, 1), Vec3f(0, 0x1p70f, -0x1p70f)}) {
+            nearest::Search brute(geometry, Vec3d(p));
+            for (std::uint32_t prim = 0; prim < geometry.size(); ++prim)
+                brute.primitive(prim);
+            const NearestPoint got = queries.nearest_point(p);
+            EXPECT_EQ(got.prim, brute.best.prim)
+                << scene.name << " (" << p.x << ", " << p.y << ", " << p.z << ")";
+            EXPECT_EQ(got.distance, brute.best.distance) << scene.name;
+        }
     }
 }
 
