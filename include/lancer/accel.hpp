@@ -197,6 +197,13 @@ class Accel {
     // The box of the primitives that can be hit, as built (empty before), in the caller's units: what makes a
     // ray's origin far.
     [[nodiscard]] const Box3f& bounds() const { return bounds_; }
+    // The geometry the structure was built on, whose arrays it holds (ExportedLayout): the caller's, or, for
+    // a scene whose largest side lies outside [2^-20, 2^20], a copy scaled by 2^scale_exponent(), a power of
+    // two that brings it into [1/2, 1), where no product of the kernels overflows or underflows
+    // (docs/numerical-contract.md, "Coordinate domain"). Rays are scaled with it before the structure sees
+    // them, and their hits' t mapped back.
+    [[nodiscard]] const Geometry& built_geometry() const { return built_geometry_; }
+    [[nodiscard]] int scale_exponent() const { return scale_exponent_; }
     [[nodiscard]] virtual AccelStats stats() const = 0;
     // Bytes the structure itself needs at trace time, the geometry it was built on excluded.
     [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
@@ -220,12 +227,7 @@ class Accel {
     // What build does before build_structure, for a structure that gets its arrays another way (a file):
     // checks the domain, records the scene's box for far rays and the primitive counts for update, and makes
     // the geometry the structure is built on (built_geometry).
-    void accept_geometry(const Geometry& geometry, const BuildOptions& options);
-    // What build_structure and update_structure are given: the caller's geometry, or, for a scene whose size
-    // lies outside the ordinary range, a copy scaled by a power of two that the kernels answer exactly
-    // (scene_scale_exponent, src/core/ray_conditioning.hpp; docs/numerical-contract.md, "Coordinate domain").
-    // Rays are scaled with it before the batch methods see them, and their hits' t mapped back.
-    [[nodiscard]] const Geometry& built_geometry() const { return built_geometry_; }
+    void accept_geometry(const Geometry& geometry);
     // The box of built_geometry's primitives that can be hit: the one a structure derives its own sizes from.
     [[nodiscard]] const Box3f& built_bounds() const { return built_bounds_; }
     // update() of a structure this one is made of (a packet structure's single-ray one), on geometry that
@@ -263,8 +265,6 @@ class Accel {
     std::vector<Sphere> scaled_spheres_;
     Geometry built_geometry_;
     Box3f built_bounds_;
-    // The options of the last build, for the rebuild an update makes when the scene's scale changes.
-    BuildOptions build_options_;
 };
 
 // intersect() and occluded() on `threads` threads (0: all, or those of the oneTBB arena the caller runs in),

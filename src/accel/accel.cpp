@@ -56,12 +56,11 @@ Box3f Accel::checked_bounds(const Geometry& geometry) {
     return bounds;
 }
 
-void Accel::accept_geometry(const Geometry& geometry, const BuildOptions& options) {
+void Accel::accept_geometry(const Geometry& geometry) {
     bounds_ = checked_bounds(geometry);
     triangle_count_ = geometry.triangles.size();
     sphere_count_ = geometry.spheres.size();
     scale_exponent_ = scene_scale_exponent(bounds_);
-    build_options_ = options;
     make_built_geometry(geometry);
 }
 
@@ -77,7 +76,7 @@ void Accel::make_built_geometry(const Geometry& geometry) {
 }
 
 void Accel::build(const Geometry& geometry, const BuildOptions& options) {
-    accept_geometry(geometry, options);
+    accept_geometry(geometry);
     build_structure(built_geometry_, options);
 }
 
@@ -98,16 +97,12 @@ UpdateReport Accel::update_within(const Geometry& geometry, const Box3f& bounds)
     const auto start = std::chrono::steady_clock::now();
     // The box first: a structure that rebuilds reads it (embree's scale, the octrees' root cube).
     bounds_ = bounds;
-    UpdateReport report;
-    if (const int exponent = scene_scale_exponent(bounds); exponent != scale_exponent_) {
-        // The scene grew or shrank into another scale: its tree, made at the old one, is built again.
-        scale_exponent_ = exponent;
-        make_built_geometry(geometry);
-        build_structure(built_geometry_, build_options_);
-    } else {
-        make_built_geometry(geometry);
-        report = update_structure(built_geometry_);
-    }
+    // A scene that moved into another scale is seen at the new one: every structure's update derives its
+    // boxes or cells from the geometry it is given (a refit recomputes every box), so none keeps a size of
+    // the old scale.
+    scale_exponent_ = scene_scale_exponent(bounds);
+    make_built_geometry(geometry);
+    UpdateReport report = update_structure(built_geometry_);
     report.structure_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return report;

@@ -107,7 +107,7 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& /*geometry: accel's*/
     if (!cuda_available(&why)) throw CudaError(why);
     impl_->kernel = kernel;
     impl_->bounds = accel.bounds();
-    impl_->scale_exponent = accel.scale_exponent_;
+    impl_->scale_exponent = accel.scale_exponent();
     impl_->scene.watertight = test == TriangleTest::Watertight;
     const ExportedLayout exported = accel.exported_layout();
     if (kernel == CudaKernel::Plucker) {
@@ -129,7 +129,7 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& /*geometry: accel's*/
         throw std::invalid_argument("cuda: the " + std::string(cuda_kernel_name(kernel)) +
                                     " kernel traces a `bvh` or `bvh_packet` structure");
     // The triangles the tree was built on: the caller's geometry, or its copy at the structure's scale.
-    const gpu::FlatBvh flat = gpu::flatten_bvh(*exported.bvh, accel.built_geometry_);
+    const gpu::FlatBvh flat = gpu::flatten_bvh(*exported.bvh, accel.built_geometry());
     impl_->scene.bvh = {impl_->nodes.upload(flat.nodes), static_cast<std::uint32_t>(flat.nodes.size()),
                         impl_->triangles.upload(flat.triangles)};
 }

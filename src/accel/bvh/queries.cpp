@@ -292,10 +292,10 @@ Vec3f bounding_point(const Box3f& scene_bounds, const Vec3d& p) {
 
 void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
     const Accel& scene = *impl_->scene;
-    const Geometry& geometry = scene.built_geometry_;
+    const Geometry& geometry = scene.built_geometry();
     if (!is_valid(ray) || geometry.size() == 0) return;
     const ConditionedRays conditioned =
-        condition_rays(std::span(&ray, 1), scene.bounds_, scene.scale_exponent_);
+        condition_rays(std::span(&ray, 1), scene.bounds(), scene.scale_exponent());
     const Ray& traced = conditioned.rays.empty() ? ray : conditioned.rays[0];
     const std::size_t first = hits.size();
     dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
@@ -329,8 +329,8 @@ void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
 
 NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
     const Accel& scene = *impl_->scene;
-    const Geometry& geometry = scene.built_geometry_;
-    const int exponent = scene.scale_exponent_;
+    const Geometry& geometry = scene.built_geometry();
+    const int exponent = scene.scale_exponent();
     // The point at the scene's scale, exactly in double whatever the exponent.
     const Vec3d p(std::ldexp(double(point.x), exponent), std::ldexp(double(point.y), exponent),
                   std::ldexp(double(point.z), exponent));
@@ -338,9 +338,9 @@ NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
     if (geometry.size() == 0) return search.best;
     NearestPoint nearest;
     if (impl_->bvh8 != nullptr) {
-        nearest = wide_nearest(*impl_->bvh8, bounding_point(scene.built_bounds_, p), search);
+        nearest = wide_nearest(*impl_->bvh8, bounding_point(scene.built_bounds(), p), search);
     } else if (impl_->bvh4 != nullptr) {
-        nearest = wide_nearest(*impl_->bvh4, bounding_point(scene.built_bounds_, p), search);
+        nearest = wide_nearest(*impl_->bvh4, bounding_point(scene.built_bounds(), p), search);
     } else {
         nearest = binary_nearest(*impl_->binary, search);
     }

@@ -46,14 +46,14 @@ UpdateReport PluckerAccel::update_structure(const Geometry& geometry) {
 }
 
 void PluckerAccel::adopt(const Geometry& geometry, const BuildOptions& options, PluckerLayout layout) {
+    accept_geometry(geometry);
+    // The layout was built on the geometry at the scale the structures see it (read_plucker_file checks it).
+    geometry_ = built_geometry();
     options_ = options;
     PluckerOptions& plucker_options = options_.group<PluckerOptions>();
     plucker_options.balanced = layout.options.balanced;
     plucker_options.stored_boxes = layout.options.stored_boxes;
     plucker_options.morton = layout.options.morton;
-    accept_geometry(geometry, options_);
-    // The layout was built on the geometry at the scale the structures see it (read_plucker_file checks it).
-    geometry_ = built_geometry();
     layout_ = std::move(layout);
     compute_layout_stats();
 }
