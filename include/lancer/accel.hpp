@@ -194,8 +194,16 @@ class Accel {
     // Any hit in [tnear, tfar]: occluded[i] = 1 when ray i hits something, 0 otherwise.
     void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                   TraversalCounters* counters = nullptr) const;
-    // The box of the primitives that can be hit, as built (empty before): what makes a ray's origin far.
+    // The box of the primitives that can be hit, as built (empty before), in the caller's units: what makes a
+    // ray's origin far.
     [[nodiscard]] const Box3f& bounds() const { return bounds_; }
+    // The geometry the structure was built on, whose arrays it holds (ExportedLayout): the caller's, or, for
+    // a scene whose largest side lies outside [2^-20, 2^20], a copy scaled by 2^scale_exponent(), a power of
+    // two that brings it into [1/2, 1), where no product of the kernels overflows or underflows
+    // (docs/numerical-contract.md, "Coordinate domain"). Rays are scaled with it before the structure sees
+    // them, and their hits' t mapped back.
+    [[nodiscard]] const Geometry& built_geometry() const { return built_geometry_; }
+    [[nodiscard]] int scale_exponent() const { return scale_exponent_; }
     [[nodiscard]] virtual AccelStats stats() const = 0;
     // Bytes the structure itself needs at trace time, the geometry it was built on excluded.
     [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
@@ -217,8 +225,11 @@ class Accel {
     virtual void intersect_packet_rays(const RayPacket& rays, HitPacket& hits,
                                        TraversalCounters* counters) const;
     // What build does before build_structure, for a structure that gets its arrays another way (a file):
-    // checks the domain and records the scene's box for far rays and the primitive counts for update.
+    // checks the domain, records the scene's box for far rays and the primitive counts for update, and makes
+    // the geometry the structure is built on (built_geometry).
     void accept_geometry(const Geometry& geometry);
+    // The box of built_geometry's primitives that can be hit: the one a structure derives its own sizes from.
+    [[nodiscard]] const Box3f& built_bounds() const { return built_bounds_; }
     // update() of a structure this one is made of (a packet structure's single-ray one), on geometry that
     // update() has checked.
     UpdateReport update_held(Accel& held, const Geometry& geometry) const;
@@ -241,9 +252,19 @@ class Accel {
     // update() once `geometry` is known to have the built counts, coordinates inside the domain, and
     // `bounds` as the box of its primitives that can be hit.
     UpdateReport update_within(const Geometry& geometry, const Box3f& bounds);
+    // Makes built_geometry and built_bounds for `geometry`, of box bounds_, at scale 2^scale_exponent_: the
+    // caller's spans, or the scaled copy rewritten in place.
+    void make_built_geometry(const Geometry& geometry);
 
     Box3f bounds_;
     std::size_t triangle_count_ = 0, sphere_count_ = 0;
+    // The structure sees the scene scaled by 2^scale_exponent_ (0 for an ordinary scene, which it sees as
+    // given); the scaled copy is kept here, for the structure keeps spans of its geometry.
+    int scale_exponent_ = 0;
+    std::vector<Triangle> scaled_triangles_;
+    std::vector<Sphere> scaled_spheres_;
+    Geometry built_geometry_;
+    Box3f built_bounds_;
 };
 
 // intersect() and occluded() on `threads` threads (0: all, or those of the oneTBB arena the caller runs in),

@@ -7,6 +7,7 @@
 #include <string>
 #include <type_traits>
 
+#include "accel/build_util.hpp"
 #include "accel/packet_batch.hpp"
 #include "core/checked_points.hpp"
 #include "core/parallel.hpp"
@@ -24,9 +25,9 @@ void check_batch(std::size_t ray_count, std::size_t answer_count) {
 // Conditions the batch, hands it to `trace` (one of the closest-hit batch methods), maps the hits back.
 template <class Trace>
 void intersect_conditioned(std::span<const Ray> rays, std::span<Hit> hits, const Box3f& bounds,
-                           Trace&& trace) {
+                           int scene_exponent, Trace&& trace) {
     check_batch(rays.size(), hits.size());
-    const ConditionedRays conditioned = condition_rays(rays, bounds);
+    const ConditionedRays conditioned = condition_rays(rays, bounds, scene_exponent);
     trace(conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays));
     restore_hits(conditioned, rays, hits);
 }
@@ -59,11 +60,24 @@ void Accel::accept_geometry(const Geometry& geometry) {
     bounds_ = checked_bounds(geometry);
     triangle_count_ = geometry.triangles.size();
     sphere_count_ = geometry.spheres.size();
+    scale_exponent_ = scene_scale_exponent(bounds_);
+    make_built_geometry(geometry);
+}
+
+void Accel::make_built_geometry(const Geometry& geometry) {
+    if (scale_exponent_ == 0) {
+        scaled_triangles_ = {}, scaled_spheres_ = {};
+        built_geometry_ = geometry;
+        built_bounds_ = bounds_;
+        return;
+    }
+    built_bounds_ = scale_geometry(geometry, scale_exponent_, scaled_triangles_, scaled_spheres_);
+    built_geometry_ = {scaled_triangles_, scaled_spheres_};
 }
 
 void Accel::build(const Geometry& geometry, const BuildOptions& options) {
     accept_geometry(geometry);
-    build_structure(geometry, options);
+    build_structure(built_geometry_, options);
 }
 
 UpdateReport Accel::update(const Geometry& geometry) {
@@ -83,25 +97,32 @@ UpdateReport Accel::update_within(const Geometry& geometry, const Box3f& bounds)
     const auto start = std::chrono::steady_clock::now();
     // The box first: a structure that rebuilds reads it (embree's scale, the octrees' root cube).
     bounds_ = bounds;
-    UpdateReport report = update_structure(geometry);
+    // A scene that moved into another scale is seen at the new one: every structure's update derives its
+    // boxes or cells from the geometry it is given (a refit recomputes every box), so none keeps a size of
+    // the old scale.
+    scale_exponent_ = scene_scale_exponent(bounds);
+    make_built_geometry(geometry);
+    UpdateReport report = update_structure(built_geometry_);
     report.structure_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return report;
 }
 
 UpdateReport Accel::update_held(Accel& held, const Geometry& geometry) const {
-    held.bounds_ = bounds_;
+    // The held structure was built on this one's built geometry, at scale 1.
+    held.bounds_ = built_bounds_, held.built_bounds_ = built_bounds_;
+    held.built_geometry_ = geometry;
     return held.update_structure(geometry);
 }
 
 void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, TraversalCounters* counters) const {
-    intersect_conditioned(rays, hits, bounds_,
+    intersect_conditioned(rays, hits, bounds_, scale_exponent_,
                           [&](std::span<const Ray> batch) { intersect_batch(batch, hits, counters); });
 }
 
 void Accel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits,
                                TraversalCounters* counters) const {
-    intersect_conditioned(rays, hits, bounds_, [&](std::span<const Ray> batch) {
+    intersect_conditioned(rays, hits, bounds_, scale_exponent_, [&](std::span<const Ray> batch) {
         intersect_coherent_batch(batch, hits, counters);
     });
 }
@@ -111,11 +132,12 @@ void Accel::intersect_packet(const RayPacket& rays, HitPacket& hits, TraversalCo
         throw std::invalid_argument("Accel::intersect_packet: packet size " + std::to_string(rays.size) +
                                     ", expected 0 to " + std::to_string(RayPacket::kMaxSize));
     }
-    if (!any_may_need_conditioning(rays, FarOriginFrame(bounds_))) {
+    if (scale_exponent_ == 0 && !any_may_need_conditioning(rays, FarOriginFrame(bounds_))) {
         intersect_packet_rays(rays, hits, counters);
         return;
     }
-    // A packet with a ray to condition (rare: a far origin or an extreme direction) takes the batch path.
+    // A packet with a ray to condition (rare: a far origin, an extreme direction, a scene scaled outside the
+    // ordinary range) takes the batch path.
     trace_packet_as_batch(rays, hits, [&](std::span<const Ray> batch, std::span<Hit> batch_hits) {
         intersect_coherent(batch, batch_hits, counters);
     });
@@ -130,7 +152,7 @@ void Accel::intersect_packet_rays(const RayPacket& rays, HitPacket& hits, Traver
 void Accel::occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                      TraversalCounters* counters) const {
     check_batch(rays.size(), occluded.size());
-    const ConditionedRays conditioned = condition_rays(rays, bounds_);
+    const ConditionedRays conditioned = condition_rays(rays, bounds_, scale_exponent_);
     occluded_batch(conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays), occluded,
                    counters);
 }

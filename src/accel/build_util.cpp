@@ -1,5 +1,6 @@
 #include "accel/build_util.hpp"
 
+#include "core/parallel.hpp"
 #include "core/ray_conditioning.hpp"
 
 #include <array>
@@ -18,6 +19,47 @@ float geometric_tolerance(const Box3f& scene_bounds) {
     const float largest_coordinate =
         std::max(max_component(abs(scene_bounds.lo)), max_component(abs(scene_bounds.hi)));
     return 0x1p-20f * largest_coordinate + kKernelTolerance * max_component(scene_bounds.extent());
+}
+
+namespace {
+
+// Primitives per task of scale_geometry.
+constexpr std::size_t kScaleGrain = 1 << 15;
+
+Vec3f scaled_point(Vec3f p, int exponent) {
+    return {std::ldexp(p.x, exponent), std::ldexp(p.y, exponent), std::ldexp(p.z, exponent)};
+}
+
+}  // namespace
+
+Box3f hit_bounds(const Geometry& geometry) {
+    Box3f box;
+    for (const Triangle& t : geometry.triangles)
+        box.extend(t.bounds());
+    for (const Sphere& sphere : geometry.spheres) {
+        if (sphere.radius > 0.0f) box.extend(sphere.bounds());
+    }
+    return box;
+}
+
+Box3f scale_geometry(const Geometry& geometry, int exponent, std::vector<Triangle>& triangles,
+                     std::vector<Sphere>& spheres) {
+    triangles.resize(geometry.triangles.size());
+    spheres.resize(geometry.spheres.size());
+    parallel::for_each_chunk(0, triangles.size(), kScaleGrain, [&](std::size_t from, std::size_t to) {
+        for (std::size_t i = from; i < to; ++i) {
+            const Triangle& t = geometry.triangles[i];
+            triangles[i] = {scaled_point(t.v0, exponent), scaled_point(t.v1, exponent),
+                            scaled_point(t.v2, exponent)};
+        }
+    });
+    for (std::size_t i = 0; i < spheres.size(); ++i) {
+        const Sphere& sphere = geometry.spheres[i];
+        spheres[i] = {scaled_point(sphere.center, exponent), std::ldexp(sphere.radius, exponent),
+                      sphere.material};
+    }
+    // The box as the structures compute it, a sphere's rounded at the new scale.
+    return hit_bounds({triangles, spheres});
 }
 
 namespace {

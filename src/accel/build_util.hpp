@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "lancer/box.hpp"
 #include "lancer/scene.hpp"
@@ -36,6 +37,16 @@ namespace lancer {
 // (kKernelTolerance, core/ray_conditioning.hpp), for the triangle tests' rounding, a few 2^-24 |T| from an
 // origin that ray conditioning keeps within 4.5 sides of every vertex.
 [[nodiscard]] float geometric_tolerance(const Box3f& scene_bounds);
+
+// The box of the primitives that can be hit: the triangles and the spheres of radius > 0.
+[[nodiscard]] Box3f hit_bounds(const Geometry& geometry);
+
+// `geometry` scaled by 2^exponent into `triangles` and `spheres`, resized to its counts (their storage kept
+// when the counts are), and the box of its primitives that can be hit: the copy Accel::built_geometry holds
+// for a scene whose size lies outside the ordinary range (scene_scale_exponent, core/ray_conditioning.hpp),
+// exact but for coordinates that underflow far below the scene's rounding.
+Box3f scale_geometry(const Geometry& geometry, int exponent, std::vector<Triangle>& triangles,
+                     std::vector<Sphere>& spheres);
 
 [[nodiscard]] inline Box3f intersection(const Box3f& a, const Box3f& b) {
     return {max(a.lo, b.lo), min(a.hi, b.hi)};

@@ -132,8 +132,8 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
     quality_ = options.group<EmbreeOptions>().quality;
     triangle_test_ = options.triangle_test;
     triangle_count_ = static_cast<unsigned int>(geometry.triangles.size());
-    scene_box_ = bounds().grown(geometric_tolerance(bounds()));
-    scene_scale_ = scene_scale(bounds());
+    scene_box_ = built_bounds().grown(geometric_tolerance(built_bounds()));
+    scene_scale_ = scene_scale(built_bounds());
     primitive_count_ = geometry.size();
     buffer_bytes_ = 0;
     scene_ = rtcNewScene(device_);
@@ -185,8 +185,8 @@ void EmbreeAccel::build_structure(const Geometry& geometry, const BuildOptions& 
 }
 
 UpdateReport EmbreeAccel::update_structure(const Geometry& geometry) {
-    scene_box_ = bounds().grown(geometric_tolerance(bounds()));
-    if (scene_scale(bounds()) != scene_scale_) {
+    scene_box_ = built_bounds().grown(geometric_tolerance(built_bounds()));
+    if (scene_scale(built_bounds()) != scene_scale_) {
         // The scale the scene's copy was made with no longer fits its coordinates: a new copy.
         BuildOptions options = build_options(triangle_test_);
         options.group<EmbreeOptions>().quality = quality_;

@@ -1,14 +1,17 @@
 // Rays conditioned once per batch, before any structure sees them, the same way for every structure (and the
-// CUDA tracer): a direction near the ends of the float range is scaled by a power of two, and a ray from far
-// away is moved near the scene along its line; t is mapped back after the trace. So every kernel works on
-// products that neither overflow nor underflow, rounded at the scene's scale, not at the origin's distance:
-// docs/numerical-contract.md, "Ray conditioning" and "Far origins".
+// CUDA tracer): a direction near the ends of the float range is scaled by a power of two, a ray from far
+// away is moved near the scene along its line, and in a scene whose size lies outside the ordinary range,
+// which the structures see scaled by a power of two, the origin and interval are scaled with it; t is mapped
+// back after the trace. So every kernel works on products that neither overflow nor underflow, rounded at
+// the scene's scale, not at the origin's distance: docs/numerical-contract.md, "Ray conditioning", "Far
+// origins" and "Coordinate domain".
 #pragma once
 
 #if defined(__AVX2__)
 #include <immintrin.h>
 #endif
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <limits>
@@ -39,6 +42,16 @@ inline constexpr float kFarOriginSides = 4.0f;
 // error bound of an edge (core/intersect.hpp). A budget of 6 2^-24 |T| at the threshold:
 inline constexpr float kKernelTolerance = 0x1p-19f;
 static_assert(kKernelTolerance >= 6.0f * (kFarOriginSides + 0.5f) * 0x1p-24f);
+
+// A double rounded to the float at or below it, and at or above it (beyond FLT_MAX: +inf).
+[[nodiscard]] inline float round_down(double value) {
+    const float rounded = static_cast<float>(value);
+    return double(rounded) > value ? std::nextafter(rounded, -kInfinity) : rounded;
+}
+[[nodiscard]] inline float round_up(double value) {
+    const float rounded = static_cast<float>(value);
+    return double(rounded) < value ? std::nextafter(rounded, kInfinity) : rounded;
+}
 
 // What the re-parametrisation needs of the scene: its box's centre and the distance beyond which an origin
 // is far. An empty scene has no centre: nothing is far (there is nothing to hit).
@@ -123,14 +136,6 @@ class FarOriginFrame {
         return {static_cast<float>(point[0] + error[0]), static_cast<float>(point[1] + error[1]),
                 static_cast<float>(point[2] + error[2])};
     }
-    static float round_down(double value) {
-        const float rounded = static_cast<float>(value);
-        return double(rounded) > value ? std::nextafter(rounded, -kInfinity) : rounded;
-    }
-    static float round_up(double value) {
-        const float rounded = static_cast<float>(value);
-        return double(rounded) < value ? std::nextafter(rounded, kInfinity) : rounded;
-    }
 
     bool active_;
     Vec3f centre_;
@@ -140,6 +145,29 @@ class FarOriginFrame {
 // Directions whose largest component lies in [2^-32, 2^32] are used as given (every ordinary ray); the
 // others are scaled by a power of two into [1/2, 1).
 inline constexpr float kDirectionLowest = 0x1p-32f, kDirectionHighest = 0x1p32f;
+
+// Scenes whose largest side lies in [2^-20, 2^20] are traced as they are, bit for bit. The others are given
+// to the structures scaled by a power of two that brings their largest side into [1/2, 1): the kernels form
+// products of up to three lengths and a direction (the watertight test's numerator reaches 2^43.1 X^3 for a
+// scene of largest side X and a direction of 2^-32), which stay within float's normal range for X in
+// [2^-37, 2^28] (docs/numerical-contract.md, "Coordinate domain", has the derivation).
+inline constexpr float kOrdinarySideLowest = 0x1p-20f, kOrdinarySideHighest = 0x1p20f;
+
+// The exponent s of the scale 2^s at which the structures see a scene of box `bounds`: 0 for an ordinary
+// scene, an empty one or a point. A scene scaled up keeps its largest coordinate below 2^60, inside the
+// domain: one whose side is below about 2^-97 of its largest coordinate is scaled up only that far.
+[[nodiscard]] inline int scene_scale_exponent(const Box3f& bounds) {
+    if (bounds.empty()) return 0;
+    const float side = max_component(bounds.extent());
+    if (!(side > 0.0f) || (side >= kOrdinarySideLowest && side <= kOrdinarySideHighest)) return 0;
+    int side_exponent = 0;  // side in [2^(side_exponent - 1), 2^side_exponent)
+    static_cast<void>(std::frexp(side, &side_exponent));
+    if (side_exponent > 0) return -side_exponent;
+    int coordinate_exponent = 0;
+    static_cast<void>(std::frexp(std::fmax(max_component(abs(bounds.lo)), max_component(abs(bounds.hi))),
+                                 &coordinate_exponent));
+    return std::max(0, std::min(-side_exponent, 60 - coordinate_exponent));
+}
 
 // How a conditioned ray maps back: the caller's t = (t' + shift) * 2^-exponent.
 struct RayConditioning {
@@ -243,12 +271,16 @@ struct ConditionedRays {
     return any != 0;
 }
 
-[[nodiscard]] inline ConditionedRays condition_rays(std::span<const Ray> rays, const Box3f& scene_bounds) {
+// The batch as the structures of a scene of box `scene_bounds` (the caller's units) see it, the scene scaled
+// by 2^scene_exponent (scene_scale_exponent). Every valid ray of a scaled scene is conditioned; in an
+// ordinary one only the rays that may need it, after one scan of the batch.
+[[nodiscard]] inline ConditionedRays condition_rays(std::span<const Ray> rays, const Box3f& scene_bounds,
+                                                    int scene_exponent = 0) {
     const FarOriginFrame frame(scene_bounds);
     ConditionedRays conditioned;
-    if (!any_may_need_conditioning(rays, frame)) return conditioned;
+    if (scene_exponent == 0 && !any_may_need_conditioning(rays, frame)) return conditioned;
     for (std::size_t i = 0; i < rays.size(); ++i) {
-        if (!may_need_conditioning(rays[i], frame)) continue;
+        if (scene_exponent == 0 && !may_need_conditioning(rays[i], frame)) continue;
         if (!is_valid(rays[i])) continue;
         Ray ray = rays[i];
         RayConditioning how;
@@ -259,7 +291,21 @@ struct ConditionedRays {
             const FarOriginFrame::Moved near = frame.move_near(ray, tnear, tfar);
             ray = near.ray, how.shift = near.shift;
         }
-        if (how.shift == 0.0 && how.exponent == 0) continue;
+        if (scene_exponent != 0) {
+            // The origin, now within kFarOriginSides sides of the scene, scaled with it (exactly, but for an
+            // underflow far below the scene's rounding), and the interval from the caller's in double,
+            // rounded outwards once: t' = (t - shift) * 2^scene_exponent in the scaled direction's units.
+            ray.origin = {std::ldexp(ray.origin.x, scene_exponent), std::ldexp(ray.origin.y, scene_exponent),
+                          std::ldexp(ray.origin.z, scene_exponent)};
+            const auto [tnear, tfar] = scaled_interval(rays[i], how.exponent);
+            ray.tnear = std::fmax(round_down(std::ldexp(tnear - how.shift, scene_exponent)),
+                                  -std::numeric_limits<float>::max());
+            ray.tfar = round_up(std::ldexp(tfar - how.shift, scene_exponent));  // past FLT_MAX: +inf
+            how.shift = std::ldexp(how.shift, scene_exponent);
+            how.exponent += scene_exponent;
+        } else if (how.shift == 0.0 && how.exponent == 0) {
+            continue;
+        }
         if (conditioned.rays.empty())
             conditioned.rays.assign(rays.begin(), rays.end()), conditioned.how.assign(rays.size(), {});
         conditioned.rays[i] = ray;

@@ -70,7 +70,10 @@ bool cuda_available(std::string* why) {
 
 struct CudaTracer::Impl {
     CudaKernel kernel;
-    Box3f bounds;  // the structure's (Accel::bounds): rays are conditioned as on the CPU
+    // The structure's box in the caller's units and the scale at which it sees the scene (Accel::bounds,
+    // built_geometry): rays are conditioned as on the CPU.
+    Box3f bounds;
+    int scale_exponent = 0;
     gpu::LaunchScene scene;
     DeviceBuffer nodes, triangles, cells, primitives, boxes, texels, locate;  // the structure, uploaded once
     DeviceBuffer rays, hits, steps, next_ray;                                 // per call, grown as needed
@@ -97,12 +100,14 @@ struct CudaTracer::Impl {
     }
 };
 
-CudaTracer::CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTest test, CudaKernel kernel)
+CudaTracer::CudaTracer(const Accel& accel, const Geometry& /*geometry: accel's*/, TriangleTest test,
+                       CudaKernel kernel)
     : impl_(std::make_unique<Impl>()) {
     std::string why;
     if (!cuda_available(&why)) throw CudaError(why);
     impl_->kernel = kernel;
     impl_->bounds = accel.bounds();
+    impl_->scale_exponent = accel.scale_exponent();
     impl_->scene.watertight = test == TriangleTest::Watertight;
     const ExportedLayout exported = accel.exported_layout();
     if (kernel == CudaKernel::Plucker) {
@@ -123,7 +128,8 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTes
     if (exported.bvh == nullptr)
         throw std::invalid_argument("cuda: the " + std::string(cuda_kernel_name(kernel)) +
                                     " kernel traces a `bvh` or `bvh_packet` structure");
-    const gpu::FlatBvh flat = gpu::flatten_bvh(*exported.bvh, geometry);
+    // The triangles the tree was built on: the caller's geometry, or its copy at the structure's scale.
+    const gpu::FlatBvh flat = gpu::flatten_bvh(*exported.bvh, accel.built_geometry());
     impl_->scene.bvh = {impl_->nodes.upload(flat.nodes), static_cast<std::uint32_t>(flat.nodes.size()),
                         impl_->triangles.upload(flat.triangles)};
 }
@@ -133,9 +139,10 @@ CudaTracer::~CudaTracer() = default;
 CudaTrace CudaTracer::trace_frame(const Camera& camera, bool count_steps) {
     const std::size_t ray_count =
         static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);
-    // A camera far from the scene: its rays are made here and conditioned like the CPU's (Accel::intersect;
-    // src/core/ray_conditioning.hpp), so that both answer them alike. Camera directions are ordinary.
-    if (FarOriginFrame(impl_->bounds).is_far(camera.eye)) {
+    // A camera far from the scene, or any camera of a scene the structure sees scaled: its rays are made here
+    // and conditioned like the CPU's (Accel::intersect; src/core/ray_conditioning.hpp), so that both answer
+    // them alike. Camera directions are ordinary.
+    if (impl_->scale_exponent != 0 || FarOriginFrame(impl_->bounds).is_far(camera.eye)) {
         return trace_rays(PinholeCamera(camera).pixel_centre_rays(0, 0, camera.width, camera.height),
                           count_steps);
     }
@@ -150,7 +157,7 @@ CudaTrace CudaTracer::trace(std::span<const Ray> rays) {
 
 CudaTrace CudaTracer::trace_rays(std::span<const Ray> rays, bool count_steps) {
     if (rays.size() >= (1u << 31)) throw std::invalid_argument("cuda: at most 2^31 rays per batch");
-    const ConditionedRays conditioned = condition_rays(rays, impl_->bounds);
+    const ConditionedRays conditioned = condition_rays(rays, impl_->bounds, impl_->scale_exponent);
     const std::span<const Ray> traced =
         conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
     impl_->rays.reserve(rays.size() * sizeof(Ray));

@@ -4,6 +4,7 @@
 // device these tests skip, saying why; the tracer's refusal without a device is tested everywhere.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <string>
@@ -90,6 +91,27 @@ TEST(CudaGpu, KernelsAgreeWithTheCpuOnATriangleScene) {
     std::vector<Ray> batch = random.rays;
     batch.insert(batch.end(), hostile.rays.begin(), hostile.rays.end());
     expect_kernels_agree(geometry, batch, canonical_view(geometry.bounds(), 256, 256), "torus knot");
+}
+
+// Scenes at the coordinate domain's edges (docs/numerical-contract.md, "Coordinate domain"): the knot scaled
+// to 2^60 and to 2^-60, which the structures see scaled back into the ordinary range; the tracer traces the
+// same arrays and conditions its rays, a frame's included, as the CPU does.
+TEST(CudaGpu, KernelsAgreeWithTheCpuOnScenesAtTheDomainsEdges) {
+    std::string why;
+    if (!cuda_available(&why)) GTEST_SKIP() << why;
+    for (const int exponent : {58, -60}) {
+        std::vector<Triangle> triangles = testing::knot_triangles(100);
+        for (Triangle& triangle : triangles) {
+            for (Vec3f* vertex : {&triangle.v0, &triangle.v1, &triangle.v2}) {
+                *vertex = {std::ldexp(vertex->x, exponent), std::ldexp(vertex->y, exponent),
+                           std::ldexp(vertex->z, exponent)};
+            }
+        }
+        const Geometry geometry{triangles, {}};
+        const testing::RaySet random = testing::random_rays(geometry.bounds(), 50'000, 32);
+        expect_kernels_agree(geometry, random.rays, canonical_view(geometry.bounds(), 128, 128),
+                             "torus knot x 2^" + std::to_string(exponent));
+    }
 }
 
 // The heatmap's counts: the GPU walk enters the leaves the CPU walk enters, ray by ray.

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -107,6 +108,33 @@ TEST_F(WorldTest, SavedStructureLoadsBackWithTheSameAnswers) {
     // The triangle test can be replaced at load time.
     EXPECT_EQ(World::load_structure(file, TriangleTest::MollerTrumbore).options().triangle_test,
               TriangleTest::MollerTrumbore);
+}
+
+// A scene at the coordinate domain's edge, which the structure sees scaled into the ordinary range
+// (docs/numerical-contract.md, "Coordinate domain"): its file holds the caller's geometry and the octree of
+// the scaled one, and loads back with the same answers.
+TEST_F(WorldTest, ASceneAtTheDomainsEdgeLoadsBackWithTheSameAnswers) {
+    Scene scene = test_scene();
+    const auto scaled = [](Vec3f p) {
+        return Vec3f(std::ldexp(p.x, 58), std::ldexp(p.y, 58), std::ldexp(p.z, 58));
+    };
+    for (TriangleMesh& mesh : scene.meshes) {
+        for (Vec3f& position : mesh.positions)
+            position = scaled(position);
+    }
+    for (Sphere& sphere : scene.spheres)
+        sphere.center = scaled(sphere.center), sphere.radius = std::ldexp(sphere.radius, 58);
+    const World world(scene, "plucker", build_options(TriangleTest::Watertight));
+    const std::filesystem::path file = dir_ / "huge.plo";
+    world.save_structure(file);
+    const World loaded = World::load_structure(file);
+    const std::vector<Ray> rays = test_rays(world);
+    const std::vector<Hit> hits = trace(world, rays);
+    expect_same_hits(hits, trace(loaded, rays));
+    const World brute(scene, "brute", build_options(TriangleTest::Watertight));
+    const Agreement agreement = compare_hits(rays, trace(brute, rays), hits);
+    EXPECT_EQ(agreement.mismatches, 0u) << agreement.summary();
+    EXPECT_GT(agreement.hits, rays.size() / 20);
 }
 
 // The packet walk traces the plucker structure's arrays as they are, so it saves them too.

@@ -23,8 +23,8 @@ UpdateMethod BvhAccel::update_method() const {
 UpdateReport BvhAccel::update_from(const Geometry& geometry) {
     if (update_method() == UpdateMethod::Rebuild) return SingleRayAccel::update_from(geometry);
     geometry_ = geometry;
-    sah_ratio_ = refit_sah_ratio(refit_bvh(geometry, prim_indices_, nodes_, refit_margin(geometry, bounds())),
-                                 built_sah_cost_);
+    sah_ratio_ = refit_sah_ratio(
+        refit_bvh(geometry, prim_indices_, nodes_, refit_margin(geometry, built_bounds())), built_sah_cost_);
     if (sah_ratio_ > options_.group<BvhOptions>().refit_threshold)
         return SingleRayAccel::update_from(geometry);
     return {.method = UpdateMethod::Refit, .sah_ratio = sah_ratio_};

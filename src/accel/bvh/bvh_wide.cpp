@@ -132,7 +132,8 @@ UpdateReport WideBvhAccel<W>::update_from(const Geometry& geometry) {
     if (update_method() == UpdateMethod::Rebuild) return Base::update_from(geometry);
     geometry_ = geometry;
     sah_ratio_ = refit_sah_ratio(
-        refit_wide_bvh(geometry, nodes_, blocks_, refit_margin(geometry, this->bounds())), built_sah_cost_);
+        refit_wide_bvh(geometry, nodes_, blocks_, refit_margin(geometry, this->built_bounds())),
+        built_sah_cost_);
     if (sah_ratio_ > options_.template group<BvhOptions>().refit_threshold)
         return Base::update_from(geometry);
     return {.method = UpdateMethod::Refit, .sah_ratio = sah_ratio_};

@@ -51,30 +51,56 @@ inline std::pair<double, double> nearest_weights(const Triangle& tri, const Vec3
     return {vb / sum, vc / sum};
 }
 
-// The nearest point of primitive `prim` to p, and its squared distance in double.
-inline NearestPoint nearest_on(const Geometry& geometry, std::uint32_t prim, const Vec3d& p,
-                               double& distance2) {
-    NearestPoint nearest;
-    nearest.prim = static_cast<std::int32_t>(prim);
-    Vec3d q{0.0, 0.0, 0.0};
+// The nearest point of primitive `prim` to p in double, and a triangle's weights of it (0 for a sphere).
+struct ExactNearest {
+    Vec3d point;
+    double u = 0.0, v = 0.0;
+};
+inline ExactNearest exact_nearest(const Geometry& geometry, std::uint32_t prim, const Vec3d& p) {
     if (prim < geometry.triangles.size()) {
         const Triangle& tri = geometry.triangles[prim];
         const auto [u, v] = nearest_weights(tri, p);
         const Vec3d a = Vec3d(tri.v0), b = Vec3d(tri.v1), c = Vec3d(tri.v2);
-        q = {a.x + u * (b.x - a.x) + v * (c.x - a.x), a.y + u * (b.y - a.y) + v * (c.y - a.y),
-             a.z + u * (b.z - a.z) + v * (c.z - a.z)};
-        nearest.u = static_cast<float>(u), nearest.v = static_cast<float>(v);
-    } else {
-        const Sphere& sphere = geometry.spheres[prim - geometry.triangles.size()];
-        const Vec3d centre = Vec3d(sphere.center), d = p - centre;
-        const double length = std::sqrt(dot(d, d));
-        const double scale = length > 0.0 ? std::max(0.0, static_cast<double>(sphere.radius)) / length : 0.0;
-        q = {centre.x + scale * d.x, centre.y + scale * d.y, centre.z + scale * d.z};
+        return {{a.x + u * (b.x - a.x) + v * (c.x - a.x), a.y + u * (b.y - a.y) + v * (c.y - a.y),
+                 a.z + u * (b.z - a.z) + v * (c.z - a.z)},
+                u,
+                v};
     }
-    const Vec3d e = p - q;
+    const Sphere& sphere = geometry.spheres[prim - geometry.triangles.size()];
+    const Vec3d centre = Vec3d(sphere.center), d = p - centre;
+    const double length = std::sqrt(dot(d, d));
+    const double scale = length > 0.0 ? std::max(0.0, static_cast<double>(sphere.radius)) / length : 0.0;
+    return {{centre.x + scale * d.x, centre.y + scale * d.y, centre.z + scale * d.z}};
+}
+
+// The nearest point of primitive `prim` to p, and its squared distance in double.
+inline NearestPoint nearest_on(const Geometry& geometry, std::uint32_t prim, const Vec3d& p,
+                               double& distance2) {
+    const ExactNearest exact = exact_nearest(geometry, prim, p);
+    const Vec3d e = p - exact.point;
     distance2 = dot(e, e);
-    nearest.point = {static_cast<float>(q.x), static_cast<float>(q.y), static_cast<float>(q.z)};
+    NearestPoint nearest;
+    nearest.prim = static_cast<std::int32_t>(prim);
+    nearest.point = {static_cast<float>(exact.point.x), static_cast<float>(exact.point.y),
+                     static_cast<float>(exact.point.z)};
     nearest.distance = static_cast<float>(std::sqrt(distance2));
+    nearest.u = static_cast<float>(exact.u), nearest.v = static_cast<float>(exact.v);
+    return nearest;
+}
+
+// `found`, the nearest point to p of a geometry scaled by 2^-exponent, in the caller's units: its point and
+// distance recomputed in double and scaled back before their one rounding, so that they are the unscaled
+// geometry's bits (a power of two changes none in double) and a distance past the float range is +inf,
+// not the overflow of a scaled one.
+inline NearestPoint nearest_on_scaled(const Geometry& geometry, const NearestPoint& found, const Vec3d& p,
+                                      int exponent) {
+    const ExactNearest exact = exact_nearest(geometry, static_cast<std::uint32_t>(found.prim), p);
+    const Vec3d e = p - exact.point;
+    NearestPoint nearest = found;
+    nearest.point = {static_cast<float>(std::ldexp(exact.point.x, exponent)),
+                     static_cast<float>(std::ldexp(exact.point.y, exponent)),
+                     static_cast<float>(std::ldexp(exact.point.z, exponent))};
+    nearest.distance = static_cast<float>(std::ldexp(std::sqrt(dot(e, e)), exponent));
     return nearest;
 }
 
@@ -86,7 +112,7 @@ struct Search {
     NearestPoint best;
     double best2 = std::numeric_limits<double>::infinity();
 
-    Search(const Geometry& g, const Vec3f& point) : geometry(g), p(Vec3d(point)) {}
+    Search(const Geometry& g, const Vec3d& point) : geometry(g), p(point) {}
 
     void consider(const NearestPoint& candidate, double distance2) {
         if (distance2 < best2 || (distance2 == best2 && candidate.prim < best.prim))

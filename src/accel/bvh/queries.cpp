@@ -5,20 +5,27 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <span>
+#include <vector>
 
 #include "accel/bvh/bvh.hpp"
 #include "accel/bvh/bvh_wide.hpp"
 #include "accel/bvh/nearest_point.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "accel/simd_float.hpp"
+#include "core/ray_conditioning.hpp"
 
 namespace lancer {
 
-// One of the trees below is walked: the structure's own (binary, bvh4's or bvh8's), or `own`.
+// One of the trees below is walked: the structure's own (binary, bvh4's or bvh8's), or `own`. Either was
+// built on `scene`'s built geometry, which is the caller's scaled by 2^scale_exponent
+// (Accel::built_geometry): rays and points are conditioned and scaled as Accel::intersect's are, and answers
+// mapped back. The structure is read at each query, so that its updates are followed.
 struct GeometryQueries::Impl {
-    Geometry geometry;
     TriangleTest test = TriangleTest::MollerTrumbore;
     BvhAccel own;  // built only for a structure that has no BVH
+    const Accel* scene = nullptr;
     const BvhAccel* binary = nullptr;
     const Bvh4Accel* bvh4 = nullptr;
     const Bvh8Accel* bvh8 = nullptr;
@@ -27,25 +34,26 @@ struct GeometryQueries::Impl {
 
 GeometryQueries::GeometryQueries(const Geometry& geometry, TriangleTest test)
     : impl_(std::make_unique<Impl>()) {
-    impl_->geometry = geometry;
     impl_->test = test;
     impl_->own.build(geometry, build_options(test));
+    impl_->scene = &impl_->own;
     impl_->binary = &impl_->own;
 }
 
 GeometryQueries::GeometryQueries(const Accel& accel, const Geometry& geometry, TriangleTest test)
     : impl_(std::make_unique<Impl>()) {
-    impl_->geometry = geometry;
     impl_->test = test;
     // A packet structure traces its single-ray structure's tree as it is: that tree is the one to walk.
     const ExportedLayout layout = accel.exported_layout();
     const Accel& tree = layout.single_ray != nullptr ? *layout.single_ray : accel;
+    impl_->scene = &accel;
     impl_->binary = layout.bvh;
     impl_->bvh4 = dynamic_cast<const Bvh4Accel*>(&tree);
     impl_->bvh8 = dynamic_cast<const Bvh8Accel*>(&tree);
     impl_->walks_accel = impl_->binary != nullptr || impl_->bvh4 != nullptr || impl_->bvh8 != nullptr;
     if (!impl_->walks_accel) {
         impl_->own.build(geometry, build_options(test));
+        impl_->scene = &impl_->own;
         impl_->binary = &impl_->own;
     }
 }
@@ -261,21 +269,55 @@ NearestPoint wide_nearest(const WideBvhAccel<W>& bvh, const Vec3f& point, neares
     }
 }
 
+// The float point from which wide_nearest bounds the child boxes: p, or, where p lies more than 2^60 from
+// the scene's centre on some axis (its float squared distances could overflow; p's own coordinates could,
+// in a scene scaled up), p moved onto a box that holds every node's box, the scene's box grown by its
+// largest side and coordinate (beyond the geometric tolerance). The distance from there to a box inside is
+// no larger than from p (the projection on a convex set moves no point away from any point of it), so the
+// bounds stay lower bounds: the same answer, with less pruning.
+Vec3f bounding_point(const Box3f& scene_bounds, const Vec3d& p) {
+    const Vec3f centre = scene_bounds.center();
+    const double reach[3] = {p.x - centre.x, p.y - centre.y, p.z - centre.z};
+    if (std::fabs(reach[0]) <= 0x1p60 && std::fabs(reach[1]) <= 0x1p60 && std::fabs(reach[2]) <= 0x1p60)
+        return {static_cast<float>(p.x), static_cast<float>(p.y), static_cast<float>(p.z)};
+    const float margin = max_component(scene_bounds.extent()) +
+                         std::fmax(max_component(abs(scene_bounds.lo)), max_component(abs(scene_bounds.hi)));
+    const Box3f box = scene_bounds.grown(margin);
+    return {static_cast<float>(std::clamp(p.x, double(box.lo.x), double(box.hi.x))),
+            static_cast<float>(std::clamp(p.y, double(box.lo.y), double(box.hi.y))),
+            static_cast<float>(std::clamp(p.z, double(box.lo.z), double(box.hi.z)))};
+}
+
 }  // namespace
 
 void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
-    if (!is_valid(ray) || impl_->geometry.size() == 0) return;
+    const Accel& scene = *impl_->scene;
+    const Geometry& geometry = scene.built_geometry();
+    if (!is_valid(ray) || geometry.size() == 0) return;
+    const ConditionedRays conditioned =
+        condition_rays(std::span(&ray, 1), scene.bounds(), scene.scale_exponent());
+    const Ray& traced = conditioned.rays.empty() ? ray : conditioned.rays[0];
     const std::size_t first = hits.size();
     dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
-        const PreparedRay<TriangleTestT> prepared(ray);
+        const PreparedRay<TriangleTestT> prepared(traced);
         if (impl_->bvh8 != nullptr) {
-            wide_hits(*impl_->bvh8, impl_->geometry, prepared, hits);
+            wide_hits(*impl_->bvh8, geometry, prepared, hits);
         } else if (impl_->bvh4 != nullptr) {
-            wide_hits(*impl_->bvh4, impl_->geometry, prepared, hits);
+            wide_hits(*impl_->bvh4, geometry, prepared, hits);
         } else {
-            binary_hits(*impl_->binary, impl_->geometry, prepared, hits);
+            binary_hits(*impl_->binary, geometry, prepared, hits);
         }
     });
+    if (!conditioned.rays.empty()) {
+        // Back in the caller's parametrisation, as Accel::intersect maps its hits; one beyond the float
+        // range is none.
+        std::size_t kept = first;
+        for (std::size_t i = first; i < hits.size(); ++i) {
+            if (const std::optional<float> t = restore_t(hits[i].t, conditioned.how[0], ray))
+                hits[kept] = hits[i], hits[kept++].t = *t;
+        }
+        hits.resize(kept);
+    }
     const auto begin = hits.begin() + static_cast<std::ptrdiff_t>(first);
     std::sort(begin, hits.end(),
               [](const Hit& a, const Hit& b) { return a.t < b.t || (a.t == b.t && a.prim < b.prim); });
@@ -286,11 +328,24 @@ void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
 }
 
 NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
-    nearest::Search search(impl_->geometry, point);
-    if (impl_->geometry.size() == 0) return search.best;
-    if (impl_->bvh8 != nullptr) return wide_nearest(*impl_->bvh8, point, search);
-    if (impl_->bvh4 != nullptr) return wide_nearest(*impl_->bvh4, point, search);
-    return binary_nearest(*impl_->binary, search);
+    const Accel& scene = *impl_->scene;
+    const Geometry& geometry = scene.built_geometry();
+    const int exponent = scene.scale_exponent();
+    // The point at the scene's scale, exactly in double whatever the exponent.
+    const Vec3d p(std::ldexp(double(point.x), exponent), std::ldexp(double(point.y), exponent),
+                  std::ldexp(double(point.z), exponent));
+    nearest::Search search(geometry, p);
+    if (geometry.size() == 0) return search.best;
+    NearestPoint nearest;
+    if (impl_->bvh8 != nullptr) {
+        nearest = wide_nearest(*impl_->bvh8, bounding_point(scene.built_bounds(), p), search);
+    } else if (impl_->bvh4 != nullptr) {
+        nearest = wide_nearest(*impl_->bvh4, bounding_point(scene.built_bounds(), p), search);
+    } else {
+        nearest = binary_nearest(*impl_->binary, search);
+    }
+    // The winner again in double, scaled back before its one rounding.
+    return exponent == 0 ? nearest : nearest::nearest_on_scaled(geometry, nearest, p, -exponent);
 }
 
 }  // namespace lancer

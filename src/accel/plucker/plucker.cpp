@@ -47,7 +47,8 @@ UpdateReport PluckerAccel::update_structure(const Geometry& geometry) {
 
 void PluckerAccel::adopt(const Geometry& geometry, const BuildOptions& options, PluckerLayout layout) {
     accept_geometry(geometry);
-    geometry_ = geometry;
+    // The layout was built on the geometry at the scale the structures see it (read_plucker_file checks it).
+    geometry_ = built_geometry();
     options_ = options;
     PluckerOptions& plucker_options = options_.group<PluckerOptions>();
     plucker_options.balanced = layout.options.balanced;

@@ -8,9 +8,11 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "accel/build_util.hpp"
 #include "accel/plucker/build.hpp"
+#include "core/ray_conditioning.hpp"
 
 namespace lancer::plucker {
 namespace {
@@ -174,8 +176,16 @@ PluckerFile read_plucker_file(const std::filesystem::path& file) {
     }
 
     // The root cube and tolerance are the build's for this geometry, and the structure is the layout of its
-    // own tree: rebuilt from `locate`, it must come out word for word the same.
-    const Geometry geometry{result.triangles, result.spheres};
+    // own tree: rebuilt from `locate`, it must come out word for word the same. The tree was built on the
+    // geometry at the scale the structures see it (Accel::built_geometry): a scene whose size lies outside
+    // the ordinary range is checked scaled, as PluckerAccel::adopt will trace it.
+    Geometry geometry{result.triangles, result.spheres};
+    std::vector<Triangle> scaled_triangles;
+    std::vector<Sphere> scaled_spheres;
+    if (const int exponent = scene_scale_exponent(hit_bounds(geometry)); exponent != 0) {
+        scale_geometry(geometry, exponent, scaled_triangles, scaled_spheres);
+        geometry = {scaled_triangles, scaled_spheres};
+    }
     const OctreeCube cube = octree_root_cube(geometry.bounds());
     if (!(cube.lo == layout.cube.lo && cube.size == layout.cube.size) ||
         layout.tolerance != geometric_tolerance(geometry.bounds()))

@@ -146,7 +146,7 @@ TEST(GeometryQueries, NearestPointIsTheNearestOfEveryTriangle) {
 
 // The nearest point by every primitive in turn, with the tree walks' own kernel and tie rule.
 NearestPoint brute_nearest(const Geometry& geometry, const Vec3f& p) {
-    nearest::Search search(geometry, p);
+    nearest::Search search(geometry, Vec3d(p));
     for (std::uint32_t prim = 0; prim < geometry.size(); ++prim)
         search.primitive(prim);
     return search.best;
