@@ -279,6 +279,8 @@ struct ConditionedRays {
     const FarOriginFrame frame(scene_bounds);
     ConditionedRays conditioned;
     if (scene_exponent == 0 && !any_may_need_conditioning(rays, frame)) return conditioned;
+    // A float times it is exact in double, its one rounding to float ldexp's (and cheaper than ldexp).
+    const double scene_scale = std::ldexp(1.0, scene_exponent);
     for (std::size_t i = 0; i < rays.size(); ++i) {
         if (scene_exponent == 0 && !may_need_conditioning(rays[i], frame)) continue;
         if (!is_valid(rays[i])) continue;
@@ -295,13 +297,14 @@ struct ConditionedRays {
             // The origin, now within kFarOriginSides sides of the scene, scaled with it (exactly, but for an
             // underflow far below the scene's rounding), and the interval from the caller's in double,
             // rounded outwards once: t' = (t - shift) * 2^scene_exponent in the scaled direction's units.
-            ray.origin = {std::ldexp(ray.origin.x, scene_exponent), std::ldexp(ray.origin.y, scene_exponent),
-                          std::ldexp(ray.origin.z, scene_exponent)};
+            ray.origin = {static_cast<float>(ray.origin.x * scene_scale),
+                          static_cast<float>(ray.origin.y * scene_scale),
+                          static_cast<float>(ray.origin.z * scene_scale)};
             const auto [tnear, tfar] = scaled_interval(rays[i], how.exponent);
-            ray.tnear = std::fmax(round_down(std::ldexp(tnear - how.shift, scene_exponent)),
-                                  -std::numeric_limits<float>::max());
-            ray.tfar = round_up(std::ldexp(tfar - how.shift, scene_exponent));  // past FLT_MAX: +inf
-            how.shift = std::ldexp(how.shift, scene_exponent);
+            ray.tnear =
+                std::fmax(round_down((tnear - how.shift) * scene_scale), -std::numeric_limits<float>::max());
+            ray.tfar = round_up((tfar - how.shift) * scene_scale);  // past FLT_MAX: +inf
+            how.shift *= scene_scale;
             how.exponent += scene_exponent;
         } else if (how.shift == 0.0 && how.exponent == 0) {
             continue;

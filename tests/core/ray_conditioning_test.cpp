@@ -223,5 +223,55 @@ TEST(RayConditioning, IntervalsBeyondTheFloatRangeStayValid) {
     EXPECT_FALSE(restore_t(1.0f, {0.0, tiny_exponent}, tiny).has_value()) << "t = 2^139 overflows";
 }
 
+// Scenes whose largest side lies in [2^-20, 2^20] are seen as they are; the others at the power of two that
+// brings that side into [1/2, 1), a scene scaled up keeping its largest coordinate below 2^60
+// (docs/numerical-contract.md, "Coordinate domain").
+TEST(RayConditioning, SceneScaleBringsTheLargestSideIntoHalfToOne) {
+    EXPECT_EQ(scene_scale_exponent(kScene), 0);
+    EXPECT_EQ(scene_scale_exponent(Box3f{}), 0);
+    EXPECT_EQ(scene_scale_exponent({Vec3f(5.0f), Vec3f(5.0f)}), 0);  // a point
+    EXPECT_EQ(scene_scale_exponent({Vec3f(0.0f), {0x1p20f, 1, 1}}), 0);
+    EXPECT_EQ(scene_scale_exponent({Vec3f(0.0f), {0x1.000002p20f, 1, 1}}), -21);
+    EXPECT_EQ(scene_scale_exponent({Vec3f(-0x1p60f), Vec3f(0x1p60f)}), -62);
+    EXPECT_EQ(scene_scale_exponent({Vec3f(0.0f), {0x1p-20f, 0, 0}}), 0);
+    EXPECT_EQ(scene_scale_exponent({Vec3f(0.0f), {0x1.fffffep-21f, 0, 0}}), 20);
+    EXPECT_EQ(scene_scale_exponent({Vec3f(0.0f), {0x1p-100f, 0, 0}}), 99);
+    // At 2^40 from the origin, a side of 2^-30 is scaled up by 2^19 only: its coordinates reach 2^59.
+    EXPECT_EQ(scene_scale_exponent({{0x1p40f, 0, 0}, {0x1p40f, 0x1p-30f, 0}}), 19);
+    EXPECT_EQ(scene_scale_exponent({{0x1p30f, 0, 0}, {0x1p30f, 0x1p-40f, 0}}), 29);
+}
+
+// In a scene scaled by 2^s, every valid ray's origin and interval are scaled with it (after a far origin is
+// moved and an extreme direction scaled), and t maps back exactly.
+TEST(RayConditioning, RaysOfAScaledSceneAreScaledWithIt) {
+    const Box3f scene{Vec3f(-0x1p50f), Vec3f(0x1p50f)};
+    const int exponent = scene_scale_exponent(scene);
+    ASSERT_EQ(exponent, -52);  // the side 2^51 scaled to 1/2
+    const std::vector<Ray> rays = {{{0x1p49f, 3.0f, -5.0f}, {0, 0, 1}, -2.0f, 0x1p52f},
+                                   {{0x1p49f, 3.0f, -5.0f}, {0, 0, 0x1p40f}, 0.0f, kInfinity},
+                                   {{0x1p80f, 0, 0}, {-1, 0, 0}, 0.0f, kInfinity},
+                                   {{0, 0, 0}, {0, 0, 0}, 0.0f, 1.0f}};  // invalid: left alone
+    const ConditionedRays conditioned = condition_rays(rays, scene, exponent);
+    ASSERT_EQ(conditioned.rays.size(), rays.size());
+    const Ray& first = conditioned.rays[0];
+    EXPECT_EQ(first.origin.x, 0x1p-3f);
+    EXPECT_EQ(first.origin.y, 0x1.8p-51f);
+    EXPECT_EQ(first.direction.z, 1.0f);
+    EXPECT_EQ(first.tnear, -0x1p-51f);
+    EXPECT_EQ(first.tfar, 1.0f);
+    EXPECT_EQ(restore_t(0.5f, conditioned.how[0], rays[0]), 0x1p51f);
+    // The direction scaled into [1/2, 1) as well: t' = t 2^41 2^-52.
+    const Ray& second = conditioned.rays[1];
+    EXPECT_EQ(second.direction.z, 0.5f);
+    EXPECT_EQ(second.tfar, std::numeric_limits<float>::max() * 0x1p-11f);  // where the caller's t overflows
+    EXPECT_EQ(restore_t(1.0f, conditioned.how[1], rays[1]), 0x1p11f);
+    // The far origin moved near the scene first: the point of its line at t = 2^80, the centre, is t' = 0.
+    const Ray& third = conditioned.rays[2];
+    EXPECT_EQ(third.origin.x, 0.0f);
+    EXPECT_EQ(restore_t(0.0f, conditioned.how[2], rays[2]), 0x1p80f);
+    EXPECT_EQ(conditioned.how[3].exponent, 0);
+    EXPECT_EQ(conditioned.how[3].shift, 0.0);
+}
+
 }  // namespace
 }  // namespace lancer

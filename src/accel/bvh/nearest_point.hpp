@@ -90,8 +90,8 @@ inline NearestPoint nearest_on(const Geometry& geometry, std::uint32_t prim, con
 
 // `found`, the nearest point to p of a geometry scaled by 2^-exponent, in the caller's units: its point and
 // distance recomputed in double and scaled back before their one rounding, so that they are the unscaled
-// geometry's bits (a power of two changes none in double) and a distance past the float range is +inf,
-// not the overflow of a scaled one.
+// geometry's bits (a power of two changes none in double), even where the scaled distance passes the float
+// range and the caller's does not.
 inline NearestPoint nearest_on_scaled(const Geometry& geometry, const NearestPoint& found, const Vec3d& p,
                                       int exponent) {
     const ExactNearest exact = exact_nearest(geometry, static_cast<std::uint32_t>(found.prim), p);

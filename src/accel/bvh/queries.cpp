@@ -345,7 +345,8 @@ NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
         nearest = binary_nearest(*impl_->binary, search);
     }
     // The winner again in double, scaled back before its one rounding.
-    return exponent == 0 ? nearest : nearest::nearest_on_scaled(geometry, nearest, p, -exponent);
+    return exponent == 0 || nearest.prim < 0 ? nearest
+                                             : nearest::nearest_on_scaled(geometry, nearest, p, -exponent);
 }
 
 }  // namespace lancer
