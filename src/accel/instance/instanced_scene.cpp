@@ -10,6 +10,7 @@
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 #include "accel/bvh/refit.hpp"
 #include "accel/instance/affine.hpp"
 #include "accel/tree_shape.hpp"
@@ -45,6 +46,10 @@ struct InstanceRecord {
 // the factor 2^-22 leaves 4 times that (docs/numerical-contract.md, "Instances").
 constexpr double kTransformedRayRounding = 0x1p-22;
 constexpr double kRayReachSides = 9.0;
+
+// The top level's nodes: the wide BVH's (accel/bvh/bvh_wide.hpp), 8 children tested at once.
+constexpr int kTopWidth = 8;
+using TopNode = WideBvhNode<kTopWidth>;
 
 // Rays per task of intersect_parallel and occluded_parallel, as for the structures (lancer/accel.hpp).
 constexpr std::size_t kRayChunk = 4096;
@@ -93,9 +98,9 @@ struct InstancedScene::State {
     std::size_t live = 0;
     std::size_t instanced_primitives = 0;
 
-    // The top level: build_bvh_over_boxes's layout over the live ids.
-    std::vector<BvhNode> nodes;
-    std::vector<std::uint32_t> leaf_ids;
+    // The top level: 8-wide nodes collapsed from build_bvh_over_boxes's binary tree over the live ids; a leaf
+    // slot holds one instance (child: its id, prim_count 1).
+    std::vector<TopNode> nodes;
     Box3f bounds;
     double built_sah_cost = 0.0, sah_ratio = 1.0, build_ms = 0.0;
     bool added_or_removed = false, moved = false;
@@ -166,86 +171,182 @@ struct InstancedScene::State {
         for (std::uint32_t id = 0; id < alive.size(); ++id) {
             if (alive[id] != 0) ids.push_back(id);
         }
-        BvhBuildResult built = build_bvh_over_boxes(leaf_boxes, ids, bvh_options());
-        nodes = std::move(built.nodes);
-        leaf_ids = std::move(built.prim_indices);
-        built_sah_cost = bvh_sah_cost(nodes);
+        // One instance a leaf, whatever bvh.max_leaf_size says: visiting an instance maps the ray and walks
+        // its object from the root, which costs far more than the SAH's unit primitive cost, so each
+        // instance's own box is tested first (a leaf of 4 traced instances its box had no reason to).
+        BvhOptions options = bvh_options();
+        options.max_leaf_size = 1;
+        const BvhBuildResult built = build_bvh_over_boxes(leaf_boxes, ids, options);
+        nodes.clear();
+        if (!built.nodes.empty()) static_cast<void>(collapse(built, 0));
+        built_sah_cost = wide_bvh_sah_cost(nodes);
         sah_ratio = 1.0;
     }
 
-    // Closest hit (kAnyHit false, into `best`) or any hit (returned) of a valid world ray, front to back as
-    // the binary BVH's walk (accel/bvh/bvh.cpp), an instance's object traced at each leaf.
+    // The binary subtree under `binary_root` as wide nodes appended depth first; returns the first's index.
+    // The greedy collapse of Dammertz et al. 2008 (bvh_wide.cpp): open the inner child of largest area until
+    // the node has 8 children or only leaves.
+    std::uint32_t collapse(const BvhBuildResult& binary, std::uint32_t binary_root) {
+        std::array<std::uint32_t, kTopWidth> children{};
+        int count = 0;
+        if (binary.nodes[binary_root].is_leaf()) {
+            children[count++] = binary_root;
+        } else {
+            children[count++] = binary_root + 1;
+            children[count++] = binary.nodes[binary_root].offset;
+        }
+        while (count < kTopWidth) {
+            int widest = -1;
+            float widest_area = -1.0f;
+            for (int i = 0; i < count; ++i) {
+                const BvhNode& candidate = binary.nodes[children[i]];
+                if (!candidate.is_leaf() && candidate.bounds().surface_area() > widest_area)
+                    widest = i, widest_area = candidate.bounds().surface_area();
+            }
+            if (widest < 0) break;
+            const std::uint32_t opened = children[widest];
+            std::copy_backward(children.begin() + widest + 1, children.begin() + count,
+                               children.begin() + count + 1);
+            children[widest] = opened + 1;
+            children[widest + 1] = binary.nodes[opened].offset;
+            ++count;
+        }
+        const auto index = static_cast<std::uint32_t>(nodes.size());
+        nodes.emplace_back();
+        for (int slot = 0; slot < count; ++slot) {
+            const BvhNode& child = binary.nodes[children[slot]];
+            for (int axis = 0; axis < 3; ++axis) {
+                nodes[index].bounds[TopNode::kLo][axis][slot] = child.lo[axis];
+                nodes[index].bounds[TopNode::kHi][axis][slot] = child.hi[axis];
+            }
+            if (child.is_leaf()) {
+                nodes[index].child[slot] = binary.prim_indices[child.offset];
+                nodes[index].prim_count[slot] = 1;
+            } else {
+                // Not a reference into `nodes`: the recursion may reallocate it.
+                const std::uint32_t child_index = collapse(binary, children[slot]);
+                nodes[index].child[slot] = child_index;
+            }
+        }
+        return index;
+    }
+
+    // The wide nodes' boxes from the leaves' boxes, bottom-up, each grown by the tolerance of their union as
+    // the build grows them (NodeSlots::compact), so that a refit to the boxes the tree was built on gives its
+    // nodes back bit for bit. Returns the box of node `index`'s children.
+    Box3f refit(std::uint32_t index, float margin) {
+        Box3f node_box;
+        for (int slot = 0; slot < kTopWidth; ++slot) {
+            TopNode& node = nodes[index];
+            if (node.is_empty(slot)) continue;
+            const Box3f box = node.prim_count[slot] > 0 ? leaf_boxes[node.child[slot]].grown(margin)
+                                                        : refit(node.child[slot], margin);
+            TopNode& refitted = nodes[index];  // the recursion does not reallocate, but reads it again
+            for (int axis = 0; axis < 3; ++axis) {
+                refitted.bounds[TopNode::kLo][axis][slot] = box.lo[axis];
+                refitted.bounds[TopNode::kHi][axis][slot] = box.hi[axis];
+            }
+            node_box.extend(box);
+        }
+        return node_box;
+    }
+
+    // Refits the whole top level; returns its SAH cost.
+    double refit_top_level() {
+        if (nodes.empty()) return 0.0;
+        Box3f leaves;
+        for (std::size_t id = 0; id < alive.size(); ++id) {
+            if (alive[id] != 0) leaves.extend(leaf_boxes[id]);
+        }
+        static_cast<void>(refit(0, geometric_tolerance(leaves)));
+        return wide_bvh_sah_cost(nodes);
+    }
+
     template <bool kAnyHit, bool kCount>
     bool walk(const Ray& ray, InstanceHit& best, TraversalCounters& counts) const {
+        if (ray.tnear >= 0.0f) return walk_from<kAnyHit, kCount, true>(ray, best, counts);
+        return walk_from<kAnyHit, kCount, false>(ray, best, counts);
+    }
+
+    // An instance's object traced with the ray mapped into its frame: true for an any-hit query that found
+    // one; for a closest-hit query, `best` improved by the rule of lancer::closer.
+    template <bool kAnyHit>
+    bool visit(std::uint32_t id, const Ray& ray, InstanceHit& best,
+               TraversalCounters* object_counters) const {
+        const InstanceRecord& record = records[id];
+        Ray local = record.to_object.to_object(ray);
+        if constexpr (kAnyHit) {
+            std::uint8_t occluded = 0;
+            record.traced->occluded({&local, 1}, {&occluded, 1}, object_counters);
+            return occluded != 0;
+        } else {
+            local.tfar = best.hit() ? best.t : ray.tfar;
+            Hit hit;
+            record.traced->intersect({&local, 1}, {&hit, 1}, object_counters);
+            if (hit.hit() && closer(hit.t, static_cast<std::int32_t>(id), hit.prim, best)) {
+                best = {hit.t,
+                        hit.prim,
+                        hit.u,
+                        hit.v,
+                        static_cast<std::int32_t>(id),
+                        static_cast<std::int32_t>(record.object)};
+            }
+            return false;
+        }
+    }
+
+    // Closest hit (kAnyHit false, into `best`) or any hit (returned) of a valid world ray, front to back as
+    // the wide BVH's walk (accel/bvh/bvh_wide_walk.hpp): the 8 child boxes tested at once, the nearest hit
+    // child visited and the others pushed, a popped child skipped once it is entered beyond the best hit
+    // (closed: an instance entered at exactly the best t may hold a tie that its id wins). kForward: tnear
+    // >= 0 (clip_slab).
+    template <bool kAnyHit, bool kCount, bool kForward>
+    bool walk_from(const Ray& ray, InstanceHit& best, TraversalCounters& counts) const {
         struct StackEntry {
-            std::uint32_t node;
+            std::uint32_t child;
+            std::uint32_t is_instance;
             float t_entry;
         };
         if (nodes.empty()) return false;
-        const SlabRay slab(ray);
-        std::array<StackEntry, BvhAccel::kMaxDepth + 1> stack;
+        const WideRay wide_ray{SlabRay(ray)};
+        // Each level pushes at most 7 children, and the wide tree is no deeper than the binary one.
+        std::array<StackEntry, (kTopWidth - 1) * BvhAccel::kMaxDepth + 1> stack;
         int stack_size = 0;
-        float t_entry, t_exit;
-        if (!intersect_box(slab, nodes[0].bounds(), ray.tnear, ray.tfar, t_entry, t_exit)) return false;
-        std::uint32_t current = 0;
+        StackEntry current{0, 0, 0.0f};
         TraversalCounters object_counts;
         TraversalCounters* object_counters = kCount ? &object_counts : nullptr;
+        bool found = false;
         while (true) {
-            const BvhNode& node = nodes[current];
             if constexpr (kCount) ++counts.nodes_visited;
-            if (node.is_leaf()) {
-                for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i) {
-                    const std::uint32_t id = leaf_ids[i];
-                    const InstanceRecord& record = records[id];
-                    Ray local = record.to_object.to_object(ray);
-                    if constexpr (kAnyHit) {
-                        std::uint8_t occluded = 0;
-                        record.traced->occluded({&local, 1}, {&occluded, 1}, object_counters);
-                        if (occluded != 0) {
-                            counts.nodes_visited += object_counts.nodes_visited;
-                            counts.prims_tested += object_counts.prims_tested;
-                            return true;
-                        }
-                    } else {
-                        local.tfar = best.hit() ? best.t : ray.tfar;
-                        Hit hit;
-                        record.traced->intersect({&local, 1}, {&hit, 1}, object_counters);
-                        if (hit.hit() && closer(hit.t, static_cast<std::int32_t>(id), hit.prim, best)) {
-                            best = {hit.t,
-                                    hit.prim,
-                                    hit.u,
-                                    hit.v,
-                                    static_cast<std::int32_t>(id),
-                                    static_cast<std::int32_t>(record.object)};
-                        }
-                    }
+            if (current.is_instance != 0) {
+                if (visit<kAnyHit>(current.child, ray, best, object_counters)) {
+                    found = true;
+                    break;
                 }
             } else {
+                const TopNode& node = nodes[current.child];
                 const float t_limit = best.hit() ? best.t : ray.tfar;
-                const std::uint32_t first = current + 1, second = node.offset;
-                float first_entry, second_entry;
-                const bool hit_first =
-                    intersect_box(slab, nodes[first].bounds(), ray.tnear, t_limit, first_entry, t_exit);
-                const bool hit_second =
-                    intersect_box(slab, nodes[second].bounds(), ray.tnear, t_limit, second_entry, t_exit);
-                if (hit_first && hit_second) {
-                    const bool first_is_near = first_entry <= second_entry;
-                    stack[static_cast<std::size_t>(stack_size++)] =
-                        first_is_near ? StackEntry{second, second_entry} : StackEntry{first, first_entry};
-                    current = first_is_near ? first : second;
-                    continue;
-                }
-                if (hit_first || hit_second) {
-                    current = hit_first ? first : second;
+                alignas(32) float entry[kTopWidth];
+                const unsigned hit_mask =
+                    intersect_children<kTopWidth, kForward>(node, wide_ray, ray.tnear, t_limit, entry);
+                if (hit_mask != 0) {
+                    std::array<int, kTopWidth> order;
+                    const int hit_count = order_by_entry<kTopWidth>(hit_mask, entry, order);
+                    for (int k = hit_count - 1; k > 0; --k) {
+                        const int slot = order[static_cast<std::size_t>(k)];
+                        stack[static_cast<std::size_t>(stack_size++)] = {node.child[slot],
+                                                                         node.prim_count[slot], entry[slot]};
+                    }
+                    const int nearest = order[0];
+                    current = {node.child[nearest], node.prim_count[nearest], entry[nearest]};
                     continue;
                 }
             }
             bool popped = false;
             while (stack_size > 0) {
                 const StackEntry entry = stack[static_cast<std::size_t>(--stack_size)];
-                // Closed: an instance entered at exactly the best t may hold a tie that its id wins.
                 if (!best.hit() || entry.t_entry <= best.t) {
-                    current = entry.node, popped = true;
+                    current = entry, popped = true;
                     break;
                 }
             }
@@ -255,7 +356,7 @@ struct InstancedScene::State {
             counts.nodes_visited += object_counts.nodes_visited;
             counts.prims_tested += object_counts.prims_tested;
         }
-        return best.hit();
+        return kAnyHit ? found : best.hit();
     }
 
     void check_committed(std::size_t ray_count, std::size_t answer_count) const {
@@ -384,8 +485,7 @@ UpdateReport InstancedScene::commit() {
         s.grow_leaf_boxes();
         bool rebuild = s.added_or_removed;
         if (!rebuild) {
-            s.sah_ratio =
-                refit_sah_ratio(refit_bvh_over_boxes(s.leaf_boxes, s.leaf_ids, s.nodes), s.built_sah_cost);
+            s.sah_ratio = refit_sah_ratio(s.refit_top_level(), s.built_sah_cost);
             rebuild = s.sah_ratio > s.bvh_options().refit_threshold;
         }
         if (rebuild) {
@@ -464,14 +564,14 @@ AccelStats InstancedScene::stats() const {
     stats.primitives = s.instanced_primitives;
     stats.figures.push_back(count_figure("objects", s.objects.size(), "objects: structures built once"));
     stats.figures.push_back(count_figure("instances", s.live, "live instances, each an object placed"));
-    stats.figures.push_back(count_figure("top_level_nodes", s.nodes.size(), "nodes of the top-level BVH"));
+    stats.figures.push_back(
+        count_figure("top_level_nodes", s.nodes.size(), "8-wide nodes of the top-level BVH"));
     stats.figures.push_back(value_figure("sah_cost", s.built_sah_cost * s.sah_ratio,
                                          "the top level's SAH cost, unit node and instance costs"));
     stats.figures.push_back(
         value_figure("sah_ratio", s.sah_ratio, "the top level's SAH cost over its cost as last built"));
     stats.memory_by_array = {
-        {"top_level_nodes", s.nodes.size() * sizeof(BvhNode)},
-        {"leaf_ids", s.leaf_ids.size() * sizeof(std::uint32_t)},
+        {"top_level_nodes", s.nodes.size() * sizeof(TopNode)},
         {"instance_records", s.records.size() * sizeof(InstanceRecord)},
         {"transforms", s.transforms.size() * sizeof(Transform)},
         {"instance_boxes", (s.object_boxes.size() + s.leaf_boxes.size()) * sizeof(Box3f) + s.alive.size()},
