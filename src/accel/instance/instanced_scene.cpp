@@ -32,11 +32,15 @@ struct ObjectRecord {
     std::size_t primitives = 0;
 };
 
-// What the walk reads of an instance: 128 bytes, two cache lines.
+// What the walk reads of an instance: 144 bytes.
 struct InstanceRecord {
     InverseAffine to_object;
     const Accel* traced = nullptr;
     std::uint32_t object = 0;
+    // Ray conditioning's far-origin frame of the object's box (FarOriginFrame): its centre, and the distance
+    // beyond which an origin is far.
+    Vec3f object_centre;
+    float far_limit = kInfinity;
 };
 
 // An instance's box grows, beyond its object's box mapped to the world, by the transformed ray's rounding
@@ -53,15 +57,6 @@ using TopNode = WideBvhNode<kTopWidth>;
 
 // Rays per task of intersect_parallel and occluded_parallel, as for the structures (lancer/accel.hpp).
 constexpr std::size_t kRayChunk = 4096;
-
-float round_down(double value) {
-    const float rounded = static_cast<float>(value);
-    return double(rounded) > value ? std::nextafter(rounded, -kInfinity) : rounded;
-}
-float round_up(double value) {
-    const float rounded = static_cast<float>(value);
-    return double(rounded) < value ? std::nextafter(rounded, kInfinity) : rounded;
-}
 
 // The world box of `object_box` under `transform`: its corners mapped in double, rounded outwards.
 Box3f world_box(const Box3f& object_box, const Transform& transform) {
@@ -118,7 +113,9 @@ struct InstancedScene::State {
     std::pair<InstanceRecord, Box3f> place(std::uint32_t instance, std::uint32_t object,
                                            const Transform& transform) const {
         std::string problem;
-        InstanceRecord record{invert(transform, problem), objects[object].traced, object};
+        const FarOriginFrame frame(objects[object].traced->bounds());
+        InstanceRecord record{invert(transform, problem), objects[object].traced, object, frame.centre(),
+                              frame.far_limit()};
         if (!problem.empty()) {
             throw std::invalid_argument("InstancedScene: instance " + std::to_string(instance) +
                                         "'s transform " + problem);
@@ -274,17 +271,24 @@ struct InstancedScene::State {
     bool visit(std::uint32_t id, const Ray& ray, InstanceHit& best,
                TraversalCounters* object_counters) const {
         const InstanceRecord& record = records[id];
-        Ray local = record.to_object.to_object(ray);
+        Ray world = ray;
+        if constexpr (!kAnyHit) world.tfar = best.hit() ? best.t : ray.tfar;
+        const ObjectRay local = record.to_object.to_object(world, record.object_centre, record.far_limit);
         if constexpr (kAnyHit) {
             std::uint8_t occluded = 0;
-            record.traced->occluded({&local, 1}, {&occluded, 1}, object_counters);
+            record.traced->occluded({&local.ray, 1}, {&occluded, 1}, object_counters);
             return occluded != 0;
         } else {
-            local.tfar = best.hit() ? best.t : ray.tfar;
             Hit hit;
-            record.traced->intersect({&local, 1}, {&hit, 1}, object_counters);
-            if (hit.hit() && closer(hit.t, static_cast<std::int32_t>(id), hit.prim, best)) {
-                best = {hit.t,
+            record.traced->intersect({&local.ray, 1}, {&hit, 1}, object_counters);
+            if (!hit.hit()) return false;
+            // Back to the world's parameter; the interval was rounded outwards, so clamp as restore_t does.
+            float t = hit.t;
+            if (local.shift != 0.0)
+                t = std::fmin(std::fmax(static_cast<float>(double(hit.t) + local.shift), world.tnear),
+                              world.tfar);
+            if (closer(t, static_cast<std::int32_t>(id), hit.prim, best)) {
+                best = {t,
                         hit.prim,
                         hit.u,
                         hit.v,
