@@ -624,6 +624,43 @@ TEST(InstancedScene, BadTransformsAndIdsAreRefusedNamingTheInstance) {
     EXPECT_NEAR(hit.t, 4.0f, 0.1f);
 }
 
+// Any registered structure can serve as an object (Embree's aside: its own triangle test): each one's
+// instanced scene answers as the one over brute force, as the structures agree alone (oracle_test.cpp:
+// the same hit, t within 1e-5, or a tie at the same t).
+TEST(InstancedScene, EveryStructureServesAsAnObject) {
+    const Fixture fixture = random_fixture(31, 12);
+    const InstancedScene reference = make_scene(fixture, "brute", TriangleTest::Watertight);
+    std::vector<Ray> rays = testing::random_rays(reference.bounds(), 3000, 32).rays;
+    const std::vector<Ray> axis = testing::axis_parallel_rays(reference.bounds(), 500, 33).rays;
+    rays.insert(rays.end(), axis.begin(), axis.end());
+    std::vector<InstanceHit> expected(rays.size());
+    reference.intersect(rays, expected);
+    std::size_t structures = 0;
+    for (const std::string_view name : accel_names()) {
+        if (name == "brute" || name.starts_with("embree")) continue;
+        ++structures;
+        const InstancedScene scene = make_scene(fixture, name, TriangleTest::Watertight);
+        std::vector<InstanceHit> hits(rays.size());
+        scene.intersect(rays, hits);
+        std::vector<std::uint8_t> occluded(rays.size());
+        scene.occluded(rays, occluded);
+        std::size_t mismatches = 0, hit_count = 0;
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            const InstanceHit &a = expected[i], &b = hits[i];
+            hit_count += a.hit() ? 1 : 0;
+            bool same = a.hit() == b.hit() && (occluded[i] != 0) == a.hit();
+            if (same && a.hit()) {
+                same = std::fabs(a.t - b.t) <= 1e-5f * std::fabs(a.t) &&
+                       ((a.instance == b.instance && a.prim == b.prim) || a.t == b.t);
+            }
+            mismatches += same ? 0 : 1;
+        }
+        EXPECT_EQ(mismatches, 0u) << name;
+        EXPECT_GT(hit_count, rays.size() / 10) << name;
+    }
+    EXPECT_GE(structures, 10u);
+}
+
 // intersect_parallel and occluded_parallel answer as one call.
 TEST(InstancedScene, ParallelBatchesAnswerAsOneCall) {
     const Fixture fixture = random_fixture(13, 30);
