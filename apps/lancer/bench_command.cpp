@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "bench_animate.hpp"
+#include "bench_instances.hpp"
 #include "bench_report.hpp"
 #include "bench_trace.hpp"
 #include "commands.hpp"
@@ -48,6 +49,7 @@ struct BenchOptions {
     std::string svg_file;
     bool mpi = false;
     int animate = 0;
+    int instances = 0;
     DeviceChoice device;
 };
 
@@ -167,7 +169,26 @@ void run(const BenchOptions& options) {
     const std::vector<std::string> accels = parse_accels(options.accel_list);
     if (options.animate > 0 && (options.view_list != "primary" || options.device.cuda()))
         throw InputError("--animate times the primary view on the CPU: leave out --view and --device");
+    if (options.instances > 0 && (options.animate > 0 || options.device.cuda()))
+        throw InputError(
+            "--instances times lancer's and Embree's two-level scenes on the CPU: leave out "
+            "--animate and --device");
+    if (options.instances > 0 && options.meshes.size() > 1)
+        throw InputError("--instances places one mesh: give at most one --mesh");
     const std::vector<BenchMesh> meshes = load_meshes(options);
+    if (options.instances > 0) {
+        fmt::print("lancer bench --instances: {}, {} hardware threads; {} {}\n", cpu_name(),
+                   std::thread::hardware_concurrency(), LANCER_COMPILER, LANCER_BUILD_FLAGS);
+        const std::vector<std::string> instanced_accels =
+            options.accel_list == "all" ? std::vector<std::string>{"bvh8",    "bvh8_packet", "embree",
+                                                                   "embree8", "embree16",    "embree_stream"}
+                                        : accels;
+        run_instances_bench(
+            meshes.front().name, meshes.front().scene,
+            {options.instances, thread_counts, parse_views(options.view_list), instanced_accels, options.size,
+             options.frames, !options.moller_trumbore, options.settings});
+        return;
+    }
     if (options.animate > 0) {
         fmt::print("lancer bench --animate: {}, {} hardware threads; {} {}\n", cpu_name(),
                    std::thread::hardware_concurrency(), LANCER_COMPILER, LANCER_BUILD_FLAGS);
@@ -490,6 +511,15 @@ void add_bench_command(CLI::App& app) {
             "frame and structure, its update (Accel::update: the BVHs refit; Embree rows use Embree's "
             "refit quality) and a full rebuild, each with a trace of the canonical view")
         ->check(CLI::Range(1, 10000));
+    command
+        ->add_option(
+            "--instances", options->instances,
+            "A two-level scene of N copies of the mesh (the first --mesh, default the bunny) under "
+            "random rotations, scales and positions: --accel names the objects' structures and Embree's "
+            "calls on its own two-level scene (default bvh8, bvh8_packet, embree, embree8, embree16, "
+            "embree_stream); the views traced, then every instance moved and the top level updated "
+            "(docs/accel/instances.md)")
+        ->check(CLI::Range(1, 100000000));
     options->device.add_options(*command);
     command->callback([options] { options->mpi ? run_mpi(*options) : run(*options); });
 }

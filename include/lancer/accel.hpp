@@ -142,6 +142,7 @@ class Accel;
 class World;
 class CudaTracer;
 class GeometryQueries;
+class InstancedScene;
 class BvhAccel;
 namespace plucker {
 struct PluckerLayout;
@@ -242,6 +243,7 @@ class Accel {
     friend class World;
     friend class CudaTracer;
     friend class GeometryQueries;  // walks a BVH's own arrays for the point queries
+    friend class InstancedScene;   // traces a packet structure's objects through its single-ray structure
 
     // The arrays this structure lends as they are; none by default.
     [[nodiscard]] virtual ExportedLayout exported_layout() const { return {}; }

@@ -47,6 +47,18 @@ BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
     return build_binned_sah(refs, primitives, geometry, options);
 }
 
+BvhBuildResult build_bvh_over_boxes(std::span<const Box3f> boxes, std::span<const std::uint32_t> ids,
+                                    const BvhOptions& options) {
+    if (ids.empty()) return {};
+    std::vector<BuildRef> refs(ids.size());
+    for (std::size_t i = 0; i < ids.size(); ++i)
+        refs[i] = {boxes[ids[i]], boxes[ids[i]].center(), ids[i]};
+    BvhOptions without_splits = options;
+    without_splits.spatial_splits = false;
+    if (options.builder == BvhBuilder::SweepSah) return build_sweep_sah(refs, without_splits);
+    return build_binned_sah(refs, refs.size(), Geometry{}, without_splits);
+}
+
 double bvh_sah_cost(const std::vector<BvhNode>& nodes) {
     if (nodes.empty()) return 0.0;
     const double root_area = nodes[0].bounds().surface_area();

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "accel/bvh/bvh.hpp"
@@ -20,6 +21,13 @@ inline constexpr float kSahPrimitiveCost = 1.0f;
 
 // Deterministic: the same geometry and options give the same nodes, whatever the thread count.
 [[nodiscard]] BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options);
+
+// The same tree over boxes, for a BVH whose leaves are not primitives of a Geometry (the instances of a
+// two-level scene): references `ids`, each with the box boxes[id]. Spatial splits are off, a box having
+// nothing to cut.
+[[nodiscard]] BvhBuildResult build_bvh_over_boxes(std::span<const Box3f> boxes,
+                                                  std::span<const std::uint32_t> ids,
+                                                  const BvhOptions& options);
 
 // SAH cost of a built hierarchy, normalised by the root's area, with unit node and primitive costs:
 // sum over inner nodes of A(node) / A(root) + sum over leaves of A(leaf) / A(root) * primitives; a tree

@@ -42,8 +42,25 @@ Box3f grown(const Box3f& tight, const Vec3f& margin) {
     return {tight.lo - margin, tight.hi + margin};
 }
 
-struct BinaryRefit {
+// A binary BVH's leaves as the refit reads them: the primitives of a Geometry...
+struct GeometryLeaves {
     const Geometry& geometry;
+
+    [[nodiscard]] Box3f box(std::uint32_t prim) const { return primitive_bounds(geometry, prim); }
+    void prefetch(std::uint32_t prim) const { prefetch_primitive(geometry, prim); }
+};
+
+// ... or boxes given as they are (a two-level scene's instances), contiguous, so nothing worth prefetching.
+struct BoxLeaves {
+    std::span<const Box3f> boxes;
+
+    [[nodiscard]] Box3f box(std::uint32_t prim) const { return boxes[prim]; }
+    void prefetch(std::uint32_t /*prim*/) const {}
+};
+
+template <class Leaves>
+struct BinaryRefit {
+    Leaves leaves;
     std::span<const std::uint32_t> prim_indices;
     std::vector<BvhNode>& nodes;
     Vec3f margin;
@@ -54,7 +71,7 @@ struct BinaryRefit {
         if (!prefetched && end - index <= kPrefetchNodes) {
             for (std::uint32_t n = index; n < end; ++n) {
                 for (std::uint32_t i = nodes[n].offset; i < nodes[n].offset + nodes[n].prim_count; ++i)
-                    prefetch_primitive(geometry, prim_indices[i]);
+                    leaves.prefetch(prim_indices[i]);
             }
             prefetched = true;
         }
@@ -63,7 +80,7 @@ struct BinaryRefit {
         if (node.is_leaf()) {
             Box3f tight;
             for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i)
-                tight.extend(primitive_bounds(geometry, prim_indices[i]));
+                tight.extend(leaves.box(prim_indices[i]));
             refitted.box = grown(tight, margin);
             refitted.weighted_area =
                 static_cast<double>(refitted.box.surface_area()) * node.prim_count * kSahPrimitiveCost;
@@ -236,8 +253,21 @@ float refit_margin(const Geometry& geometry, const Box3f& hit_bounds) {
 double refit_bvh(const Geometry& geometry, std::span<const std::uint32_t> prim_indices,
                  std::vector<BvhNode>& nodes, float margin) {
     if (nodes.empty()) return 0.0;
-    return normalised_cost(BinaryRefit{geometry, prim_indices, nodes, Vec3f(margin)}.subtree(
-        0, static_cast<std::uint32_t>(nodes.size())));
+    return normalised_cost(
+        BinaryRefit<GeometryLeaves>{{geometry}, prim_indices, nodes, Vec3f(margin)}.subtree(
+            0, static_cast<std::uint32_t>(nodes.size())));
+}
+
+double refit_bvh_over_boxes(std::span<const Box3f> boxes, std::span<const std::uint32_t> prim_indices,
+                            std::vector<BvhNode>& nodes) {
+    if (nodes.empty()) return 0.0;
+    // The builder's margin: the tolerance of the root's tight box (NodeSlots::compact).
+    Box3f root;
+    for (const std::uint32_t id : prim_indices)
+        root.extend(boxes[id]);
+    return normalised_cost(
+        BinaryRefit<BoxLeaves>{{boxes}, prim_indices, nodes, Vec3f(geometric_tolerance(root))}.subtree(
+            0, static_cast<std::uint32_t>(nodes.size())));
 }
 
 template <int W>

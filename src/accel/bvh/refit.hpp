@@ -25,6 +25,11 @@ namespace lancer {
 double refit_bvh(const Geometry& geometry, std::span<const std::uint32_t> prim_indices,
                  std::vector<BvhNode>& nodes, float margin);
 
+// The same for a tree of build_bvh_over_boxes whose references `prim_indices` now have the boxes
+// boxes[id], grown by the tolerance of their union as the build grows them.
+double refit_bvh_over_boxes(std::span<const Box3f> boxes, std::span<const std::uint32_t> prim_indices,
+                            std::vector<BvhNode>& nodes);
+
 // The same for a wide BVH: rewrites the triangles of its leaf blocks from `geometry` and recomputes its child
 // boxes. Returns the SAH cost as WideBvhAccel::stats() defines it.
 template <int W>
