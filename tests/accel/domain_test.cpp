@@ -251,8 +251,8 @@ TEST_P(DomainTest, UpdatesAcrossScalesAnswerAsBuilds) {
     }
 }
 
-// The case, against the exact answer: a triangle 4e13 across hit straight on, t = 3e13, and its
-// barycentrics.
+// The case that found it (docs/robustness.md, finding 29), against the exact answer: a triangle 4e13 across
+// hit straight on, t = 3e13, and its barycentrics.
 TEST_P(DomainTest, HugeTriangleHitStraightOn) {
     constexpr float kSize = 2e13f;
     const std::vector<Triangle> triangles = {{{-kSize, -kSize, 0}, {kSize, -kSize, 0}, {0, kSize, 0}}};
