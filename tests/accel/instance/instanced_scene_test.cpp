@@ -88,8 +88,8 @@ struct FlatScene {
         Vec3d v0, v1, v2;
     };
     std::vector<Placed> triangles;
-    std::vector<Affine> transforms;  // by instance
-    std::vector<double> object_sizes;
+    std::vector<Affine> transforms;    // by instance
+    std::vector<double> object_sizes;  // by instance: the object's largest vertex norm
 };
 
 struct Fixture {
@@ -121,6 +121,11 @@ FlatScene flatten(const Fixture& fixture) {
         const Affine affine(fixture.transforms[i]);
         flat.transforms.push_back(affine);
         const auto& triangles = fixture.object_triangles[fixture.objects[i]];
+        double object_size = 0.0;
+        for (const Triangle& t : triangles)
+            object_size =
+                std::max({object_size, length(Vec3d(t.v0)), length(Vec3d(t.v1)), length(Vec3d(t.v2))});
+        flat.object_sizes.push_back(object_size);
         for (std::size_t prim = 0; prim < triangles.size(); ++prim) {
             const Triangle& t = triangles[prim];
             flat.triangles.push_back({static_cast<std::int32_t>(i), static_cast<std::int32_t>(prim),
@@ -150,7 +155,7 @@ InstancedScene make_scene(const Fixture& fixture, std::string_view accel, Triang
 
 // The bound on |t - t_exact| of a hit on `placed` at parameter t, computed in the instance's frame.
 double t_bound(const FlatScene& flat, const FlatScene::Placed& placed, const Ray& ray, double t,
-               double cosine, const Fixture& fixture) {
+               double cosine) {
     // In the object's frame: the object ray and the object's vertices.
     const Affine& affine = flat.transforms[static_cast<std::size_t>(placed.instance)];
     // |o'| + t |d'| + the vertices' size, over |d'| cos, with |o'| and |d'| bounded through the inverse's
@@ -171,11 +176,7 @@ double t_bound(const FlatScene& flat, const FlatScene::Placed& placed, const Ray
     const Vec3d o(ray.origin), d(ray.direction);
     const Vec3d b(affine.b[0], affine.b[1], affine.b[2]);
     const double reach = inverse_norm * (length(o - b) + std::fabs(t) * length(d));
-    double object_size = 0.0;
-    for (const Triangle& tri :
-         fixture.object_triangles[fixture.objects[static_cast<std::size_t>(placed.instance)]])
-        object_size =
-            std::max({object_size, length(Vec3d(tri.v0)), length(Vec3d(tri.v1)), length(Vec3d(tri.v2))});
+    const double object_size = flat.object_sizes[static_cast<std::size_t>(placed.instance)];
     // |d'| >= |d| / ||A||.
     double norm_sq = 0.0;
     for (const auto& row : affine.a)
@@ -244,7 +245,7 @@ Verdict check_against_flat(const InstancedScene& scene, const Fixture& fixture, 
                 verdict.fail(i, "the reported triangle is parallel to the ray");
                 continue;
             }
-            const double bound = t_bound(flat, placed, ray, exact.t, exact.cosine, fixture);
+            const double bound = t_bound(flat, placed, ray, exact.t, exact.cosine);
             if (std::fabs(hit.t - exact.t) > bound) {
                 verdict.fail(i, "t " + std::to_string(hit.t) + " against exact " + std::to_string(exact.t) +
                                     ", bound " + std::to_string(bound));
@@ -261,7 +262,7 @@ Verdict check_against_flat(const InstancedScene& scene, const Fixture& fixture, 
             if (!plane_hit(o, d, placed.v0, placed.v1, placed.v2, exact)) continue;
             // A hit beyond the float range is none (docs/numerical-contract.md, "Ray conditioning").
             if (exact.cosine < 1e-3 || exact.t > std::numeric_limits<float>::max()) continue;
-            const double bound = t_bound(flat, placed, ray, exact.t, exact.cosine, fixture);
+            const double bound = t_bound(flat, placed, ray, exact.t, exact.cosine);
             if (exact.edge_distance() < barycentric_bound(placed, bound * length(d))) continue;
             if (exact.t < double(ray.tnear) + bound || exact.t > double(ray.tfar) - bound) continue;
             if (exact.t < nearest) nearest = exact.t, nearest_bound = bound;
