@@ -6,20 +6,11 @@
 #include <limits>
 #include <string>
 
+#include "core/ray_conditioning.hpp"
 #include "lancer/instances.hpp"
 #include "lancer/ray.hpp"
 
 namespace lancer {
-
-// value rounded to float towards -inf or +inf.
-[[nodiscard]] inline float round_down(double value) {
-    const float rounded = static_cast<float>(value);
-    return double(rounded) > value ? std::nextafter(rounded, -kInfinity) : rounded;
-}
-[[nodiscard]] inline float round_up(double value) {
-    const float rounded = static_cast<float>(value);
-    return double(rounded) < value ? std::nextafter(rounded, kInfinity) : rounded;
-}
 
 // A world ray in an object's frame: t = t' + shift for a hit at t' on `ray`.
 struct ObjectRay {
