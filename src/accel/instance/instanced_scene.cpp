@@ -371,6 +371,30 @@ struct InstancedScene::State {
         if (ray_count != answer_count)
             throw std::invalid_argument("InstancedScene: one answer slot per ray expected");
     }
+
+    // Each conditioned ray walked once: answers[i] the closest hit (InstanceHit) or whether the ray is
+    // occluded (std::uint8_t, kAnyHit). Invalid rays miss.
+    template <bool kAnyHit, class Answer>
+    void walk_each(std::span<const Ray> traced, std::span<Answer> answers,
+                   TraversalCounters* counters) const {
+        const auto trace = [&]<bool kCount>() {
+            TraversalCounters counts;
+            for (std::size_t i = 0; i < traced.size(); ++i) {
+                InstanceHit best;
+                const bool found = is_valid(traced[i]) && walk<kAnyHit, kCount>(traced[i], best, counts);
+                if constexpr (kAnyHit) {
+                    answers[i] = found;
+                } else {
+                    answers[i] = best;
+                }
+            }
+            if constexpr (kCount) {
+                counts.rays = traced.size();
+                *counters += counts;
+            }
+        };
+        counters != nullptr ? trace.template operator()<true>() : trace.template operator()<false>();
+    }
 };
 
 InstancedScene::InstancedScene(const BuildOptions& top_level) : state_(std::make_unique<State>()) {
@@ -511,19 +535,7 @@ void InstancedScene::intersect(std::span<const Ray> rays, std::span<InstanceHit>
     const ConditionedRays conditioned = condition_rays(rays, s.bounds);
     const std::span<const Ray> traced =
         conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
-    const auto trace = [&]<bool kCount>() {
-        TraversalCounters counts;
-        for (std::size_t i = 0; i < traced.size(); ++i) {
-            InstanceHit best;
-            if (is_valid(traced[i])) s.walk<false, kCount>(traced[i], best, counts);
-            hits[i] = best;
-        }
-        if constexpr (kCount) {
-            counts.rays = rays.size();
-            *counters += counts;
-        }
-    };
-    counters != nullptr ? trace.template operator()<true>() : trace.template operator()<false>();
+    s.walk_each<false>(traced, hits, counters);
     for (std::size_t i = 0; i < conditioned.how.size(); ++i) {
         const RayConditioning& how = conditioned.how[i];
         if ((how.shift == 0.0 && how.exponent == 0) || !hits[i].hit()) continue;
@@ -543,18 +555,7 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<std::uint8_t>
     const ConditionedRays conditioned = condition_rays(rays, s.bounds);
     const std::span<const Ray> traced =
         conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
-    const auto trace = [&]<bool kCount>() {
-        TraversalCounters counts;
-        for (std::size_t i = 0; i < traced.size(); ++i) {
-            InstanceHit unused;
-            occluded[i] = is_valid(traced[i]) && s.walk<true, kCount>(traced[i], unused, counts);
-        }
-        if constexpr (kCount) {
-            counts.rays = rays.size();
-            *counters += counts;
-        }
-    };
-    counters != nullptr ? trace.template operator()<true>() : trace.template operator()<false>();
+    s.walk_each<true>(traced, occluded, counters);
 }
 
 const Box3f& InstancedScene::bounds() const {
