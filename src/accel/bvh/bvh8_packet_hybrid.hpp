@@ -45,7 +45,8 @@ class HybridPacket {
         : nodes_(bvh.nodes()), blocks_(bvh.blocks()), geometry_(geometry) {}
 
     // The fewest rays that still walk a node together: below it the single-ray walk is cheaper than a box
-    // test of every lane (docs/accel/stream.md measures 2 to 12).
+    // test of every lane (docs/accel/stream.md measures 2 to 12). The interval cull's packets hand their rays
+    // over at the same count (Bvh8PacketTraversal::walk_alone).
     static constexpr int kHandover = 4;
 
     // Traces rays.size() <= kLanes rays of any directions; invalid rays miss. answers[i]: ray i's closest hit

@@ -18,6 +18,7 @@
 #include "accel/bvh/bvh8_packet_leaf_tests.hpp"
 #include "accel/bvh/bvh8_packet_node_test.hpp"
 #include "accel/bvh/bvh8_packet_rays.hpp"
+#include "accel/bvh/bvh_wide_walk.hpp"
 #include "accel/packet_batch.hpp"
 #include "accel/simd_float.hpp"
 
@@ -80,6 +81,15 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
                 const std::uint32_t prim_count = popped.parent->prim_count[popped.slot];
                 const std::uint32_t child = popped.parent->child[popped.slot];
                 if (prim_count == 0) {
+                    if (std::popcount(rays) < HybridPacket<Ops, TriangleTestT>::kHandover) {
+                        walk_alone<kAnyHit, kCount>(child, rays, answers, counts);
+                        if constexpr (kAnyHit) {
+                            if (alive_ == 0) return;
+                        } else {
+                            tlimit_max_ = max_tlimit();
+                        }
+                        continue;
+                    }
                     node = &nodes_[child];
                     break;
                 }
@@ -100,6 +110,38 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
     }
 
   private:
+    using PacketLeafTests<Ops, TriangleTestT>::blocks_, PacketLeafTests<Ops, TriangleTestT>::geometry_;
+
+    // The `rays` that reach inner node `node` when too few of them are left for the packet's tests to pay
+    // (where triangles are small beside the packet's footprint, as on the dragon): each finishes that
+    // subtree alone with bvh8's walk from its closest hit so far, as the hybrid walk hands its rays over
+    // (Benthin et al. 2012; docs/accel/stream.md).
+    template <bool kAnyHit, bool kCount, class Answer>
+    void walk_alone(std::uint32_t node, LaneMask rays, std::span<Answer> answers, TraversalCounters& counts) {
+        for (LaneMask rest = rays; rest != 0; rest &= rest - 1) {
+            const int i = std::countr_zero(rest);
+            const PreparedRay<TriangleTestT> prepared(
+                Ray{{packet_.origin[0][i], packet_.origin[1][i], packet_.origin[2][i]},
+                    {packet_.direction[0][i], packet_.direction[1][i], packet_.direction[2][i]},
+                    packet_.tnear[i],
+                    packet_.tfar[i]});
+            Hit best = packet_.prim[i] == kNoHit
+                           ? Hit{}
+                           : Hit{packet_.tlimit[i], packet_.prim[i], packet_.u[i], packet_.v[i]};
+            const bool hit = wide_walk::traverse<kWidth, kAnyHit, kCount>(nodes_, blocks_, geometry_,
+                                                                          prepared, best, counts, {node, 0});
+            if constexpr (kAnyHit) {
+                if (hit) {
+                    answers[static_cast<std::size_t>(i)] = 1;
+                    alive_ &= ~(LaneMask{1} << i);
+                }
+            } else if (best.hit()) {
+                packet_.tlimit[i] = best.t, packet_.prim[i] = best.prim;
+                packet_.u[i] = best.u, packet_.v[i] = best.v;
+            }
+        }
+    }
+
     const std::vector<Node>& nodes_;
 };
 

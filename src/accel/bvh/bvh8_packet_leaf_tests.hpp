@@ -408,8 +408,11 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
         }
     }
 
+  protected:
     const std::vector<Block>& blocks_;
     const Geometry& geometry_;
+
+  private:
     float tolerance_;  // the scene's geometric tolerance, by which the triangle boxes are grown
 };
 
