@@ -4,7 +4,6 @@
 #include <stdexcept>
 #include <utility>
 
-#include "lancer/vec3d.hpp"
 #include "mesh_arguments.hpp"
 #include "ray_packets.hpp"
 
@@ -120,17 +119,7 @@ std::shared_lock<std::shared_mutex> InstancedScene::committed(bool traced) {
 Vec3f InstancedScene::world_normal(const InstanceHit& hit) const {
     const Triangle tri =
         meshes_[static_cast<std::size_t>(hit.object)].triangle(static_cast<std::size_t>(hit.prim));
-    const Vec3d n = cross(Vec3d(tri.v1) - Vec3d(tri.v0), Vec3d(tri.v2) - Vec3d(tri.v0));
-    const auto& m = scene_.transform(static_cast<std::uint32_t>(hit.instance)).m;
-    const Vec3d rows[3] = {
-        {m[0][0], m[0][1], m[0][2]}, {m[1][0], m[1][1], m[1][2]}, {m[2][0], m[2][1], m[2][2]}};
-    // (A u) x (A v) = cof(A) (u x v), the cofactor matrix's rows r1 x r2, r2 x r0, r0 x r1.
-    const Vec3d world(dot(cross(rows[1], rows[2]), n), dot(cross(rows[2], rows[0]), n),
-                      dot(cross(rows[0], rows[1]), n));
-    const double norm = std::sqrt(dot(world, world));
-    if (!(norm > 0.0)) return Vec3f(0.0f);
-    return {static_cast<float>(world.x / norm), static_cast<float>(world.y / norm),
-            static_cast<float>(world.z / norm)};
+    return scene_.transform(static_cast<std::uint32_t>(hit.instance)).normal(tri.geometric_normal());
 }
 
 py::dict InstancedScene::cast_rays(const py::object& rays, int nthreads) {

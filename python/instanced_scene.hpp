@@ -59,9 +59,7 @@ class InstancedScene {
     // A shared lock under which the top level is committed; with `traced`, throws std::invalid_argument for
     // a scene without instances.
     [[nodiscard]] std::shared_lock<std::shared_mutex> committed(bool traced);
-    // The unit world normal of the hit: the object triangle's (v1 - v0) x (v2 - v0) under the cofactor
-    // matrix of the transform's linear part, which is what the cross product of the moved edges is, a
-    // mirror's turned with its vertices' order; the zero vector for a triangle of zero area.
+    // The unit world normal of the hit: its triangle's (v1 - v0) x (v2 - v0) moved (Transform::normal).
     [[nodiscard]] Vec3f world_normal(const InstanceHit& hit) const;
 
     std::string accel_name_;

@@ -9,12 +9,12 @@
 #include <atomic>
 #include <cmath>
 #include <memory>
-#include <random>
 #include <string>
 #include <vector>
 
 #include "common.hpp"
 #include "lancer/camera.hpp"
+#include "lancer/generate.hpp"
 #include "lancer/instances.hpp"
 #include "lancer/parallel.hpp"
 #include "lancer/views.hpp"
@@ -30,27 +30,6 @@ namespace {
 
 // Rays per task, as intersect_parallel's.
 constexpr std::size_t kRayChunk = 4096;
-
-// N placements of a mesh of box `bounds`: a random rotation, a uniform scale in [0.5, 1.5] and a position in
-// a cube whose side grows as the cube root of N, so that the instances fill it about as densely whatever N
-// and the rays of the view cross many of them. Fixed seed: the same scene on every run.
-std::vector<Transform> random_placements(const Box3f& bounds, int count) {
-    std::mt19937 rng(2026);
-    std::uniform_real_distribution<float> unit(-1.0f, 1.0f), scale(0.5f, 1.5f), angle(0.0f, 6.2831853f);
-    const float size = max_component(bounds.extent());
-    const float side = 0.9f * size * std::cbrt(static_cast<float>(count));
-    const Transform to_origin = Transform::translation(-1.0f * bounds.center());
-    std::vector<Transform> placements;
-    placements.reserve(static_cast<std::size_t>(count));
-    for (int i = 0; i < count; ++i) {
-        const Vec3f axis(unit(rng), unit(rng), unit(rng) + 0.01f);
-        const float s = scale(rng);
-        placements.push_back(Transform::translation({side * unit(rng), side * unit(rng), side * unit(rng)}) *
-                             Transform::rotation(axis, angle(rng)) * Transform::scaling(Vec3f(s)) *
-                             to_origin);
-    }
-    return placements;
-}
 
 // The primary view's rays in the order of the bench's tiles (8x8, in 4x4 blocks: lancer/camera.hpp), so that
 // every 16 consecutive rays are a 4x4 pixel block, every 8 a 4x2 one.
