@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string_view>
+
+#include "lancer/accel.hpp"
 
 namespace lancer::python {
 
@@ -21,16 +25,12 @@ py::array open3d_like(const py::array& array) {
     return array.attr("view")(py::module_::import("lancer").attr("Array"));
 }
 
-namespace {
-
 std::string type_name(const py::handle& object) {
     const py::handle type = py::type::of(object);
     const std::string module = py::str(type.attr("__module__"));
     const std::string qualname = py::str(type.attr("__qualname__"));
     return module == "builtins" ? qualname : module + "." + qualname;
 }
-
-}  // namespace
 
 py::object tensors_like(const py::object& argument, const py::object& answer) {
     const py::handle type = py::type::of(argument);
@@ -143,6 +143,37 @@ std::vector<double> matrix_argument(const py::object& object, const char* name, 
     if (!std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); }))
         throw py::value_error(std::string(name) + ": holds a NaN or infinite value");
     return values;
+}
+
+void rays_of(const py::array_t<float, py::array::c_style>& rows, std::size_t first, std::size_t last,
+             float tnear, float tfar, std::vector<Ray>& rays) {
+    rays.clear();
+    for (std::size_t i = first; i < last; ++i) {
+        const float* r = rows.data() + 6 * i;
+        if (!(std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2]) && std::isfinite(r[3]) &&
+              std::isfinite(r[4]) && std::isfinite(r[5])))
+            throw std::invalid_argument("rays: " + row_name(rows, i) + " holds a NaN or infinite value");
+        rays.push_back({{r[0], r[1], r[2]}, {r[3], r[4], r[5]}, tnear, tfar});
+    }
+}
+
+void put_figures(py::dict& answer, const std::vector<AccelFigure>& figures) {
+    for (const AccelFigure& figure : figures) {
+        if (figure.whole)
+            answer[figure.key.c_str()] = static_cast<std::uint64_t>(figure.value);
+        else
+            answer[figure.key.c_str()] = figure.value;
+    }
+}
+
+void check_accel(const std::string& accel) {
+    const std::vector<std::string_view> names = accel_names();
+    if (std::find(names.begin(), names.end(), accel) == names.end()) {
+        std::string known;
+        for (const std::string_view name : names)
+            known.append(known.empty() ? "" : ", ").append(name);
+        throw py::value_error("accel: unknown structure '" + accel + "' (known: " + known + ")");
+    }
 }
 
 void check_threads(int nthreads) {

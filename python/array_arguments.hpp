@@ -6,13 +6,19 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <initializer_list>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
+#include "lancer/accel.hpp"
+#include "lancer/parallel.hpp"
+#include "lancer/ray.hpp"
 #include "lancer/vec.hpp"
 
 namespace lancer::python {
@@ -21,6 +27,9 @@ namespace py = pybind11;
 
 // "(2, 3)", "(4,)": an array's shape as Python prints it, for errors.
 [[nodiscard]] std::string shape_text(const py::array& array);
+
+// An object's type as errors name it: "list", "numpy.float32".
+[[nodiscard]] std::string type_name(const py::handle& object);
 
 // A tensor that gives a NumPy array (numpy(): Open3D's, torch's on the CPU) as that array, which shares its
 // memory; anything else as it is.
@@ -66,6 +75,34 @@ struct IndexArgument {
 [[nodiscard]] std::vector<double> matrix_argument(const py::object& object, const char* name,
                                                   py::ssize_t rows, py::ssize_t cols);
 
+// Rays first to last of the (..., 6) rows, with the interval [tnear, tfar]. Throws std::invalid_argument
+// (ValueError) for a row with a NaN or infinite value, as float_rows does.
+void rays_of(const py::array_t<float, py::array::c_style>& rows, std::size_t first, std::size_t last,
+             float tnear, float tfar, std::vector<Ray>& rays);
+
+// Items per task of the queries: a chunk of rays is one batch call, as intersect_parallel makes them, and as
+// the chunks start at multiples of kChunk, its packets of 64 start at multiples of 64.
+inline constexpr std::size_t kChunk = 4096;
+
+// body(first, rays) for each chunk of the (..., 6) rows, on `threads` threads (0: all): the rays first to
+// first + rays.size(), made by the task that traces them (rays_of).
+template <class Body>
+void for_each_ray_chunk(const py::array_t<float, py::array::c_style>& rows, int threads, float tnear,
+                        float tfar, Body&& body) {
+    parallel_for(static_cast<std::size_t>(rows.size() / 6), kChunk, threads,
+                 [&](std::size_t first, std::size_t last) {
+                     std::vector<Ray> rays;
+                     rays_of(rows, first, last, tnear, tfar, rays);
+                     body(first, rays);
+                 });
+}
+
+// A structure's figures (AccelStats::figures, `lancer stats`'s) into a stats() answer, counts as ints.
+void put_figures(py::dict& answer, const std::vector<AccelFigure>& figures);
+
+// The scenes' `accel`: one of lancer::accel_names(), or ValueError listing them.
+void check_accel(const std::string& accel);
+
 // Open3D's nthreads: 0 (all) or a thread count; ValueError for a negative one. A count above the machine's
 // CPUs is taken, and used as that many (lancer::parallel_for).
 void check_threads(int nthreads);
@@ -86,6 +123,31 @@ template <class T>
     const auto address = reinterpret_cast<std::uintptr_t>(storage.mutable_data());
     const std::size_t skip = (kLine - address % kLine) % kLine / sizeof(T);
     return py::array_t<T>(shape, storage.mutable_data() + skip, storage);
+}
+
+// test_occlusions of a scene: bool (...) for the (..., 6) `rays` in [tnear, tfar], each chunk answered by
+// occluded(chunk, answers) (a structure's or a scene's occluded) on nthreads threads, without the GIL, under
+// the lock that locked() returns. Throws ValueError naming what is wrong with the arguments.
+template <class Locked, class Occluded>
+py::array occlusion_answers(const py::object& rays, float tnear, float tfar, int nthreads, Locked&& locked,
+                            Occluded&& occluded) {
+    const auto rows = float_rows(rays, "rays", 6, false);
+    check_threads(nthreads);
+    if (std::isnan(tnear) || std::isnan(tfar) || tnear > tfar)
+        throw py::value_error("tnear, tfar: expected tnear <= tfar, neither NaN");
+    py::array_t<bool> result(answer_shape(rows));
+    bool* out = result.mutable_data();
+    {
+        py::gil_scoped_release released;
+        const auto lock = locked();
+        for_each_ray_chunk(rows, nthreads, tnear, tfar,
+                           [&](std::size_t first, const std::vector<Ray>& chunk) {
+                               std::vector<std::uint8_t> answers(chunk.size());
+                               occluded(std::span<const Ray>(chunk), std::span<std::uint8_t>(answers));
+                               std::copy(answers.begin(), answers.end(), out + first);
+                           });
+    }
+    return open3d_like(result);
 }
 
 }  // namespace lancer::python

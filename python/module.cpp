@@ -11,12 +11,14 @@
 
 #include "array_arguments.hpp"
 #include "files.hpp"
+#include "instanced_scene.hpp"
 #include "named_types.hpp"
 #include "pinhole_rays.hpp"
 #include "raycasting_scene.hpp"
 
 namespace py = pybind11;
 using lancer::python::ArrayLike;
+using lancer::python::InstancedScene;
 using lancer::python::Named;
 using lancer::python::RaycastingScene;
 
@@ -24,14 +26,34 @@ namespace {
 
 // A query as Python sees it: its first argument (rays or points) named as an array in the signature, and its
 // answers Open3D tensors when that argument is one (tensors_like), lancer.Array otherwise.
-template <class Answer, class... Rest>
-auto query(Answer (RaycastingScene::*method)(const py::object&, Rest...)) {
+template <class Scene, class Answer, class... Rest>
+auto query(Answer (Scene::*method)(const py::object&, Rest...)) {
     using Answers =
         std::conditional_t<std::is_same_v<Answer, py::dict>, Named<lancer::python::AnswerDictName>,
                            Named<lancer::python::AnswerArrayName>>;
-    return [method](RaycastingScene& scene, const ArrayLike& first, Rest... rest) {
+    return [method](Scene& scene, const ArrayLike& first, Rest... rest) {
         return Answers{lancer::python::tensors_like(first.object, (scene.*method)(first.object, rest...))};
     };
+}
+
+// The two add_triangles of a scene: arrays (documented by `arrays_doc`), or Open3D's mesh.
+template <class Scene>
+void add_triangles_methods(py::class_<Scene>& scene_class, const char* arrays_doc) {
+    scene_class
+        .def(
+            "add_triangles",
+            [](Scene& scene, const ArrayLike& vertex_positions, const ArrayLike& triangle_indices) {
+                return scene.add_triangles(vertex_positions.object, triangle_indices.object);
+            },
+            py::arg("vertex_positions"), py::arg("triangle_indices"), arrays_doc)
+        .def(
+            "add_triangles",
+            [](Scene& scene, const Named<lancer::python::TriangleMeshName>& mesh) {
+                return scene.add_mesh(mesh.object);
+            },
+            py::arg("mesh"),
+            "Adds an open3d.t.geometry.TriangleMesh (its vertex['positions'] and triangle['indices']) and\n"
+            "returns its geometry id.");
 }
 
 // What every query's docstring says of its rays or points and of Open3D's tensors.
@@ -77,7 +99,7 @@ class Array(numpy.ndarray):
              scope);
     scope["Array"].attr("__module__") = "lancer";
     module.attr("Array") = scope["Array"];
-    py::class_<RaycastingScene>(
+    py::class_<RaycastingScene> raycasting_scene(
         module, "RaycastingScene",
         "Exact ray and point queries over triangle meshes, with the API of Open3D's\n"
         "open3d.t.geometry.RaycastingScene (0.16, and 0.17's list_intersections): switch by changing the "
@@ -92,7 +114,14 @@ class Array(numpy.ndarray):
         "float32 once), or Open3D tensors, which give tensors back. Queries release the GIL and run at once\n"
         "from several threads; a scene pickles (its meshes; the structure is rebuilt). docs/python.md has "
         "the\n"
-        "details.")
+        "details.");
+    add_triangles_methods(
+        raycasting_scene,
+        "Adds a mesh and returns its geometry id (0, 1, ...).\n"
+        "vertex_positions: (N, 3) float32 (float64 and lists are converted); triangle_indices: "
+        "(M, 3)\n"
+        "integers (uint32 as Open3D's; any integer dtype or lists), each in [0, N).");
+    raycasting_scene
         .def(py::init<std::string, bool, int>(),
              py::arg("accel") = std::string(lancer::python::kDefaultAccel), py::arg("watertight") = true,
              py::arg("nthreads") = 0,
@@ -109,23 +138,6 @@ class Array(numpy.ndarray):
              "Open3D's constructor: a scene of the default structure (bvh8_packet), built on nthreads "
              "threads (0: all).")
         .def_readonly_static("INVALID_ID", &lancer::python::kInvalidId)
-        .def(
-            "add_triangles",
-            [](RaycastingScene& scene, const ArrayLike& vertex_positions, const ArrayLike& triangle_indices) {
-                return scene.add_triangles(vertex_positions.object, triangle_indices.object);
-            },
-            py::arg("vertex_positions"), py::arg("triangle_indices"),
-            "Adds a mesh and returns its geometry id (0, 1, ...).\n"
-            "vertex_positions: (N, 3) float32 (float64 and lists are converted); triangle_indices: (M, 3)\n"
-            "integers (uint32 as Open3D's; any integer dtype or lists), each in [0, N).")
-        .def(
-            "add_triangles",
-            [](RaycastingScene& scene, const Named<lancer::python::TriangleMeshName>& mesh) {
-                return scene.add_mesh(mesh.object);
-            },
-            py::arg("mesh"),
-            "Adds an open3d.t.geometry.TriangleMesh (its vertex['positions'] and triangle['indices']) and\n"
-            "returns its geometry id.")
         .def(
             "update_vertices",
             [](RaycastingScene& scene, const Named<lancer::python::IndexName>& geometry_id,
@@ -217,6 +229,76 @@ class Array(numpy.ndarray):
         .def("stats", &RaycastingScene::stats,
              "The structure's build statistics: accel, primitives, build_ms, the structure's own figures,\n"
              "memory_bytes.");
+    py::class_<InstancedScene> instanced_scene(
+        module, "InstancedScene",
+        "Geometries built once and placed any number of times by instances, each an affine transform: a\n"
+        "forest of a few trees, a city of a few buildings. lancer's two-level scene (Embree's instances,\n"
+        "OptiX's instance acceleration structures) with RaycastingScene's conventions.\n"
+        "\n"
+        "add_triangles gives a geometry id (the geometry is built then, and placed by no instance yet);\n"
+        "add_instance(geometry_id, transform) an instance id; set_transform and remove_instance move and\n"
+        "remove instances, which updates the top level only. cast_rays answers as RaycastingScene's, the\n"
+        "geometry and primitive those of the instanced geometry, with instance_ids besides. docs/python.md,\n"
+        "\"Instances\", has the details.");
+    add_triangles_methods(
+        instanced_scene,
+        "Adds a geometry, builds its structure, and returns its geometry id (0, 1, ...); no "
+        "instance\n"
+        "places it yet. vertex_positions: (N, 3) float32 (float64 and lists are converted);\n"
+        "triangle_indices: (M, 3) integers, each in [0, N), M at least 1.");
+    instanced_scene
+        .def(py::init<std::string, bool, int>(),
+             py::arg("accel") = std::string(lancer::python::kDefaultInstancedAccel),
+             py::arg("watertight") = true, py::arg("nthreads") = 0,
+             "A scene whose geometries are built as lancer structure `accel` (lancer.accel_names()), with "
+             "the\n"
+             "watertight triangle test (Woop et al. 2013) or Moller-Trumbore; nthreads: the threads that "
+             "build\n"
+             "the geometries and the top level (0: all).")
+        .def(
+            "add_instance",
+            [](InstancedScene& scene, const Named<lancer::python::IndexName>& geometry_id,
+               const ArrayLike& transform) {
+                return scene.add_instance(geometry_id.object, transform.object);
+            },
+            py::arg("geometry_id"), py::arg("transform"),
+            "Places geometry geometry_id by transform, object to world: a (3, 4) matrix [A | b] (a point p\n"
+            "goes to A p + b), or (4, 4) with the last row (0, 0, 0, 1); any real dtype, rounded to float32\n"
+            "once. Returns the instance id: 0, 1, ... in order of addition, never given again after\n"
+            "remove_instance. A transform with a NaN or infinite entry, a singular or too ill-conditioned\n"
+            "one (condition number above 2^29), or one that takes the geometry outside the coordinate "
+            "domain\n"
+            "raises ValueError, the scene unchanged.")
+        .def(
+            "set_transform",
+            [](InstancedScene& scene, const Named<lancer::python::IndexName>& instance_id,
+               const ArrayLike& transform) { scene.set_transform(instance_id.object, transform.object); },
+            py::arg("instance_id"), py::arg("transform"),
+            "Moves an instance: transform as add_instance's. The top level is refitted (or rebuilt once\n"
+            "its cost degrades) by the next query; the geometries are not touched.")
+        .def(
+            "remove_instance",
+            [](InstancedScene& scene, const Named<lancer::python::IndexName>& instance_id) {
+                scene.remove_instance(instance_id.object);
+            },
+            py::arg("instance_id"), "Removes an instance; its id is never given again.")
+        .def("cast_rays", query(&InstancedScene::cast_rays), py::arg("rays"), py::arg("nthreads") = 0,
+             "The closest hit of each ray over every instance.\n" LANCER_RAYS_DOC LANCER_COMMON_DOC
+             "Returns a dict: t_hit float32 (...) (inf: a miss; in the world ray's units), geometry_ids,\n"
+             "primitive_ids and instance_ids uint32 (...) (INVALID_ID: a miss), primitive_uvs float32\n"
+             "(..., 2) in the geometry's vertex order, primitive_normals float32 (..., 3) (the world's unit\n"
+             "geometric normal: the transformed triangle's (v1 - v0) x (v2 - v0); zeros for a miss).")
+        .def("test_occlusions", query(&InstancedScene::test_occlusions), py::arg("rays"),
+             py::arg("tnear") = 0.0f, py::arg("tfar") = std::numeric_limits<float>::infinity(),
+             py::arg("nthreads") = 0,
+             "Whether each ray hits any instance with t in [tnear, tfar].\n" LANCER_RAYS_DOC LANCER_COMMON_DOC
+             "Returns bool (...).")
+        .def_property_readonly("accel", &InstancedScene::accel,
+                               "The geometries' structure (lancer.accel_names()).")
+        .def("stats", &InstancedScene::stats,
+             "accel, geometries, instances, triangles (the geometries' own), instanced_triangles (over the\n"
+             "instances: what the scene flattened would hold), the top level's build ms and figures, and\n"
+             "memory_bytes (the top level, the instances' records and the geometries' structures).");
     module.def(
         "accel_names",
         [] {

@@ -9,43 +9,13 @@
 
 #include "array_arguments.hpp"
 #include "lancer/parallel.hpp"
+#include "mesh_arguments.hpp"
 
 namespace lancer::python {
 
 using namespace pybind11::literals;
 
 namespace {
-
-// Rays first to last of the (..., 6) rows, with the interval [tnear, tfar]. Throws std::invalid_argument
-// (ValueError) for a row with a NaN or infinite value, as float_rows does.
-void rays_of(const py::array_t<float, py::array::c_style>& rows, std::size_t first, std::size_t last,
-             float tnear, float tfar, std::vector<Ray>& rays) {
-    rays.clear();
-    for (std::size_t i = first; i < last; ++i) {
-        const float* r = rows.data() + 6 * i;
-        if (!(std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2]) && std::isfinite(r[3]) &&
-              std::isfinite(r[4]) && std::isfinite(r[5])))
-            throw std::invalid_argument("rays: " + row_name(rows, i) + " holds a NaN or infinite value");
-        rays.push_back({{r[0], r[1], r[2]}, {r[3], r[4], r[5]}, tnear, tfar});
-    }
-}
-
-// Items per task of the queries: a chunk of rays is one batch call, as intersect_parallel makes them, and as
-// the chunks start at multiples of kChunk, its packets of 64 start at multiples of 64.
-constexpr std::size_t kChunk = 4096;
-
-// body(first, rays) for each chunk of the (..., 6) rows, on `threads` threads (0: all): the rays first to
-// first + rays.size(), made by the task that traces them (rays_of).
-template <class Body>
-void for_each_ray_chunk(const py::array_t<float, py::array::c_style>& rows, int threads, float tnear,
-                        float tfar, Body&& body) {
-    parallel_for(static_cast<std::size_t>(rows.size() / 6), kChunk, threads,
-                 [&](std::size_t first, std::size_t last) {
-                     std::vector<Ray> rays;
-                     rays_of(rows, first, last, tnear, tfar, rays);
-                     body(first, rays);
-                 });
-}
 
 // `samples` fixed directions in no plane of the axes, so that axis-aligned meshes do not put their edges on
 // the occupancy rays: the fractional parts of multiples of three irrationals, centred.
@@ -62,23 +32,6 @@ std::vector<Vec3f> sample_directions(int samples) {
     return directions;
 }
 
-// The indices of an (M, 3) integer array, checked against the vertex count, read as Index: int64, or uint64
-// for unsigned dtypes, so that an index is reported as given (2**63 + 1, not wrapped to a negative).
-template <class Index>
-void read_indices(const py::array& array, std::size_t vertex_count, const std::string& name,
-                  std::vector<std::uint32_t>& indices) {
-    const auto rows = py::array_t<Index, py::array::c_style | py::array::forcecast>::ensure(array);
-    const Index* index = rows.data();
-    indices.reserve(static_cast<std::size_t>(rows.size()));
-    for (py::ssize_t k = 0; k < rows.size(); ++k) {
-        if (std::cmp_less(index[k], 0) || std::cmp_greater_equal(index[k], vertex_count))
-            throw py::value_error(name + ": row " + std::to_string(k / 3) + " names vertex " +
-                                  std::to_string(index[k]) + ", outside [0, " + std::to_string(vertex_count) +
-                                  ")");
-        indices.push_back(static_cast<std::uint32_t>(index[k]));
-    }
-}
-
 void check_samples(int nsamples) {
     if (nsamples < 1 || nsamples > 1024)
         throw py::value_error("nsamples: expected a count in [1, 1024], got " + std::to_string(nsamples));
@@ -92,79 +45,25 @@ RaycastingScene::RaycastingScene(std::string accel, bool watertight, int nthread
       build_threads_(nthreads),
       first_triangle_{0} {
     check_threads(nthreads);
+    check_accel(accel_name_);
     scene_.materials.emplace_back();  // the meshes' material 0: a World renders what it holds
-    const std::vector<std::string_view> names = accel_names();
-    if (std::find(names.begin(), names.end(), accel_name_) == names.end()) {
-        std::string known;
-        for (const std::string_view name : names)
-            known.append(known.empty() ? "" : ", ").append(name);
-        throw py::value_error("accel: unknown structure '" + accel_name_ + "' (known: " + known + ")");
-    }
 }
 
 std::uint32_t RaycastingScene::add_triangles(const py::object& vertex_positions,
                                              const py::object& triangle_indices) {
-    return add_geometry(vertex_positions, triangle_indices, "vertex_positions", "triangle_indices");
+    return add_geometry(
+        mesh_argument(vertex_positions, triangle_indices, "vertex_positions", "triangle_indices"),
+        "triangle_indices");
 }
 
 std::uint32_t RaycastingScene::add_mesh(const py::object& mesh) {
-    const py::handle type = py::type::of(mesh);
-    const std::string type_name =
-        std::string(py::str(type.attr("__module__"))) + "." + std::string(py::str(type.attr("__qualname__")));
-    if (!py::hasattr(mesh, "vertex") || !py::hasattr(mesh, "triangle")) {
-        throw py::type_error(
-            "mesh: expected an open3d.t.geometry.TriangleMesh (from_legacy() converts a legacy "
-            "open3d.geometry.TriangleMesh), got " +
-            type_name);
-    }
-    py::object positions, indices;
-    try {
-        positions = mesh.attr("vertex")["positions"];
-        indices = mesh.attr("triangle")["indices"];
-    } catch (const py::error_already_set&) {
-        throw py::value_error("mesh: expected vertex['positions'] and triangle['indices'], a " + type_name +
-                              " without them");
-    }
-    return add_geometry(positions, indices, "mesh.vertex['positions']", "mesh.triangle['indices']");
+    return add_geometry(open3d_mesh_argument(mesh), "mesh.triangle['indices']");
 }
 
-std::uint32_t RaycastingScene::add_geometry(const py::object& vertices, const py::object& triangles,
-                                            const std::string& vertices_name,
-                                            const std::string& triangles_name) {
-    const auto points = float_rows(vertices, vertices_name, 3);
-    py::object indices_object = numpy_of(triangles);
-    try {
-        indices_object = py::module_::import("numpy").attr("asarray")(indices_object);  // lists too
-    } catch (const py::error_already_set&) {
-        throw py::type_error(triangles_name + ": expected an array of integers");
-    }
-    const auto indices_array = py::reinterpret_borrow<py::array>(indices_object);
-    const char kind = indices_array.dtype().kind();
-    if (kind != 'i' && kind != 'u')
-        throw py::type_error(triangles_name + ": expected an integer dtype (uint32 as Open3D), got " +
-                             std::string(py::str(indices_array.dtype())));
-    if (indices_array.ndim() != 2 || indices_array.shape(1) != 3)
-        throw py::value_error(triangles_name + ": expected shape (M, 3), got " + shape_text(indices_array));
-    if (points.ndim() != 2)
-        throw py::value_error(vertices_name + ": expected shape (N, 3), got " + shape_text(points));
-    const auto vertex_count = static_cast<std::size_t>(points.shape(0));
-    const float* p = points.data();
-    for (py::ssize_t i = 0; i < points.shape(0); ++i) {
-        if (!in_coordinate_domain({p[3 * i], p[3 * i + 1], p[3 * i + 2]}))
-            throw py::value_error(vertices_name + ": row " + std::to_string(i) +
-                                  " lies outside the coordinate domain [-2^60, 2^60]");
-    }
-    TriangleMesh mesh;
-    mesh.name = "geometry " + std::to_string(first_triangle_.size() - 1);
-    mesh.positions.reserve(static_cast<std::size_t>(points.shape(0)));
-    for (py::ssize_t i = 0; i < points.shape(0); ++i)
-        mesh.positions.emplace_back(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
-    if (kind == 'u')
-        read_indices<std::uint64_t>(indices_array, vertex_count, triangles_name, mesh.indices);
-    else
-        read_indices<std::int64_t>(indices_array, vertex_count, triangles_name, mesh.indices);
+std::uint32_t RaycastingScene::add_geometry(TriangleMesh mesh, const std::string& triangles_name) {
     py::gil_scoped_release released;
-    const std::unique_lock lock = writing();
+    const std::unique_lock lock = lock_.writing();
+    mesh.name = "geometry " + std::to_string(first_triangle_.size() - 1);
     const std::size_t total = first_triangle_.back() + mesh.triangle_count();
     if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         throw std::invalid_argument(triangles_name + ": more triangles than a hit's 32-bit id can number");
@@ -184,7 +83,7 @@ py::dict RaycastingScene::update_vertices(const py::object& geometry_id, const p
     std::optional<UpdateReport> report;  // none while the structure is not built yet
     {
         py::gil_scoped_release released;
-        const std::unique_lock lock = writing();
+        const std::unique_lock lock = lock_.writing();
         if (!id.value || *id.value >= scene_.meshes.size()) {
             throw py::value_error("geometry_id: " + id.text + ", the scene has " +
                                   std::to_string(scene_.meshes.size()) + " geometries");
@@ -218,30 +117,12 @@ py::dict RaycastingScene::update_vertices(const py::object& geometry_id, const p
                     "ms"_a = report->ms, "sah_ratio"_a = report->sah_ratio);
 }
 
-std::shared_lock<std::shared_mutex> RaycastingScene::reading() {
-    const std::lock_guard turn(turnstile_);
-    return std::shared_lock(mutex_);
-}
-
-std::unique_lock<std::shared_mutex> RaycastingScene::writing() {
-    const std::lock_guard turn(turnstile_);
-    return std::unique_lock(mutex_);
-}
-
 bool RaycastingScene::ready(unsigned needs) const {
     return world_ && (!(needs & kQueries) || queries_) && (!(needs & kNormals) || !unit_normals_.empty());
 }
 
 std::shared_lock<std::shared_mutex> RaycastingScene::prepared(unsigned needs) {
-    // Readers cannot turn their lock into a writer's, so a query that finds something missing lets go and
-    // builds it under the exclusive lock; a change of the triangles may come in between, hence the loop.
-    for (;;) {
-        std::shared_lock lock = reading();
-        if (ready(needs)) return lock;
-        lock.unlock();
-        const std::unique_lock exclusive = writing();
-        prepare(needs);
-    }
+    return lock_.prepared([&] { return ready(needs); }, [&] { prepare(needs); });
 }
 
 void RaycastingScene::prepare(unsigned needs) {
@@ -320,24 +201,11 @@ py::dict RaycastingScene::cast_rays(const py::object& rays, int nthreads) {
 }
 
 py::array RaycastingScene::test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads) {
-    const auto rows = float_rows(rays, "rays", 6, false);
-    check_threads(nthreads);
-    if (std::isnan(tnear) || std::isnan(tfar) || tnear > tfar)
-        throw py::value_error("tnear, tfar: expected tnear <= tfar, neither NaN");
-    py::array_t<bool> result(answer_shape(rows));
-    bool* out = result.mutable_data();
-    {
-        py::gil_scoped_release released;
-        const std::shared_lock lock = prepared(kStructure);
-        const Accel& accel = committed();
-        for_each_ray_chunk(rows, nthreads, tnear, tfar,
-                           [&](std::size_t first, const std::vector<Ray>& chunk) {
-                               std::vector<std::uint8_t> occluded(chunk.size());
-                               accel.occluded(chunk, occluded);
-                               std::copy(occluded.begin(), occluded.end(), out + first);
-                           });
-    }
-    return open3d_like(result);
+    return occlusion_answers(
+        rays, tnear, tfar, nthreads, [&] { return prepared(kStructure); },
+        [&](std::span<const Ray> chunk, std::span<std::uint8_t> answers) {
+            committed().occluded(chunk, answers);
+        });
 }
 
 py::array RaycastingScene::count_intersections(const py::object& rays, int nthreads) {
@@ -545,12 +413,7 @@ py::dict RaycastingScene::stats() {
     // The structure's own figures (`lancer stats`'), counts as ints.
     py::dict answer("accel"_a = accel_name_, "primitives"_a = stats.primitives,
                     "build_ms"_a = stats.build_ms);
-    for (const AccelFigure& figure : stats.figures) {
-        if (figure.whole)
-            answer[figure.key.c_str()] = static_cast<std::uint64_t>(figure.value);
-        else
-            answer[figure.key.c_str()] = figure.value;
-    }
+    put_figures(answer, stats.figures);
     answer["memory_bytes"] = memory_bytes;
     return answer;
 }

@@ -28,6 +28,7 @@
 #include "lancer/scene.hpp"
 #include "lancer/world.hpp"
 #include "ray_packets.hpp"
+#include "scene_lock.hpp"
 
 namespace lancer::python {
 
@@ -77,16 +78,10 @@ class RaycastingScene {
   private:
     // work() on the threads the constructor's nthreads allows: building and updating the structures.
     void building(const std::function<void()>& work) const { run_with_threads(build_threads_, work); }
-    std::uint32_t add_geometry(const py::object& vertices, const py::object& triangles,
-                               const std::string& vertices_name, const std::string& triangles_name);
+    std::uint32_t add_geometry(TriangleMesh mesh, const std::string& triangles_name);
     // What a query reads besides the structure, each built by the first query that needs it after a change
     // of the triangles: GeometryQueries' tree, the unit normals' table.
     enum Needs : unsigned { kStructure = 0, kQueries = 1, kNormals = 2 };
-    // The scene's lock, shared by the queries, which trace without the GIL, and held alone by whatever
-    // changes the triangles or builds on them. Taken with the GIL released. A writer waits in the turnstile,
-    // which new readers pass through, so that a stream of queries from other threads cannot starve it.
-    [[nodiscard]] std::shared_lock<std::shared_mutex> reading();
-    [[nodiscard]] std::unique_lock<std::shared_mutex> writing();
     // A shared lock under which the structure and what `needs` names are built: built first, under the
     // exclusive lock, by the first query that finds them missing (the others wait for it, then read).
     // Throws std::invalid_argument for an empty scene.
@@ -118,8 +113,7 @@ class RaycastingScene {
     std::unique_ptr<World> world_;               // scene_ flattened and its structure, once built
     std::unique_ptr<GeometryQueries> queries_;
     std::vector<float> unit_normals_;  // of world_'s triangles once made; empty before
-    std::shared_mutex mutex_;
-    std::mutex turnstile_;
+    SceneLock lock_;
 };
 
 }  // namespace lancer::python

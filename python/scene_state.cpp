@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "mesh_arguments.hpp"
 #include "raycasting_scene.hpp"
 
 namespace lancer::python {
@@ -43,7 +44,7 @@ py::dict RaycastingScene::pickled() {
     std::vector<TriangleMesh> meshes;
     {
         py::gil_scoped_release released;
-        const std::shared_lock lock = reading();
+        const std::shared_lock lock = lock_.reading();
         if (!scene_.spheres.empty())
             throw std::invalid_argument(
                 "pickle: this scene, loaded from a .plo file, holds spheres, which "
@@ -101,7 +102,7 @@ std::unique_ptr<RaycastingScene> RaycastingScene::unpickled(const py::object& st
             if (!py::isinstance<py::tuple>(geometry) || py::len(geometry) != 2)
                 throw py::value_error(name + ": expected a (vertices, triangles) pair");
             const auto pair = py::reinterpret_borrow<py::tuple>(geometry);
-            scene->add_geometry(pair[0], pair[1], name + "[0]", name + "[1]");
+            scene->add_geometry(mesh_argument(pair[0], pair[1], name + "[0]", name + "[1]"), name + "[1]");
         }
         return scene;
     } catch (const py::builtin_exception& error) {  // TypeError too: a state of the wrong types is corrupt

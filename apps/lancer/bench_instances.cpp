@@ -9,12 +9,13 @@
 #include <atomic>
 #include <cmath>
 #include <memory>
-#include <random>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "common.hpp"
 #include "lancer/camera.hpp"
+#include "lancer/generate.hpp"
 #include "lancer/instances.hpp"
 #include "lancer/parallel.hpp"
 #include "lancer/views.hpp"
@@ -30,27 +31,6 @@ namespace {
 
 // Rays per task, as intersect_parallel's.
 constexpr std::size_t kRayChunk = 4096;
-
-// N placements of a mesh of box `bounds`: a random rotation, a uniform scale in [0.5, 1.5] and a position in
-// a cube whose side grows as the cube root of N, so that the instances fill it about as densely whatever N
-// and the rays of the view cross many of them. Fixed seed: the same scene on every run.
-std::vector<Transform> random_placements(const Box3f& bounds, int count) {
-    std::mt19937 rng(2026);
-    std::uniform_real_distribution<float> unit(-1.0f, 1.0f), scale(0.5f, 1.5f), angle(0.0f, 6.2831853f);
-    const float size = max_component(bounds.extent());
-    const float side = 0.9f * size * std::cbrt(static_cast<float>(count));
-    const Transform to_origin = Transform::translation(-1.0f * bounds.center());
-    std::vector<Transform> placements;
-    placements.reserve(static_cast<std::size_t>(count));
-    for (int i = 0; i < count; ++i) {
-        const Vec3f axis(unit(rng), unit(rng), unit(rng) + 0.01f);
-        const float s = scale(rng);
-        placements.push_back(Transform::translation({side * unit(rng), side * unit(rng), side * unit(rng)}) *
-                             Transform::rotation(axis, angle(rng)) * Transform::scaling(Vec3f(s)) *
-                             to_origin);
-    }
-    return placements;
-}
 
 // The primary view's rays in the order of the bench's tiles (8x8, in 4x4 blocks: lancer/camera.hpp), so that
 // every 16 consecutive rays are a 4x4 pixel block, every 8 a 4x2 one.
@@ -111,8 +91,9 @@ class InstancedTracer {
   public:
     virtual ~InstancedTracer() = default;
     [[nodiscard]] virtual std::string name() const = 0;
-    // Closest hits, or any hits, of `rays` on the threads of the caller's run_with_threads.
-    virtual void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits) const = 0;
+    // Closest hits, or any hits, of `rays` on the threads of the caller's run_with_threads; `coherent`: the
+    // rays are the primary view's, in the bench's tile order.
+    virtual void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits, bool coherent) const = 0;
     virtual void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded) const = 0;
     // Moves every instance to `placements` and brings the structure up to date.
     virtual void move(std::span<const Transform> placements) = 0;
@@ -124,7 +105,7 @@ class LancerTracer final : public InstancedTracer {
     LancerTracer(std::string name, InstancedScene scene, std::size_t object_bytes)
         : name_(std::move(name)), scene_(std::move(scene)), object_bytes_(object_bytes) {}
     [[nodiscard]] std::string name() const override { return name_; }
-    void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits) const override {
+    void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits, bool /*coherent*/) const override {
         intersect_parallel(scene_, rays, hits);
     }
     void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded) const override {
@@ -266,34 +247,22 @@ class EmbreeTracer final : public InstancedTracer {
         : name_(std::move(name)), call_(call), scenes_(std::move(scenes)) {}
     [[nodiscard]] std::string name() const override { return name_; }
     // The rays in tasks of kRayChunk; within a task, one call per ray, per 8 or 16 consecutive rays, or per
-    // stream of 256 (bench_command.cpp's rows: the COHERENT flag on the primary view's packets only is
-    // approximated here by INCOHERENT everywhere but the packets, which Embree treats alike at this depth).
-    void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits) const override {
+    // stream of 256. Closest hits under the context flag the flat bench gives them
+    // (src/accel/embree_rays.cpp, docs/results.md, "Which context flag suits which view"): COHERENT on the
+    // primary view, INCOHERENT on the others. Occlusion INCOHERENT for every call: the flat bench's COHERENT
+    // on the packets hangs rtcOccluded16 on this two-level scene (Debian's Embree 3.13.5, AVX2, 1 and 2
+    // threads; rtcOccluded8 answers).
+    void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits, bool coherent) const override {
         parallel_for(rays.size(), kRayChunk, 0, [&](std::size_t from, std::size_t to) {
             const DenormalsFlushed flushed;
             RTCIntersectContext context;
             rtcInitIntersectContext(&context);
+            context.flags =
+                coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
             if (call_ == EmbreeCall::Packet8) return packets<8>(rays, hits, from, to, context);
             if (call_ == EmbreeCall::Packet16) return packets<16>(rays, hits, from, to, context);
-            constexpr std::size_t kStream = 256;
-            RTCRayHit stream[kStream];
-            for (std::size_t first = from; first < to; first += kStream) {
-                const std::size_t count = std::min(kStream, to - first);
-                for (std::size_t i = 0; i < count; ++i) {
-                    stream[i].ray = embree_ray(rays[first + i]);
-                    stream[i].hit.geomID = RTC_INVALID_GEOMETRY_ID;
-                    stream[i].hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-                }
-                if (call_ == EmbreeCall::Stream) {
-                    rtcIntersect1M(scenes_->top(), &context, stream, static_cast<unsigned>(count),
-                                   sizeof(RTCRayHit));
-                } else {
-                    for (std::size_t i = 0; i < count; ++i)
-                        rtcIntersect1(scenes_->top(), &context, &stream[i]);
-                }
-                for (std::size_t i = 0; i < count; ++i)
-                    hits[first + i] = lancer_hit(stream[i]);
-            }
+            streams<false>(rays, from, to, context,
+                           [&](std::size_t i, const RTCRayHit& record) { hits[i] = lancer_hit(record); });
         });
     }
     void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded) const override {
@@ -301,30 +270,57 @@ class EmbreeTracer final : public InstancedTracer {
             const DenormalsFlushed flushed;
             RTCIntersectContext context;
             rtcInitIntersectContext(&context);
+            context.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
             if (call_ == EmbreeCall::Packet8) return occluded_packets<8>(rays, occluded, from, to, context);
             if (call_ == EmbreeCall::Packet16) return occluded_packets<16>(rays, occluded, from, to, context);
-            constexpr std::size_t kStream = 256;
-            RTCRay stream[kStream];
-            for (std::size_t first = from; first < to; first += kStream) {
-                const std::size_t count = std::min(kStream, to - first);
-                for (std::size_t i = 0; i < count; ++i)
-                    stream[i] = embree_ray(rays[first + i]);
-                if (call_ == EmbreeCall::Stream) {
-                    rtcOccluded1M(scenes_->top(), &context, stream, static_cast<unsigned>(count),
-                                  sizeof(RTCRay));
-                } else {
-                    for (std::size_t i = 0; i < count; ++i)
-                        rtcOccluded1(scenes_->top(), &context, &stream[i]);
-                }
-                for (std::size_t i = 0; i < count; ++i)
-                    occluded[first + i] = stream[i].tfar < 0.0f ? 1 : 0;  // Embree's tfar = -inf on a hit
-            }
+            // Embree's tfar = -inf on a hit.
+            streams<true>(rays, from, to, context, [&](std::size_t i, const RTCRay& record) {
+                occluded[i] = record.tfar < 0.0f ? 1 : 0;
+            });
         });
     }
     void move(std::span<const Transform> placements) override { scenes_->move(placements); }
     [[nodiscard]] std::size_t memory_bytes() const override { return scenes_->bytes(); }
 
   private:
+    // Rays `from` to `to` one call per ray (rtcIntersect1, rtcOccluded1) or per stream of 256 consecutive
+    // rays (rtcIntersect1M, rtcOccluded1M), then answer(index, record) for each.
+    template <bool kOcclusion, class Answer>
+    void streams(std::span<const Ray> rays, std::size_t from, std::size_t to, RTCIntersectContext& context,
+                 Answer&& answer) const {
+        using Record = std::conditional_t<kOcclusion, RTCRay, RTCRayHit>;
+        constexpr std::size_t kStream = 256;
+        Record stream[kStream];
+        for (std::size_t first = from; first < to; first += kStream) {
+            const std::size_t count = std::min(kStream, to - first);
+            for (std::size_t i = 0; i < count; ++i) {
+                if constexpr (kOcclusion) {
+                    stream[i] = embree_ray(rays[first + i]);
+                } else {
+                    stream[i].ray = embree_ray(rays[first + i]);
+                    stream[i].hit.geomID = RTC_INVALID_GEOMETRY_ID;
+                    stream[i].hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+                }
+            }
+            if (call_ == EmbreeCall::Stream) {
+                if constexpr (kOcclusion)
+                    rtcOccluded1M(scenes_->top(), &context, stream, static_cast<unsigned>(count),
+                                  sizeof(Record));
+                else
+                    rtcIntersect1M(scenes_->top(), &context, stream, static_cast<unsigned>(count),
+                                   sizeof(Record));
+            } else {
+                for (std::size_t i = 0; i < count; ++i) {
+                    if constexpr (kOcclusion)
+                        rtcOccluded1(scenes_->top(), &context, &stream[i]);
+                    else
+                        rtcIntersect1(scenes_->top(), &context, &stream[i]);
+                }
+            }
+            for (std::size_t i = 0; i < count; ++i)
+                answer(first + i, stream[i]);
+        }
+    }
     template <int N>
     void packets(std::span<const Ray> rays, std::span<InstanceHit> hits, std::size_t from, std::size_t to,
                  RTCIntersectContext& context) const {
@@ -488,7 +484,7 @@ void run_instances_bench(const std::string& mesh_name, const Scene& mesh,
     const PinholeCamera camera(canonical_view(first_lancer->scene().bounds(), options.size, options.size));
     const std::vector<Ray> primary = primary_rays(camera, options.size);
     std::vector<InstanceHit> primary_hits(primary.size());
-    first_lancer->intersect(primary, primary_hits);
+    first_lancer->intersect(primary, primary_hits, true);
     bool disagreement = false;
     fmt::print("{:<8} {:>9} {:<14} {:>3} {:>9} {:>9} {:>9} {:>7} {:>10}\n", "view", "rays", "accel", "thr",
                "Mrays/s", "min", "max", "hits", "differ");
@@ -498,9 +494,9 @@ void run_instances_bench(const std::string& mesh_name, const Scene& mesh,
                 ? primary
                 : secondary_rays(view == BenchView::Diffuse ? SecondaryView::Diffuse : SecondaryView::Shadow,
                                  first_lancer->scene(), objects, primary, primary_hits);
-        const bool shadow = view == BenchView::Shadow;
+        const bool shadow = view == BenchView::Shadow, coherent = view == BenchView::Primary;
         std::vector<InstanceHit> reference(rays.size());
-        first_lancer->intersect(rays, reference);
+        first_lancer->intersect(rays, reference, coherent);
         std::vector<std::vector<InstanceHit>> hits(tracers.size(), std::vector<InstanceHit>(rays.size()));
         std::vector<std::vector<std::uint8_t>> occluded(tracers.size(),
                                                         std::vector<std::uint8_t>(rays.size()));
@@ -513,7 +509,7 @@ void run_instances_bench(const std::string& mesh_name, const Scene& mesh,
                     answered[k] += occluded[k][i];
                 }
             } else {
-                tracers[k]->intersect(rays, hits[k]);
+                tracers[k]->intersect(rays, hits[k], coherent);
                 differences[k] = count_differences(reference, hits[k]);
                 answered[k] = static_cast<std::size_t>(std::count_if(
                     hits[k].begin(), hits[k].end(), [](const InstanceHit& h) { return h.hit(); }));
@@ -531,7 +527,7 @@ void run_instances_bench(const std::string& mesh_name, const Scene& mesh,
                         if (shadow) {
                             tracers[k]->occluded(rays, occluded[k]);
                         } else {
-                            tracers[k]->intersect(rays, hits[k]);
+                            tracers[k]->intersect(rays, hits[k], coherent);
                         }
                         if (frame >= 0)
                             mrays[k].push_back(static_cast<double>(rays.size()) / (watch.elapsed_ms() * 1e3));

@@ -11,10 +11,10 @@
 
 namespace lancer::cli {
 
-LoadedScene load_timed(const std::filesystem::path& file) {
+LoadedScene load_timed(const std::filesystem::path& file, const LoadOptions& options) {
     Stopwatch watch;
     try {
-        LoadedScene loaded{load_scene(file), 0.0};
+        LoadedScene loaded{load_scene(file, options), 0.0};
         loaded.load_ms = watch.elapsed_ms();
         return loaded;
     } catch (const std::bad_alloc&) {
@@ -98,22 +98,23 @@ BuiltAccel build_timed(const AccelChoice& choice, const Geometry& geometry) {
     return built;
 }
 
-PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice& choice) {
-    if (file.extension() != ".plo") {
-        LoadedScene loaded = load_timed(file);
-        const BuildOptions options = choice.build_options();
-        const std::size_t primitives = loaded.scene.triangle_count() + loaded.scene.spheres.size();
-        Stopwatch watch;
-        try {
-            World world(std::move(loaded.scene), choice.name, options);
-            return {std::move(world), loaded.load_ms, watch.elapsed_ms()};
-        } catch (const std::invalid_argument& error) {
-            throw InputError(error.what());
-        } catch (const std::bad_alloc&) {
-            throw out_of_memory("the scene (" + std::to_string(primitives) + " primitives)",
-                                "building " + choice.name);
-        }
+PreparedScene prepare_loaded(LoadedScene loaded, const AccelChoice& choice) {
+    const BuildOptions options = choice.build_options();
+    const std::size_t primitives = loaded.scene.triangle_count() + loaded.scene.spheres.size();
+    Stopwatch watch;
+    try {
+        World world(std::move(loaded.scene), choice.name, options);
+        return {std::move(world), loaded.load_ms, watch.elapsed_ms()};
+    } catch (const std::invalid_argument& error) {
+        throw InputError(error.what());
+    } catch (const std::bad_alloc&) {
+        throw out_of_memory("the scene (" + std::to_string(primitives) + " primitives)",
+                            "building " + choice.name);
     }
+}
+
+PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice& choice) {
+    if (file.extension() != ".plo") return prepare_loaded(load_timed(file), choice);
     if (choice.name_option != nullptr && choice.name_option->count() > 0 && choice.name != "plucker")
         throw InputError(file.string() + " holds a plucker octree: --accel must be plucker or left out");
     if (!choice.settings.empty())

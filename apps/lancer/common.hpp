@@ -15,6 +15,7 @@
 #include <CLI/CLI.hpp>
 
 #include "lancer/accel.hpp"
+#include "lancer/load_scene.hpp"
 #include "lancer/scene.hpp"
 #include "lancer/world.hpp"
 
@@ -48,7 +49,7 @@ struct LoadedScene {
 };
 
 // Throws LoadError, or InputError when loading passes --max-memory.
-[[nodiscard]] LoadedScene load_timed(const std::filesystem::path& file);
+[[nodiscard]] LoadedScene load_timed(const std::filesystem::path& file, const LoadOptions& options = {});
 
 // --max-memory SIZE (512M, 2G): the bound of include/lancer/memory_limit.hpp, set as soon as the flag is
 // parsed, so that loading and building run under it. AccelChoice::add_options adds it.
@@ -89,6 +90,8 @@ struct PreparedScene {
     double build_ms = 0.0;
 };
 [[nodiscard]] PreparedScene prepare_scene(const std::filesystem::path& file, const AccelChoice& choice);
+// prepare_scene's World of a scene already loaded.
+[[nodiscard]] PreparedScene prepare_loaded(LoadedScene loaded, const AccelChoice& choice);
 
 [[nodiscard]] bool stderr_is_terminal();
 

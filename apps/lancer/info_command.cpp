@@ -1,5 +1,6 @@
-// lancer info FILE: what a file holds once loaded. lancer info --options: the structures and their `--set`
-// keys, from the registry, as the Markdown tables of the README.
+// lancer info FILE: what a file holds once loaded, a mesh that a scene graph places several times counted
+// once (its objects, instances and the triangles over every placement). lancer info --options: the structures
+// and their `--set` keys, from the registry, as the Markdown tables of the README.
 #include <fmt/core.h>
 
 #include <memory>
@@ -13,7 +14,8 @@ namespace lancer::cli {
 namespace {
 
 void run(const std::string& file) {
-    const LoadedScene loaded = load_timed(file);
+    // The instances as the file places them, so that a mesh placed many times is counted once.
+    const LoadedScene loaded = load_timed(file, {.keep_instances = true});
     const Scene& scene = loaded.scene;
     std::size_t vertices = 0, meshes_with_normals = 0;
     for (const TriangleMesh& mesh : scene.meshes) {
@@ -25,6 +27,15 @@ void run(const std::string& file) {
     fmt::print("meshes      {} ({} with vertex normals)\n", scene.meshes.size(), meshes_with_normals);
     fmt::print("triangles   {}\n", scene.triangle_count());
     fmt::print("vertices    {}\n", vertices);
+    if (!scene.instances.empty()) {
+        std::size_t object_triangles = 0;
+        for (const TriangleMesh& mesh : scene.instanced_meshes)
+            object_triangles += mesh.triangle_count();
+        fmt::print("objects     {} ({} triangles), meshes placed by instances\n",
+                   scene.instanced_meshes.size(), object_triangles);
+        fmt::print("instances   {}\n", scene.instances.size());
+        fmt::print("instanced   {} triangles over every placement\n", scene.instanced_triangle_count());
+    }
     fmt::print("spheres     {}\n", scene.spheres.size());
     fmt::print("planes      {}\n", scene.planes.size());
     fmt::print("materials   {}\n", scene.materials.size());

@@ -1,6 +1,8 @@
 // lancer render [SCENE]: renders a scene (the authored default scene when none is given) to PNG or OpenEXR,
 // then prints a summary: sizes, timings, rays by kind and Mrays/s; with --beside NAME, the same frame
-// rendered again with structure NAME (Embree's, typically) and its Mrays/s beside the first.
+// rendered again with structure NAME (Embree's, typically) and its Mrays/s beside the first. A scene whose
+// graph places a mesh several times (glTF's nodes), or --instances N, renders as instances, each mesh built
+// once (InstancedWorld).
 #include <fmt/core.h>
 
 #include <cctype>
@@ -16,6 +18,7 @@
 #include "cuda_device.hpp"
 #include "distributed.hpp"
 #include "lancer/animate.hpp"
+#include "lancer/generate.hpp"
 #include "lancer/render.hpp"
 #include "lancer/world.hpp"
 
@@ -35,7 +38,9 @@ struct RenderCommandOptions {
     int max_depth = 5;
     float min_weight = 1.0f / 512.0f;
     bool fresnel = false;
-    int animate = 0;  // frames of the animation; 0: one still image
+    int animate = 0;    // frames of the animation; 0: one still image
+    int instances = 0;  // --instances: the scene's meshes placed this many times in all; 0: as the file says
+    std::vector<std::string> with_meshes;  // --with: more meshes for --instances to place
 };
 
 enum class ImageFormat { Png, Exr };
@@ -169,6 +174,79 @@ void render_beside(const RenderCommandOptions& options, const World& world, cons
                    other_stats.total_rays(), world.accel().name(), stats.total_rays());
 }
 
+// --instances N: the meshes of the scene (and of --with's files) become objects, placed N times in all, in
+// turn, at `lancer bench --instances`' random placements, each object's box centre moved to that of all
+// their boxes first; the scene's spheres, planes, lights and materials stay.
+void place_at_random(const RenderCommandOptions& options, Scene& scene) {
+    for (const std::string& file : options.with_meshes) {
+        LoadedScene more = load_timed(file);
+        for (TriangleMesh& mesh : more.scene.meshes) {
+            mesh.material = 0;  // the scene's default material: the other file's are not carried over
+            mesh.material_ids.clear();
+            scene.meshes.push_back(std::move(mesh));
+        }
+    }
+    if (scene.meshes.empty())
+        throw InputError("--instances: " + options.scene_file + " has no mesh to place");
+    scene.instanced_meshes = std::move(scene.meshes);
+    scene.meshes.clear();
+    Box3f all;
+    std::vector<Vec3f> centres;
+    for (const TriangleMesh& mesh : scene.instanced_meshes) {
+        Box3f box;
+        for (const Vec3f& p : mesh.positions)
+            box.extend(p);
+        centres.push_back(box.center());
+        all.extend(box);
+    }
+    const std::vector<Transform> placements = random_placements(all, options.instances);
+    for (std::size_t i = 0; i < placements.size(); ++i) {
+        const auto mesh = static_cast<std::uint32_t>(i % scene.instanced_meshes.size());
+        scene.instances.push_back(
+            {mesh, placements[i] * Transform::translation(all.center() - centres[mesh])});
+    }
+}
+
+void print_instanced_summary(const RenderCommandOptions& options, const std::string& accel,
+                             const InstancedWorld& world, double load_ms, const Image& image,
+                             const RenderStats& stats) {
+    const Scene& scene = world.scene();
+    fmt::print("{}: {}x{}, {} objects placed by {} instances, {} instanced triangles\n", options.scene_file,
+               image.width, image.height, scene.instanced_meshes.size(), scene.instances.size(),
+               scene.instanced_triangle_count());
+    fmt::print("load {:.1f} ms, objects {} and top level build {:.1f} ms, render {:.1f} ms\n", load_ms, accel,
+               world.build_ms(), stats.trace_ms);
+    fmt::print("rays: {} in all, {:.2f} Mrays/s\n", stats.total_rays(),
+               static_cast<double>(stats.total_rays()) / (stats.trace_ms * 1e3));
+    fmt::print("wrote {}\n", options.output);
+}
+
+// A scene whose meshes are placed by instances: each built once (InstancedWorld), rendered on the CPU.
+void render_instanced(const RenderCommandOptions& options, LoadedScene loaded,
+                      const RenderOptions& render_options) {
+    if (options.device.cuda() || !options.beside.empty() || options.animate > 0 || Job::get().distributed())
+        throw InputError(
+            "a scene of instances renders on the CPU alone, in one process: leave out --device, "
+            "--beside and --animate, and mpirun");
+    Camera camera = loaded.scene.camera ? *loaded.scene.camera : canonical_view(loaded.scene.bounds());
+    if (!options.size.empty()) std::tie(camera.width, camera.height) = parse_size(options.size);
+    // An instance visit traces one ray: a packet structure (render's default) would be traced through the
+    // bvh8 it holds after a longer build, so bvh8 unless --accel names one.
+    const std::string accel = options.accel.name_option->count() == 0 ? "bvh8" : options.accel.name;
+    std::optional<InstancedWorld> world;
+    try {
+        world.emplace(std::move(loaded.scene), accel, options.accel.build_options());
+    } catch (const std::invalid_argument& error) {
+        throw InputError(error.what());
+    } catch (const std::bad_alloc&) {
+        throw out_of_memory("the instanced scene", "building " + accel);
+    }
+    RenderStats stats;
+    const Image image = render(*world, camera, render_options, &stats);
+    write_image(image, options.output);
+    print_instanced_summary(options, accel, *world, loaded.load_ms, image, stats);
+}
+
 void run(RenderCommandOptions options) {
     if (options.device.cuda() && options.mode != ShadingMode::Flat && options.mode != ShadingMode::Heatmap)
         throw InputError("--device cuda renders --mode flat or heatmap only");
@@ -194,16 +272,9 @@ void run(RenderCommandOptions options) {
             throw InputError("--animate renders on the CPU alone: leave out --device and --beside");
         static_cast<void>(frame_file(options.output, 0));  // a bad pattern before the scene is loaded
     }
-    // Every rank loads the scene and builds its structure (docs/distributed.md).
-    std::optional<PreparedScene> prepared;
-    job.on_every_rank("loading the scene",
-                      [&] { prepared = prepare_scene(options.scene_file, options.accel); });
-    World& world = prepared->world;
-    const Scene& scene = world.scene();
-
-    Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds());
-    if (!options.size.empty()) std::tie(camera.width, camera.height) = parse_size(options.size);
-
+    if (options.instances > 0 && std::filesystem::path(options.scene_file).extension() == ".plo")
+        throw InputError("--instances places a scene's meshes: " + options.scene_file +
+                         " is a stored octree");
     RenderOptions render_options;
     render_options.mode = options.mode;
     render_options.threads = options.threads;
@@ -212,6 +283,31 @@ void run(RenderCommandOptions options) {
     render_options.max_depth = options.max_depth;
     render_options.min_weight = options.min_weight;
     render_options.fresnel = options.fresnel;
+    // Every rank loads the scene and builds its structure (docs/distributed.md). A scene graph's meshes
+    // placed several times stay instances (LoadOptions::keep_instances), and are rendered as such.
+    std::optional<PreparedScene> prepared;
+    std::optional<LoadedScene> instanced;
+    job.on_every_rank("loading the scene", [&] {
+        if (std::filesystem::path(options.scene_file).extension() == ".plo") {
+            prepared = prepare_scene(options.scene_file, options.accel);
+            return;
+        }
+        LoadedScene loaded = load_timed(options.scene_file, {.keep_instances = true});
+        if (options.instances > 0) place_at_random(options, loaded.scene);
+        if (loaded.scene.instances.empty())
+            prepared = prepare_loaded(std::move(loaded), options.accel);
+        else
+            instanced = std::move(loaded);
+    });
+    if (instanced) {
+        render_instanced(options, std::move(*instanced), render_options);
+        return;
+    }
+    World& world = prepared->world;
+    const Scene& scene = world.scene();
+
+    Camera camera = scene.camera ? *scene.camera : canonical_view(scene.bounds());
+    if (!options.size.empty()) std::tie(camera.width, camera.height) = parse_size(options.size);
     if (options.animate > 0) {
         render_animation(options, world, camera, render_options);
         return;
@@ -298,6 +394,13 @@ void add_render_command(CLI::App& app) {
                      "--animate's), the structure updated between frames; -o names each frame with %d or "
                      "%0Nd (frame_%04d.png)")
         ->check(CLI::Range(1, 100000));
+    command
+        ->add_option("--instances", options->instances,
+                     "Place the scene's meshes (and --with's) N times in all, each built once, at random "
+                     "rotations, scales and positions (lancer bench --instances' placements)")
+        ->check(CLI::Range(1, 100000000));
+    command->add_option("--with", options->with_meshes, "More meshes for --instances to place (repeatable)")
+        ->check(CLI::ExistingFile);
     command->callback([options] { run(*options); });
 }
 

@@ -1,7 +1,10 @@
 // Procedural meshes: closed, watertight test objects and stand-ins for the Stanford meshes when absent.
 #pragma once
 
+#include <vector>
+
 #include "lancer/scene.hpp"
+#include "lancer/transform.hpp"
 
 namespace lancer {
 
@@ -19,5 +22,11 @@ namespace lancer {
 // normals. About 70k, 350k and 870k triangles for segments = 1750, 8750, 21800 with 20 sides.
 [[nodiscard]] TriangleMesh make_torus_knot(int segments, int sides, int p = 2, int q = 3,
                                            float tube_radius = 0.15f);
+
+// `count` placements of an object of box `bounds` (`lancer bench --instances`, `lancer render --instances`):
+// each a random rotation, a uniform scale in [0.5, 1.5] and a position in a cube whose side grows as the cube
+// root of `count`, so that the instances fill it about as densely whatever the count and rays cross many of
+// them. Fixed seed: the same placements on every run.
+[[nodiscard]] std::vector<Transform> random_placements(const Box3f& bounds, int count);
 
 }  // namespace lancer

@@ -17,29 +17,10 @@
 #include "lancer/box.hpp"
 #include "lancer/ray.hpp"
 #include "lancer/scene.hpp"
+#include "lancer/transform.hpp"
 #include "lancer/vec.hpp"
 
 namespace lancer {
-
-// 48 bytes: an affine map, row-major 3x4 (Embree's RTC_FORMAT_FLOAT3X4_ROW_MAJOR): a point p maps to
-// (m[r][0] p.x + m[r][1] p.y + m[r][2] p.z + m[r][3]) on row r, a direction without the last column.
-struct Transform {
-    float m[3][4] = {{1.0f, 0.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f, 0.0f}};
-
-    [[nodiscard]] static Transform translation(Vec3f offset);
-    // The rotation by `radians` about `axis` (any non-zero length), right-handed.
-    [[nodiscard]] static Transform rotation(Vec3f axis, float radians);
-    [[nodiscard]] static Transform scaling(Vec3f factors);
-
-    // In double, rounded to float once per component.
-    [[nodiscard]] Vec3f point(Vec3f p) const;
-    [[nodiscard]] Vec3f vector(Vec3f v) const;
-    bool operator==(const Transform&) const = default;
-};
-static_assert(sizeof(Transform) == 48);
-
-// a after b (a * b applied to p is a(b(p))), in double, rounded to float once per entry.
-[[nodiscard]] Transform operator*(const Transform& a, const Transform& b);
 
 // 24 bytes: a Hit (lancer/ray.hpp) that names the instance and its object. `prim` is the object's primitive
 // (its own numbering: triangles, then spheres), u and v its barycentrics in the object's vertex order, t in

@@ -24,9 +24,18 @@ class LoadError : public std::runtime_error {
     std::size_t line_;
 };
 
+struct LoadOptions {
+    // A mesh that several nodes of a scene graph place (glTF's node hierarchy, Collada's instance nodes,
+    // through assimp) becomes one Scene::instanced_meshes entry in its own frame and a MeshInstance per
+    // placement, for lancer::InstancedScene to build once. Off: each placement is a mesh of its own, moved
+    // by its node, as a World takes them. A placement whose transform cannot be inverted (singular, not
+    // affine) makes its mesh's placements meshes of their own either way.
+    bool keep_instances = false;
+};
+
 // Loads by extension: .off (polygons fan-triangulated, file order kept), .dsc (Ferreira & Mendoza 2011: reads
 // the .off of the same stem beside it), .nff (Haines' SPD), anything else through assimp (PLY, OBJ, STL,
 // glTF, ...). The scene always has at least one material; a scene without camera keeps camera empty.
-[[nodiscard]] Scene load_scene(const std::filesystem::path& file);
+[[nodiscard]] Scene load_scene(const std::filesystem::path& file, const LoadOptions& options = {});
 
 }  // namespace lancer

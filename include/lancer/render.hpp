@@ -87,6 +87,12 @@ struct RenderStats {
 [[nodiscard]] Image render(const World& world, const Camera& camera, const RenderOptions& options,
                            RenderStats* stats = nullptr);
 
+// render() of an InstancedWorld on the CPU, in every mode: the same image as its scene flattened would give,
+// up to the transformed rays' rounding. Throws as render() does, and std::invalid_argument for
+// RenderDevice::Cuda (the GPU kernels trace one structure's triangles).
+[[nodiscard]] Image render(const InstancedWorld& world, const Camera& camera, const RenderOptions& options,
+                           RenderStats* stats = nullptr);
+
 // A frame rendered in parts, by several processes (`mpirun lancer render`: docs/distributed.md). The
 // frame's tiles are the squares of options.tile_size (clipped to the image) numbered row-major; every part
 // renders the tiles it is handed, and assemble_frame() makes from parts that hold each tile once the image

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "lancer/box.hpp"
+#include "lancer/transform.hpp"
 #include "lancer/vec.hpp"
 
 namespace lancer {
@@ -124,8 +125,20 @@ struct Geometry {
     [[nodiscard]] Box3f bounds() const;
 };
 
+// A placement of a mesh that a scene graph places several times (glTF's node hierarchy): mesh `mesh` of
+// Scene::instanced_meshes, moved to the world by `object_to_world`.
+struct MeshInstance {
+    std::uint32_t mesh = 0;
+    Transform object_to_world;
+};
+
 struct Scene {
     std::vector<TriangleMesh> meshes;
+    // Meshes that several nodes of a scene graph place, each in its own frame and placed by `instances`
+    // only (load_scene's LoadOptions::keep_instances; empty otherwise, every placement then a mesh of
+    // `meshes`). A World refuses them; lancer::InstancedScene builds each once.
+    std::vector<TriangleMesh> instanced_meshes;
+    std::vector<MeshInstance> instances;
     std::vector<Sphere> spheres;
     std::vector<Plane> planes;
     std::vector<Material> materials;  // indexed by the primitives' material ids; never empty after loading
@@ -134,14 +147,20 @@ struct Scene {
     Vec3f background{0.0f};
     Vec3f ambient{0.1f};
 
+    // The triangles of `meshes`, the ones a World holds.
     [[nodiscard]] std::size_t triangle_count() const;
-    // Bounds of the bounded primitives (meshes and spheres); planes are infinite.
+    // Over every placement: triangle_count() and each instance's mesh's triangles, what the scene flattened
+    // would hold.
+    [[nodiscard]] std::size_t instanced_triangle_count() const;
+    // Bounds of the bounded primitives (meshes, spheres, and each instance's mesh's box moved to the world);
+    // planes are infinite.
     [[nodiscard]] Box3f bounds() const;
 };
 
 // Checks what every consumer of a Scene relies on: vertices and spheres inside the coordinate domain,
 // indices in range and in threes, one normal per vertex and one material id per triangle where given, every
-// material id in range, and fewer primitives than a hit's 32-bit id numbers. Throws std::invalid_argument
+// material id in range, fewer primitives than a hit's 32-bit id numbers; the same of each instanced mesh,
+// and each instance naming one with a finite transform. Throws std::invalid_argument
 // naming the first broken one. load_scene and the renderer call it; a scene made in code may too.
 void check_scene(const Scene& scene);
 

@@ -11,6 +11,7 @@
 #include <string_view>
 
 #include "lancer/accel.hpp"
+#include "lancer/instances.hpp"
 #include "lancer/scene.hpp"
 
 namespace lancer {
@@ -69,6 +70,35 @@ class World {
     std::unique_ptr<SceneGeometry> geometry_;
     std::unique_ptr<Accel> accel_;
     BuildOptions options_;
+};
+
+// A World for a scene whose meshes are placed by instances (Scene::instances: load_scene's keep_instances):
+// each instanced mesh built once as structure `accel_name`, the scene's other meshes and spheres as a World's
+// geometry and structure placed once by the identity, under an InstancedScene's top level
+// (docs/accel/instances.md). Object k and instance i are the scene's instanced mesh k and instance i; the
+// rest, when the scene has meshes or spheres, is the last object, placed by the last instance.
+class InstancedWorld {
+  public:
+    // Throws std::invalid_argument for a scene check_scene refuses, an unknown structure, or an instance
+    // whose transform the InstancedScene refuses (naming it), and std::bad_alloc past the memory limit.
+    InstancedWorld(Scene scene, std::string_view accel_name, const BuildOptions& options);
+
+    [[nodiscard]] const Scene& scene() const { return *scene_; }
+    // The meshes and spheres outside the instances, flattened as a World's.
+    [[nodiscard]] const SceneGeometry& geometry() const { return *geometry_; }
+    [[nodiscard]] const InstancedScene& instanced() const { return *instanced_; }
+    // The object that holds geometry(), or -1 when it is empty.
+    [[nodiscard]] std::int32_t rest_object() const { return rest_object_; }
+    // Milliseconds to build the objects' structures and the top level.
+    [[nodiscard]] double build_ms() const { return build_ms_; }
+
+  private:
+    std::unique_ptr<Scene> scene_;
+    std::unique_ptr<SceneGeometry> geometry_;
+    std::unique_ptr<Accel> rest_;  // over geometry(); null when it is empty
+    std::unique_ptr<InstancedScene> instanced_;
+    std::int32_t rest_object_ = -1;
+    double build_ms_ = 0.0;
 };
 
 }  // namespace lancer

@@ -359,23 +359,27 @@ def signatures(function):
     return found
 
 
-def public_methods():
-    return [name for name in dir(lancer.RaycastingScene)
-            if not name.startswith("_") and callable(getattr(lancer.RaycastingScene, name))]
+def public_methods(scene=None):
+    scene = scene or lancer.RaycastingScene
+    return [name for name in dir(scene) if not name.startswith("_") and callable(getattr(scene, name))]
 
 
 def test_help_documents_the_class_and_every_argument():
     assert "Open3D" in lancer.RaycastingScene.__doc__ and "accel_names" in lancer.RaycastingScene.__doc__
-    text = __import__("pydoc").render_doc(lancer.RaycastingScene)
-    for name in public_methods() + ["__init__"]:
-        function = getattr(lancer.RaycastingScene, name)
-        found = signatures(function)
-        assert found, name
-        for arguments in found:
-            for argument in arguments:
-                assert len(argument) == 2 and not argument[0].startswith("arg"), (name, argument)
-                assert argument[1] != "object", (name, argument)  # a precise type, not `object`
-        assert name in text
+    assert "add_instance" in lancer.InstancedScene.__doc__
+    for scene in (lancer.RaycastingScene, lancer.InstancedScene):
+        text = __import__("pydoc").render_doc(scene)
+        for name in public_methods(scene) + ["__init__"]:
+            function = getattr(scene, name)
+            found = signatures(function)
+            assert found, name
+            for arguments in found:
+                for argument in arguments:
+                    assert len(argument) == 2 and not argument[0].startswith("arg"), (name, argument)
+                    assert argument[1] != "object", (name, argument)  # a precise type, not `object`
+            assert name in text
+    assert "(3, 4)" in lancer.InstancedScene.add_instance.__doc__
+    assert "instance_ids" in lancer.InstancedScene.cast_rays.__doc__
     for name in ("cast_rays", "test_occlusions", "count_intersections", "list_intersections"):
         doc = getattr(lancer.RaycastingScene, name).__doc__
         assert "(..., 6)" in doc and "float64" in doc and "open3d.core.Tensor" in doc, name
@@ -420,13 +424,15 @@ def test_the_stubs_name_every_public_attribute_with_its_arguments():
     public = {name for name in dir(lancer) if not name.startswith("_")}
     assert public <= set(module_names), public - set(module_names)
     assert {name for name in module_names if not name.startswith("_")} == public
-    scene_stub = classes["RaycastingScene"]
-    scene_public = {name for name in dir(lancer.RaycastingScene) if not name.startswith("_")}
-    assert {name for name in scene_stub if not name.startswith("_")} == scene_public
+    for scene in (lancer.RaycastingScene, lancer.InstancedScene):
+        scene_public = {name for name in dir(scene) if not name.startswith("_")}
+        assert {name for name in classes[scene.__name__] if not name.startswith("_")} == scene_public, scene
     array_own = {name for name in vars(lancer.Array) if not name.startswith("_")}
     assert {name for name in classes["Array"] if not name.startswith("_")} == array_own
     # Each function's arguments as the module names them, overload by overload.
-    for owner, stub in ((lancer, module_names), (lancer.RaycastingScene, scene_stub)):
+    owners = ((lancer, module_names), (lancer.RaycastingScene, classes["RaycastingScene"]),
+              (lancer.InstancedScene, classes["InstancedScene"]))
+    for owner, stub in owners:
         for name, stubbed in stub.items():
             if name.startswith("_") and name != "__init__":
                 continue  # pybind11 names pickle's arguments arg0: the stub gives them names

@@ -15,7 +15,7 @@
 
 namespace lancer {
 
-// Answer: Hit (closest hits) or std::uint8_t (occlusion).
+// Answer: InstanceHit (closest hits) or std::uint8_t (occlusion).
 template <class Answer>
 class GroupedBatch {
   public:

@@ -8,6 +8,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -168,14 +169,14 @@ class TileRenderer {
 
         if (mode_ == ShadingMode::Heatmap) {
             const std::vector<Ray> rays = camera_.pixel_centre_rays(x0, y0, x1, y1);
-            std::vector<Hit> hits(rays.size());
+            std::vector<InstanceHit> hits(rays.size());
             trace_counting(rays, hits, x0, y0, x1);
             return;
         }
         // The camera rays straight into 8x8 packets, the structures' fastest path for them
         // (Accel::intersect_packet); the lanes of a packet that overhangs the tile are traced and dropped.
         RayPacket rays;
-        HitPacket hits;
+        std::array<InstanceHit, RayPacket::kMaxSize> hits;
         constexpr int kSide = PinholeCamera::kTileSide;
         for (int packet_y = y0; packet_y < y1; packet_y += kSide) {
             for (int packet_x = x0; packet_x < x1; packet_x += kSide) {
@@ -184,7 +185,7 @@ class TileRenderer {
                 for (int lane = 0; lane < rays.size; ++lane) {
                     const int x = packet_x + PinholeCamera::tile_column(lane);
                     const int y = packet_y + PinholeCamera::tile_row(lane);
-                    if (x < x1 && y < y1) shade(x, y, rays.ray(lane), hits.hit(lane));
+                    if (x < x1 && y < y1) shade(x, y, rays.ray(lane), hits[static_cast<std::size_t>(lane)]);
                 }
             }
         }
@@ -193,7 +194,8 @@ class TileRenderer {
 
   private:
     // One ray at a time, so that each pixel gets its own count (a diagnostic mode: speed is not the point).
-    void trace_counting(const std::vector<Ray>& rays, std::vector<Hit>& hits, int x0, int y0, int x1) const {
+    void trace_counting(const std::vector<Ray>& rays, std::vector<InstanceHit>& hits, int x0, int y0,
+                        int x1) const {
         const int width = x1 - x0;
         for (std::size_t k = 0; k < rays.size(); ++k) {
             const auto x = static_cast<std::size_t>(x0 + static_cast<int>(k) % width);
@@ -204,7 +206,7 @@ class TileRenderer {
         rays_.add({rays.size(), 0, 0, 0});
     }
 
-    void shade(int x, int y, const Ray& ray, const Hit& hit) const {
+    void shade(int x, int y, const Ray& ray, const InstanceHit& hit) const {
         if (mode_ == ShadingMode::Depth) {
             depth_[static_cast<std::size_t>(y) * static_cast<std::size_t>(image_.width) + x] =
                 hit.hit() ? hit.t : kInfinity;
@@ -247,10 +249,8 @@ struct FrameBuffers {
 // Renders the tiles each call of `next_batch` returns (a std::vector<std::size_t>; empty: done), each
 // batch over the threads of `options`.
 template <class NextBatch>
-void render_batches(const Scene& scene, const SceneGeometry& geometry, const Accel& accel,
-                    const Camera& camera, const RenderOptions& options, FrameBuffers& frame,
-                    NextBatch&& next_batch) {
-    const SceneIntersector intersector(scene, geometry, accel);
+void render_batches(const Scene& scene, const SceneIntersector& intersector, const Camera& camera,
+                    const RenderOptions& options, FrameBuffers& frame, NextBatch&& next_batch) {
     const PinholeCamera pinhole(camera);
     const WhittedTracer whitted(scene, intersector, pinhole, options);
     const TileGrid grid(camera, options);
@@ -301,13 +301,16 @@ Image finish_frame(FrameBuffers& frame, ShadingMode mode, RenderStats* stats) {
 
 }  // namespace
 
-Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel, const Camera& camera,
-             const RenderOptions& options, RenderStats* stats) {
+namespace {
+
+// The whole frame through `intersector`.
+Image render_frame(const Scene& scene, const SceneIntersector& intersector, const Camera& camera,
+                   const RenderOptions& options, RenderStats* stats) {
     const auto start = std::chrono::steady_clock::now();
     check_options(camera, options);
     FrameBuffers frame(camera, options.mode);
     bool done = false;
-    render_batches(scene, geometry, accel, camera, options, frame, [&] {
+    render_batches(scene, intersector, camera, options, frame, [&] {
         std::vector<std::size_t> all;
         if (!done) {
             all.resize(frame_tile_count(camera, options));
@@ -324,6 +327,22 @@ Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& acc
     return image;
 }
 
+}  // namespace
+
+Image render(const Scene& scene, const SceneGeometry& geometry, const Accel& accel, const Camera& camera,
+             const RenderOptions& options, RenderStats* stats) {
+    return render_frame(scene, SceneIntersector(scene, geometry, accel), camera, options, stats);
+}
+
+Image render(const InstancedWorld& world, const Camera& camera, const RenderOptions& options,
+             RenderStats* stats) {
+    if (options.device != RenderDevice::Cpu)
+        throw std::invalid_argument(
+            "render: an instanced scene renders on the CPU (the GPU kernels trace one "
+            "structure's triangles)");
+    return render_frame(world.scene(), SceneIntersector(world), camera, options, stats);
+}
+
 std::size_t frame_tile_count(const Camera& camera, const RenderOptions& options) {
     check_options(camera, options);
     return TileGrid(camera, options).count();
@@ -335,7 +354,7 @@ FramePart render_part(const Scene& scene, const SceneGeometry& geometry, const A
     check_options(camera, options);
     FrameBuffers frame(camera, options.mode);
     FramePart part;
-    render_batches(scene, geometry, accel, camera, options, frame, [&] {
+    render_batches(scene, SceneIntersector(scene, geometry, accel), camera, options, frame, [&] {
         std::vector<std::size_t> batch = next_tiles();
         part.tiles.insert(part.tiles.end(), batch.begin(), batch.end());
         return batch;

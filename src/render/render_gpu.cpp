@@ -54,7 +54,7 @@ Image render_on_cuda(const World& world, const Camera& camera, const RenderOptio
                 continue;
             }
             const Ray ray = pinhole.generate(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
-            const SurfacePoint surface = intersector.surface(ray, hit);
+            const SurfacePoint surface = intersector.surface(ray, {hit.t, hit.prim, hit.u, hit.v, -1, -1});
             image.at(x, y) =
                 surface.color * std::fabs(dot(surface.geometric_normal, normalize(ray.direction)));
         }

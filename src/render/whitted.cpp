@@ -94,7 +94,7 @@ class LevelShader {
                 std::vector<Vec3f>& radiance, LevelOutput& out)
         : scene_(scene), intersector_(intersector), options_(options), radiance_(radiance), out_(out) {}
 
-    void shade(const RayNode& node, const Hit& hit) const {
+    void shade(const RayNode& node, const InstanceHit& hit) const {
         if (!hit.hit()) {
             radiance_[node.sample] += node.weight * scene_.background;
             return;
@@ -211,7 +211,7 @@ RayCounts WhittedTracer::render_tile(int x0, int y0, int x1, int y1, Image& imag
     LevelOutput out;
     out.counts.primary = level.size();
     std::vector<Ray> rays;
-    std::vector<Hit> hits;
+    std::vector<InstanceHit> hits;
     std::vector<std::uint8_t> blocked;
     GroupedBatch<std::uint8_t> shadows;
     const LevelShader shader(scene_, intersector_, options_, radiance, out);
@@ -221,7 +221,7 @@ RayCounts WhittedTracer::render_tile(int x0, int y0, int x1, int y1, Image& imag
         rays.clear();
         for (const RayNode& node : level)
             rays.push_back(node.ray);
-        hits.assign(rays.size(), Hit{});
+        hits.assign(rays.size(), InstanceHit{});
         if (primary) {
             intersector_.intersect_coherent(rays, hits);
         } else {

@@ -1,6 +1,8 @@
 // The formats lancer does not read by hand (OBJ, STL, glTF, Collada, ...) through assimp. Each mesh that a
 // node of the scene graph places becomes one TriangleMesh, in depth-first node order, its vertices moved by
 // the node's transform; its faces come out as triangles in face order, and its points and lines are dropped.
+// Asked to keep instances (LoadOptions), a mesh placed by several nodes is converted once, in its own frame,
+// and each placement becomes a MeshInstance.
 //
 // assimp runs no post-processing step but the structure check: JoinIdenticalVertices, SortByPType,
 // OptimizeMeshes and PreTransformVertices would merge or reorder faces, and triangle numbers must follow
@@ -13,10 +15,13 @@
 #include <assimp/Importer.hpp>
 #include <cmath>
 #include <exception>
+#include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "accel/instance/affine.hpp"
 #include "lancer/load_scene.hpp"
 #include "scene/loaders.hpp"
 #include "scene/polygon.hpp"
@@ -40,21 +45,40 @@ Material convert_material(const aiMaterial& source) {
     return material;
 }
 
+// The node transform as an instance's, or none where it is not affine or cannot be inverted (singular, too
+// ill-conditioned): InstancedScene's own refusals, checked here so that such a placement is flattened
+// instead.
+std::optional<Transform> placement(const aiMatrix4x4& m) {
+    if (!(m.d1 == 0.0f && m.d2 == 0.0f && m.d3 == 0.0f && m.d4 == 1.0f)) return std::nullopt;
+    const Transform transform{{{m.a1, m.a2, m.a3, m.a4}, {m.b1, m.b2, m.b3, m.b4}, {m.c1, m.c2, m.c3, m.c4}}};
+    std::string problem;
+    (void)invert(transform, problem);
+    if (!problem.empty()) return std::nullopt;
+    return transform;
+}
+
 class AssimpConverter {
   public:
-    AssimpConverter(const std::filesystem::path& file, const aiScene& source)
-        : file_(file), source_(source) {}
+    AssimpConverter(const std::filesystem::path& file, const aiScene& source, bool keep_instances)
+        : file_(file), source_(source), keep_instances_(keep_instances) {}
 
     Scene convert() && {
         for (unsigned i = 0; i < source_.mNumMaterials; ++i)
             scene_.materials.push_back(convert_material(*source_.mMaterials[i]));
-        if (source_.mRootNode != nullptr) convert_nodes();
+        if (source_.mRootNode != nullptr) convert_placements(placements());
         return std::move(scene_);
     }
 
   private:
-    // Depth-first, children in order, with an explicit stack: a hostile file can nest nodes deeply.
-    void convert_nodes() {
+    struct Placement {
+        unsigned mesh;
+        aiMatrix4x4 transform;  // the node's, composed down from the root
+    };
+
+    // Every mesh a node places, depth-first, children in order, with an explicit stack: a hostile file can
+    // nest nodes deeply.
+    [[nodiscard]] std::vector<Placement> placements() const {
+        std::vector<Placement> found;
         std::vector<std::pair<const aiNode*, aiMatrix4x4>> stack{
             {source_.mRootNode, source_.mRootNode->mTransformation}};
         while (!stack.empty()) {
@@ -65,16 +89,50 @@ class AssimpConverter {
                 if (mesh >= source_.mNumMeshes)
                     fail("a node refers to mesh " + std::to_string(mesh) + " of " +
                          std::to_string(source_.mNumMeshes));
-                convert_mesh(*source_.mMeshes[mesh], transform);
+                found.push_back({mesh, transform});
             }
             for (unsigned i = node->mNumChildren; i-- > 0;) {
                 const aiNode* child = node->mChildren[i];
                 stack.emplace_back(child, transform * child->mTransformation);
             }
         }
+        return found;
     }
 
-    void convert_mesh(const aiMesh& source, const aiMatrix4x4& transform) {
+    // Each placement a mesh moved by its node, in placement order; with keep_instances, a mesh placed more
+    // than once, every placement invertible, is converted once in its own frame and placed by instances.
+    void convert_placements(const std::vector<Placement>& placements) {
+        std::vector<unsigned> uses(source_.mNumMeshes, 0);
+        std::vector<bool> placeable(source_.mNumMeshes, true);
+        for (const Placement& p : placements) {
+            ++uses[p.mesh];
+            placeable[p.mesh] = placeable[p.mesh] && placement(p.transform).has_value();
+        }
+        // An instanced mesh's index, once converted; a mesh without triangles is placed by no instance.
+        constexpr std::uint32_t kNotConverted = std::numeric_limits<std::uint32_t>::max();
+        constexpr std::uint32_t kNoTriangles = kNotConverted - 1;
+        std::vector<std::uint32_t> instanced(source_.mNumMeshes, kNotConverted);
+        for (const Placement& p : placements) {
+            if (!(keep_instances_ && uses[p.mesh] > 1 && placeable[p.mesh])) {
+                TriangleMesh mesh = convert_mesh(*source_.mMeshes[p.mesh], p.transform);
+                if (mesh.triangle_count() > 0) scene_.meshes.push_back(std::move(mesh));
+                continue;
+            }
+            if (instanced[p.mesh] == kNotConverted) {
+                TriangleMesh mesh = convert_mesh(*source_.mMeshes[p.mesh], aiMatrix4x4());
+                instanced[p.mesh] = mesh.triangle_count() == 0
+                                        ? kNoTriangles
+                                        : static_cast<std::uint32_t>(scene_.instanced_meshes.size());
+                if (mesh.triangle_count() > 0) scene_.instanced_meshes.push_back(std::move(mesh));
+            }
+            if (instanced[p.mesh] != kNoTriangles)
+                scene_.instances.push_back({instanced[p.mesh], *placement(p.transform)});
+        }
+    }
+
+    // The mesh moved by `transform`, its faces triangles in face order; no triangle where it has only points
+    // and lines.
+    [[nodiscard]] TriangleMesh convert_mesh(const aiMesh& source, const aiMatrix4x4& transform) {
         TriangleMesh mesh;
         mesh.name = source.mName.length > 0 ? std::string(source.mName.C_Str()) : file_.stem().string();
         if (source.mMaterialIndex >= scene_.materials.size())
@@ -111,7 +169,7 @@ class AssimpConverter {
             for (const std::uint32_t corner : corners_)
                 mesh.indices.push_back(face.mIndices[corner]);
         }
-        if (mesh.triangle_count() > 0) scene_.meshes.push_back(std::move(mesh));
+        return mesh;
     }
 
     // Normals move with the inverse transpose of the node transform. A mesh with one unusable normal (zero or
@@ -135,6 +193,7 @@ class AssimpConverter {
 
     const std::filesystem::path& file_;
     const aiScene& source_;
+    bool keep_instances_;
     Scene scene_;
     // Scratch space of convert_mesh, kept between faces.
     std::vector<Vec3f> polygon_;
@@ -143,7 +202,7 @@ class AssimpConverter {
 
 }  // namespace
 
-Scene load_with_assimp(const std::filesystem::path& file) {
+Scene load_with_assimp(const std::filesystem::path& file, bool keep_instances) {
     // assimp's own message for a missing file is vaguer than ours.
     check_readable(file);
     Assimp::Importer importer;
@@ -157,7 +216,7 @@ Scene load_with_assimp(const std::filesystem::path& file) {
     if (source == nullptr) throw LoadError(file, 0, std::string("assimp: ") + importer.GetErrorString());
     if ((source->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0)
         throw LoadError(file, 0, "assimp: the scene is incomplete");
-    return AssimpConverter(file, *source).convert();
+    return AssimpConverter(file, *source, keep_instances).convert();
 }
 
 }  // namespace lancer

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <numbers>
+#include <random>
 #include <unordered_map>
 #include <utility>
 
@@ -109,6 +110,24 @@ TriangleMesh make_torus_knot(int segments, int sides, int p, int q, float tube_r
         }
     }
     return mesh;
+}
+
+std::vector<Transform> random_placements(const Box3f& bounds, int count) {
+    std::mt19937 rng(2026);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f), scale(0.5f, 1.5f), angle(0.0f, 6.2831853f);
+    const float size = max_component(bounds.extent());
+    const float side = 0.9f * size * std::cbrt(static_cast<float>(count));
+    const Transform to_origin = Transform::translation(-1.0f * bounds.center());
+    std::vector<Transform> placements;
+    placements.reserve(static_cast<std::size_t>(count));
+    for (int i = 0; i < count; ++i) {
+        const Vec3f axis(unit(rng), unit(rng), unit(rng) + 0.01f);
+        const float s = scale(rng);
+        placements.push_back(Transform::translation({side * unit(rng), side * unit(rng), side * unit(rng)}) *
+                             Transform::rotation(axis, angle(rng)) * Transform::scaling(Vec3f(s)) *
+                             to_origin);
+    }
+    return placements;
 }
 
 }  // namespace lancer

@@ -39,15 +39,18 @@ void fold_uniform_materials(TriangleMesh& mesh) {
 
 }  // namespace
 
-Scene load_scene(const std::filesystem::path& file) {
+Scene load_scene(const std::filesystem::path& file, const LoadOptions& options) {
     const std::string extension = lower_case_extension(file);
-    Scene scene = extension == ".off"                          ? load_off(file)
-                  : extension == ".dsc"                        ? load_dsc(file)
-                  : extension == ".nff"                        ? load_nff(file)
-                  : extension == ".ply" || has_ply_magic(file) ? load_ply(file)
-                                                               : load_with_assimp(file);
+    Scene scene = extension == ".off"   ? load_off(file)
+                  : extension == ".dsc" ? load_dsc(file)
+                  : extension == ".nff" ? load_nff(file)
+                  : extension == ".ply" || has_ply_magic(file)
+                      ? load_ply(file)
+                      : load_with_assimp(file, options.keep_instances);
     if (scene.materials.empty()) scene.materials.emplace_back();
     for (TriangleMesh& mesh : scene.meshes)
+        fold_uniform_materials(mesh);
+    for (TriangleMesh& mesh : scene.instanced_meshes)
         fold_uniform_materials(mesh);
     // The invariants scene.hpp promises, checked once here whatever the format: a reader bug or a file that
     // slipped past assimp's checks becomes a LoadError, not a wild read at render time.

@@ -29,7 +29,8 @@ struct OffMesh {
 [[nodiscard]] Scene load_nff(const std::filesystem::path& file);
 // PLY, ascii or binary.
 [[nodiscard]] Scene load_ply(const std::filesystem::path& file);
-// OBJ, STL, glTF, Collada and the other formats assimp reads.
-[[nodiscard]] Scene load_with_assimp(const std::filesystem::path& file);
+// OBJ, STL, glTF, Collada and the other formats assimp reads; with `keep_instances`, the meshes that several
+// nodes place as Scene::instances (LoadOptions).
+[[nodiscard]] Scene load_with_assimp(const std::filesystem::path& file, bool keep_instances);
 
 }  // namespace lancer

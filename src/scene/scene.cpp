@@ -31,9 +31,7 @@ void check_scene(const Scene& scene) {
                  std::to_string(material_count));
         }
     };
-    std::size_t primitives = scene.spheres.size() + scene.planes.size();
-    for (const TriangleMesh& mesh : scene.meshes) {
-        const std::string name = "mesh '" + mesh.name + "'";
+    const auto check_mesh = [&](const TriangleMesh& mesh, const std::string& name) {
         // Finite values can still overflow on the way (a huge cone radius); the structures take coordinates
         // within the contract's domain (kCoordinateLimit, docs/numerical-contract.md).
         for (const Vec3f& position : mesh.positions) {
@@ -59,7 +57,24 @@ void check_scene(const Scene& scene) {
                 check_material(mesh.material_ids[t], "triangle " + std::to_string(t) + " of " + name);
             }
         }
+    };
+    std::size_t primitives = scene.spheres.size() + scene.planes.size();
+    for (const TriangleMesh& mesh : scene.meshes) {
+        check_mesh(mesh, "mesh '" + mesh.name + "'");
         primitives += mesh.triangle_count();
+    }
+    for (const TriangleMesh& mesh : scene.instanced_meshes)
+        check_mesh(mesh, "instanced mesh '" + mesh.name + "'");
+    for (std::size_t i = 0; i < scene.instances.size(); ++i) {
+        const MeshInstance& instance = scene.instances[i];
+        if (instance.mesh >= scene.instanced_meshes.size()) {
+            fail("instance " + std::to_string(i) + " places instanced mesh " + std::to_string(instance.mesh) +
+                 ", but the scene has " + std::to_string(scene.instanced_meshes.size()));
+        }
+        for (const auto& row : instance.object_to_world.m) {
+            if (!std::all_of(std::begin(row), std::end(row), [](float x) { return std::isfinite(x); }))
+                fail("instance " + std::to_string(i) + " has a NaN or infinite transform entry");
+        }
     }
     for (const Sphere& sphere : scene.spheres) {
         check_material(sphere.material, "a sphere");
@@ -80,14 +95,42 @@ std::size_t Scene::triangle_count() const {
     return count;
 }
 
+std::size_t Scene::instanced_triangle_count() const {
+    std::size_t count = triangle_count();
+    for (const MeshInstance& instance : instances)
+        count += instanced_meshes[instance.mesh].triangle_count();
+    return count;
+}
+
+namespace {
+
+Box3f triangles_box(const TriangleMesh& mesh) {
+    Box3f box;
+    for (std::uint32_t index : mesh.indices)
+        box.extend(mesh.positions[index]);
+    return box;
+}
+
+}  // namespace
+
 Box3f Scene::bounds() const {
     Box3f box;
-    for (const TriangleMesh& mesh : meshes) {
-        for (std::uint32_t index : mesh.indices)
-            box.extend(mesh.positions[index]);
-    }
+    for (const TriangleMesh& mesh : meshes)
+        box.extend(triangles_box(mesh));
     for (const Sphere& sphere : spheres)
         box.extend(sphere.bounds());
+    std::vector<Box3f> object_boxes;
+    for (const TriangleMesh& mesh : instanced_meshes)
+        object_boxes.push_back(triangles_box(mesh));
+    for (const MeshInstance& instance : instances) {
+        const Box3f& object = object_boxes[instance.mesh];
+        if (object.empty()) continue;
+        for (int corner = 0; corner < 8; ++corner) {
+            box.extend(instance.object_to_world.point({corner & 1 ? object.hi.x : object.lo.x,
+                                                       corner & 2 ? object.hi.y : object.lo.y,
+                                                       corner & 4 ? object.hi.z : object.lo.z}));
+        }
+    }
     return box;
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -20,6 +21,13 @@ World::World(Scene scene, std::string_view accel_name, const BuildOptions& optio
       geometry_(std::make_unique<SceneGeometry>(*scene_)),
       accel_(make_accel(accel_name)),
       options_(options) {
+    // Its structure is one over the scene's meshes: the instances' meshes would be left out unseen.
+    if (!scene_->instances.empty()) {
+        throw std::invalid_argument("World: the scene places meshes by " +
+                                    std::to_string(scene_->instances.size()) +
+                                    " instances, which a World does not trace (lancer::InstancedScene does; "
+                                    "load_scene without keep_instances makes each placement a mesh)");
+    }
     accel_->build(geometry_->view(), options_);
 }
 

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "lancer/ray.hpp"
+#include "support/instanced_gltf.hpp"
 
 namespace lancer {
 namespace {
@@ -497,6 +498,42 @@ TEST_F(Cli, InfoCountsTrianglesAfterFanTriangulation) {
     const Result result = run("info " + write("mesh.off", kMesh).string());
     ASSERT_EQ(result.exit_code, 0) << result.output;
     EXPECT_NE(result.output.find("triangles   3"), std::string::npos) << result.output;
+}
+
+// A glTF mesh that three nodes place is one object and three instances (support/instanced_gltf.hpp): the
+// meshes placed once and the singular placement stay meshes.
+TEST_F(Cli, InfoCountsObjectsInstancesAndTheInstancedTriangles) {
+    const Result result = run("info " + test::write_instanced_gltf(dir_).string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    for (const char* line : {"meshes      3 ", "triangles   3\n", "objects     1 (1 triangles)",
+                             "instances   3\n", "instanced   6 triangles"})
+        EXPECT_NE(result.output.find(line), std::string::npos) << line << "\n" << result.output;
+}
+
+// A scene graph's mesh placed several times renders as instances, in every mode; --instances N places a
+// mesh file's mesh N times; what an instanced scene cannot do is refused by name.
+TEST_F(Cli, RendersInstancesInEveryMode) {
+    const fs::path gltf = test::write_instanced_gltf(dir_), image = dir_ / "instanced.png";
+    for (const char* mode : {"whitted", "flat", "normal", "depth", "heatmap"}) {
+        const Result result =
+            run("render " + gltf.string() + " --size 24x16 --mode " + mode + " -o " + image.string());
+        ASSERT_EQ(result.exit_code, 0) << mode << "\n" << result.output;
+        EXPECT_NE(result.output.find("1 objects placed by 3 instances, 6 instanced triangles"),
+                  std::string::npos)
+            << mode << "\n"
+            << result.output;
+        EXPECT_TRUE(fs::exists(image));
+        fs::remove(image);
+    }
+    Result result = run("render " + write("mesh.off", kMesh).string() +
+                        " --instances 20 --size 24x16 --mode flat -o " + image.string());
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("1 objects placed by 20 instances, 60 instanced triangles"),
+              std::string::npos)
+        << result.output;
+    result = run("render " + gltf.string() + " --beside bvh -o " + image.string());
+    EXPECT_EQ(result.exit_code, 2) << result.output;
+    EXPECT_NE(result.output.find("renders on the CPU alone"), std::string::npos) << result.output;
 }
 
 // `lancer stats` prints the figures each structure gives of itself, and its JSON holds the same keys: a tree

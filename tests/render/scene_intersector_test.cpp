@@ -30,8 +30,8 @@ struct Traced {
         return accel;
     }
 
-    Hit trace(const Ray& ray) const {
-        Hit hit;
+    InstanceHit trace(const Ray& ray) const {
+        InstanceHit hit;
         intersector.intersect({&ray, 1}, {&hit, 1});
         return hit;
     }
@@ -66,7 +66,7 @@ TEST(SceneIntersector, PlaneInFrontOfTheStructureWins) {
     scene.meshes.push_back(wall(-3.0f));
     scene.planes.push_back(plane_z(-1.0f));
     const Traced traced(with_materials(scene, 1));
-    const Hit hit = traced.trace(ray_down_z());
+    const InstanceHit hit = traced.trace(ray_down_z());
     EXPECT_EQ(hit.prim, 1);  // geometry size 1 + plane 0
     EXPECT_EQ(hit.t, 1.0f);
 }
@@ -76,7 +76,7 @@ TEST(SceneIntersector, StructureInFrontOfThePlaneWins) {
     scene.meshes.push_back(wall(-0.5f));
     scene.planes.push_back(plane_z(-1.0f));
     const Traced traced(with_materials(scene, 1));
-    const Hit hit = traced.trace(ray_down_z());
+    const InstanceHit hit = traced.trace(ray_down_z());
     EXPECT_EQ(hit.prim, 0);
     EXPECT_EQ(hit.t, 0.5f);
 }
@@ -86,7 +86,7 @@ TEST(SceneIntersector, StructureWinsAnExactTie) {
     scene.meshes.push_back(wall(-1.0f));
     scene.planes.push_back(plane_z(-1.0f));
     const Traced traced(with_materials(scene, 1));
-    const Hit hit = traced.trace(ray_down_z());
+    const InstanceHit hit = traced.trace(ray_down_z());
     ASSERT_EQ(hit.t, 1.0f);
     EXPECT_EQ(hit.prim, 0);
 }
@@ -99,7 +99,7 @@ TEST(SceneIntersector, PlaneIdsFollowTrianglesAndSpheres) {
     scene.planes.push_back(plane_z(-1.5f));
     scene.planes.push_back(plane_z(-3.0f));
     const Traced traced(with_materials(scene, 1));
-    const Hit hit = traced.trace(ray_down_z());
+    const InstanceHit hit = traced.trace(ray_down_z());
     EXPECT_EQ(hit.prim, 2 + 1);  // 1 triangle + 1 sphere, then the nearest plane, index 1
     EXPECT_EQ(hit.t, 1.5f);
 }
@@ -138,7 +138,7 @@ TEST(SceneIntersector, BatchAnswersEveryRay) {
     scene.planes.push_back(plane_z(-1.0f));
     const Traced traced(with_materials(scene, 1));
     const std::vector<Ray> rays = {ray_down_z(), ray_down_z({0.0f, 0.0f, -2.0f}), {{}, {0.0f, 0.0f, 1.0f}}};
-    std::vector<Hit> hits(rays.size());
+    std::vector<InstanceHit> hits(rays.size());
     traced.intersector.intersect(rays, hits);
     EXPECT_EQ(hits[0].prim, 1);
     EXPECT_EQ(hits[1].prim, 0);
@@ -156,7 +156,7 @@ TEST(SceneIntersector, TriangleSurfaceFindsItsMeshAndMaterial) {
     scene.meshes.push_back(second);
     const Traced traced(with_materials(scene, 3));
     const Ray ray = ray_down_z();
-    const Hit hit = traced.trace(ray);
+    const InstanceHit hit = traced.trace(ray);
     ASSERT_EQ(hit.prim, 2);  // the second triangle of the second mesh
     const SurfacePoint surface = traced.intersector.surface(ray, hit);
     EXPECT_EQ(surface.material, 1u);
@@ -179,7 +179,7 @@ TEST(SceneIntersector, CancellingVertexNormalsFallBackToTheFacet) {
     const Traced traced(with_materials(scene, 1));
     // The point of barycentric weights (1/4, 1/2, 1/4), where 1/4 n0 + 1/2 n1 + 1/4 n2 = 0.
     const Ray ray{{2.5f, -5.0f, 0.0f}, {0.0f, 0.0f, -1.0f}};
-    const Hit hit = traced.trace(ray);
+    const InstanceHit hit = traced.trace(ray);
     ASSERT_EQ(hit.prim, 0);
     ASSERT_EQ(hit.u, 0.5f);
     ASSERT_EQ(hit.v, 0.25f);
@@ -191,7 +191,7 @@ TEST(SceneIntersector, SphereSurfaceHasTheRadialNormal) {
     scene.spheres.push_back({{0.0f, 0.0f, -5.0f}, 2.0f, 0});
     const Traced traced(with_materials(scene, 1));
     const Ray ray = ray_down_z();
-    const Hit hit = traced.trace(ray);
+    const InstanceHit hit = traced.trace(ray);
     ASSERT_EQ(hit.prim, 0);
     const SurfacePoint surface = traced.intersector.surface(ray, hit);
     EXPECT_EQ(surface.position, Vec3f(0.0f, 0.0f, -3.0f));
@@ -213,7 +213,7 @@ TEST(SceneIntersector, CheckeredPlaneAlternatesOnTheUnitGrid) {
                           Case{-0.5f, -0.5f, true}, Case{3.25f, -1.75f, false}}) {
         SCOPED_TRACE(testing::Message() << c.x << ", " << c.z);
         const Ray ray{{c.x, 10.0f, c.z}, {0.0f, -1.0f, 0.0f}};
-        const Hit hit = traced.trace(ray);
+        const InstanceHit hit = traced.trace(ray);
         ASSERT_TRUE(hit.hit());
         const SurfacePoint surface = traced.intersector.surface(ray, hit);
         EXPECT_EQ(surface.color, c.full ? color : 0.25f * color);

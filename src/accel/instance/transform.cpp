@@ -51,6 +51,28 @@ Vec3f Transform::vector(Vec3f v) const {
     return out;
 }
 
+Vec3f Transform::normal(Vec3f n) const {
+    // The cofactor matrix's rows are r1 x r2, r2 x r0, r0 x r1 of the linear part's rows r: (A u) x (A v) =
+    // cof(A) (u x v).
+    double rows[3][3];
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c)
+            rows[r][c] = m[r][c];
+    }
+    const double x[3] = {n.x, n.y, n.z};
+    double out[3];
+    for (int r = 0; r < 3; ++r) {
+        const double(&a)[3] = rows[(r + 1) % 3];
+        const double(&b)[3] = rows[(r + 2) % 3];
+        out[r] = (a[1] * b[2] - a[2] * b[1]) * x[0] + (a[2] * b[0] - a[0] * b[2]) * x[1] +
+                 (a[0] * b[1] - a[1] * b[0]) * x[2];
+    }
+    const double norm = std::sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
+    if (!(norm > 0.0)) return Vec3f(0.0f);
+    return {static_cast<float>(out[0] / norm), static_cast<float>(out[1] / norm),
+            static_cast<float>(out[2] / norm)};
+}
+
 Transform operator*(const Transform& a, const Transform& b) {
     Transform product;
     for (int r = 0; r < 3; ++r) {
