@@ -11,6 +11,7 @@
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
+#include "core/huge_pages.hpp"
 
 namespace lancer {
 
@@ -23,7 +24,9 @@ class NodeSlots {
   public:
     explicit NodeSlots(std::size_t capacity)
         : slots_(std::allocator<BvhNode>().allocate(2 * capacity - 1), StorageDeleter{2 * capacity - 1}),
-          used_(2 * capacity - 1, 0) {}
+          used_(2 * capacity - 1, 0) {
+        advise_huge_pages(slots_.get(), (2 * capacity - 1) * sizeof(BvhNode));
+    }
 
     void set_leaf(std::size_t slot, const Box3f& bounds, std::size_t first, std::size_t count) {
         BvhNode& node = *std::construct_at(&slots_[slot]);
@@ -51,8 +54,8 @@ class NodeSlots {
     [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at, std::size_t references) const {
         BvhBuildResult result;
         std::vector<BvhNode>& nodes = result.nodes;
-        nodes.reserve(static_cast<std::size_t>(std::count(used_.begin(), used_.end(), 1)));
-        result.prim_indices.reserve(references);
+        reserve_huge_pages(nodes, static_cast<std::size_t>(std::count(used_.begin(), used_.end(), 1)));
+        reserve_huge_pages(result.prim_indices, references);
         const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
         // Depth first from the root: (slot, index of the parent whose second-child offset awaits it).
         std::vector<std::pair<std::size_t, std::size_t>> pending = {{0, SIZE_MAX}};
