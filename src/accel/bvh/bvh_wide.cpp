@@ -106,7 +106,7 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
             leaves.push_back({blocks_used, range.first, range.count});
             blocks_used += block_count(range.count, WideBvhAccel<W>::kBlockLanes);
         } else {
-            // Not a reference into `wide`: the recursion may reallocate it.
+            // Indexed, not referenced: the recursion appends to `wide`.
             const std::uint32_t child_index = collapse<W>(input, children[slot], wide, leaves, blocks_used);
             wide[index].child[slot] = child_index;
         }
@@ -124,11 +124,12 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
     if (!binary.nodes.empty()) {
         const std::vector<SubtreeRange> ranges = subtree_ranges(binary.nodes, kBlockLanes);
         // Each wide node but a tiny scene's root is rooted at a binary node that is no leaf of the wide
-        // tree: storage for that many is never moved.
-        const auto roots = std::count_if(ranges.begin(), ranges.end(),
-                                         [](const SubtreeRange& range) { return !range.as_leaf; });
-        reserve_huge_pages(nodes_, static_cast<std::size_t>(std::max<std::ptrdiff_t>(roots, 1)));
+        // tree, and each wide leaf at one that is: storage for that many is never moved.
+        const auto roots = static_cast<std::size_t>(std::count_if(
+            ranges.begin(), ranges.end(), [](const SubtreeRange& range) { return !range.as_leaf; }));
+        reserve_huge_pages(nodes_, std::max<std::size_t>(roots, 1));
         std::vector<LeafBlocks> leaves;
+        reserve_huge_pages(leaves, ranges.size() - roots);
         std::uint32_t blocks_used = 0;
         collapse<W>({binary.nodes, ranges}, 0, nodes_, leaves, blocks_used);
         reserve_huge_pages(blocks_, blocks_used);
