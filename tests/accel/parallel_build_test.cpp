@@ -12,6 +12,7 @@
 #include <random>
 
 #include "accel/bvh/bvh.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 #include "accel/grid.hpp"
 #include "accel/kdtree.hpp"
 #include "accel/octree_build.hpp"
@@ -202,6 +203,22 @@ TEST(ParallelBuildArrays, KdTreeNodesAndReferences) {
     const KdTreeData one = in_arena(1, build), many = in_arena(kManyThreads, build);
     expect_same_bytes(one.nodes, many.nodes);
     EXPECT_EQ(one.references, many.references);
+}
+
+// The collapse numbers the leaves' triangle blocks in one pass and writes them in parallel.
+TEST(ParallelBuildArrays, Bvh8NodesAndTriangleBlocks) {
+    const TestScene scene = mixed_scene();
+    const Geometry geometry = scene.geometry();
+    const auto one = built_with_threads(std::make_unique<Bvh8Accel>(), geometry, {}, 1);
+    const auto many = built_with_threads(std::make_unique<Bvh8Accel>(), geometry, {}, kManyThreads);
+    std::size_t leaves = 0;
+    for (const WideBvhNode<8>& node : one->nodes()) {
+        for (int slot = 0; slot < 8; ++slot)
+            leaves += node.prim_count[slot] != 0 ? 1 : 0;
+    }
+    ASSERT_GT(leaves, 4096u);  // the leaves of several tasks (at most 1,024 each)
+    expect_same_bytes(one->nodes(), many->nodes());
+    expect_same_bytes(one->blocks(), many->blocks());
 }
 
 TEST(ParallelBuildArrays, PluckerLayoutArrays) {

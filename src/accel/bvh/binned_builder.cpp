@@ -262,7 +262,7 @@ BvhBuildResult build_binned_sah(std::vector<BuildRef>& refs, std::size_t primiti
     NodeSlots slots(refs.size());
     BinnedBuilder builder(refs, geometry, options);
     builder.build(slots, primitives);
-    return slots.compact([&](std::size_t i) { return refs[i].prim; }, refs.size());
+    return slots.compact([&](std::size_t i) { return refs[i].prim; });
 }
 
 }  // namespace lancer

@@ -9,6 +9,7 @@
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build_common.hpp"
+#include "core/huge_pages.hpp"
 #include "core/parallel.hpp"
 
 namespace lancer {
@@ -24,8 +25,11 @@ std::size_t reference_capacity(std::size_t primitives) {
     return std::max(primitives, std::min<std::size_t>(budget, std::numeric_limits<std::uint32_t>::max()));
 }
 
-std::vector<BuildRef> make_refs(const Geometry& geometry) {
-    std::vector<BuildRef> refs(geometry.size());
+// The primitives' references, in storage for `capacity` of them.
+std::vector<BuildRef> make_refs(const Geometry& geometry, std::size_t capacity) {
+    std::vector<BuildRef> refs;
+    reserve_huge_pages(refs, capacity);
+    refs.resize(geometry.size());
     auto make = [&](std::size_t from, std::size_t to) {
         for (auto prim = static_cast<std::uint32_t>(from); prim < to; ++prim) {
             const Box3f bounds = primitive_bounds(geometry, prim);
@@ -40,10 +44,12 @@ std::vector<BuildRef> make_refs(const Geometry& geometry) {
 
 BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
     if (geometry.size() == 0) return {};
-    std::vector<BuildRef> refs = make_refs(geometry);
+    const std::size_t primitives = geometry.size();
+    const bool spatial_splits = options.spatial_splits && options.builder != BvhBuilder::SweepSah;
+    std::vector<BuildRef> refs =
+        make_refs(geometry, spatial_splits ? reference_capacity(primitives) : primitives);
     if (options.builder == BvhBuilder::SweepSah) return build_sweep_sah(refs, options);
-    const std::size_t primitives = refs.size();
-    if (options.spatial_splits) refs.resize(reference_capacity(primitives));
+    if (spatial_splits) refs.resize(reference_capacity(primitives));
     return build_binned_sah(refs, primitives, geometry, options);
 }
 

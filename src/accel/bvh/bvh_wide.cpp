@@ -8,6 +8,8 @@
 #include "accel/bvh/bvh_wide_walk.hpp"
 #include "accel/bvh/refit.hpp"
 #include "accel/primitive_intersect.hpp"
+#include "core/huge_pages.hpp"
+#include "core/parallel.hpp"
 
 namespace lancer {
 namespace {
@@ -24,7 +26,9 @@ struct SubtreeRange {
 
 // Children follow their parent in the depth-first array, so one backward pass sees them first.
 std::vector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, std::uint32_t merge_limit) {
-    std::vector<SubtreeRange> ranges(binary.size());
+    std::vector<SubtreeRange> ranges;
+    reserve_huge_pages(ranges, binary.size());
+    ranges.resize(binary.size());
     for (std::size_t i = binary.size(); i-- > 0;) {
         const BvhNode& node = binary[i];
         if (node.is_leaf()) {
@@ -42,8 +46,12 @@ std::vector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, std
 struct CollapseInput {
     const std::vector<BvhNode>& binary;
     const std::vector<SubtreeRange>& ranges;
-    const std::vector<std::uint32_t>& prim_indices;
-    const Geometry& geometry;
+};
+
+// A leaf of the wide tree: the primitives prim_indices[first, first + count), whose triangle blocks start at
+// block `first_block`. The collapse only numbers the blocks; they are written afterwards, in parallel.
+struct LeafBlocks {
+    std::uint32_t first_block = 0, first = 0, count = 0;
 };
 
 // Collapses the binary subtree under `binary_root` (an inner node, or the root leaf of a tiny scene) into
@@ -52,11 +60,11 @@ struct CollapseInput {
 // surface area (the one a ray is most likely to enter; the first of equal areas) until it has W children or
 // only leaves are left. An opened child's two children take its place, so the binary left-to-right order of
 // the subtrees is kept. Subtrees of at most one block of primitives count as leaves (SubtreeRange); a
-// leaf's primitives are copied into triangle blocks appended to `blocks`.
+// leaf's blocks are numbered from `blocks_used` on, in this depth-first order, and listed in `leaves`.
 template <int W>
 std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
-                       std::vector<WideBvhNode<W>>& wide,
-                       std::vector<typename WideBvhAccel<W>::Block>& blocks) {
+                       std::vector<WideBvhNode<W>>& wide, std::vector<LeafBlocks>& leaves,
+                       std::uint32_t& blocks_used) {
     const std::vector<BvhNode>& binary = input.binary;
     std::array<std::uint32_t, W> children{};
     int child_count = 0;
@@ -93,13 +101,13 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
         }
         const SubtreeRange& range = input.ranges[children[slot]];
         if (range.as_leaf) {
-            wide[index].child[slot] = static_cast<std::uint32_t>(blocks.size());
+            wide[index].child[slot] = blocks_used;
             wide[index].prim_count[slot] = range.count;
-            append_leaf_blocks(input.geometry,
-                               std::span(input.prim_indices).subspan(range.first, range.count), blocks);
+            leaves.push_back({blocks_used, range.first, range.count});
+            blocks_used += block_count(range.count, WideBvhAccel<W>::kBlockLanes);
         } else {
-            // Not a reference into `wide`: the recursion may reallocate it.
-            const std::uint32_t child_index = collapse<W>(input, children[slot], wide, blocks);
+            // Indexed, not referenced: the recursion appends to `wide`.
+            const std::uint32_t child_index = collapse<W>(input, children[slot], wide, leaves, blocks_used);
             wide[index].child[slot] = child_index;
         }
     }
@@ -115,7 +123,25 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
     blocks_.clear();
     if (!binary.nodes.empty()) {
         const std::vector<SubtreeRange> ranges = subtree_ranges(binary.nodes, kBlockLanes);
-        collapse<W>({binary.nodes, ranges, binary.prim_indices, geometry}, 0, nodes_, blocks_);
+        // Each wide node but a tiny scene's root is rooted at a binary node that is no leaf of the wide
+        // tree, and each wide leaf at one that is: storage for that many is never moved.
+        const auto roots = static_cast<std::size_t>(std::count_if(
+            ranges.begin(), ranges.end(), [](const SubtreeRange& range) { return !range.as_leaf; }));
+        reserve_huge_pages(nodes_, std::max<std::size_t>(roots, 1));
+        std::vector<LeafBlocks> leaves;
+        reserve_huge_pages(leaves, ranges.size() - roots);
+        std::uint32_t blocks_used = 0;
+        collapse<W>({binary.nodes, ranges}, 0, nodes_, leaves, blocks_used);
+        reserve_huge_pages(blocks_, blocks_used);
+        blocks_.resize(blocks_used);
+        // The leaves' blocks, disjoint and numbered already: the same bytes whatever the thread count.
+        parallel::for_each_chunk(0, leaves.size(), 1024, [&](std::size_t from, std::size_t to) {
+            for (std::size_t i = from; i < to; ++i) {
+                const LeafBlocks& leaf = leaves[i];
+                write_leaf_blocks(geometry, std::span(binary.prim_indices).subspan(leaf.first, leaf.count),
+                                  blocks_.data() + leaf.first_block);
+            }
+        });
     }
     built_sah_cost_ = wide_bvh_sah_cost(nodes_);
     sah_ratio_ = 1.0;

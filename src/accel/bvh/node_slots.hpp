@@ -6,11 +6,14 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <numeric>
 #include <utility>
 #include <vector>
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
+#include "core/huge_pages.hpp"
+#include "core/parallel.hpp"
 
 namespace lancer {
 
@@ -23,7 +26,9 @@ class NodeSlots {
   public:
     explicit NodeSlots(std::size_t capacity)
         : slots_(std::allocator<BvhNode>().allocate(2 * capacity - 1), StorageDeleter{2 * capacity - 1}),
-          used_(2 * capacity - 1, 0) {}
+          used_(2 * capacity - 1, 0) {
+        advise_huge_pages(slots_.get(), (2 * capacity - 1) * sizeof(BvhNode));
+    }
 
     void set_leaf(std::size_t slot, const Box3f& bounds, std::size_t first, std::size_t count) {
         BvhNode& node = *std::construct_at(&slots_[slot]);
@@ -46,39 +51,70 @@ class NodeSlots {
     // The nodes depth first, each box grown by the scene's geometric tolerance (docs/numerical-contract.md,
     // "Boxes"), and the leaves' primitives in the same order: `prim_at(i)` is the primitive of the reference
     // at position i, which the leaves' offsets index until they are renumbered here (a spatial split build
-    // leaves unused positions between its leaves); there are at most `references` of them.
+    // leaves unused positions between its leaves).
+    //
+    // Depth first order is slot order: a node's first child and its subtree fill the slots below its
+    // second child's. So the used slots in increasing order are the nodes depth first, and their leaves'
+    // references in that order are the primitives' order. Blocks of slots are compacted in parallel, each
+    // from the counts of nodes and references in the blocks before it: the same arrays whatever the threads.
     template <class PrimAt>
-    [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at, std::size_t references) const {
+    [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at) const {
+        const std::size_t slot_count = used_.size();
+        const std::size_t blocks = (slot_count + kCompactBlock - 1) / kCompactBlock;
+        // Per block, the nodes and references of the blocks before it (prefix sums of each block's).
+        std::vector<std::size_t> nodes_before(blocks + 1, 0), refs_before(blocks + 1, 0);
+        parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
+            std::size_t nodes = 0, refs = 0;
+            for (std::size_t slot = from; slot < to; ++slot) {
+                if (used_[slot] == 0) continue;
+                ++nodes;
+                refs += slots_[slot].prim_count;
+            }
+            nodes_before[from / kCompactBlock + 1] = nodes, refs_before[from / kCompactBlock + 1] = refs;
+        });
+        std::partial_sum(nodes_before.begin(), nodes_before.end(), nodes_before.begin());
+        std::partial_sum(refs_before.begin(), refs_before.end(), refs_before.begin());
+
         BvhBuildResult result;
-        std::vector<BvhNode>& nodes = result.nodes;
-        nodes.reserve(static_cast<std::size_t>(std::count(used_.begin(), used_.end(), 1)));
-        result.prim_indices.reserve(references);
+        reserve_huge_pages(result.nodes, nodes_before.back());
+        result.nodes.resize(nodes_before.back());
+        reserve_huge_pages(result.prim_indices, refs_before.back());
+        result.prim_indices.resize(refs_before.back());
+        // Each used slot's node index, for the inner nodes' second children.
+        const auto index = std::make_unique_for_overwrite<std::uint32_t[]>(slot_count);
+        advise_huge_pages(index.get(), slot_count * sizeof(std::uint32_t));
         const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
-        // Depth first from the root: (slot, index of the parent whose second-child offset awaits it).
-        std::vector<std::pair<std::size_t, std::size_t>> pending = {{0, SIZE_MAX}};
-        while (!pending.empty()) {
-            const auto [slot, parent] = pending.back();
-            pending.pop_back();
-            if (parent != SIZE_MAX) nodes[parent].offset = static_cast<std::uint32_t>(nodes.size());
-            BvhNode node = slots_[slot];
-            node.lo -= margin, node.hi += margin;
-            if (node.is_leaf()) {
-                const std::uint32_t first = node.offset;
-                node.offset = static_cast<std::uint32_t>(result.prim_indices.size());
-                for (std::uint32_t i = first; i < first + node.prim_count; ++i)
-                    result.prim_indices.push_back(prim_at(i));
+        parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
+            std::size_t node_index = nodes_before[from / kCompactBlock];
+            std::size_t ref_index = refs_before[from / kCompactBlock];
+            for (std::size_t slot = from; slot < to; ++slot) {
+                if (used_[slot] == 0) continue;
+                index[slot] = static_cast<std::uint32_t>(node_index);
+                BvhNode node = slots_[slot];
+                node.lo -= margin, node.hi += margin;
+                if (node.is_leaf()) {
+                    for (std::uint32_t i = 0; i < node.prim_count; ++i)
+                        result.prim_indices[ref_index + i] = prim_at(node.offset + i);
+                    node.offset = static_cast<std::uint32_t>(ref_index);
+                    ref_index += node.prim_count;
+                }
+                result.nodes[node_index++] = node;
             }
-            nodes.push_back(node);
-            if (!node.is_leaf()) {
-                pending.push_back(
-                    {node.offset, nodes.size() - 1});     // second child, after the first's subtree
-                pending.push_back({slot + 1, SIZE_MAX});  // first child: the very next node
+        });
+        // An inner node's offset is still its second child's slot.
+        parallel::for_each_block(result.nodes.size(), kCompactBlock, [&](std::size_t from, std::size_t to) {
+            for (std::size_t i = from; i < to; ++i) {
+                BvhNode& node = result.nodes[i];
+                if (!node.is_leaf()) node.offset = index[node.offset];
             }
-        }
+        });
         return result;
     }
 
   private:
+    // Slots per task of compact().
+    static constexpr std::size_t kCompactBlock = std::size_t{1} << 16;
+
     // The slots are allocated, not initialised (2n - 1 of them, about twice the nodes a tree uses): a node is
     // constructed in its slot when set, and compact() reads only the nodes reached from the root.
     struct StorageDeleter {

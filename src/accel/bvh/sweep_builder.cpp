@@ -90,7 +90,7 @@ BvhBuildResult build_sweep_sah(std::vector<BuildRef>& refs, const BvhOptions& op
     NodeSlots slots(refs.size());
     SweepBuilder builder(refs, options);
     builder.build(slots, 0, 0, refs.size(), 0);
-    return slots.compact([&](std::size_t i) { return builder.prim_at(i); }, refs.size());
+    return slots.compact([&](std::size_t i) { return builder.prim_at(i); });
 }
 
 }  // namespace lancer

@@ -59,18 +59,28 @@ void write_block_lane(const Geometry& geometry, std::uint32_t prim, int lane, Tr
     }
 }
 
-// Appends the blocks of one leaf: its primitives in order, K per block, the last block padded.
+// Writes the blocks of one leaf from `blocks` on: its primitives in order, K per block, the last block
+// padded.
 template <int K>
-void append_leaf_blocks(const Geometry& geometry, std::span<const std::uint32_t> prims,
-                        std::vector<TriangleBlock<K>>& blocks) {
+void write_leaf_blocks(const Geometry& geometry, std::span<const std::uint32_t> prims,
+                       TriangleBlock<K>* blocks) {
     for (std::size_t first = 0; first < prims.size(); first += K) {
-        TriangleBlock<K>& block = blocks.emplace_back();
+        TriangleBlock<K>& block = *blocks++;
         for (int lane = 0; lane < K; ++lane) {
             const std::size_t i = first + static_cast<std::size_t>(lane);
             write_block_lane(geometry, i < prims.size() ? prims[i] : TriangleBlock<K>::kNoPrimitive, lane,
                              block);
         }
     }
+}
+
+// The same blocks appended to `blocks`.
+template <int K>
+void append_leaf_blocks(const Geometry& geometry, std::span<const std::uint32_t> prims,
+                        std::vector<TriangleBlock<K>>& blocks) {
+    const std::size_t first = blocks.size();
+    blocks.resize(first + (prims.size() + K - 1) / K);
+    write_leaf_blocks(geometry, prims, blocks.data() + first);
 }
 
 [[nodiscard]] constexpr std::uint32_t block_count(std::uint32_t prim_count, int lanes) {
