@@ -91,9 +91,8 @@ class InstancedTracer {
   public:
     virtual ~InstancedTracer() = default;
     [[nodiscard]] virtual std::string name() const = 0;
-    // Closest hits, or any hits, of `rays` on the threads of the caller's run_with_threads; `coherent`: the
-    // rays are the primary view's, in the bench's tile order.
-    virtual void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits, bool coherent) const = 0;
+    // Closest hits, or any hits, of `rays` on the threads of the caller's run_with_threads.
+    virtual void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits) const = 0;
     virtual void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded) const = 0;
     // Moves every instance to `placements` and brings the structure up to date.
     virtual void move(std::span<const Transform> placements) = 0;
@@ -105,7 +104,7 @@ class LancerTracer final : public InstancedTracer {
     LancerTracer(std::string name, InstancedScene scene, std::size_t object_bytes)
         : name_(std::move(name)), scene_(std::move(scene)), object_bytes_(object_bytes) {}
     [[nodiscard]] std::string name() const override { return name_; }
-    void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits, bool /*coherent*/) const override {
+    void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits) const override {
         intersect_parallel(scene_, rays, hits);
     }
     void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded) const override {
@@ -247,18 +246,15 @@ class EmbreeTracer final : public InstancedTracer {
         : name_(std::move(name)), call_(call), scenes_(std::move(scenes)) {}
     [[nodiscard]] std::string name() const override { return name_; }
     // The rays in tasks of kRayChunk; within a task, one call per ray, per 8 or 16 consecutive rays, or per
-    // stream of 256. Closest hits under the context flag the flat bench gives them
-    // (src/accel/embree_rays.cpp, docs/results.md, "Which context flag suits which view"): COHERENT on the
-    // primary view, INCOHERENT on the others. Occlusion INCOHERENT for every call: the flat bench's COHERENT
-    // on the packets hangs rtcOccluded16 on this two-level scene (Debian's Embree 3.13.5, AVX2, 1 and 2
-    // threads; rtcOccluded8 answers).
-    void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits, bool coherent) const override {
+    // stream of 256, under the INCOHERENT context flag on every view: on this two-level scene COHERENT, the
+    // flag the flat bench gives its primary packets, made the primary view 0.55-0.65 times as fast
+    // (docs/accel/instances.md) and hangs rtcOccluded16 (Debian's Embree 3.13.5, AVX2).
+    void intersect(std::span<const Ray> rays, std::span<InstanceHit> hits) const override {
         parallel_for(rays.size(), kRayChunk, 0, [&](std::size_t from, std::size_t to) {
             const DenormalsFlushed flushed;
             RTCIntersectContext context;
             rtcInitIntersectContext(&context);
-            context.flags =
-                coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+            context.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
             if (call_ == EmbreeCall::Packet8) return packets<8>(rays, hits, from, to, context);
             if (call_ == EmbreeCall::Packet16) return packets<16>(rays, hits, from, to, context);
             streams<false>(rays, from, to, context,
@@ -484,7 +480,7 @@ void run_instances_bench(const std::string& mesh_name, const Scene& mesh,
     const PinholeCamera camera(canonical_view(first_lancer->scene().bounds(), options.size, options.size));
     const std::vector<Ray> primary = primary_rays(camera, options.size);
     std::vector<InstanceHit> primary_hits(primary.size());
-    first_lancer->intersect(primary, primary_hits, true);
+    first_lancer->intersect(primary, primary_hits);
     bool disagreement = false;
     fmt::print("{:<8} {:>9} {:<14} {:>3} {:>9} {:>9} {:>9} {:>7} {:>10}\n", "view", "rays", "accel", "thr",
                "Mrays/s", "min", "max", "hits", "differ");
@@ -494,9 +490,9 @@ void run_instances_bench(const std::string& mesh_name, const Scene& mesh,
                 ? primary
                 : secondary_rays(view == BenchView::Diffuse ? SecondaryView::Diffuse : SecondaryView::Shadow,
                                  first_lancer->scene(), objects, primary, primary_hits);
-        const bool shadow = view == BenchView::Shadow, coherent = view == BenchView::Primary;
+        const bool shadow = view == BenchView::Shadow;
         std::vector<InstanceHit> reference(rays.size());
-        first_lancer->intersect(rays, reference, coherent);
+        first_lancer->intersect(rays, reference);
         std::vector<std::vector<InstanceHit>> hits(tracers.size(), std::vector<InstanceHit>(rays.size()));
         std::vector<std::vector<std::uint8_t>> occluded(tracers.size(),
                                                         std::vector<std::uint8_t>(rays.size()));
@@ -509,7 +505,7 @@ void run_instances_bench(const std::string& mesh_name, const Scene& mesh,
                     answered[k] += occluded[k][i];
                 }
             } else {
-                tracers[k]->intersect(rays, hits[k], coherent);
+                tracers[k]->intersect(rays, hits[k]);
                 differences[k] = count_differences(reference, hits[k]);
                 answered[k] = static_cast<std::size_t>(std::count_if(
                     hits[k].begin(), hits[k].end(), [](const InstanceHit& h) { return h.hit(); }));
@@ -527,7 +523,7 @@ void run_instances_bench(const std::string& mesh_name, const Scene& mesh,
                         if (shadow) {
                             tracers[k]->occluded(rays, occluded[k]);
                         } else {
-                            tracers[k]->intersect(rays, hits[k], coherent);
+                            tracers[k]->intersect(rays, hits[k]);
                         }
                         if (frame >= 0)
                             mrays[k].push_back(static_cast<double>(rays.size()) / (watch.elapsed_ms() * 1e3));
