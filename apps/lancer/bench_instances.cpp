@@ -200,28 +200,25 @@ class EmbreeScenes {
     std::atomic<std::int64_t> bytes_{0};
 };
 
+// Embree's N-ray calls, N = 8 or 16.
 template <int N>
-struct EmbreePacket;
-template <>
-struct EmbreePacket<8> {
-    using RayHit = RTCRayHit8;
-    using Ray = RTCRay8;
+struct EmbreePacket {
+    static_assert(N == 8 || N == 16);
+    using RayHit = std::conditional_t<N == 8, RTCRayHit8, RTCRayHit16>;
+    using Ray = std::conditional_t<N == 8, RTCRay8, RTCRay16>;
     static void intersect(const int* valid, RTCScene scene, RTCIntersectContext* context, RayHit* packet) {
-        rtcIntersect8(valid, scene, context, packet);
+        if constexpr (N == 8) {
+            rtcIntersect8(valid, scene, context, packet);
+        } else {
+            rtcIntersect16(valid, scene, context, packet);
+        }
     }
     static void occluded(const int* valid, RTCScene scene, RTCIntersectContext* context, Ray* packet) {
-        rtcOccluded8(valid, scene, context, packet);
-    }
-};
-template <>
-struct EmbreePacket<16> {
-    using RayHit = RTCRayHit16;
-    using Ray = RTCRay16;
-    static void intersect(const int* valid, RTCScene scene, RTCIntersectContext* context, RayHit* packet) {
-        rtcIntersect16(valid, scene, context, packet);
-    }
-    static void occluded(const int* valid, RTCScene scene, RTCIntersectContext* context, Ray* packet) {
-        rtcOccluded16(valid, scene, context, packet);
+        if constexpr (N == 8) {
+            rtcOccluded8(valid, scene, context, packet);
+        } else {
+            rtcOccluded16(valid, scene, context, packet);
+        }
     }
 };
 

@@ -109,6 +109,7 @@ class InstancedScene {
 
   private:
     struct State;
+    class Walk;  // the top level's walk (src/accel/instance/top_level_walk.hpp)
     std::unique_ptr<State> state_;
 };
 

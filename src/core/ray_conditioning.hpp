@@ -18,6 +18,7 @@
 #include <optional>
 #include <span>
 #include <tuple>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -317,13 +318,19 @@ struct ConditionedRays {
     return conditioned;
 }
 
-// The hits of the conditioned rays back in the callers' parametrisation.
-inline void restore_hits(const ConditionedRays& conditioned, std::span<const Ray> rays, std::span<Hit> hits) {
+// The hits of the conditioned rays back in the callers' parametrisation: `hits` indexes Hit records, or any
+// with t and hit() whose default is a miss (the two-level scenes' InstanceHit).
+template <class Hits>
+inline void restore_hits(const ConditionedRays& conditioned, std::span<const Ray> rays, Hits&& hits) {
     for (std::size_t i = 0; i < conditioned.how.size(); ++i) {
         const RayConditioning& how = conditioned.how[i];
         if ((how.shift == 0.0 && how.exponent == 0) || !hits[i].hit()) continue;
         const std::optional<float> t = restore_t(hits[i].t, how, rays[i]);
-        hits[i] = t ? Hit{*t, hits[i].prim, hits[i].u, hits[i].v} : Hit{};
+        if (t) {
+            hits[i].t = *t;
+        } else {
+            hits[i] = std::remove_cvref_t<decltype(hits[i])>{};
+        }
     }
 }
 

@@ -6,6 +6,7 @@
 
 #include "accel/bvh/build.hpp"
 #include "accel/bvh/bvh_wide_walk.hpp"
+#include "accel/bvh/collapse.hpp"
 #include "accel/bvh/refit.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "core/huge_pages.hpp"
@@ -55,11 +56,9 @@ struct LeafBlocks {
 };
 
 // Collapses the binary subtree under `binary_root` (an inner node, or the root leaf of a tiny scene) into
-// wide nodes appended depth first to `wide`, and returns the index of the first. Dammertz et al. 2008,
-// section 3: the node starts with the two binary children and repeatedly opens the inner child of largest
-// surface area (the one a ray is most likely to enter; the first of equal areas) until it has W children or
-// only leaves are left. An opened child's two children take its place, so the binary left-to-right order of
-// the subtrees is kept. Subtrees of at most one block of primitives count as leaves (SubtreeRange); a
+// wide nodes appended depth first to `wide`, and returns the index of the first; each node's children by
+// collapse_children (Dammertz et al. 2008). Subtrees of at most one block of primitives count as leaves
+// (SubtreeRange); a
 // leaf's blocks are numbered from `blocks_used` on, in this depth-first order, and listed in `leaves`.
 template <int W>
 std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
@@ -67,29 +66,8 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
                        std::uint32_t& blocks_used) {
     const std::vector<BvhNode>& binary = input.binary;
     std::array<std::uint32_t, W> children{};
-    int child_count = 0;
-    if (input.ranges[binary_root].as_leaf) {
-        children[child_count++] = binary_root;
-    } else {
-        children[child_count++] = binary_root + 1;
-        children[child_count++] = binary[binary_root].offset;
-    }
-    while (child_count < W) {
-        int widest = -1;
-        float widest_area = -1.0f;
-        for (int i = 0; i < child_count; ++i) {
-            const BvhNode& candidate = binary[children[i]];
-            if (!input.ranges[children[i]].as_leaf && candidate.bounds().surface_area() > widest_area)
-                widest = i, widest_area = candidate.bounds().surface_area();
-        }
-        if (widest < 0) break;
-        const std::uint32_t opened = children[widest];
-        std::copy_backward(children.begin() + widest + 1, children.begin() + child_count,
-                           children.begin() + child_count + 1);
-        children[widest] = opened + 1;
-        children[widest + 1] = binary[opened].offset;
-        ++child_count;
-    }
+    const int child_count = collapse_children<W>(
+        binary, binary_root, [&](std::uint32_t i) { return input.ranges[i].as_leaf; }, children);
 
     const auto index = static_cast<std::uint32_t>(wide.size());
     wide.emplace_back();

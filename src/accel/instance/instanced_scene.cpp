@@ -11,8 +11,10 @@
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
 #include "accel/bvh/bvh_wide.hpp"
+#include "accel/bvh/collapse.hpp"
 #include "accel/bvh/refit.hpp"
 #include "accel/instance/affine.hpp"
+#include "accel/instance/top_level_walk.hpp"
 #include "accel/tree_shape.hpp"
 #include "core/intersect.hpp"
 #include "core/parallel.hpp"
@@ -23,25 +25,7 @@ namespace lancer {
 
 namespace {
 
-struct ObjectRecord {
-    std::shared_ptr<const Accel> structure;
-    // What the walk traces: the structure, or the single-ray structure a packet structure holds.
-    const Accel* traced = nullptr;
-    // The triangles the scene flattened, when it built the object itself.
-    std::shared_ptr<const std::vector<Triangle>> triangles;
-    std::size_t primitives = 0;
-};
-
-// What the walk reads of an instance: 144 bytes.
-struct InstanceRecord {
-    InverseAffine to_object;
-    const Accel* traced = nullptr;
-    std::uint32_t object = 0;
-    // Ray conditioning's far-origin frame of the object's box (FarOriginFrame): its centre, and the distance
-    // beyond which an origin is far.
-    Vec3f object_centre;
-    float far_limit = kInfinity;
-};
+using top_level::InstanceRecord, top_level::ObjectRecord, top_level::kTopWidth, top_level::TopNode;
 
 // An instance's box grows, beyond its object's box mapped to the world, by the transformed ray's rounding
 // seen from the world: the object ray errs by 2^-24 of its coordinates, |o'| + t |d'| <= ||A^-1|| (|o - b|
@@ -50,10 +34,6 @@ struct InstanceRecord {
 // the factor 2^-22 leaves 4 times that (docs/numerical-contract.md, "Instances").
 constexpr double kTransformedRayRounding = 0x1p-22;
 constexpr double kRayReachSides = 9.0;
-
-// The top level's nodes: the wide BVH's (accel/bvh/bvh_wide.hpp), 8 children tested at once.
-constexpr int kTopWidth = 8;
-using TopNode = WideBvhNode<kTopWidth>;
 
 // Rays per task of intersect_parallel and occluded_parallel, as for the structures (lancer/accel.hpp).
 constexpr std::size_t kRayChunk = 4096;
@@ -181,33 +161,11 @@ struct InstancedScene::State {
     }
 
     // The binary subtree under `binary_root` as wide nodes appended depth first; returns the first's index.
-    // The greedy collapse of Dammertz et al. 2008 (bvh_wide.cpp): open the inner child of largest area until
-    // the node has 8 children or only leaves.
+    // Each node's children by the wide BVHs' greedy collapse (collapse_children, accel/bvh/collapse.hpp).
     std::uint32_t collapse(const BvhBuildResult& binary, std::uint32_t binary_root) {
         std::array<std::uint32_t, kTopWidth> children{};
-        int count = 0;
-        if (binary.nodes[binary_root].is_leaf()) {
-            children[count++] = binary_root;
-        } else {
-            children[count++] = binary_root + 1;
-            children[count++] = binary.nodes[binary_root].offset;
-        }
-        while (count < kTopWidth) {
-            int widest = -1;
-            float widest_area = -1.0f;
-            for (int i = 0; i < count; ++i) {
-                const BvhNode& candidate = binary.nodes[children[i]];
-                if (!candidate.is_leaf() && candidate.bounds().surface_area() > widest_area)
-                    widest = i, widest_area = candidate.bounds().surface_area();
-            }
-            if (widest < 0) break;
-            const std::uint32_t opened = children[widest];
-            std::copy_backward(children.begin() + widest + 1, children.begin() + count,
-                               children.begin() + count + 1);
-            children[widest] = opened + 1;
-            children[widest + 1] = binary.nodes[opened].offset;
-            ++count;
-        }
+        const int count = collapse_children<kTopWidth>(
+            binary.nodes, binary_root, [&](std::uint32_t i) { return binary.nodes[i].is_leaf(); }, children);
         const auto index = static_cast<std::uint32_t>(nodes.size());
         nodes.emplace_back();
         for (int slot = 0; slot < count; ++slot) {
@@ -259,131 +217,6 @@ struct InstancedScene::State {
         return wide_bvh_sah_cost(nodes);
     }
 
-    template <bool kAnyHit, bool kCount>
-    bool walk(const Ray& ray, InstanceHit& best, TraversalCounters& counts) const {
-        if (ray.tnear >= 0.0f) return walk_from<kAnyHit, kCount, true>(ray, best, counts);
-        return walk_from<kAnyHit, kCount, false>(ray, best, counts);
-    }
-
-    // Whether ray conditioning would leave an object ray as it is (may_need_conditioning against the
-    // object's box): a direction in the ordinary range and an origin that is not far.
-    [[nodiscard]] static bool is_ordinary(const Ray& ray, const InstanceRecord& record) {
-        const float largest = max_component(abs(ray.direction));
-        return largest >= kDirectionLowest && largest <= kDirectionHighest &&
-               max_component(abs(ray.origin - record.object_centre)) <= record.far_limit;
-    }
-
-    // An instance's object traced with the ray mapped into its frame: true for an any-hit query that found
-    // one; for a closest-hit query, `best` improved by the rule of lancer::closer.
-    template <bool kAnyHit>
-    bool visit(std::uint32_t id, const Ray& ray, InstanceHit& best,
-               TraversalCounters* object_counters) const {
-        const InstanceRecord& record = records[id];
-        Ray world = ray;
-        if constexpr (!kAnyHit) world.tfar = best.hit() ? best.t : ray.tfar;
-        const ObjectRay local = record.to_object.to_object(world, record.object_centre, record.far_limit);
-        // Accel's public calls condition their rays first. to_object has moved a far origin near the object
-        // already, so a ray with an ordinary direction, into an object seen at its own scale, goes straight
-        // to the structure's batch call, 5% fewer instructions on the views of 1,000 bunnies
-        // (docs/accel/instances.md).
-        const bool as_is = record.traced->scale_exponent() == 0 && is_ordinary(local.ray, record);
-        if constexpr (kAnyHit) {
-            std::uint8_t occluded = 0;
-            if (as_is) {
-                record.traced->occluded_batch({&local.ray, 1}, {&occluded, 1}, object_counters);
-            } else {
-                record.traced->occluded({&local.ray, 1}, {&occluded, 1}, object_counters);
-            }
-            return occluded != 0;
-        } else {
-            Hit hit;
-            if (as_is) {
-                record.traced->intersect_batch({&local.ray, 1}, {&hit, 1}, object_counters);
-            } else {
-                record.traced->intersect({&local.ray, 1}, {&hit, 1}, object_counters);
-            }
-            if (!hit.hit()) return false;
-            // Back to the world's parameter; the interval was rounded outwards, so clamp as restore_t does.
-            float t = hit.t;
-            if (local.shift != 0.0)
-                t = std::fmin(std::fmax(static_cast<float>(double(hit.t) + local.shift), world.tnear),
-                              world.tfar);
-            if (closer(t, static_cast<std::int32_t>(id), hit.prim, best)) {
-                best = {t,
-                        hit.prim,
-                        hit.u,
-                        hit.v,
-                        static_cast<std::int32_t>(id),
-                        static_cast<std::int32_t>(record.object)};
-            }
-            return false;
-        }
-    }
-
-    // Closest hit (kAnyHit false, into `best`) or any hit (returned) of a valid world ray, front to back as
-    // the wide BVH's walk (accel/bvh/bvh_wide_walk.hpp): the 8 child boxes tested at once, the nearest hit
-    // child visited and the others pushed, a popped child skipped once it is entered beyond the best hit
-    // (closed: an instance entered at exactly the best t may hold a tie that its id wins). kForward: tnear
-    // >= 0 (clip_slab).
-    template <bool kAnyHit, bool kCount, bool kForward>
-    bool walk_from(const Ray& ray, InstanceHit& best, TraversalCounters& counts) const {
-        struct StackEntry {
-            std::uint32_t child;
-            std::uint32_t is_instance;
-            float t_entry;
-        };
-        if (nodes.empty()) return false;
-        const WideRay wide_ray{SlabRay(ray)};
-        // Each level pushes at most 7 children, and the wide tree is no deeper than the binary one.
-        std::array<StackEntry, (kTopWidth - 1) * BvhAccel::kMaxDepth + 1> stack;
-        int stack_size = 0;
-        StackEntry current{0, 0, 0.0f};
-        TraversalCounters object_counts;
-        TraversalCounters* object_counters = kCount ? &object_counts : nullptr;
-        bool found = false;
-        while (true) {
-            if constexpr (kCount) ++counts.nodes_visited;
-            if (current.is_instance != 0) {
-                if (visit<kAnyHit>(current.child, ray, best, object_counters)) {
-                    found = true;
-                    break;
-                }
-            } else {
-                const TopNode& node = nodes[current.child];
-                const float t_limit = best.hit() ? best.t : ray.tfar;
-                alignas(32) float entry[kTopWidth];
-                const unsigned hit_mask =
-                    intersect_children<kTopWidth, kForward>(node, wide_ray, ray.tnear, t_limit, entry);
-                if (hit_mask != 0) {
-                    std::array<int, kTopWidth> order;
-                    const int hit_count = order_by_entry<kTopWidth>(hit_mask, entry, order);
-                    for (int k = hit_count - 1; k > 0; --k) {
-                        const int slot = order[static_cast<std::size_t>(k)];
-                        stack[static_cast<std::size_t>(stack_size++)] = {node.child[slot],
-                                                                         node.prim_count[slot], entry[slot]};
-                    }
-                    const int nearest = order[0];
-                    current = {node.child[nearest], node.prim_count[nearest], entry[nearest]};
-                    continue;
-                }
-            }
-            bool popped = false;
-            while (stack_size > 0) {
-                const StackEntry entry = stack[static_cast<std::size_t>(--stack_size)];
-                if (!best.hit() || entry.t_entry <= best.t) {
-                    current = entry, popped = true;
-                    break;
-                }
-            }
-            if (!popped) break;
-        }
-        if constexpr (kCount) {
-            counts.nodes_visited += object_counts.nodes_visited;
-            counts.prims_tested += object_counts.prims_tested;
-        }
-        return kAnyHit ? found : best.hit();
-    }
-
     void check_committed(std::size_t ray_count, std::size_t answer_count) const {
         if (added_or_removed || moved) {
             throw std::logic_error(
@@ -393,28 +226,10 @@ struct InstancedScene::State {
             throw std::invalid_argument("InstancedScene: one answer slot per ray expected");
     }
 
-    // Each conditioned ray walked once: answers[i] the closest hit (InstanceHit) or whether the ray is
-    // occluded (std::uint8_t, kAnyHit). Invalid rays miss.
     template <bool kAnyHit, class Answer>
     void walk_each(std::span<const Ray> traced, std::span<Answer> answers,
                    TraversalCounters* counters) const {
-        const auto trace = [&]<bool kCount>() {
-            TraversalCounters counts;
-            for (std::size_t i = 0; i < traced.size(); ++i) {
-                InstanceHit best;
-                const bool found = is_valid(traced[i]) && walk<kAnyHit, kCount>(traced[i], best, counts);
-                if constexpr (kAnyHit) {
-                    answers[i] = found;
-                } else {
-                    answers[i] = best;
-                }
-            }
-            if constexpr (kCount) {
-                counts.rays = traced.size();
-                *counters += counts;
-            }
-        };
-        counters != nullptr ? trace.template operator()<true>() : trace.template operator()<false>();
+        Walk(nodes, records).each<kAnyHit>(traced, answers, counters);
     }
 };
 
@@ -557,16 +372,7 @@ void InstancedScene::intersect(std::span<const Ray> rays, std::span<InstanceHit>
     const std::span<const Ray> traced =
         conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
     s.walk_each<false>(traced, hits, counters);
-    for (std::size_t i = 0; i < conditioned.how.size(); ++i) {
-        const RayConditioning& how = conditioned.how[i];
-        if ((how.shift == 0.0 && how.exponent == 0) || !hits[i].hit()) continue;
-        const std::optional<float> t = restore_t(hits[i].t, how, rays[i]);
-        if (t) {
-            hits[i].t = *t;
-        } else {
-            hits[i] = InstanceHit{};
-        }
-    }
+    restore_hits(conditioned, rays, hits);
 }
 
 void InstancedScene::occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
