@@ -36,6 +36,7 @@ struct Sse4 {
     static Float min(Float a, Float b) { return _mm_min_ps(a, b); }
     // fabs: clears the sign bit.
     static Float abs(Float a) { return _mm_andnot_ps(_mm_set1_ps(-0.0f), a); }
+    static Float max_magnitude(Float a, Float b) { return max(abs(a), abs(b)); }
     static Float less(Float a, Float b) { return _mm_cmplt_ps(a, b); }
     static Float less_equal(Float a, Float b) { return _mm_cmple_ps(a, b); }
     static Float greater(Float a, Float b) { return _mm_cmpgt_ps(a, b); }
@@ -73,6 +74,7 @@ struct Avx2 {
     static Float max(Float a, Float b) { return _mm256_max_ps(a, b); }
     static Float min(Float a, Float b) { return _mm256_min_ps(a, b); }
     static Float abs(Float a) { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), a); }
+    static Float max_magnitude(Float a, Float b) { return max(abs(a), abs(b)); }
     static Float less(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
     static Float less_equal(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
     static Float greater(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
@@ -183,6 +185,8 @@ struct Avx512 {
     static Float max(Float a, Float b) { return _mm512_maskz_max_ps(0xffff, a, b); }
     static Float min(Float a, Float b) { return _mm512_maskz_min_ps(0xffff, a, b); }
     static Float abs(Float a) { return _mm512_abs_ps(a); }
+    // max(|a|, |b|) in one vrangeps (imm 0b1011: the larger magnitude, its sign bit cleared).
+    static Float max_magnitude(Float a, Float b) { return _mm512_range_ps(a, b, 0b1011); }
     static Mask less(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_LT_OQ); }
     static Mask less_equal(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_LE_OQ); }
     static Mask greater(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_GT_OQ); }

@@ -10,6 +10,7 @@
 #include <limits>
 #include <numbers>
 
+#include "core/exact_sign.hpp"
 #include "core/host_device.hpp"
 #include "core/isa_namespace.hpp"
 #include "lancer/box.hpp"
@@ -174,15 +175,18 @@ struct MollerTrumbore {
 // ray passes between them. This relies on -ffp-contract=off (set for the whole project): a fused
 // multiply-add would round the two products of an edge function differently in the two triangles.
 //
-// Rounding is monotonic, so a float edge function never has the wrong sign: it is exact or zero. Below
-// FLT_MIN its magnitude is another matter: a product that falls in the denormal range keeps an absolute error
-// of 2^-150, which is all of it for the tiniest. Zero edge functions (section 3.1 of the paper) and denormal
-// ones are therefore decided in double, where a product of floats is exact and a difference of two is
-// rounded once: the exact sign, the same a neighbour's normal float edge function has. So is a hit whose
-// numerator T = sum w z falls below 2^-100: its products may have underflowed, and t = T / det, with det
-// as small as FLT_MIN, could then be wrong by up to 2^-24 (docs/numerical-contract.md, "Triangle tests").
-// Above 2^-100 some product exceeds 2^-102, whose own float rounding dwarfs the 2^-150 that underflow may
-// cost the others.
+// The transformed vertices are rounded, though, and an edge function exact for them can have the wrong sign
+// for the exact line: a ray grazing a triangle whose projection is thinner than that rounding was missed
+// whatever its barycentrics. So each edge function is a filtered predicate: beyond its error bound
+// (kEdgeSlack) the float sign is the exact line's; within it the sign is computed exactly
+// (line_edge_side, core/exact_sign.hpp). Either way every edge gets the exact sign, which the neighbour
+// across it gets too, so the test stays watertight and answers what exact arithmetic would. The bound is at
+// least FLT_MIN, so zero and denormal edge functions (section 3.1 of the paper; a product in the denormal
+// range keeps only an absolute precision of 2^-150) are decided exactly too. A hit whose numerator
+// T = sum w z falls below 2^-100 is computed in double: its products may have underflowed, and t = T / det,
+// with det as small as FLT_MIN, could then be wrong by up to 2^-24 (docs/numerical-contract.md, "Triangle
+// tests"). Above 2^-100 some product exceeds 2^-102, whose own float rounding dwarfs the 2^-150 that
+// underflow may cost the others.
 struct Watertight {
     // The axes {kx, ky, kz} of a ray whose direction is dominant along kz: kx and ky the next two in cyclic
     // order, swapped when the dominant component is negative, to keep the winding. The packet kernels
@@ -196,23 +200,32 @@ struct Watertight {
     }
 
     struct RayData {
-        Vec3f origin;
-        int kx, ky, kz;  // kz: the dominant axis of the direction
+        Vec3f origin, direction;  // the direction for the exact signs of line_edge_side
+        int kx, ky, kz;           // kz: the dominant axis of the direction
         float shear_x, shear_y, shear_z;
 
         // Without branches (max_axis, permutation and as_array's indexing): on incoherent rays the dominant
         // axis and its sign are random, and branches mispredicted at every ray (docs/accel/stream.md).
-        LANCER_HOST_DEVICE explicit RayData(const Ray& ray) : origin(ray.origin) {
+        LANCER_HOST_DEVICE explicit RayData(const Ray& ray) : origin(ray.origin), direction(ray.direction) {
             kz = max_axis(magnitude(ray.direction));
-            const std::array<float, 3> direction = as_array(ray.direction);
-            const std::array<int, 3> axes = permutation(kz, direction[kz] < 0.0f);
+            const std::array<float, 3> components = as_array(ray.direction);
+            const std::array<int, 3> axes = permutation(kz, components[kz] < 0.0f);
             kx = axes[0], ky = axes[1];
-            shear_x = direction[kx] / direction[kz];
-            shear_y = direction[ky] / direction[kz];
-            shear_z = 1.0f / direction[kz];
+            shear_x = components[kx] / components[kz];
+            shear_y = components[ky] / components[kz];
+            shear_z = 1.0f / components[kz];
         }
     };
 
+    // The float edge functions err from those of the exact line and vertices by at most
+    // 16 2^-24 N (N + Z), N the largest |x| or |y| of the three sheared vertices and Z their largest |z|:
+    // each sheared x or y is within 2 2^-24 N + 4 2^-24 Z of its exact value (the translation, the shear
+    // factor d[kx] / d[kz] of magnitude at most 1, its product and the difference rounded once each), which
+    // the two products carry into 8 2^-24 N^2 + 16 2^-24 N Z, and their roundings add 4 2^-24 N^2. kEdgeSlack
+    // is twice that bound's constant, which also covers the bound's own rounding (docs/numerical-contract.md,
+    // "Triangle tests"). A power of two, so the scaling is exact, and the vector kernels compute the same
+    // bound.
+    static constexpr float kEdgeSlack = 0x1p-19f;
     // Below this |T| the float products of T may have underflowed (see above); the vector kernels hand such
     // lanes to this scalar kernel.
     static constexpr float kSmallNumerator = 0x1p-100f;
@@ -223,13 +236,18 @@ struct Watertight {
         const float w0 = v.bx * v.cy - v.by * v.cx;
         const float w1 = v.cx * v.ay - v.cy * v.ax;
         const float w2 = v.ax * v.by - v.ay * v.bx;
-        // Edge functions of both signs, strictly: a miss whatever their magnitudes (float signs are exact),
-        // decided before the double fallback, which would only find the same signs again.
-        if ((w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) && (w0 > 0.0f || w1 > 0.0f || w2 > 0.0f)) return false;
-        constexpr float kFloatMin = std::numeric_limits<float>::min();
-        if (magnitude(w0) < kFloatMin || magnitude(w1) < kFloatMin || magnitude(w2) < kFloatMin)
-            return intersect_in_double(ray, v, tnear, tfar, out);
-        // Three normal edge functions of one sign: det is not zero.
+        // Products that overflowed (vertices far beyond the contract's 2^60 domain) make an edge function
+        // NaN: a miss, as in the vector kernels, where a NaN lane's t is NaN.
+        if (is_nan(w0) || is_nan(w1) || is_nan(w2)) return false;
+        const float slack = edge_slack(v);
+        const bool certain0 = magnitude(w0) > slack, certain1 = magnitude(w1) > slack,
+                   certain2 = magnitude(w2) > slack;
+        // Two certain edge functions of opposite signs: a miss, decided before any exact sign is computed.
+        if (((certain0 && w0 < 0.0f) || (certain1 && w1 < 0.0f) || (certain2 && w2 < 0.0f)) &&
+            ((certain0 && w0 > 0.0f) || (certain1 && w1 > 0.0f) || (certain2 && w2 > 0.0f)))
+            return false;
+        if (!(certain0 && certain1 && certain2)) return intersect_exactly(ray, tri, tnear, tfar, out);
+        // Three certain edge functions of one sign, each above FLT_MIN: det is not zero.
         const float det = w0 + w1 + w2;
         const float az = ray.shear_z * v.az, bz = ray.shear_z * v.bz, cz = ray.shear_z * v.cz;
         const float numerator = w0 * az + w1 * bz + w2 * cz;
@@ -256,21 +274,68 @@ struct Watertight {
                 c[ray.kx] - ray.shear_x * c[ray.kz], c[ray.ky] - ray.shear_y * c[ray.kz], c[ray.kz]};
     }
 
-    // The same test from the same sheared floats, in double: exact edge-function signs, and det, T, t, u and
-    // v free of underflow, rounded to float once.
+    // kEdgeSlack's bound, N and Z as maxima and the products in this order, as the vector kernels compute it;
+    // at least FLT_MIN.
+    LANCER_HOST_DEVICE static float edge_slack(const Sheared& v) {
+        const float planar =
+            max_of(max_of(max_of(magnitude(v.ax), magnitude(v.ay)), max_of(magnitude(v.bx), magnitude(v.by))),
+                   max_of(magnitude(v.cx), magnitude(v.cy)));
+        const float depth = max_of(max_of(magnitude(v.az), magnitude(v.bz)), magnitude(v.cz));
+        return max_of((planar + depth) * planar * kEdgeSlack, std::numeric_limits<float>::min());
+    }
+
+    // The same test from the same sheared floats, in double, for a hit whose float numerator may have
+    // underflowed: det, T, t, u and v free of underflow, rounded to float once. The edge functions were
+    // certain, so their double signs are the float ones.
     LANCER_HOST_DEVICE static bool intersect_in_double(const RayData& ray, const Sheared& v, float tnear,
                                                        float tfar, TriangleHit& out) {
         const double w0 = double(v.bx) * v.cy - double(v.by) * v.cx;
         const double w1 = double(v.cx) * v.ay - double(v.cy) * v.ax;
         const double w2 = double(v.ax) * v.by - double(v.ay) * v.bx;
-        if ((w0 < 0.0 || w1 < 0.0 || w2 < 0.0) && (w0 > 0.0 || w1 > 0.0 || w2 > 0.0)) return false;
         const double det = w0 + w1 + w2;
-        if (det == 0.0) return false;
         const double shear_z = ray.shear_z;  // z * shear_z exact in double: no underflow there either
         const auto t =
             static_cast<float>((w0 * (shear_z * v.az) + w1 * (shear_z * v.bz) + w2 * (shear_z * v.cz)) / det);
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
         out = {t, static_cast<float>(w1 / det), static_cast<float>(w2 / det)};
+        return true;
+    }
+
+    // A ray within the slack of an edge: the exact signs decide, t is where the line meets the triangle's
+    // plane and u, v are edge functions in double clamped to those signs, all rounded to float once.
+    LANCER_HOST_DEVICE static bool intersect_exactly(const RayData& ray, const Triangle& tri, float tnear,
+                                                     float tfar, TriangleHit& out) {
+        if (!(is_finite(tri.v0) && is_finite(tri.v1) && is_finite(tri.v2))) return false;
+        const int side0 = line_edge_side(ray.origin, ray.direction, tri.v1, tri.v2);
+        const int side1 = line_edge_side(ray.origin, ray.direction, tri.v2, tri.v0);
+        const int side2 = line_edge_side(ray.origin, ray.direction, tri.v0, tri.v1);
+        if ((side0 < 0 || side1 < 0 || side2 < 0) && (side0 > 0 || side1 > 0 || side2 > 0)) return false;
+        // Three zeros: the line lies in the triangle's plane, or the triangle is degenerate.
+        if (side0 == 0 && side1 == 0 && side2 == 0) return false;
+        const Vec3d origin(ray.origin), direction(ray.direction), v0(tri.v0);
+        const Vec3d normal = cross(Vec3d(tri.v1) - v0, Vec3d(tri.v2) - v0);
+        // A line that crosses the triangle is not parallel to it; a denominator that rounds to zero (a
+        // grazing angle below about 2^-53) gives an infinite or NaN t, rejected below.
+        const auto t = static_cast<float>(dot(normal, v0 - origin) / dot(normal, direction));
+        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
+        auto sheared_in_double = [&](const Vec3f& vertex) {
+            const Vec3d relative = Vec3d(vertex) - origin;
+            const std::array<double, 3> r = {relative.x, relative.y, relative.z};
+            const std::array<float, 3> d = as_array(ray.direction);
+            return std::array<double, 2>{r[ray.kx] - double(d[ray.kx]) / d[ray.kz] * r[ray.kz],
+                                         r[ray.ky] - double(d[ray.ky]) / d[ray.kz] * r[ray.kz]};
+        };
+        const std::array<double, 2> a = sheared_in_double(tri.v0), b = sheared_in_double(tri.v1),
+                                    c = sheared_in_double(tri.v2);
+        // An edge function whose double sign differs from the exact one is rounding noise around zero.
+        auto clamped = [](double w, int side) {
+            return (w > 0.0 && side > 0) || (w < 0.0 && side < 0) ? w : 0.0;
+        };
+        double e0 = clamped(b[0] * c[1] - b[1] * c[0], side0), e1 = clamped(c[0] * a[1] - c[1] * a[0], side1),
+               e2 = clamped(a[0] * b[1] - a[1] * b[0], side2);
+        if (e0 + e1 + e2 == 0.0) e0 = side0, e1 = side1, e2 = side2;  // each a corner's share, at worst
+        const double det = e0 + e1 + e2;
+        out = {t, static_cast<float>(e1 / det), static_cast<float>(e2 / det)};
         return true;
     }
 };

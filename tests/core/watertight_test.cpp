@@ -8,6 +8,7 @@
 #include <random>
 
 #include "accel/brute.hpp"
+#include "core/exact_sign.hpp"
 #include "core/intersect.hpp"
 #include "lancer/generate.hpp"
 
@@ -154,6 +155,146 @@ TEST(Watertight, ANumeratorInTheDenormalRangeIsComputedInDouble) {
     EXPECT_GT(hit.u, 0.0f);
     EXPECT_GT(hit.v, 0.0f);
     EXPECT_LT(hit.u + hit.v, 1.0f);
+}
+
+// The ray the instance tests found (2026-11-29): from 10 units away, grazing a 0.15-unit triangle at about
+// 1e-5 rad, so that its projection along the ray is 1.4e-6 wide, less than the rounding of the sheared
+// vertices. The exact line crosses it at barycentrics (0.37, 0.46, 0.17); the float edge functions alone
+// missed it. Moller-Trumbore decides such rays in double: both tests now report the same hit.
+TEST(Watertight, AGrazingRayThroughAThinProjectionIsHitWhereTheExactLineCrossesIt) {
+    const Triangle tri{{-0.33159408f, 2.3728423f, -0.3093877f},
+                       {-0.4761646f, 2.4086459f, -0.34167776f},
+                       {-0.43406615f, 2.3371084f, -0.23011614f}};
+    const Ray ray{{-1.2560198f, 7.571823f, -8.824444f}, {0.8420782f, -5.1989574f, 8.530717f}, 0, kInfinity};
+    TriangleHit expected{}, hit{};
+    ASSERT_TRUE(MollerTrumbore::intersect(MollerTrumbore::RayData(ray), tri, ray.tnear, ray.tfar, expected));
+    ASSERT_TRUE(Watertight::intersect(Watertight::RayData(ray), tri, ray.tnear, ray.tfar, hit));
+    EXPECT_NEAR(hit.t, expected.t, 1e-6f * expected.t);
+    EXPECT_NEAR(hit.u, expected.u, 1e-4f);
+    EXPECT_NEAR(hit.v, expected.v, 1e-4f);
+    EXPECT_NEAR(hit.u, 0.46f, 0.01f);
+    EXPECT_NEAR(hit.v, 0.17f, 0.01f);
+}
+
+// An exact oracle for inputs that are integers below 2^38 with at most 24 significant bits (so exact floats):
+// d . ((p - o) x (q - o)) in 128-bit integers, whose terms stay below 2^118.
+__extension__ typedef __int128 Int128;  // GCC's and Clang's; ISO C++ has no 128-bit integer
+
+int integer_side(const Vec3f& o, const Vec3f& d, const Vec3f& p, const Vec3f& q) {
+    auto to_int = [](const Vec3f& v) {
+        return std::array<Int128, 3>{static_cast<Int128>(v.x), static_cast<Int128>(v.y),
+                                     static_cast<Int128>(v.z)};
+    };
+    const auto oi = to_int(o), di = to_int(d), pi = to_int(p), qi = to_int(q);
+    std::array<Int128, 3> a{}, b{};
+    for (int i = 0; i < 3; ++i)
+        a[i] = pi[i] - oi[i], b[i] = qi[i] - oi[i];
+    const Int128 value = di[0] * (a[1] * b[2] - a[2] * b[1]) + di[1] * (a[2] * b[0] - a[0] * b[2]) +
+                         di[2] * (a[0] * b[1] - a[1] * b[0]);
+    return (value > 0) - (value < 0);
+}
+
+// Integers of 1 to 24 significant bits shifted left by up to 14: values from 1 to 2^38 that meet with
+// cancellation across many magnitudes, exact as floats.
+float random_integer(std::mt19937& rng) {
+    std::uniform_int_distribution<int> bits(1, 24), shift(0, 14), sign(0, 1);
+    const int b = bits(rng);
+    const auto mantissa = std::uniform_int_distribution<std::int64_t>(0, (std::int64_t{1} << b) - 1)(rng);
+    return static_cast<float>(mantissa << shift(rng)) * (sign(rng) ? -1.0f : 1.0f);
+}
+
+TEST(ExactSign, LineEdgeSideIsTheExactSignOnIntegerInputs) {
+    std::mt19937 rng(7);
+    std::size_t zeros = 0, float_wrong = 0;
+    for (int trial = 0; trial < 200000; ++trial) {
+        auto vec = [&] { return Vec3f(random_integer(rng), random_integer(rng), random_integer(rng)); };
+        const Vec3f o = vec(), p = vec();
+        Vec3f d = vec(), q = vec();
+        // A third of the edges made to meet the line (q on the plane of the line and p, up to the rounding
+        // of a float q): exact zeros and tiny values of either sign.
+        if (trial % 3 == 0) {
+            std::uniform_int_distribution<int> step(-3, 3);
+            q = p + static_cast<float>(step(rng)) * d + static_cast<float>(step(rng)) * (p - o);
+            if (!(is_finite(q) && magnitude(q.x) < 0x1p38f && magnitude(q.y) < 0x1p38f &&
+                  magnitude(q.z) < 0x1p38f))
+                continue;
+            q = Vec3f(std::round(q.x), std::round(q.y), std::round(q.z));
+        }
+        const int expected = integer_side(o, d, p, q);
+        ASSERT_EQ(line_edge_side(o, d, p, q), expected) << "trial " << trial;
+        zeros += expected == 0;
+        const float in_float = dot(d, cross(p - o, q - o));
+        float_wrong += (in_float > 0.0f ? 1 : in_float < 0.0f ? -1 : 0) != expected;
+    }
+    std::printf("exact zeros %zu, signs float got wrong %zu\n", zeros, float_wrong);
+    // Not a degenerate sample: many exact zeros, and many signs that float arithmetic gets wrong.
+    EXPECT_GT(zeros, 10000u);
+    EXPECT_GT(float_wrong, 1000u);
+}
+
+// The watertight test's decision is exact arithmetic's: hit where the line meets the closed triangle
+// (no two edge signs opposite, not all zero), on integer vertices and rays, many of them through vertices
+// and along edges, or grazing thin triangles. Its t is within rounding of the exact one where it hits.
+TEST(Watertight, DecidesAsExactArithmeticOnIntegerVerticesAndRays) {
+    std::mt19937 rng(9);
+    std::uniform_int_distribution<int> small(-64, 64), choice(0, 3);
+    std::size_t hits = 0, misses = 0, thin = 0;
+    double max_t_error = 0.0;
+    for (int trial = 0; trial < 300000; ++trial) {
+        auto lattice = [&](int scale) {
+            return Vec3f(static_cast<float>(small(rng) * scale), static_cast<float>(small(rng) * scale),
+                         static_cast<float>(small(rng) * scale));
+        };
+        const Vec3f v0 = lattice(1024), v1 = lattice(1024);
+        // Thin triangles: the third vertex near the line of the first two.
+        const bool is_thin = choice(rng) == 0;
+        const Vec3f v2 = is_thin ? v0 + 2.0f * (v1 - v0) + lattice(1) : lattice(1024);
+        const Triangle tri{v0, v1, v2};
+        // Targets on the triangle's vertices, edges and inside, as integer combinations; origins far away.
+        const int pick = choice(rng);
+        const Vec3f target = pick == 0 ? v0 : pick == 1 ? v1 + v2 : pick == 2 ? v0 + v1 + v2 : lattice(1024);
+        const Vec3f origin = lattice(1 << 14);
+        const Ray ray{origin,
+                      pick == 1 || pick == 2 ? target - static_cast<float>(pick) * origin : target - origin,
+                      -0x1p100f, kInfinity};
+        if (!is_valid(ray) || (ray.direction.x == 0.0f && ray.direction.y == 0.0f && ray.direction.z == 0.0f))
+            continue;
+        const int s0 = integer_side(ray.origin, ray.direction, v1, v2);
+        const int s1 = integer_side(ray.origin, ray.direction, v2, v0);
+        const int s2 = integer_side(ray.origin, ray.direction, v0, v1);
+        const bool expected = !((s0 < 0 || s1 < 0 || s2 < 0) && (s0 > 0 || s1 > 0 || s2 > 0)) &&
+                              (s0 != 0 || s1 != 0 || s2 != 0);
+        TriangleHit hit{};
+        const bool actual = Watertight::intersect(Watertight::RayData(ray), tri, ray.tnear, ray.tfar, hit);
+        ASSERT_EQ(actual, expected) << "trial " << trial;
+        if (actual) {
+            // The exact t = n . (v0 - o) / n . d, n = (v1 - v0) x (v2 - v0), in integers.
+            auto to_int = [](const Vec3f& v) {
+                return std::array<Int128, 3>{static_cast<Int128>(v.x), static_cast<Int128>(v.y),
+                                             static_cast<Int128>(v.z)};
+            };
+            const auto a = to_int(v0), b = to_int(v1), c = to_int(v2), o = to_int(ray.origin),
+                       d = to_int(ray.direction);
+            std::array<Int128, 3> e1{}, e2{}, n{};
+            for (int i = 0; i < 3; ++i)
+                e1[i] = b[i] - a[i], e2[i] = c[i] - a[i];
+            for (int i = 0; i < 3; ++i)
+                n[i] = e1[(i + 1) % 3] * e2[(i + 2) % 3] - e1[(i + 2) % 3] * e2[(i + 1) % 3];
+            Int128 numerator = 0, denominator = 0;
+            for (int i = 0; i < 3; ++i)
+                numerator += n[i] * (a[i] - o[i]), denominator += n[i] * d[i];
+            const double exact_t = static_cast<double>(numerator) / static_cast<double>(denominator);
+            max_t_error = std::max(max_t_error, std::abs(hit.t - exact_t) / std::abs(exact_t));
+        }
+        (expected ? hits : misses) += 1;
+        thin += expected && is_thin;
+    }
+    std::printf("hits %zu (thin triangles %zu), misses %zu, largest relative error of t %g\n", hits, thin,
+                misses, max_t_error);
+    EXPECT_GT(hits, 50000u);
+    EXPECT_GT(thin, 5000u);
+    EXPECT_GT(misses, 50000u);
+    EXPECT_LT(max_t_error, 0x1p-16);
 }
 
 }  // namespace

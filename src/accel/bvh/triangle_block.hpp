@@ -5,8 +5,9 @@
 //
 // Bit-identical to the scalar kernels of core/intersect.hpp: every lane performs the same fp32 operations in
 // the same order (no fused multiply-add: -ffp-contract=off), with the same ill-conditioned band and the same
-// acceptance tests; lanes whose watertight edge functions come out zero or denormal, or whose numerator
-// falls below Watertight::kSmallNumerator, are handed to the scalar test, which redoes them in double. The
+// acceptance tests; lanes whose watertight edge functions fall within their error bound
+// (Watertight::kEdgeSlack), or whose numerator falls below Watertight::kSmallNumerator, are handed to the
+// scalar test, which decides them exactly or in double. The
 // closest lane is chosen with closer(), ties to the smaller index.
 #pragma once
 
@@ -88,7 +89,7 @@ void append_leaf_blocks(const Geometry& geometry, std::span<const std::uint32_t>
 }
 
 // What a block test returns: the lanes hit in [tnear, tfar] with their t, u, v, and the lanes the scalar
-// test must decide (a watertight edge function exactly zero).
+// test must decide (a watertight edge function within its error bound, a Moller-Trumbore ray near an edge).
 template <int K>
 struct BlockHits {
     alignas(32) float t[K];
@@ -247,18 +248,24 @@ struct WatertightLanes {
         const Float w0 = Ops::sub(Ops::mul(b.x, c.y), Ops::mul(b.y, c.x));
         const Float w1 = Ops::sub(Ops::mul(c.x, a.y), Ops::mul(c.y, a.x));
         const Float w2 = Ops::sub(Ops::mul(a.x, b.y), Ops::mul(a.y, b.x));
-        // Zero or denormal edge functions and small numerators are the scalar kernel's, in double
-        // (Watertight in core/intersect.hpp).
-        const Float float_min = Ops::broadcast(std::numeric_limits<float>::min());
-        const unsigned any_small = Ops::bits(
-            Ops::mask_or(Ops::mask_or(Ops::less(Ops::abs(w0), float_min), Ops::less(Ops::abs(w1), float_min)),
-                         Ops::less(Ops::abs(w2), float_min)));
-        // Edge functions of both signs: a miss. Where all three are normal (the lanes not handed to the
+        // Edge functions within Watertight::kEdgeSlack's bound, zero and denormal ones among them, and small
+        // numerators are the scalar kernel's, which decides their signs exactly (core/intersect.hpp). The
+        // bound as Watertight::edge_slack computes it; a NaN lane's (padding) compares false.
+        const Float planar =
+            Ops::max_magnitude(Ops::max_magnitude(Ops::max_magnitude(a.x, a.y), Ops::max_magnitude(b.x, b.y)),
+                               Ops::max_magnitude(c.x, c.y));
+        const Float depth = Ops::max_magnitude(Ops::max_magnitude(a.z, b.z), c.z);
+        const Float slack = Ops::max(
+            Ops::mul(Ops::mul(Ops::add(planar, depth), planar), Ops::broadcast(Watertight::kEdgeSlack)),
+            Ops::broadcast(std::numeric_limits<float>::min()));
+        const unsigned uncertain =
+            Ops::bits(Ops::less_equal(Ops::min(Ops::min(Ops::abs(w0), Ops::abs(w1)), Ops::abs(w2)), slack));
+        // Edge functions of both signs: a miss. Where all three are certain (the lanes not handed to the
         // scalar kernel), that is a sign bit that differs between them, read from w0 ^ w1 | w0 ^ w2 (three
-        // operations where the compares took eleven). Three normal edge functions of one sign, the only
+        // operations where the compares took eleven). Three certain edge functions of one sign, the only
         // lanes left: det is not zero.
         const unsigned rejected = Ops::sign_bits(Ops::bit_or(Ops::bit_xor(w0, w1), Ops::bit_xor(w0, w2)));
-        if (((~rejected | any_small) & wanted) == 0) {
+        if (((~rejected | uncertain) & wanted) == 0) {
             const Float zero = Ops::broadcast(0.0f);
             return {zero, zero, zero, 0, 0};
         }
@@ -273,7 +280,7 @@ struct WatertightLanes {
         // As in the scalar kernel, a small numerator matters only once the signs have accepted the lane: rays
         // from a triangle's plane (T near 0) would otherwise send every lane they miss to the scalar path.
         const unsigned scalar_lanes =
-            any_small |
+            uncertain |
             (Ops::bits(Ops::less(Ops::abs(numerator), Ops::broadcast(Watertight::kSmallNumerator))) &
              ~rejected);
         return {t, Ops::mul(w1, inv_det), Ops::mul(w2, inv_det),

@@ -1,0 +1,83 @@
+// The exact sign of a small polynomial in float inputs, for the watertight test's rays that its float edge
+// functions cannot decide (docs/numerical-contract.md, "Triangle tests"). A product of two floats is exact in
+// double (24 + 24 significand bits); a third factor is made exact by the two-product (Ogita, Rump & Oishi,
+// "Accurate Sum and Dot Product", 2005: the fused multiply-add returns the rounding error), and the terms
+// are summed exactly into a nonoverlapping expansion whose largest component carries the sign (Shewchuk,
+// "Adaptive Precision Floating-Point Arithmetic and Fast Robust Geometric Predicates", 1997, section 2).
+// Host-device: the GPU decides the same rays with the same source (docs/cuda.md).
+#pragma once
+
+#include <cmath>
+
+#include "core/host_device.hpp"
+#include "lancer/vec.hpp"
+
+namespace lancer {
+
+// An exact sum of up to Capacity doubles, kept as a nonoverlapping expansion of increasing magnitude with
+// its zero components dropped. No term may overflow: products of three floats stay below 2^387, and their
+// rounding errors above 2^-1022 (a float is at least 2^-149).
+template <int Capacity>
+class ExactSum {
+  public:
+    // Shewchuk's Grow-Expansion with zero elimination: each component in turn joins the running sum, whose
+    // rounding error Two-Sum keeps (Knuth, TAOCP vol. 2, 4.2.2).
+    LANCER_HOST_DEVICE void add(double term) {
+        double sum = term;
+        int kept = 0;
+        for (int i = 0; i < count_; ++i) {
+            const double component = component_[i];
+            const double rounded = sum + component;
+            const double sum_part = rounded - component;
+            const double error = (sum - sum_part) + (component - (rounded - sum_part));
+            sum = rounded;
+            if (error != 0.0) component_[kept++] = error;
+        }
+        if (sum != 0.0) component_[kept++] = sum;
+        count_ = kept;
+    }
+
+    // a b c exactly, as two terms: a b is exact in double.
+    LANCER_HOST_DEVICE void add_product(float a, float b, float c) {
+        const double ab = double(a) * double(b);
+        const double abc = ab * double(c);
+#if defined(__CUDA_ARCH__)
+        add(fma(ab, double(c), -abc));
+#else
+        add(std::fma(ab, double(c), -abc));
+#endif
+        add(abc);
+    }
+
+    // -1, 0 or 1: the sign of the largest component, the last one kept.
+    [[nodiscard]] LANCER_HOST_DEVICE int sign() const {
+        if (count_ == 0) return 0;
+        return component_[count_ - 1] > 0.0 ? 1 : -1;
+    }
+
+  private:
+    double component_[Capacity] = {};
+    int count_ = 0;
+};
+
+// The sign of d . ((p - o) x (q - o)), exactly: the side of the line o + t d on which the edge p q passes
+// (the Plucker product of the line and the edge, up to its positive factors). Expanded so that every term is
+// a product of three inputs: d . (p x q) + d . (o x p) - d . (o x q), each triple product six terms.
+[[nodiscard]] LANCER_HOST_DEVICE inline int line_edge_side(const Vec3f& o, const Vec3f& d, const Vec3f& p,
+                                                           const Vec3f& q) {
+    ExactSum<36> sum;
+    // a . (b x c) = sum over the cyclic (i, j, k) of a_i (b_j c_k - b_k c_j).
+    auto add_triple_product = [&sum](const Vec3f& a, const Vec3f& b, const Vec3f& c, float sign) {
+        for (int i = 0; i < 3; ++i) {
+            const int j = (i + 1) % 3, k = (i + 2) % 3;
+            sum.add_product(sign * a[i], b[j], c[k]);
+            sum.add_product(-sign * a[i], b[k], c[j]);
+        }
+    };
+    add_triple_product(d, p, q, 1.0f);
+    add_triple_product(d, o, p, 1.0f);
+    add_triple_product(d, o, q, -1.0f);
+    return sum.sign();
+}
+
+}  // namespace lancer
