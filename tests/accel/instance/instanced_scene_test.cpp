@@ -671,6 +671,8 @@ TEST(InstancedScene, BadTransformsAndIdsAreRefusedNamingTheInstance) {
     EXPECT_TRUE(hit.hit());
     EXPECT_EQ(hit.instance, 0);
     EXPECT_NEAR(hit.t, 4.0f, 0.1f);
+    // A refused instance took no id.
+    EXPECT_EQ(scene.add_instance(object, Transform::translation({3.0f, 0.0f, 0.0f})), 1u);
 }
 
 // Any registered structure can serve as an object (Embree's aside: its own triangle test): each one's
