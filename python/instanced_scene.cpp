@@ -11,18 +11,12 @@ namespace lancer::python {
 
 using namespace pybind11::literals;
 
-namespace {
-
-// The scene's refusal of a transform (lancer::InstancedScene: "instance 3's transform is singular ...") as
-// an error naming the argument.
-[[noreturn]] void refused_transform(const std::invalid_argument& error) {
+void refused_transform(const std::invalid_argument& error, const std::string& name) {
     std::string message = error.what();
     const std::string prefix = "InstancedScene: ";
     if (message.starts_with(prefix)) message.erase(0, prefix.size());
-    throw py::value_error("transform: " + message);
+    throw py::value_error(name + ": " + message);
 }
-
-}  // namespace
 
 InstancedScene::InstancedScene(std::string accel, bool watertight, int nthreads)
     : accel_name_(std::move(accel)),
@@ -67,7 +61,7 @@ std::uint32_t InstancedScene::add_instance(const py::object& geometry_id, const 
     try {
         id = scene_.add_instance(static_cast<std::uint32_t>(*geometry.value), placed);
     } catch (const std::invalid_argument& error) {
-        refused_transform(error);
+        refused_transform(error, "transform");
     }
     added_ = id + 1;
     changed_ = true;
@@ -92,7 +86,7 @@ void InstancedScene::set_transform(const py::object& instance_id, const py::obje
     try {
         scene_.set_transform(id, placed);
     } catch (const std::invalid_argument& error) {
-        refused_transform(error);
+        refused_transform(error, "transform");
     }
     changed_ = true;
 }

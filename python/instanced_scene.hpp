@@ -10,7 +10,9 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <shared_mutex>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -27,6 +29,10 @@ namespace py = pybind11;
 // The geometries' structure of InstancedScene(): an instance visit traces one ray, so a packet structure
 // would be traced through the bvh8 it holds (lancer::InstancedScene::add_object) after a longer build.
 inline constexpr std::string_view kDefaultInstancedAccel = "bvh8";
+
+// The scene's refusal of a transform (lancer::InstancedScene's "instance 3's transform is singular ...") as a
+// ValueError naming the argument or state entry `name` that gave it.
+[[noreturn]] void refused_transform(const std::invalid_argument& error, const std::string& name);
 
 class InstancedScene {
   public:
@@ -45,6 +51,15 @@ class InstancedScene {
     // RaycastingScene's answers, and instance_ids uint32 (INVALID_ID for a miss); the normal is the world's.
     py::dict cast_rays(const py::object& rays, int nthreads);
     py::array test_occlusions(const py::object& rays, float tnear, float tfar, int nthreads);
+
+    // pickle's state and back (scene_state.cpp): RaycastingScene's (the format's name and version, accel,
+    // watertight, nthreads, geometries) and the instances by id, instance_geometry_ids uint32 (K,)
+    // (INVALID_ID for a removed id) and instance_transforms float32 (K, 3, 4) (zeros for a removed id), K the
+    // ids given. Unpickling builds the geometries and places the instances under their ids again; the first
+    // query builds the top level (docs/python.md, "pickle"). A state of another version, or one that is not
+    // what pickled() makes, raises ValueError naming the entry.
+    [[nodiscard]] py::dict pickled();
+    [[nodiscard]] static std::unique_ptr<InstancedScene> unpickled(const py::object& state);
 
     [[nodiscard]] const std::string& accel() const { return accel_name_; }
     // geometries, instances, triangles (the geometries'), instanced_triangles (over the instances), the top

@@ -238,8 +238,9 @@ class Array(numpy.ndarray):
         "add_triangles gives a geometry id (the geometry is built then, and placed by no instance yet);\n"
         "add_instance(geometry_id, transform) an instance id; set_transform and remove_instance move and\n"
         "remove instances, which updates the top level only. cast_rays answers as RaycastingScene's, the\n"
-        "geometry and primitive those of the instanced geometry, with instance_ids besides. docs/python.md,\n"
-        "\"Instances\", has the details.");
+        "geometry and primitive those of the instanced geometry, with instance_ids besides. A scene pickles\n"
+        "(its geometries and instances; the structures are rebuilt). docs/python.md, \"Instances\", has the\n"
+        "details.");
     add_triangles_methods(
         instanced_scene,
         "Adds a geometry, builds its structure, and returns its geometry id (0, 1, ...); no "
@@ -282,6 +283,11 @@ class Array(numpy.ndarray):
                 scene.remove_instance(instance_id.object);
             },
             py::arg("instance_id"), "Removes an instance; its id is never given again.")
+        .def(py::pickle(
+            [](InstancedScene& scene) { return Named<lancer::python::StateName>{scene.pickled()}; },
+            [](const Named<lancer::python::StateName>& state) {
+                return InstancedScene::unpickled(state.object);
+            }))
         .def("cast_rays", query(&InstancedScene::cast_rays), py::arg("rays"), py::arg("nthreads") = 0,
              "The closest hit of each ray over every instance.\n" LANCER_RAYS_DOC LANCER_COMMON_DOC
              "Returns a dict: t_hit float32 (...) (inf: a miss; in the world ray's units), geometry_ids,\n"

@@ -29,7 +29,7 @@ struct IndexName {
 struct AnswerArrayName {
     static constexpr auto name = py::detail::const_name("lancer.Array");
 };
-struct StateName {  // pickle's (RaycastingScene::pickled)
+struct StateName {  // pickle's (RaycastingScene::pickled, InstancedScene::pickled)
     static constexpr auto name = py::detail::const_name("dict[str, typing.Any]");
 };
 struct AnswerDictName {

@@ -73,6 +73,9 @@ class InstancedScene {
     // that takes the object's box outside the coordinate domain (kCoordinateLimit); the scene is then left as
     // it was.
     std::uint32_t add_instance(std::uint32_t object, const Transform& object_to_world);
+    // Gives the next instance id to no instance, as adding and removing an instance would: how a scene
+    // rebuilt from its live instances (a Python pickle) keeps their ids. Returns the id passed over.
+    std::uint32_t skip_instance_id();
     // Moves an instance (rigid or any affine motion); the same checks as add_instance.
     void set_transform(std::uint32_t instance, const Transform& object_to_world);
     // Throws std::invalid_argument for an unknown or removed instance.

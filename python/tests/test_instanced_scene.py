@@ -242,3 +242,151 @@ def test_bad_ids_and_empty_scenes_raise_naming_the_argument():
         scene.add_triangles(np.zeros((3, 2)), [[0, 1, 2]])
     with pytest.raises(ValueError, match="accel: unknown structure 'octopus'"):
         lancer.InstancedScene(accel="octopus")
+
+
+# pickle and copy.deepcopy (docs/python.md, "pickle and copy.deepcopy").
+
+def every_answer(scene, rays):
+    """cast_rays' answers and test_occlusions', as bytes: equal means equal bit for bit."""
+    answers = {key: value.tobytes() for key, value in scene.cast_rays(rays).items()}
+    answers["occluded"] = scene.test_occlusions(rays).tobytes()
+    answers["occluded_window"] = scene.test_occlusions(rays, tnear=0.5, tfar=3.0).tobytes()
+    return answers
+
+
+def twins(scene):
+    import copy
+    import pickle
+    return [pickle.loads(pickle.dumps(scene)), copy.deepcopy(scene), copy.copy(scene)]
+
+
+COUNTS = ("geometries", "instances", "triangles", "instanced_triangles")
+
+
+@pytest.mark.parametrize("accel", ["bvh8", "bvh8_packet", "bvh"])
+@pytest.mark.parametrize("watertight", [True, False])
+def test_pickle_and_deepcopy_answer_bit_for_bit_after_moves_and_removals(accel, watertight):
+    instanced, flat, geometries, placed = scenes(accel, watertight, count=10)
+    flat_meshes = [(moved(geometries[g][0], m), geometries[g][1]) for g, m in placed]
+    rays = np.vstack([rays_at_centroids(flat_meshes, 40), random_rays(3000, 41, spread=5.0)])
+    # Pickled before any query (the top level not built yet), then after moves and removals: a refitted top
+    # level against the unpickled scene's fresh build, and removed ids, the last among them.
+    before = every_answer(instanced, rays)
+    for twin in twins(instanced):
+        assert type(twin) is lancer.InstancedScene and twin is not instanced and twin.accel == accel
+        assert every_answer(twin, rays) == before, (accel, watertight)
+    new = random_transforms(2, 42)
+    instanced.set_transform(3, new[0])
+    instanced.set_transform(6, new[1])
+    instanced.remove_instance(4)
+    instanced.remove_instance(9)
+    expected = every_answer(instanced, rays)
+    ids = np.frombuffer(expected["instance_ids"], np.uint32)
+    assert expected != before and {3, 6} <= set(ids) and not {4, 9} & set(ids)
+    for twin in twins(instanced):
+        assert every_answer(twin, rays) == expected, (accel, watertight)
+        assert {k: twin.stats()[k] for k in COUNTS} == {k: instanced.stats()[k] for k in COUNTS}
+        # The ids as they were: removed ones refused as removed, the next one 10.
+        with pytest.raises(ValueError, match=r"instance_id: 4, not an instance of the scene \(removed\)"):
+            twin.set_transform(4, np.eye(4))
+        with pytest.raises(ValueError, match=r"instance_id: 9, not an instance of the scene \(removed\)"):
+            twin.remove_instance(9)
+        # Its own scene: changed, it answers as the original changed alike, which stays as it was.
+        assert twin.add_instance(1, new[1]) == 10
+        twin.remove_instance(0)
+        assert twin.add_triangles(*tetrahedron()) == 2
+        assert every_answer(twin, rays) != expected
+        assert every_answer(instanced, rays) == expected
+    state = instanced.__getstate__()
+    assert state["instance_geometry_ids"].dtype == np.uint32 and state["instance_transforms"].dtype == np.float32
+    assert list(state["instance_geometry_ids"]) == [INVALID if i in (4, 9) else g for i, (g, _) in enumerate(placed)]
+    assert np.array_equal(state["instance_transforms"][3], np.asarray(new[0][:3], np.float32))
+    assert not state["instance_transforms"][[4, 9]].any()
+
+
+def test_empty_and_emptied_scenes_pickle():
+    import pickle
+    empty = pickle.loads(pickle.dumps(lancer.InstancedScene(accel="bvh", watertight=False, nthreads=1)))
+    assert empty.accel == "bvh" and empty.stats()["geometries"] == 0
+    with pytest.raises(ValueError, match="the scene has no instances"):
+        empty.cast_rays(random_rays(10, 43))
+    emptied = lancer.InstancedScene()
+    emptied.add_triangles(*icosphere(1))
+    for _ in range(3):
+        emptied.add_instance(0, np.eye(4))
+    for i in range(3):
+        emptied.remove_instance(i)
+    twin = pickle.loads(pickle.dumps(emptied))
+    assert twin.stats()["instances"] == 0
+    assert twin.add_instance(0, np.eye(4)) == 3
+
+
+def answers_in_worker(scene, rays):
+    """In a worker process: the answers of a scene it received pickled."""
+    return every_answer(scene, rays)
+
+
+def test_a_pickled_scene_answers_the_same_in_a_worker_process():
+    import multiprocessing
+    instanced, _, _, _ = scenes(count=6)
+    instanced.remove_instance(2)
+    rays = random_rays(2000, 44, spread=5.0)
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        # A worker that cannot unpickle its task dies and the pool waits for it forever: hence the timeout.
+        answers = pool.apply_async(answers_in_worker, (instanced, rays)).get(timeout=120)
+    assert answers == every_answer(instanced, rays)
+
+
+def test_corrupt_and_other_version_pickles_raise_value_error_naming_the_entry():
+    instanced, _, geometries, _ = scenes(count=4)
+    instanced.remove_instance(1)
+    state = instanced.__getstate__()
+    assert state["format"] == "lancer.InstancedScene" and state["version"] == 1
+    ids, matrices = state["instance_geometry_ids"], state["instance_transforms"]
+
+    def changed(**changes):
+        return dict(state, **changes)
+
+    def matrix_at(index, matrix):
+        out = matrices.copy()
+        out[index] = matrix
+        return out
+
+    vertices, triangles = geometries[0]
+    raycasting = lancer.RaycastingScene()
+    raycasting.add_triangles(vertices, triangles)
+    bad = [
+        (changed(version=2), "format version 2, this lancer reads version 1"),
+        (changed(version=True), "format version True"),
+        (changed(format="lancer.RaycastingScene"), "format 'lancer.RaycastingScene'"),
+        (raycasting.__getstate__(), "format 'lancer.RaycastingScene', not 'lancer.InstancedScene'"),
+        ({k: v for k, v in state.items() if k != "instance_transforms"}, "no 'instance_transforms' entry"),
+        ({k: v for k, v in state.items() if k != "instance_geometry_ids"}, "no 'instance_geometry_ids' entry"),
+        (changed(accel="nope"), "accel: unknown structure 'nope'"),
+        (changed(watertight=1), "watertight: expected a bool"),
+        (changed(nthreads=-2), "nthreads"),
+        (changed(geometries=[(vertices[:, :2], triangles)]), r"geometries\[0\]\[0\]: expected shape"),
+        (changed(geometries=tuple(geometries)), r"geometries: expected a list"),
+        (changed(instance_geometry_ids=ids.astype(np.float32)),
+         "instance_geometry_ids: expected an array of integers"),
+        (changed(instance_geometry_ids=None), "instance_geometry_ids: expected an array of integers"),
+        (changed(instance_geometry_ids=ids[:, None]), r"instance_geometry_ids: expected shape \(K,\), got \(4, 1\)"),
+        (changed(instance_geometry_ids=np.where(np.arange(4) == 2, 7, ids)),
+         r"instance_geometry_ids\[2\]: 7, the scene has 2 geometries"),
+        (changed(instance_geometry_ids=ids.astype(np.int64) - 2), r"instance_geometry_ids\[0\]: -2"),
+        (changed(instance_transforms=matrices[:3]), r"instance_transforms: expected shape \(4, 3, 4\), one "),
+        (changed(instance_transforms=np.zeros((4, 4, 4), np.float32)), r"instance_transforms: expected shape"),
+        (changed(instance_transforms=matrices.astype(np.int32)), "instance_transforms: expected an array of real"),
+        (changed(instance_transforms=matrix_at(2, np.nan)), "instance_transforms: instance 2's transform has a NaN"),
+        (changed(instance_transforms=matrix_at(3, 0.0)), "instance_transforms: instance 3's transform is singular"),
+        ((1, 2, 3), "expected a dict state"),
+        (None, "expected a dict state"),
+    ]
+    for state_, message in bad:
+        fresh = lancer.InstancedScene.__new__(lancer.InstancedScene)
+        with pytest.raises(ValueError, match="^InstancedScene pickle: " + message):
+            fresh.__setstate__(state_)
+    # A removed id's matrix is not read: NaN there unpickles.
+    twin = lancer.InstancedScene.__new__(lancer.InstancedScene)
+    twin.__setstate__(changed(instance_transforms=matrix_at(1, np.nan)))
+    assert twin.stats()["instances"] == 3

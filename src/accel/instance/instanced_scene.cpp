@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -81,6 +82,13 @@ struct InstancedScene::State {
     bool added_or_removed = false, moved = false;
 
     [[nodiscard]] const BvhOptions& bvh_options() const { return top_level.group<BvhOptions>(); }
+
+    // The id the next instance gets, or std::invalid_argument once a hit's id could not hold it.
+    [[nodiscard]] std::uint32_t next_id() const {
+        if (records.size() >= std::size_t(std::numeric_limits<std::int32_t>::max()))
+            throw std::invalid_argument("InstancedScene: more instances than a hit's 32-bit id numbers");
+        return static_cast<std::uint32_t>(records.size());
+    }
 
     void check_instance(std::uint32_t instance, const char* what) const {
         if (instance >= alive.size() || alive[instance] == 0) {
@@ -279,14 +287,11 @@ const Accel& InstancedScene::object(std::uint32_t object) const {
 
 std::uint32_t InstancedScene::add_instance(std::uint32_t object, const Transform& object_to_world) {
     State& s = *state_;
-    const auto id = static_cast<std::uint32_t>(s.records.size());
+    const std::uint32_t id = s.next_id();
     if (object >= s.objects.size()) {
         throw std::invalid_argument("InstancedScene: instance " + std::to_string(id) + " names object " +
                                     std::to_string(object) + ", but the scene has " +
                                     std::to_string(s.objects.size()));
-    }
-    if (id == std::numeric_limits<std::int32_t>::max()) {
-        throw std::invalid_argument("InstancedScene: more instances than a hit's 32-bit id numbers");
     }
     const auto [record, box] = s.place(id, object, object_to_world);
     s.records.push_back(record);
@@ -297,6 +302,18 @@ std::uint32_t InstancedScene::add_instance(std::uint32_t object, const Transform
     ++s.live;
     s.instanced_primitives += s.objects[object].primitives;
     s.added_or_removed = true;
+    return id;
+}
+
+std::uint32_t InstancedScene::skip_instance_id() {
+    State& s = *state_;
+    const std::uint32_t id = s.next_id();
+    // A removed instance's slot: never in the top level, never counted.
+    s.records.emplace_back();
+    s.transforms.emplace_back();
+    s.alive.push_back(0);
+    s.object_boxes.emplace_back();
+    s.leaf_boxes.emplace_back();
     return id;
 }
 

@@ -135,7 +135,10 @@ FlatScene flatten(const Fixture& fixture) {
     return flat;
 }
 
-InstancedScene make_scene(const Fixture& fixture, std::string_view accel, TriangleTest test) {
+// The fixture's instances under ids 0, 1, ..., the ids in `skipped` passed over (skip_instance_id), their
+// instances left out.
+InstancedScene make_scene(const Fixture& fixture, std::string_view accel, TriangleTest test,
+                          const std::vector<std::uint32_t>& skipped = {}) {
     InstancedScene scene;
     for (const auto& triangles : fixture.object_triangles) {
         TriangleMesh mesh;
@@ -147,8 +150,12 @@ InstancedScene make_scene(const Fixture& fixture, std::string_view accel, Triang
         }
         scene.add_object(mesh, accel, build_options(test));
     }
-    for (std::size_t i = 0; i < fixture.transforms.size(); ++i)
-        scene.add_instance(fixture.objects[i], fixture.transforms[i]);
+    for (std::uint32_t i = 0; i < fixture.transforms.size(); ++i) {
+        if (std::ranges::find(skipped, i) != skipped.end())
+            scene.skip_instance_id();
+        else
+            scene.add_instance(fixture.objects[i], fixture.transforms[i]);
+    }
     scene.commit();
     return scene;
 }
@@ -557,6 +564,47 @@ TEST(InstancedScene, RigidMotionUpdatesTheTopLevelOnlyAndAnswersAsAFreshBuild) {
     EXPECT_EQ(object1->memory_bytes(), bytes1);
 }
 
+// An id passed over (what restores a pickled scene's ids) is a removed instance's: the scene answers, counts
+// and weighs as the one that added and removed it, refuses it as a removed id, and gives the next id after
+// it.
+TEST(InstancedScene, SkippedIdsAreRemovedOnes) {
+    const Fixture fixture = random_fixture(17, 12);
+    const std::vector<std::uint32_t> removed = {0, 5, 11};  // the first, one inside, the last
+    InstancedScene added = make_scene(fixture, "bvh8", TriangleTest::Watertight);
+    for (const std::uint32_t id : removed)
+        added.remove_instance(id);
+    added.commit();
+    InstancedScene skipped = make_scene(fixture, "bvh8", TriangleTest::Watertight, removed);
+    EXPECT_EQ(skipped.instance_count(), added.instance_count());
+    EXPECT_EQ(skipped.instanced_primitive_count(), added.instanced_primitive_count());
+    EXPECT_EQ(skipped.memory_bytes(), added.memory_bytes());
+    EXPECT_EQ(skipped.bounds().lo, added.bounds().lo);
+    EXPECT_EQ(skipped.bounds().hi, added.bounds().hi);
+    for (std::uint32_t id = 0; id < fixture.transforms.size(); ++id) {
+        EXPECT_EQ(skipped.contains(id), added.contains(id)) << id;
+        if (skipped.contains(id)) {
+            EXPECT_EQ(skipped.transform(id), added.transform(id)) << id;
+        }
+    }
+    EXPECT_THROW(skipped.remove_instance(5), std::invalid_argument);
+    EXPECT_THROW(skipped.set_transform(5, Transform{}), std::invalid_argument);
+    EXPECT_THROW(static_cast<void>(skipped.transform(11)), std::invalid_argument);
+
+    const std::vector<Ray> rays = testing::random_rays(added.bounds(), 4000, 18).rays;
+    std::vector<InstanceHit> expected(rays.size()), hits(rays.size());
+    added.intersect(rays, expected);
+    skipped.intersect(rays, hits);
+    EXPECT_TRUE(same_hits(hits, expected));
+    EXPECT_GT(std::count_if(hits.begin(), hits.end(), [](const InstanceHit& h) { return h.hit(); }), 400);
+    std::vector<std::uint8_t> expected_occluded(rays.size()), occluded(rays.size());
+    added.occluded(rays, expected_occluded);
+    skipped.occluded(rays, occluded);
+    EXPECT_EQ(occluded, expected_occluded);
+
+    EXPECT_EQ(skipped.skip_instance_id(), 12u);
+    EXPECT_EQ(skipped.add_instance(0, Transform{}), 13u);
+}
+
 // The SAH watch of the refit (docs/accel/refit.md) decides for the top level: a small step refits, a
 // scramble of the instances' places degrades the refitted tree past bvh.refit_threshold and rebuilds it.
 TEST(InstancedScene, TheTopLevelRebuildsOnceItsRefittedCostDegrades) {
@@ -623,6 +671,8 @@ TEST(InstancedScene, BadTransformsAndIdsAreRefusedNamingTheInstance) {
     EXPECT_TRUE(hit.hit());
     EXPECT_EQ(hit.instance, 0);
     EXPECT_NEAR(hit.t, 4.0f, 0.1f);
+    // A refused instance took no id.
+    EXPECT_EQ(scene.add_instance(object, Transform::translation({3.0f, 0.0f, 0.0f})), 1u);
 }
 
 // Any registered structure can serve as an object (Embree's aside: its own triangle test): each one's
