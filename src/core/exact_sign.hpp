@@ -61,10 +61,25 @@ class ExactSum {
 };
 
 // The sign of d . ((p - o) x (q - o)), exactly: the side of the line o + t d on which the edge p q passes
-// (the Plucker product of the line and the edge, up to its positive factors). Expanded so that every term is
-// a product of three inputs: d . (p x q) + d . (o x p) - d . (o x q), each triple product six terms.
+// (the Plucker product of the line and the edge, up to its positive factors). First in double, whose result
+// decides where it exceeds its error bound: the differences are rounded once each (2^-53 of themselves), the
+// cross and dot products add five roundings, under 8 2^-53 of the sum of the terms' magnitudes in all, and
+// 2^-49 covers that and the bound's own rounding (a filtered predicate, as Shewchuk's orient3d). Within the
+// bound, expanded so that every term is a product of three inputs, d . (p x q) + d . (o x p) - d . (o x q),
+// and summed exactly.
 [[nodiscard]] LANCER_HOST_DEVICE inline int line_edge_side(const Vec3f& o, const Vec3f& d, const Vec3f& p,
                                                            const Vec3f& q) {
+    const double ax = double(p.x) - o.x, ay = double(p.y) - o.y, az = double(p.z) - o.z;
+    const double bx = double(q.x) - o.x, by = double(q.y) - o.y, bz = double(q.z) - o.z;
+    const double x_term = double(d.x) * (ay * bz - az * by), y_term = double(d.y) * (az * bx - ax * bz),
+                 z_term = double(d.z) * (ax * by - ay * bx);
+    const double value = x_term + y_term + z_term;
+    auto magnitude = [](double x) { return x < 0.0 ? -x : x; };
+    const double bound = 0x1p-49 * (magnitude(double(d.x)) * (magnitude(ay * bz) + magnitude(az * by)) +
+                                    magnitude(double(d.y)) * (magnitude(az * bx) + magnitude(ax * bz)) +
+                                    magnitude(double(d.z)) * (magnitude(ax * by) + magnitude(ay * bx)));
+    if (value > bound) return 1;
+    if (value < -bound) return -1;
     ExactSum<36> sum;
     // a . (b x c) = sum over the cyclic (i, j, k) of a_i (b_j c_k - b_k c_j).
     auto add_triple_product = [&sum](const Vec3f& a, const Vec3f& b, const Vec3f& c, float sign) {

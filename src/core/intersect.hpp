@@ -246,7 +246,15 @@ struct Watertight {
         if (((certain0 && w0 < 0.0f) || (certain1 && w1 < 0.0f) || (certain2 && w2 < 0.0f)) &&
             ((certain0 && w0 > 0.0f) || (certain1 && w1 > 0.0f) || (certain2 && w2 > 0.0f)))
             return false;
-        if (!(certain0 && certain1 && certain2)) return intersect_exactly(ray, tri, tnear, tfar, out);
+        if (!(certain0 && certain1 && certain2)) {
+            if (!(is_finite(tri.v0) && is_finite(tri.v1) && is_finite(tri.v2))) return false;
+            // A certain edge function's sign is the exact one already.
+            auto sign = [](float w) { return w > 0.0f ? 1 : -1; };
+            const int side0 = certain0 ? sign(w0) : line_edge_side(ray.origin, ray.direction, tri.v1, tri.v2);
+            const int side1 = certain1 ? sign(w1) : line_edge_side(ray.origin, ray.direction, tri.v2, tri.v0);
+            const int side2 = certain2 ? sign(w2) : line_edge_side(ray.origin, ray.direction, tri.v0, tri.v1);
+            return intersect_exactly(ray, tri, side0, side1, side2, tnear, tfar, out);
+        }
         // Three certain edge functions of one sign, each above FLT_MIN: det is not zero.
         const float det = w0 + w1 + w2;
         const float az = ray.shear_z * v.az, bz = ray.shear_z * v.bz, cz = ray.shear_z * v.cz;
@@ -301,14 +309,12 @@ struct Watertight {
         return true;
     }
 
-    // A ray within the slack of an edge: the exact signs decide, t is where the line meets the triangle's
-    // plane and u, v are edge functions in double clamped to those signs, all rounded to float once.
-    LANCER_HOST_DEVICE static bool intersect_exactly(const RayData& ray, const Triangle& tri, float tnear,
-                                                     float tfar, TriangleHit& out) {
-        if (!(is_finite(tri.v0) && is_finite(tri.v1) && is_finite(tri.v2))) return false;
-        const int side0 = line_edge_side(ray.origin, ray.direction, tri.v1, tri.v2);
-        const int side1 = line_edge_side(ray.origin, ray.direction, tri.v2, tri.v0);
-        const int side2 = line_edge_side(ray.origin, ray.direction, tri.v0, tri.v1);
+    // A ray within the slack of an edge, from the exact signs of its three edge functions: they decide, t
+    // is where the line meets the triangle's plane and u, v are edge functions in double clamped to those
+    // signs, all rounded to float once.
+    LANCER_HOST_DEVICE static bool intersect_exactly(const RayData& ray, const Triangle& tri, int side0,
+                                                     int side1, int side2, float tnear, float tfar,
+                                                     TriangleHit& out) {
         if ((side0 < 0 || side1 < 0 || side2 < 0) && (side0 > 0 || side1 > 0 || side2 > 0)) return false;
         // Three zeros: the line lies in the triangle's plane, or the triangle is degenerate.
         if (side0 == 0 && side1 == 0 && side2 == 0) return false;

@@ -232,6 +232,38 @@ TEST(ExactSign, LineEdgeSideIsTheExactSignOnIntegerInputs) {
     EXPECT_GT(float_wrong, 1000u);
 }
 
+// Terms that cancel exactly, a b c + a b c' - a b (c + c'), beside a fourth far below their rounding: the
+// sum's sign is the fourth's. c and c' share an exponent and have 23-bit integer mantissas, so c + c' is a
+// float; double arithmetic rounds the three products apart and loses the fourth.
+TEST(ExactSign, ExactSumKeepsATermBelowTheOthersRounding) {
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> mantissa(1.0f, 2.0f);
+    std::uniform_int_distribution<int> exponent(-40, 40), sign(0, 1), integer(1, (1 << 23) - 1);
+    std::size_t double_wrong = 0;
+    for (int trial = 0; trial < 100000; ++trial) {
+        auto number = [&](int shift) {
+            return std::ldexp(mantissa(rng), exponent(rng) + shift) * (sign(rng) ? -1.0f : 1.0f);
+        };
+        const float a = number(0), b = number(0);
+        const int scale = exponent(rng);
+        const float c = std::ldexp(static_cast<float>(integer(rng)), scale),
+                    c_prime = std::ldexp(static_cast<float>(integer(rng)), scale), c_sum = c + c_prime;
+        const float t = number(-60), u = number(-60), v = number(0);
+        ExactSum<8> sum;
+        sum.add_product(a, b, c);
+        sum.add_product(a, b, c_prime);
+        sum.add_product(-a, b, c_sum);
+        sum.add_product(t, u, v);
+        const double tiny = double(t) * u * v;
+        ASSERT_EQ(sum.sign(), tiny > 0.0 ? 1 : -1) << "trial " << trial;
+        const double ab = double(a) * b;
+        const double in_double = ab * c + ab * c_prime - ab * c_sum + tiny;
+        double_wrong += in_double == 0.0 || (in_double > 0.0) != (tiny > 0.0);
+    }
+    std::printf("signs double got wrong: %zu\n", double_wrong);
+    EXPECT_GT(double_wrong, 1000u);
+}
+
 // The watertight test's decision is exact arithmetic's: hit where the line meets the closed triangle
 // (no two edge signs opposite, not all zero), on integer vertices and rays, many of them through vertices
 // and along edges, or grazing thin triangles. Its t is within rounding of the exact one where it hits.

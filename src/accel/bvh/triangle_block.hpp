@@ -251,10 +251,9 @@ struct WatertightLanes {
         // Edge functions within Watertight::kEdgeSlack's bound, zero and denormal ones among them, and small
         // numerators are the scalar kernel's, which decides their signs exactly (core/intersect.hpp). The
         // bound as Watertight::edge_slack computes it; a NaN lane's (padding) compares false.
-        const Float planar =
-            Ops::max_magnitude(Ops::max_magnitude(Ops::max_magnitude(a.x, a.y), Ops::max_magnitude(b.x, b.y)),
-                               Ops::max_magnitude(c.x, c.y));
-        const Float depth = Ops::max_magnitude(Ops::max_magnitude(a.z, b.z), c.z);
+        const Float planar = Ops::max(Ops::max(Ops::max_magnitude(a.x, a.y), Ops::max_magnitude(b.x, b.y)),
+                                      Ops::max_magnitude(c.x, c.y));
+        const Float depth = Ops::max(Ops::max_magnitude(a.z, b.z), Ops::abs(c.z));
         const Float slack = Ops::max(
             Ops::mul(Ops::mul(Ops::add(planar, depth), planar), Ops::broadcast(Watertight::kEdgeSlack)),
             Ops::broadcast(std::numeric_limits<float>::min()));
