@@ -168,7 +168,7 @@ SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
     }
     mesh_first_triangle_.push_back(first);
     // Flattened as an update flattens, in parallel: every World and Python scene flattens its meshes before
-    // its first build (the dragon's 30-40 ms serially, docs/python.md, "Building").
+    // its first build (the dragon's 33-45 ms serially, docs/python.md, "Building").
     for (std::size_t m = 0; m < scene.meshes.size(); ++m)
         flatten(m, scene.meshes[m]);
 }
