@@ -12,20 +12,23 @@ namespace lancer::python {
 
 namespace {
 
-// The indices of an (M, 3) integer array, checked against the vertex count, read as Index: int64, or uint64
-// for unsigned dtypes, so that an index is reported as given (2**63 + 1, not wrapped to a negative).
+// The indices of an (M, 3) integer array, checked against the vertex count, read as Index: in place when the
+// array holds Index already (uint32 and int32, C-contiguous), converted once otherwise, to int64, or uint64
+// for unsigned dtypes, so that an index is reported as given (2**63 + 1, not wrapped to a negative). Read in
+// place, Open3D's and load_mesh's uint32 indices skip a converted copy: the dragon's was 21 MB of fresh
+// pages on every add_triangles (docs/python.md, "Building").
 template <class Index>
 void read_indices(const py::array& array, std::size_t vertex_count, const std::string& name,
                   std::vector<std::uint32_t>& indices) {
     const auto rows = py::array_t<Index, py::array::c_style | py::array::forcecast>::ensure(array);
     const Index* index = rows.data();
-    indices.reserve(static_cast<std::size_t>(rows.size()));
+    indices.resize(static_cast<std::size_t>(rows.size()));
     for (py::ssize_t k = 0; k < rows.size(); ++k) {
         if (std::cmp_less(index[k], 0) || std::cmp_greater_equal(index[k], vertex_count))
             throw py::value_error(name + ": row " + std::to_string(k / 3) + " names vertex " +
                                   std::to_string(index[k]) + ", outside [0, " + std::to_string(vertex_count) +
                                   ")");
-        indices.push_back(static_cast<std::uint32_t>(index[k]));
+        indices[static_cast<std::size_t>(k)] = static_cast<std::uint32_t>(index[k]);
     }
 }
 
@@ -59,7 +62,11 @@ TriangleMesh mesh_argument(const py::object& vertices, const py::object& triangl
             throw py::value_error(vertices_name + ": row " + std::to_string(i) +
                                   " lies outside the coordinate domain [-2^60, 2^60]");
     }
-    if (kind == 'u')
+    if (py::isinstance<py::array_t<std::uint32_t>>(indices_array))
+        read_indices<std::uint32_t>(indices_array, vertex_count, triangles_name, mesh.indices);
+    else if (py::isinstance<py::array_t<std::int32_t>>(indices_array))
+        read_indices<std::int32_t>(indices_array, vertex_count, triangles_name, mesh.indices);
+    else if (kind == 'u')
         read_indices<std::uint64_t>(indices_array, vertex_count, triangles_name, mesh.indices);
     else
         read_indices<std::int64_t>(indices_array, vertex_count, triangles_name, mesh.indices);

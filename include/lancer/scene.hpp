@@ -90,8 +90,7 @@ struct TriangleMesh {
     }
     // The indexed mesh flattened into the triangle array the structures are built over (Geometry), in
     // triangle order: appended to `out`, or returned. append_triangles does not reserve: an exact reserve
-    // per call would reallocate on every mesh appended to one array (reserve the total first, as
-    // SceneGeometry does).
+    // per call would reallocate on every mesh appended to one array (reserve the total first).
     void append_triangles(std::vector<Triangle>& out) const {
         for (std::size_t i = 0; i < triangle_count(); ++i)
             out.push_back(triangle(i));
@@ -182,11 +181,17 @@ class SceneGeometry {
     [[nodiscard]] Box3f hit_bounds() const;
 
   private:
+    // Writes the triangles of mesh `mesh` from position `first` on, in parallel.
+    void write_triangles(std::size_t first, const TriangleMesh& mesh);
+    // Writes mesh `mesh_index`'s triangles at their position and takes their box.
+    void flatten(std::size_t mesh_index, const TriangleMesh& mesh);
+
     std::vector<Triangle> triangles_;
     std::vector<Sphere> spheres_;
     std::vector<std::size_t> mesh_first_triangle_;  // prefix offsets, one per mesh plus the total
     std::vector<Box3f> mesh_bounds_;                // the box of each mesh's triangles
-    std::vector<bool> mesh_uses_every_vertex_;      // every vertex is a triangle's corner
+    std::vector<std::optional<bool>>
+        mesh_uses_every_vertex_;  // every vertex is a corner; unknown until asked
 };
 
 // The camera of shared/bench/VIEWS.md for a mesh alone: 45 degrees, looking down -z at the box centre from

@@ -298,6 +298,36 @@ def test_indices_are_reported_as_given_not_wrapped_or_printed_whole(spheres):
         scene.add_triangles(vertices, negative)
 
 
+def test_every_index_dtype_and_layout_gives_the_same_answers(spheres):
+    # uint32 and int32 indices are read in place, the others converted: each path must read the same triangles
+    # and report a bad index as given.
+    vertices, triangles = spheres[0]
+    points = np.random.default_rng(3).uniform(-2.0, 2.0, (200, 3)).astype(np.float32)
+
+    def answers(indices):
+        scene = lancer.RaycastingScene()
+        scene.add_triangles(vertices, indices)
+        return scene.compute_closest_points(points)["primitive_ids"], scene.compute_distance(points)
+
+    expected_ids, expected_distances = answers(triangles.astype(np.uint32))
+    layouts = [triangles.astype(t) for t in (np.int32, np.int64, np.uint16, np.uint64)]
+    strided = np.zeros((len(triangles), 6), np.int32)
+    strided[:, ::2] = triangles
+    layouts += [np.asfortranarray(triangles.astype(np.uint32)), triangles.astype(">u4"), strided[:, ::2]]
+    for indices in layouts:
+        ids, distances = answers(indices)
+        assert np.array_equal(ids, expected_ids), indices.dtype
+        assert np.array_equal(distances, expected_distances), indices.dtype
+    negative = triangles.astype(np.int32)
+    negative[3, 0] = -5
+    with pytest.raises(ValueError, match="triangle_indices: row 3 names vertex -5, outside"):
+        lancer.RaycastingScene().add_triangles(vertices, negative)
+    beyond = triangles.astype(np.uint32)
+    beyond[2, 2] = len(vertices)
+    with pytest.raises(ValueError, match=f"triangle_indices: row 2 names vertex {len(vertices)}, outside"):
+        lancer.RaycastingScene().add_triangles(vertices, beyond)
+
+
 def test_paths_may_be_pathlike(spheres, tmp_path):
     vertices, triangles = spheres[0]
     off = tmp_path / "sphere.off"

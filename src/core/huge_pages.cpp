@@ -12,8 +12,7 @@ namespace lancer {
 void advise_huge_pages([[maybe_unused]] const void* data, [[maybe_unused]] std::size_t bytes) {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
     // Below two huge pages a range may hold none whole: not worth the system call.
-    constexpr std::size_t kHugePage = std::size_t{2} << 20;
-    if (data == nullptr || bytes < 2 * kHugePage) return;
+    if (data == nullptr || bytes < 2 * kHugePageBytes) return;
     // madvise wants a page-aligned start; the kernel then uses huge pages for the 2 MiB-aligned parts.
     const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
     const auto begin = reinterpret_cast<std::uintptr_t>(data);

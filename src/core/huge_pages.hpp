@@ -5,9 +5,13 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
+#include <new>
 #include <vector>
 
 namespace lancer {
+
+inline constexpr std::size_t kHugePageBytes = std::size_t{2} << 20;
 
 // Asks the kernel to back the whole 2 MiB pages inside [data, data + bytes) with huge pages when they are
 // first touched; does nothing for small ranges or where the system has no such request (not Linux, or
@@ -21,5 +25,45 @@ void reserve_huge_pages(std::vector<T, Allocator>& v, std::size_t count) {
     v.reserve(count);
     advise_huge_pages(v.data(), v.capacity() * sizeof(T));
 }
+
+// For a build's temporaries, which are made and dropped on every build. Storage of 32 MiB or more, which
+// glibc maps afresh on every allocation (its largest mmap threshold), starts on a 2 MiB boundary and ends on
+// one, advised into huge pages: every page of it is then a huge page. A plain allocation starts anywhere,
+// and its first and last partial 2 MiB stay in 4 KiB pages, faulted again on every build (the dragon's
+// references and node slots, docs/accel/parallel-build.md, "Page faults"). Smaller storage comes from the
+// heap, advised as reserve_huge_pages does: a later build gets it back already faulted, which a fresh
+// aligned mapping would not (the bunny's builds made 3-14 faults from the heap, 41-442 from mappings).
+template <class T>
+struct HugePageAllocator {
+    using value_type = T;
+    static constexpr std::size_t kMappedBytes = std::size_t{32} << 20;
+
+    HugePageAllocator() = default;
+    template <class U>
+    HugePageAllocator(const HugePageAllocator<U>& /*other*/) {}  // NOLINT(google-explicit-constructor)
+
+    [[nodiscard]] static bool mapped(std::size_t count) { return count * sizeof(T) >= kMappedBytes; }
+    [[nodiscard]] static std::size_t rounded_bytes(std::size_t count) {
+        return (count * sizeof(T) + kHugePageBytes - 1) / kHugePageBytes * kHugePageBytes;
+    }
+    [[nodiscard]] T* allocate(std::size_t count) {
+        if (!mapped(count)) {
+            T* memory = std::allocator<T>().allocate(count);
+            advise_huge_pages(memory, count * sizeof(T));
+            return memory;
+        }
+        void* memory = ::operator new (rounded_bytes(count), std::align_val_t{kHugePageBytes});
+        advise_huge_pages(memory, rounded_bytes(count));
+        return static_cast<T*>(memory);
+    }
+    void deallocate(T* memory, std::size_t count) {
+        if (!mapped(count)) return std::allocator<T>().deallocate(memory, count);
+        ::operator delete (memory, rounded_bytes(count), std::align_val_t{kHugePageBytes});
+    }
+    friend bool operator==(const HugePageAllocator& /*a*/, const HugePageAllocator& /*b*/) { return true; }
+};
+
+template <class T>
+using HugePageVector = std::vector<T, HugePageAllocator<T>>;
 
 }  // namespace lancer

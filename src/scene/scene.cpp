@@ -2,6 +2,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -155,19 +156,21 @@ bool uses_every_vertex(const TriangleMesh& mesh) {
 SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
     // The dragon's 31 MB: 7,600 page faults in 4 KiB pages (docs/accel/parallel-build.md, "Page faults").
     reserve_huge_pages(triangles_, scene.triangle_count());
+    triangles_.resize(scene.triangle_count());
     mesh_first_triangle_.reserve(scene.meshes.size() + 1);
-    mesh_bounds_.reserve(scene.meshes.size());
-    mesh_uses_every_vertex_.reserve(scene.meshes.size());
+    mesh_bounds_.resize(scene.meshes.size());
+    // Asked by the first update of each mesh: a build that is never updated does not pay for it.
+    mesh_uses_every_vertex_.assign(scene.meshes.size(), std::nullopt);
+    std::size_t first = 0;
     for (const TriangleMesh& mesh : scene.meshes) {
-        mesh_first_triangle_.push_back(triangles_.size());
-        mesh.append_triangles(triangles_);
-        Box3f box;
-        for (std::size_t i = mesh_first_triangle_.back(); i < triangles_.size(); ++i)
-            box.extend(triangles_[i].bounds());
-        mesh_bounds_.push_back(box);
-        mesh_uses_every_vertex_.push_back(uses_every_vertex(mesh));
+        mesh_first_triangle_.push_back(first);
+        first += mesh.triangle_count();
     }
-    mesh_first_triangle_.push_back(triangles_.size());
+    mesh_first_triangle_.push_back(first);
+    // Flattened as an update flattens, in parallel: every World and Python scene flattens its meshes before
+    // its first build (the dragon's 33-45 ms serially, docs/python.md, "Building").
+    for (std::size_t m = 0; m < scene.meshes.size(); ++m)
+        flatten(m, scene.meshes[m]);
 }
 
 Box3f SceneGeometry::hit_bounds() const {
@@ -185,21 +188,35 @@ void SceneGeometry::refresh_mesh(std::size_t mesh_index, const TriangleMesh& mes
     const std::size_t first = mesh_first_triangle_.at(mesh_index);
     if (mesh.triangle_count() != mesh_first_triangle_.at(mesh_index + 1) - first)
         throw std::invalid_argument("SceneGeometry::refresh_mesh: the mesh's triangle count changed");
-    // In parallel: an animation flattens its meshes every frame. The box of the triangles is that of the
-    // positions when every vertex is a corner; otherwise it is taken from the triangles just written, with
-    // the vectorised check the structures use. Taken triangle by triangle as they were written, it doubled
-    // the time of the flattening.
+    // The box of the triangles is that of the positions when every vertex is a corner (the caller took it).
+    std::optional<bool>& every_vertex = mesh_uses_every_vertex_[mesh_index];
+    if (!every_vertex) every_vertex = uses_every_vertex(mesh);
+    if (*every_vertex) {
+        write_triangles(first, mesh);
+        mesh_bounds_[mesh_index] = positions_box;
+        return;
+    }
+    flatten(mesh_index, mesh);
+}
+
+void SceneGeometry::write_triangles(std::size_t first, const TriangleMesh& mesh) {
+    // In parallel: an animation flattens its meshes every frame.
     parallel::for_each_chunk(0, mesh.triangle_count(), kFlattenGrain, [&](std::size_t from, std::size_t to) {
         for (std::size_t i = from; i < to; ++i)
             triangles_[first + i] = mesh.triangle(i);
     });
+}
+
+void SceneGeometry::flatten(std::size_t mesh_index, const TriangleMesh& mesh) {
+    const std::size_t first = mesh_first_triangle_[mesh_index];
+    write_triangles(first, mesh);
+    // The box from the triangles just written, with the vectorised check the structures use: taken triangle
+    // by triangle as they were written, it doubled the time of the flattening.
     static_assert(sizeof(Triangle) == 9 * sizeof(float) && std::is_standard_layout_v<Triangle>);
     mesh_bounds_[mesh_index] =
-        mesh_uses_every_vertex_[mesh_index]
-            ? positions_box
-            : check_points(
-                  {reinterpret_cast<const float*>(triangles_.data() + first), 9 * mesh.triangle_count()}, 3)
-                  .box;
+        check_points({reinterpret_cast<const float*>(triangles_.data() + first), 9 * mesh.triangle_count()},
+                     3)
+            .box;
 }
 
 std::pair<std::size_t, std::size_t> SceneGeometry::locate_triangle(std::size_t global_index) const {

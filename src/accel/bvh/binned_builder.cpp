@@ -54,7 +54,7 @@ struct BinnedBuilder::BinMap {
     }
 };
 
-BinnedBuilder::BinnedBuilder(std::vector<BuildRef>& refs, const Geometry& geometry, const BvhOptions& options)
+BinnedBuilder::BinnedBuilder(BuildRefs& refs, const Geometry& geometry, const BvhOptions& options)
     : refs_(refs),
       geometry_(geometry),
       max_leaf_(leaf_size_limit(options)),
@@ -257,7 +257,7 @@ BinnedBuilder::Children BinnedBuilder::object_partition(const RefRange& range, S
     return children;
 }
 
-BvhBuildResult build_binned_sah(std::vector<BuildRef>& refs, std::size_t primitives, const Geometry& geometry,
+BvhBuildResult build_binned_sah(BuildRefs& refs, std::size_t primitives, const Geometry& geometry,
                                 const BvhOptions& options) {
     NodeSlots slots(refs.size());
     BinnedBuilder builder(refs, geometry, options);

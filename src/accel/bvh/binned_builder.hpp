@@ -55,7 +55,7 @@ class BinnedBuilder {
     using NodeBounds = std::pair<Box3f, Box3f>;
 
     // refs[0, primitives) are the primitives' references; the rest of `refs` is free for spatial splits.
-    BinnedBuilder(std::vector<BuildRef>& refs, const Geometry& geometry, const BvhOptions& options);
+    BinnedBuilder(BuildRefs& refs, const Geometry& geometry, const BvhOptions& options);
 
     void build(NodeSlots& slots, std::size_t primitives);
 
@@ -114,7 +114,7 @@ class BinnedBuilder {
     std::optional<Children> spatial_partition(const RefRange& range, const Box3f& bounds,
                                               const SpatialSplit& spatial);
 
-    std::vector<BuildRef>& refs_;
+    BuildRefs& refs_;
     const Geometry& geometry_;
     int max_leaf_;
     int bins_;

@@ -26,9 +26,9 @@ std::size_t reference_capacity(std::size_t primitives) {
 }
 
 // The primitives' references, in storage for `capacity` of them.
-std::vector<BuildRef> make_refs(const Geometry& geometry, std::size_t capacity) {
-    std::vector<BuildRef> refs;
-    reserve_huge_pages(refs, capacity);
+BuildRefs make_refs(const Geometry& geometry, std::size_t capacity) {
+    BuildRefs refs;
+    refs.reserve(capacity);
     refs.resize(geometry.size());
     auto make = [&](std::size_t from, std::size_t to) {
         for (auto prim = static_cast<std::uint32_t>(from); prim < to; ++prim) {
@@ -46,8 +46,7 @@ BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
     if (geometry.size() == 0) return {};
     const std::size_t primitives = geometry.size();
     const bool spatial_splits = options.spatial_splits && options.builder != BvhBuilder::SweepSah;
-    std::vector<BuildRef> refs =
-        make_refs(geometry, spatial_splits ? reference_capacity(primitives) : primitives);
+    BuildRefs refs = make_refs(geometry, spatial_splits ? reference_capacity(primitives) : primitives);
     if (options.builder == BvhBuilder::SweepSah) return build_sweep_sah(refs, options);
     if (spatial_splits) refs.resize(reference_capacity(primitives));
     return build_binned_sah(refs, primitives, geometry, options);
@@ -56,7 +55,7 @@ BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
 BvhBuildResult build_bvh_over_boxes(std::span<const Box3f> boxes, std::span<const std::uint32_t> ids,
                                     const BvhOptions& options) {
     if (ids.empty()) return {};
-    std::vector<BuildRef> refs(ids.size());
+    BuildRefs refs(ids.size());
     for (std::size_t i = 0; i < ids.size(); ++i)
         refs[i] = {boxes[ids[i]], boxes[ids[i]].center(), ids[i]};
     BvhOptions without_splits = options;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "accel/bvh/build.hpp"
+#include "core/huge_pages.hpp"
 
 namespace lancer {
 
@@ -22,6 +23,9 @@ struct BuildRef {
     Vec3f centroid;
     std::uint32_t prim = 0;
 };
+
+// A build's references, made and dropped on every build: in whole huge pages (HugePageAllocator).
+using BuildRefs = HugePageVector<BuildRef>;
 
 // Centroid order on one axis, ties by primitive index: a total order, so sorts are deterministic.
 [[nodiscard]] inline bool centroid_less(const BuildRef& a, const BuildRef& b, int axis) {
@@ -50,11 +54,11 @@ struct Split {
 }
 
 // The full sweep over the primitives' references (sweep_builder.cpp).
-[[nodiscard]] BvhBuildResult build_sweep_sah(std::vector<BuildRef>& refs, const BvhOptions& options);
+[[nodiscard]] BvhBuildResult build_sweep_sah(BuildRefs& refs, const BvhOptions& options);
 
 // The binned builder (binned_builder.cpp): refs[0, primitives) are the primitives' references, the rest of
 // `refs` free positions for spatial splits.
-[[nodiscard]] BvhBuildResult build_binned_sah(std::vector<BuildRef>& refs, std::size_t primitives,
+[[nodiscard]] BvhBuildResult build_binned_sah(BuildRefs& refs, std::size_t primitives,
                                               const Geometry& geometry, const BvhOptions& options);
 
 }  // namespace lancer

@@ -26,10 +26,8 @@ struct SubtreeRange {
 };
 
 // Children follow their parent in the depth-first array, so one backward pass sees them first.
-std::vector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, std::uint32_t merge_limit) {
-    std::vector<SubtreeRange> ranges;
-    reserve_huge_pages(ranges, binary.size());
-    ranges.resize(binary.size());
+HugePageVector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, std::uint32_t merge_limit) {
+    HugePageVector<SubtreeRange> ranges(binary.size());
     for (std::size_t i = binary.size(); i-- > 0;) {
         const BvhNode& node = binary[i];
         if (node.is_leaf()) {
@@ -46,7 +44,7 @@ std::vector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, std
 
 struct CollapseInput {
     const std::vector<BvhNode>& binary;
-    const std::vector<SubtreeRange>& ranges;
+    const HugePageVector<SubtreeRange>& ranges;
 };
 
 // A leaf of the wide tree: the primitives prim_indices[first, first + count), whose triangle blocks start at
@@ -62,7 +60,7 @@ struct LeafBlocks {
 // leaf's blocks are numbered from `blocks_used` on, in this depth-first order, and listed in `leaves`.
 template <int W>
 std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
-                       std::vector<WideBvhNode<W>>& wide, std::vector<LeafBlocks>& leaves,
+                       std::vector<WideBvhNode<W>>& wide, HugePageVector<LeafBlocks>& leaves,
                        std::uint32_t& blocks_used) {
     const std::vector<BvhNode>& binary = input.binary;
     std::array<std::uint32_t, W> children{};
@@ -100,14 +98,14 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
     nodes_.clear();
     blocks_.clear();
     if (!binary.nodes.empty()) {
-        const std::vector<SubtreeRange> ranges = subtree_ranges(binary.nodes, kBlockLanes);
+        const HugePageVector<SubtreeRange> ranges = subtree_ranges(binary.nodes, kBlockLanes);
         // Each wide node but a tiny scene's root is rooted at a binary node that is no leaf of the wide
         // tree, and each wide leaf at one that is: storage for that many is never moved.
         const auto roots = static_cast<std::size_t>(std::count_if(
             ranges.begin(), ranges.end(), [](const SubtreeRange& range) { return !range.as_leaf; }));
         reserve_huge_pages(nodes_, std::max<std::size_t>(roots, 1));
-        std::vector<LeafBlocks> leaves;
-        reserve_huge_pages(leaves, ranges.size() - roots);
+        HugePageVector<LeafBlocks> leaves;
+        leaves.reserve(ranges.size() - roots);
         std::uint32_t blocks_used = 0;
         collapse<W>({binary.nodes, ranges}, 0, nodes_, leaves, blocks_used);
         reserve_huge_pages(blocks_, blocks_used);

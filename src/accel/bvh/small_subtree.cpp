@@ -30,7 +30,7 @@ struct SmallSubtree::NodeRefs {
     [[nodiscard]] const Vec3f& centroid_point(Index ref) const { return subtree.refs_[ref].centroid; }
 };
 
-SmallSubtree::SmallSubtree(std::vector<BuildRef>& refs, int max_leaf, NodeSlots& slots, const RefRange& range)
+SmallSubtree::SmallSubtree(BuildRefs& refs, int max_leaf, NodeSlots& slots, const RefRange& range)
     : builder_refs_(refs), max_leaf_(max_leaf), slots_(slots) {
     const std::size_t count = range.size();
     // Padding sorts after every reference: its key is +inf, above every centroid.

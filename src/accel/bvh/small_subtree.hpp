@@ -25,7 +25,7 @@ inline constexpr std::size_t kExactSplitBelow = 32;
 class SmallSubtree {
   public:
     // The subtree over refs[range.begin, range.end), whose leaves hold at most `max_leaf` references.
-    SmallSubtree(std::vector<BuildRef>& refs, int max_leaf, NodeSlots& slots, const RefRange& range);
+    SmallSubtree(BuildRefs& refs, int max_leaf, NodeSlots& slots, const RefRange& range);
 
     // The node whose references are at positions [first, first + range.size()) of every order, and whose
     // references' array order is that of `arrival_axis`'s order there (its parent's split axis; -1: the
@@ -40,7 +40,7 @@ class SmallSubtree {
     // the binned builder's bounds_of gives over the same array.
     [[nodiscard]] Box3f bounds_of(int axis, std::size_t first, std::size_t count) const;
 
-    std::vector<BuildRef>& builder_refs_;
+    BuildRefs& builder_refs_;
     int max_leaf_;
     NodeSlots& slots_;
     std::array<BuildRef, kExactSplitBelow> refs_;

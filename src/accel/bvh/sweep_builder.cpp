@@ -18,7 +18,7 @@ namespace {
 // of positions of the three orders.
 class SweepBuilder {
   public:
-    SweepBuilder(std::vector<BuildRef>& refs, const BvhOptions& options)
+    SweepBuilder(BuildRefs& refs, const BvhOptions& options)
         : refs_(refs),
           max_leaf_(leaf_size_limit(options)),
           on_left_(refs.size()),
@@ -76,7 +76,7 @@ class SweepBuilder {
         [[nodiscard]] const Vec3f& centroid_point(Index ref) const { return builder.refs_[ref].centroid; }
     };
 
-    std::vector<BuildRef>& refs_;
+    BuildRefs& refs_;
     int max_leaf_;
     std::array<std::vector<std::uint32_t>, 3> orders_;
     std::vector<std::uint8_t> on_left_;
@@ -86,7 +86,7 @@ class SweepBuilder {
 
 }  // namespace
 
-BvhBuildResult build_sweep_sah(std::vector<BuildRef>& refs, const BvhOptions& options) {
+BvhBuildResult build_sweep_sah(BuildRefs& refs, const BvhOptions& options) {
     NodeSlots slots(refs.size());
     SweepBuilder builder(refs, options);
     builder.build(slots, 0, 0, refs.size(), 0);
