@@ -36,56 +36,32 @@ struct Sse4 {
     static Float min(Float a, Float b) { return _mm_min_ps(a, b); }
     // fabs: clears the sign bit.
     static Float abs(Float a) { return _mm_andnot_ps(_mm_set1_ps(-0.0f), a); }
-    // max(|a|, |b|): one vrangeps where AVX-512 (VL, DQ) is compiled for (imm 0b1011: the larger magnitude,
-    // its sign bit cleared).
+    static Float less(Float a, Float b) { return _mm_cmplt_ps(a, b); }
+    static Float less_equal(Float a, Float b) { return _mm_cmple_ps(a, b); }
+    static Float greater(Float a, Float b) { return _mm_cmpgt_ps(a, b); }
+    static Float greater_equal(Float a, Float b) { return _mm_cmpge_ps(a, b); }
+    static Float equal(Float a, Float b) { return _mm_cmpeq_ps(a, b); }
+    static Float bit_and(Float a, Float b) { return _mm_and_ps(a, b); }
+    static Float bit_or(Float a, Float b) { return _mm_or_ps(a, b); }
+    static Float bit_xor(Float a, Float b) { return _mm_xor_ps(a, b); }
+    // a > b ? if_greater : otherwise, per lane (ordered: a NaN lane takes `otherwise`, as the scalar
+    // ternary).
+    static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
+        return _mm_blendv_ps(otherwise, if_greater, _mm_cmpgt_ps(a, b));
+    }
+    static Mask mask_and(Mask a, Mask b) { return _mm_and_ps(a, b); }
+    static Mask mask_or(Mask a, Mask b) { return _mm_or_ps(a, b); }
+    static unsigned bits(Mask a) { return static_cast<unsigned>(_mm_movemask_ps(a)); }
+    // The sign bit of every lane.
+    static unsigned sign_bits(Float a) { return static_cast<unsigned>(_mm_movemask_ps(a)); }
+    // max(|a|, |b|): one vrangeps where AVX-512 VL and DQ are compiled for (imm 0b1011: the larger
+    // magnitude, its sign bit cleared).
     static Float max_magnitude(Float a, Float b) {
 #if defined(__AVX512VL__) && defined(__AVX512DQ__)
         return _mm_range_ps(a, b, 0b1011);
 #else
         return max(abs(a), abs(b));
 #endif
-    }
-    static Float less(Float a, Float b) {
-        return _mm_cmplt_ps(a, b);
-    }
-    static Float less_equal(Float a, Float b) {
-        return _mm_cmple_ps(a, b);
-    }
-    static Float greater(Float a, Float b) {
-        return _mm_cmpgt_ps(a, b);
-    }
-    static Float greater_equal(Float a, Float b) {
-        return _mm_cmpge_ps(a, b);
-    }
-    static Float equal(Float a, Float b) {
-        return _mm_cmpeq_ps(a, b);
-    }
-    static Float bit_and(Float a, Float b) {
-        return _mm_and_ps(a, b);
-    }
-    static Float bit_or(Float a, Float b) {
-        return _mm_or_ps(a, b);
-    }
-    static Float bit_xor(Float a, Float b) {
-        return _mm_xor_ps(a, b);
-    }
-    // a > b ? if_greater : otherwise, per lane (ordered: a NaN lane takes `otherwise`, as the scalar
-    // ternary).
-    static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
-        return _mm_blendv_ps(otherwise, if_greater, _mm_cmpgt_ps(a, b));
-    }
-    static Mask mask_and(Mask a, Mask b) {
-        return _mm_and_ps(a, b);
-    }
-    static Mask mask_or(Mask a, Mask b) {
-        return _mm_or_ps(a, b);
-    }
-    static unsigned bits(Mask a) {
-        return static_cast<unsigned>(_mm_movemask_ps(a));
-    }
-    // The sign bit of every lane.
-    static unsigned sign_bits(Float a) {
-        return static_cast<unsigned>(_mm_movemask_ps(a));
     }
 };
 #endif
@@ -106,38 +82,14 @@ struct Avx2 {
     static Float max(Float a, Float b) { return _mm256_max_ps(a, b); }
     static Float min(Float a, Float b) { return _mm256_min_ps(a, b); }
     static Float abs(Float a) { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), a); }
-    // max(|a|, |b|), as Sse4's.
-    static Float max_magnitude(Float a, Float b) {
-#if defined(__AVX512VL__) && defined(__AVX512DQ__)
-        return _mm256_range_ps(a, b, 0b1011);
-#else
-        return max(abs(a), abs(b));
-#endif
-    }
-    static Float less(Float a, Float b) {
-        return _mm256_cmp_ps(a, b, _CMP_LT_OQ);
-    }
-    static Float less_equal(Float a, Float b) {
-        return _mm256_cmp_ps(a, b, _CMP_LE_OQ);
-    }
-    static Float greater(Float a, Float b) {
-        return _mm256_cmp_ps(a, b, _CMP_GT_OQ);
-    }
-    static Float greater_equal(Float a, Float b) {
-        return _mm256_cmp_ps(a, b, _CMP_GE_OQ);
-    }
-    static Float equal(Float a, Float b) {
-        return _mm256_cmp_ps(a, b, _CMP_EQ_OQ);
-    }
-    static Float bit_and(Float a, Float b) {
-        return _mm256_and_ps(a, b);
-    }
-    static Float bit_or(Float a, Float b) {
-        return _mm256_or_ps(a, b);
-    }
-    static Float bit_xor(Float a, Float b) {
-        return _mm256_xor_ps(a, b);
-    }
+    static Float less(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
+    static Float less_equal(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
+    static Float greater(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
+    static Float greater_equal(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_GE_OQ); }
+    static Float equal(Float a, Float b) { return _mm256_cmp_ps(a, b, _CMP_EQ_OQ); }
+    static Float bit_and(Float a, Float b) { return _mm256_and_ps(a, b); }
+    static Float bit_or(Float a, Float b) { return _mm256_or_ps(a, b); }
+    static Float bit_xor(Float a, Float b) { return _mm256_xor_ps(a, b); }
     static Float select_if_greater(Float a, Float b, Float if_greater, Float otherwise) {
         return _mm256_blendv_ps(otherwise, if_greater, _mm256_cmp_ps(a, b, _CMP_GT_OQ));
     }
@@ -172,9 +124,7 @@ struct Avx2 {
         }
     }
     // Integers carried in float lanes, bit for bit (a primitive index beside its hit's t).
-    static Float broadcast_int(int x) {
-        return _mm256_castsi256_ps(_mm256_set1_epi32(x));
-    }
+    static Float broadcast_int(int x) { return _mm256_castsi256_ps(_mm256_set1_epi32(x)); }
     static Mask less_int(Float a, Float b) {
         return _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_castps_si256(b), _mm256_castps_si256(a)));
     }
@@ -216,17 +166,17 @@ struct Avx2 {
         _mm256_storeu_ps(p + 16, _mm256_permute2f128_ps(r0, r1, 0x31));
         _mm256_storeu_ps(p + 24, _mm256_permute2f128_ps(r2, r3, 0x31));
     }
-    static Mask mask_and(Mask a, Mask b) {
-        return _mm256_and_ps(a, b);
-    }
-    static Mask mask_or(Mask a, Mask b) {
-        return _mm256_or_ps(a, b);
-    }
-    static unsigned bits(Mask a) {
-        return static_cast<unsigned>(_mm256_movemask_ps(a));
-    }
-    static unsigned sign_bits(Float a) {
-        return static_cast<unsigned>(_mm256_movemask_ps(a));
+    static Mask mask_and(Mask a, Mask b) { return _mm256_and_ps(a, b); }
+    static Mask mask_or(Mask a, Mask b) { return _mm256_or_ps(a, b); }
+    static unsigned bits(Mask a) { return static_cast<unsigned>(_mm256_movemask_ps(a)); }
+    static unsigned sign_bits(Float a) { return static_cast<unsigned>(_mm256_movemask_ps(a)); }
+    // max(|a|, |b|), as Sse4's.
+    static Float max_magnitude(Float a, Float b) {
+#if defined(__AVX512VL__) && defined(__AVX512DQ__)
+        return _mm256_range_ps(a, b, 0b1011);
+#else
+        return max(abs(a), abs(b));
+#endif
     }
 };
 #endif

@@ -10,9 +10,12 @@
 #include <cmath>
 
 #include "core/host_device.hpp"
+#include "core/isa_namespace.hpp"
 #include "lancer/vec.hpp"
 
 namespace lancer {
+// Per instruction set (core/isa_namespace.hpp): the kernels compiled for AVX-512 call these too.
+inline namespace LANCER_ISA_NAMESPACE {
 
 // An exact sum of up to Capacity doubles, kept as a nonoverlapping expansion of increasing magnitude with
 // its zero components dropped. No term may overflow: products of three floats stay below 2^387, and their
@@ -95,4 +98,5 @@ class ExactSum {
     return sum.sign();
 }
 
+}  // namespace LANCER_ISA_NAMESPACE
 }  // namespace lancer
