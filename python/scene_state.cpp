@@ -90,11 +90,18 @@ py::list pickled_geometries(const std::vector<TriangleMesh>& meshes) {
     return geometries;
 }
 
-// add(mesh, name) for each geometry of state["geometries"], in id order, `name` the triangles' entry for
-// errors; ValueError naming the geometry for one that is not a (vertices, triangles) pair add_triangles
+// A new Scene from the entries every scene's state has: the structure, the triangle test, the build threads
+// and state["geometries"], added in id order by add_geometry (the scene's own, private: its unpickled()
+// passes it); ValueError naming the geometry for one that is not a (vertices, triangles) pair add_triangles
 // takes.
-template <class Add>
-void unpickle_geometries(const py::dict& state, Add&& add) {
+template <class Scene>
+std::unique_ptr<Scene> scene_with_geometries(const py::dict& state,
+                                             std::uint32_t (Scene::*add_geometry)(TriangleMesh,
+                                                                                  const std::string&)) {
+    const auto accel = typed_entry<std::string, py::str>(state, "accel", "a str");
+    const auto watertight = typed_entry<bool, py::bool_>(state, "watertight", "a bool");
+    const auto nthreads = typed_entry<int, py::int_>(state, "nthreads", "an int");
+    auto scene = std::make_unique<Scene>(accel, watertight, nthreads);
     const py::object geometries = entry(state, "geometries");
     if (!py::isinstance<py::list>(geometries))
         throw py::value_error("geometries: expected a list of (vertices, triangles), got " +
@@ -105,8 +112,9 @@ void unpickle_geometries(const py::dict& state, Add&& add) {
         if (!py::isinstance<py::tuple>(geometry) || py::len(geometry) != 2)
             throw py::value_error(name + ": expected a (vertices, triangles) pair");
         const auto pair = py::reinterpret_borrow<py::tuple>(geometry);
-        add(mesh_argument(pair[0], pair[1], name + "[0]", name + "[1]"), name + "[1]");
+        ((*scene).*add_geometry)(mesh_argument(pair[0], pair[1], name + "[0]", name + "[1]"), name + "[1]");
     }
+    return scene;
 }
 
 // read()'s scene, or ValueError "`prefix`...": every error of a state that is not what pickled() makes (a
@@ -144,15 +152,8 @@ py::dict RaycastingScene::pickled() {
 
 std::unique_ptr<RaycastingScene> RaycastingScene::unpickled(const py::object& state_object) {
     return unpickling("RaycastingScene pickle: ", [&] {
-        const py::dict state = checked_state(state_object, kFormat, kVersion);
-        const auto accel = typed_entry<std::string, py::str>(state, "accel", "a str");
-        const auto watertight = typed_entry<bool, py::bool_>(state, "watertight", "a bool");
-        const auto nthreads = typed_entry<int, py::int_>(state, "nthreads", "an int");
-        auto scene = std::make_unique<RaycastingScene>(accel, watertight, nthreads);
-        unpickle_geometries(state, [&](TriangleMesh mesh, const std::string& triangles_name) {
-            scene->add_geometry(std::move(mesh), triangles_name);
-        });
-        return scene;
+        return scene_with_geometries(checked_state(state_object, kFormat, kVersion),
+                                     &RaycastingScene::add_geometry);
     });
 }
 
@@ -190,13 +191,7 @@ py::dict InstancedScene::pickled() {
 std::unique_ptr<InstancedScene> InstancedScene::unpickled(const py::object& state_object) {
     return unpickling("InstancedScene pickle: ", [&] {
         const py::dict state = checked_state(state_object, kInstancedFormat, kInstancedVersion);
-        const auto accel = typed_entry<std::string, py::str>(state, "accel", "a str");
-        const auto watertight = typed_entry<bool, py::bool_>(state, "watertight", "a bool");
-        const auto nthreads = typed_entry<int, py::int_>(state, "nthreads", "an int");
-        auto scene = std::make_unique<InstancedScene>(accel, watertight, nthreads);
-        unpickle_geometries(state, [&](TriangleMesh mesh, const std::string& triangles_name) {
-            scene->add_geometry(std::move(mesh), triangles_name);
-        });
+        std::unique_ptr<InstancedScene> scene = scene_with_geometries(state, &InstancedScene::add_geometry);
         const py::array ids_given =
             array_entry(state, "instance_geometry_ids", "iu", "an array of integers (uint32)");
         if (ids_given.ndim() != 1)

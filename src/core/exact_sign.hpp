@@ -77,7 +77,6 @@ class ExactSum {
     const double x_term = double(d.x) * (ay * bz - az * by), y_term = double(d.y) * (az * bx - ax * bz),
                  z_term = double(d.z) * (ax * by - ay * bx);
     const double value = x_term + y_term + z_term;
-    auto magnitude = [](double x) { return x < 0.0 ? -x : x; };
     const double bound = 0x1p-49 * (magnitude(double(d.x)) * (magnitude(ay * bz) + magnitude(az * by)) +
                                     magnitude(double(d.y)) * (magnitude(az * bx) + magnitude(ax * bz)) +
                                     magnitude(double(d.z)) * (magnitude(ax * by) + magnitude(ay * bx)));

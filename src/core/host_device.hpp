@@ -24,6 +24,13 @@ LANCER_HOST_DEVICE inline float magnitude(float x) {
     return std::fabs(x);
 #endif
 }
+LANCER_HOST_DEVICE inline double magnitude(double x) {
+#if defined(__CUDA_ARCH__)
+    return fabs(x);
+#else
+    return std::fabs(x);
+#endif
+}
 LANCER_HOST_DEVICE inline Vec3f magnitude(const Vec3f& v) {
     return {magnitude(v.x), magnitude(v.y), magnitude(v.z)};
 }
