@@ -279,6 +279,51 @@ TEST_P(PacketTest, IncoherentStreamsOfEverySize) {
     });
 }
 
+// Shadow rays as a renderer makes them: from points spread over the scene towards two lights beyond
+// opposite corners, unnormalised, ending just short of the light. Consecutive rays alternate between the
+// lights, so that two octants fill their streams (bvh8_packet's occlusion stream, 32 rays with the AVX2
+// kernels and 64 with AVX-512) in turn, and every few rays is one the stream does not take: hostile, a zero
+// direction component, or starting behind its origin (tnear < 0).
+std::vector<Ray> shadow_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    const Vec3f extent = bounds.hi - bounds.lo;
+    const std::array<Vec3f, 2> lights = {bounds.hi + 0.5f * extent, bounds.lo - 0.5f * extent};
+    const std::vector<Ray> hostile = testing::hostile_rays(bounds).rays;
+    std::vector<Ray> rays;
+    rays.reserve(count);
+    for (std::size_t i = 0; i < count; ++i) {
+        if (i % 29 == 28) {
+            rays.push_back(hostile[i % hostile.size()]);
+            continue;
+        }
+        const Vec3f origin =
+            bounds.lo + Vec3f(unit(rng) * extent.x, unit(rng) * extent.y, unit(rng) * extent.z);
+        Ray ray{origin, lights[i % 2] - origin, 1e-4f, 1.0f - 1e-4f};
+        if (i % 31 == 30) ray.direction[static_cast<int>(i % 3)] = 0.0f;
+        if (i % 37 == 36) ray.tnear = -0.1f;
+        rays.push_back(ray);
+    }
+    return rays;
+}
+
+// Occlusion batches around the occlusion stream's capacities, each ray answered as bvh8 answers it; some
+// rays occluded and some free on every scene.
+TEST_P(PacketTest, ShadowRayStreamsAroundTheirCapacity) {
+    for_each_build([](const Accel& packet, const Accel& single, const TestScene& scene, TriangleTest) {
+        const std::vector<Ray> rays = shadow_rays(scene.geometry().bounds(), 2000, 23);
+        for (std::size_t size : {1u, 31u, 32u, 33u, 63u, 64u, 65u, 127u, 128u, 129u, 2000u}) {
+            const std::span<const Ray> batch(rays.data(), size);
+            EXPECT_EQ(bitwise_differences(packet, single, batch), 0u) << size << " rays";
+        }
+        std::vector<std::uint8_t> occluded(rays.size());
+        packet.occluded(rays, occluded);
+        const auto blocked = static_cast<std::size_t>(std::count(occluded.begin(), occluded.end(), 1));
+        EXPECT_GT(blocked, 0u);
+        EXPECT_LT(blocked, rays.size());
+    });
+}
+
 // A million incoherent rays through bvh8_packet with each instruction set's kernels and both triangle tests:
 // bvh8's answers bit for bit.
 TEST(Bvh8Packet, AMillionIncoherentRaysGiveBvh8sAnswers) {

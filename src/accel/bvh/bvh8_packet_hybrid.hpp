@@ -1,5 +1,6 @@
-// bvh8_packet's walk for packets whose directions spread too far for the interval cull of its large packets
-// (docs/accel/stream.md): Ops::kWidth rays of any directions walk bvh8 together, every ray testing the node's
+// bvh8_packet's walk for closest hits of packets whose directions spread too far for the interval cull of its
+// large packets (docs/accel/stream.md; any-hit rays go by the occlusion streams of bvh8_packet_stream.hpp):
+// Ops::kWidth rays of any directions walk bvh8 together, every ray testing the node's
 // 8 children in its own lane, while enough of them meet the same nodes; at a node that fewer rays reach, each
 // goes on alone with bvh8's own single-ray walk from that node (bvh_wide_walk.hpp).
 // This is the hybrid traversal of Benthin, Wald, Woop, Ernst & Mark, "Combining Single and Packet-Ray
@@ -30,12 +31,6 @@ namespace lancer {
 inline namespace LANCER_ISA_NAMESPACE {
 namespace {
 
-// is_valid, inlined whole: an out-of-line copy compiled here would carry the name the AVX2 baseline's has
-// (core/isa_namespace.hpp; tests/core/isa_symbols_test.sh).
-[[nodiscard, gnu::flatten]] inline bool lane_is_valid(const Ray& ray) {
-    return is_valid(ray);
-}
-
 template <class Ops, class TriangleTestT>
 class HybridPacket {
   public:
@@ -49,11 +44,10 @@ class HybridPacket {
     // over at the same count (Bvh8PacketTraversal::walk_alone).
     static constexpr int kHandover = 4;
 
-    // Traces rays.size() <= kLanes rays of any directions; invalid rays miss. answers[i]: ray i's closest hit
-    // (Hit) or occlusion (std::uint8_t, kAnyHit). Rays whose origins' box is wider than `shared_width` walk
-    // alone from the root.
-    template <bool kAnyHit, bool kCount, class Answer>
-    void trace(std::span<const Ray> rays, std::span<Answer> answers, float shared_width,
+    // Traces rays.size() <= kLanes rays of any directions; invalid rays miss. hits[i]: ray i's closest hit.
+    // Rays whose origins' box is wider than `shared_width` walk alone from the root.
+    template <bool kCount>
+    void trace(std::span<const Ray> rays, std::span<Hit> hits, float shared_width,
                TraversalCounters& counts) {
         LaneBits valid = 0;
         bool forward = true;
@@ -80,30 +74,23 @@ class HybridPacket {
             tnear_[index] = ray.tnear, tlimit_[index] = ray.tfar;
             forward = forward && ray.tnear >= 0.0f;
         }
-        alive_ = valid;
         const float width = std::max(hi[0] - lo[0], std::max(hi[1] - lo[1], hi[2] - lo[2]));
         if (valid != 0 && !nodes_.empty() && width > shared_width) {
             // Rays that start apart share no node below the root's: each walks alone.
             for (LaneBits rest = valid; rest != 0; rest &= rest - 1) {
                 const auto lane = static_cast<std::size_t>(std::countr_zero(rest));
-                const bool hit = wide_walk::traverse<kWidth, kAnyHit, kCount>(
-                    nodes_, blocks_, geometry_, *prepared_[lane], best_[lane], counts);
-                if (kAnyHit && hit) alive_ &= ~(LaneBits{1} << lane);
+                wide_walk::traverse<kWidth, false, kCount>(nodes_, blocks_, geometry_, *prepared_[lane],
+                                                           best_[lane], counts);
             }
         } else if (valid != 0 && !nodes_.empty()) {
             if (forward) {
-                walk<kAnyHit, kCount, true>(valid, counts);
+                walk<kCount, true>(valid, counts);
             } else {
-                walk<kAnyHit, kCount, false>(valid, counts);
+                walk<kCount, false>(valid, counts);
             }
         }
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            if constexpr (kAnyHit) {
-                answers[i] = static_cast<Answer>(((valid & ~alive_) >> i) & 1u);
-            } else {
-                answers[i] = best_[i];
-            }
-        }
+        for (std::size_t i = 0; i < rays.size(); ++i)
+            hits[i] = best_[i];
     }
 
   private:
@@ -116,7 +103,7 @@ class HybridPacket {
         float entry;  // the least entry distance of its lanes: a lane whose hit is nearer skips the child
     };
 
-    template <bool kAnyHit, bool kCount, bool kForward>
+    template <bool kCount, bool kForward>
     void walk(LaneBits lanes, TraversalCounters& counts) {
         std::array<Entry, wide_walk::kStackSize<kWidth>> stack;
         int stack_size = 0;
@@ -131,21 +118,15 @@ class HybridPacket {
         ChildRef current{0, 0};
         while (true) {
             if (current.prim_count > 0) {
-                test_leaf<kAnyHit, kCount>(current, lanes, counts);
-                if (kAnyHit && alive_ == 0) return;
+                test_leaf<kCount>(current, lanes, counts);
             } else if (std::popcount(lanes) < kHandover) {
                 // Too few rays left together: each finishes the subtree alone.
                 for (LaneBits rest = lanes; rest != 0; rest &= rest - 1) {
                     const auto lane = static_cast<std::size_t>(std::countr_zero(rest));
-                    const bool hit = wide_walk::traverse_from<kWidth, kAnyHit, kCount, kForward>(
+                    wide_walk::traverse_from<kWidth, false, kCount, kForward>(
                         nodes_, blocks_, geometry_, *prepared_[lane], best_[lane], counts, current);
-                    if constexpr (kAnyHit) {
-                        if (hit) alive_ &= ~(LaneBits{1} << lane);
-                    } else if (best_[lane].hit()) {
-                        tlimit_[lane] = best_[lane].t;
-                    }
+                    if (best_[lane].hit()) tlimit_[lane] = best_[lane].t;
                 }
-                if (kAnyHit && alive_ == 0) return;
             } else {
                 // INNER: each lane tests the 8 boxes; the children are visited by their least entry.
                 if constexpr (kCount)
@@ -191,13 +172,8 @@ class HybridPacket {
             while (true) {
                 if (stack_size == 0) return;
                 const Entry& popped = stack[static_cast<std::size_t>(--stack_size)];
-                LaneBits need = popped.lanes;
-                if constexpr (kAnyHit) {
-                    need &= alive_;
-                } else {
-                    need &=
-                        Ops::bits(Ops::less_equal(Ops::broadcast(popped.entry), Ops::load(tlimit_.data())));
-                }
+                const LaneBits need = popped.lanes & Ops::bits(Ops::less_equal(Ops::broadcast(popped.entry),
+                                                                               Ops::load(tlimit_.data())));
                 if (need == 0) continue;
                 current = popped.ref, lanes = need;
                 break;
@@ -206,27 +182,18 @@ class HybridPacket {
     }
 
     // A leaf's triangle blocks against each of `lanes`, with bvh8's own block tests.
-    template <bool kAnyHit, bool kCount>
+    template <bool kCount>
     void test_leaf(ChildRef leaf, LaneBits lanes, TraversalCounters& counts) {
         const std::uint32_t end = leaf.child + block_count(leaf.prim_count, Bvh8Accel::kBlockLanes);
-        if constexpr (kAnyHit) lanes &= alive_;
         for (LaneBits rest = lanes; rest != 0; rest &= rest - 1) {
             const auto lane = static_cast<std::size_t>(std::countr_zero(rest));
             if constexpr (kCount) ++counts.nodes_visited, counts.prims_tested += leaf.prim_count;
             // Made at the lane's first leaf and kept for the others: most rays of a packet reach several.
             if (!block_rays_[lane]) block_rays_[lane].emplace(*prepared_[lane], geometry_);
             const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes>& block_ray = *block_rays_[lane];
-            for (std::uint32_t b = leaf.child; b < end; ++b) {
-                if constexpr (kAnyHit) {
-                    if (occludes_block(geometry_, blocks_[b], block_ray)) {
-                        alive_ &= ~(LaneBits{1} << lane);
-                        break;
-                    }
-                } else {
-                    intersect_block(geometry_, blocks_[b], block_ray, best_[lane]);
-                }
-            }
-            if (!kAnyHit && best_[lane].hit()) tlimit_[lane] = best_[lane].t;
+            for (std::uint32_t b = leaf.child; b < end; ++b)
+                intersect_block(geometry_, blocks_[b], block_ray, best_[lane]);
+            if (best_[lane].hit()) tlimit_[lane] = best_[lane].t;
         }
     }
 
@@ -240,7 +207,6 @@ class HybridPacket {
     std::array<std::optional<PreparedRay<TriangleTestT>>, kLanes> prepared_;
     std::array<std::optional<BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes>>, kLanes> block_rays_;
     std::array<Hit, kLanes> best_;
-    LaneBits alive_ = 0;  // occlusion: the valid lanes not yet blocked
 };
 
 }  // namespace

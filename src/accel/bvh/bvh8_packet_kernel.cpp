@@ -18,6 +18,7 @@
 #include "accel/bvh/bvh8_packet_leaf_tests.hpp"
 #include "accel/bvh/bvh8_packet_node_test.hpp"
 #include "accel/bvh/bvh8_packet_rays.hpp"
+#include "accel/bvh/bvh8_packet_stream.hpp"
 #include "accel/bvh/bvh_wide_walk.hpp"
 #include "accel/packet_batch.hpp"
 #include "accel/simd_float.hpp"
@@ -147,9 +148,10 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
 
 // Cuts the batch into packets of consecutive rays. A packet whose rays go together (the same direction signs,
 // finite reciprocals, directions close together, origins close together beside the tree's leaves) walks with
-// the interval cull; any other goes in groups of Ops::kWidth rays through the hybrid walk
-// (bvh8_packet_hybrid.hpp), which takes any rays. Answer: Hit (closest hit) or std::uint8_t (occlusion,
-// kAnyHit). docs/accel/stream.md has the measurements behind the spread and the handover.
+// the interval cull. The rays of any other go, for closest hits, in groups of Ops::kWidth through the hybrid
+// walk (bvh8_packet_hybrid.hpp), and for occlusion into the octant's stream (bvh8_packet_stream.hpp), both of
+// which take any rays. Answer: Hit (closest hit) or std::uint8_t (occlusion, kAnyHit). docs/accel/stream.md
+// has the measurements behind the spread, the handover and the streams.
 template <class Ops, bool kAnyHit, class Answer>
 void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<Answer> answers,
                  TraversalCounters* counters) {
@@ -168,6 +170,7 @@ void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std:
         TraversalCounters counts;
         Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry);
         HybridPacket<Ops, TriangleTestT> hybrid(bvh, geometry);
+        OcclusionStreams<TriangleTestT> streams(bvh, geometry);
         for (std::size_t first = 0; first < rays.size(); first += kPacketRays) {
             const std::size_t count = std::min(kPacketRays, rays.size() - first);
             const std::span<const Ray> packet_rays = rays.subspan(first, count);
@@ -184,13 +187,19 @@ void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std:
                 }
                 continue;
             }
-            for (std::size_t part = 0; part < count; part += kLanes) {
-                const std::size_t part_count = std::min(kLanes, count - part);
-                hybrid.template trace<kAnyHit, kCount>(packet_rays.subspan(part, part_count),
-                                                       packet_answers.subspan(part, part_count),
-                                                       kSharedLeaves * target.coherent_width, counts);
+            if constexpr (kAnyHit) {
+                for (std::size_t i = first; i < first + count; ++i)
+                    streams.template add<kCount>(rays, i, answers, counts);
+            } else {
+                for (std::size_t part = 0; part < count; part += kLanes) {
+                    const std::size_t part_count = std::min(kLanes, count - part);
+                    hybrid.template trace<kCount>(packet_rays.subspan(part, part_count),
+                                                  packet_answers.subspan(part, part_count),
+                                                  kSharedLeaves * target.coherent_width, counts);
+                }
             }
         }
+        if constexpr (kAnyHit) streams.template finish<kCount>(rays, answers, counts);
         if constexpr (kCount) *counters += counts;
     });
 }

@@ -1,0 +1,291 @@
+// bvh8_packet's occlusion streams (docs/accel/stream.md): the any-hit rays of a batch that the interval cull
+// cannot take are sorted, as they come, into streams of up to 64 rays (32 with the AVX2 kernels) whose
+// reciprocal directions share their signs, and each stream walks bvh8 depth first as a whole. At an inner
+// node every ray of the stream that reached it tests the node's 8 child boxes on its own, with bvh8's box
+// test; the rays that hit each child are kept as a bit mask beside it, and a child is visited once for all of
+// them. This is the stream traversal Embree's rtcOccluded1M runs on the octant-sorted streams it cuts a call
+// into (Embree 3's BVHNIntersectorStream), its fastest call on shadow rays: a node is fetched once per
+// stream, and a ray's box test needs neither a sort of the children nor a stack of its own. A ray leaves its
+// stream at its first hit. Each ray's box tests are clip_slab's, as in bvh8's walk, and its leaves are tested
+// with bvh8's triangle blocks, so a ray is occluded exactly when bvh8 says so. Included by the packet
+// kernel's source alone (bvh8_packet_kernel.cpp).
+#pragma once
+
+#include <immintrin.h>
+
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "accel/bvh/bvh8_packet_rays.hpp"
+#include "accel/bvh/bvh_wide.hpp"
+#include "accel/bvh/bvh_wide_walk.hpp"
+#include "accel/bvh/triangle_block.hpp"
+#include "accel/primitive_intersect.hpp"
+#include "accel/simd_float.hpp"
+#include "core/isa_namespace.hpp"
+
+#if defined(__AVX2__)
+namespace lancer {
+inline namespace LANCER_ISA_NAMESPACE {
+namespace {
+
+// The octant of a ray for the stream: bit a set where the reciprocal of the direction's component a has
+// its sign bit set, the side by which the ray enters every box on that axis (WideRay::entry_side).
+[[nodiscard]] inline unsigned stream_octant(const Ray& ray) {
+    const SlabRay slab(ray);
+    return (std::signbit(slab.inv_direction.x) ? 1u : 0u) | (std::signbit(slab.inv_direction.y) ? 2u : 0u) |
+           (std::signbit(slab.inv_direction.z) ? 4u : 0u);
+}
+
+// The rays that hit each of a node's 8 children, one bit per ray of the stream: 8 x 64 bits in one AVX-512
+// register, where a compare's mask ORs a ray's bit into the hit children at once; 8 x 32 bits with AVX2.
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+struct ChildRays {
+    using Bits = std::uint64_t;
+    __m512i rays = _mm512_setzero_si512();
+
+    // The children whose interval [t0, t1] is not empty gain `ray`.
+    void add(int ray, __m256 t0, __m256 t1) {
+        const __mmask8 children = _mm256_cmp_ps_mask(t0, t1, _CMP_LE_OQ);
+        rays = _mm512_mask_or_epi64(rays, children, rays, _mm512_set1_epi64(std::int64_t{1} << ray));
+    }
+    unsigned store(Bits* out) const {
+        _mm512_storeu_si512(out, rays);
+        return _mm512_test_epi64_mask(rays, rays);
+    }
+};
+#else
+struct ChildRays {
+    using Bits = std::uint32_t;
+    __m256i rays = _mm256_setzero_si256();
+
+    void add(int ray, __m256 t0, __m256 t1) {
+        const __m256i hit = _mm256_castps_si256(_mm256_cmp_ps(t0, t1, _CMP_LE_OQ));
+        rays = _mm256_or_si256(rays, _mm256_and_si256(hit, _mm256_set1_epi32(1 << ray)));
+    }
+    unsigned store(Bits* out) const {
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), rays);
+        const __m256i missed = _mm256_cmpeq_epi32(rays, _mm256_setzero_si256());
+        return ~static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(missed))) & 0xffu;
+    }
+};
+#endif
+
+template <class TriangleTestT>
+class OcclusionStream {
+  public:
+    static constexpr int kCapacity = 8 * static_cast<int>(sizeof(ChildRays::Bits));
+
+    OcclusionStream(const Bvh8Accel& bvh, const Geometry& geometry)
+        : nodes_(bvh.nodes()), blocks_(bvh.blocks()), geometry_(geometry) {}
+
+    // Traces rays[index[k]] for k < count <= kCapacity, each valid, with tnear >= 0 and in `octant`
+    // (stream_octant); sets answers[index[k]] to 1 where the ray is occluded and leaves the others.
+    template <bool kCount>
+    void trace(std::span<const Ray> rays, const std::uint32_t* index, int count, unsigned octant,
+               std::span<std::uint8_t> answers, TraversalCounters& counts) {
+        if (nodes_.empty() || count == 0) return;
+        for (int k = 0; k < count; ++k) {
+            const Ray& ray = rays[index[k]];
+            const SlabRay slab(ray);
+            for (int axis = 0; axis < 3; ++axis)
+                origin_[axis][k] = slab.origin[axis], inv_direction_[axis][k] = slab.inv_direction[axis];
+            tnear_[k] = ray.tnear, tfar_[k] = ray.tfar;
+            ray_[k] = &ray;
+            block_rays_[k].reset();
+        }
+        alive_ = count == kCapacity ? ~RayBits{0} : (RayBits{1} << count) - 1;
+        walk<kCount>(octant, counts);
+        for (int k = 0; k < count; ++k) {
+            if (((alive_ >> k) & 1u) == 0) answers[index[k]] = 1;
+        }
+    }
+
+  private:
+    using RayBits = ChildRays::Bits;
+    using Ops = simd::Avx2;
+    using ChildRef = wide_walk::ChildRef;
+    struct Entry {
+        ChildRef ref;
+        RayBits rays;
+    };
+
+    template <bool kCount>
+    void walk(unsigned octant, TraversalCounters& counts) {
+        std::array<Entry, wide_walk::kStackSize<kWidth>> stack;
+        int stack_size = 0;
+        std::array<int, 3> side{};
+        for (int axis = 0; axis < 3; ++axis)
+            side[static_cast<std::size_t>(axis)] = (octant >> axis) & 1;
+        ChildRef current{0, 0};
+        RayBits rays = alive_;
+        while (true) {
+            if (current.prim_count > 0) {
+                test_leaf<kCount>(current, rays & alive_, counts);
+                if (alive_ == 0) return;
+            } else {
+                if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
+                const unsigned hit_children = test_children(nodes_[current.child], side, rays);
+                if (hit_children != 0) {
+                    const Node& node = nodes_[current.child];
+                    // Slot order, as bvh8's any-hit walk: the first hit child is visited, the others pushed.
+                    const int first = std::countr_zero(hit_children);
+                    for (unsigned rest = hit_children & (hit_children - 1); rest != 0; rest &= rest - 1) {
+                        const int slot = std::countr_zero(rest);
+                        stack[static_cast<std::size_t>(stack_size++)] = {
+                            {node.child[slot], node.prim_count[slot]}, child_rays_[slot]};
+                        prefetch({node.child[slot], node.prim_count[slot]});
+                    }
+                    current = {node.child[first], node.prim_count[first]};
+                    rays = child_rays_[first];
+                    continue;
+                }
+            }
+            // POP the next child that some ray still in the stream reached.
+            while (true) {
+                if (stack_size == 0) return;
+                const Entry& popped = stack[static_cast<std::size_t>(--stack_size)];
+                rays = popped.rays & alive_;
+                if (rays == 0) continue;
+                current = popped.ref;
+                break;
+            }
+        }
+    }
+
+    // Every ray of `rays` against the node's 8 boxes (intersect_children's arithmetic, the entry planes
+    // chosen once for the octant): child_rays_[slot] gets the rays that hit the child in [tnear, tfar];
+    // returns the children hit by any.
+    [[nodiscard]] unsigned test_children(const Node& node, const std::array<int, 3>& side, RayBits rays) {
+        const float* lo_hi = &node.bounds[0][0][0];
+        Ops::Float near_bound[3], far_bound[3];
+        for (int axis = 0; axis < 3; ++axis) {
+            const int s = side[static_cast<std::size_t>(axis)];
+            near_bound[axis] = Ops::load(lo_hi + (s * 3 + axis) * kWidth);
+            far_bound[axis] = Ops::load(lo_hi + ((1 - s) * 3 + axis) * kWidth);
+        }
+        ChildRays hit_rays;
+        for (RayBits rest = rays; rest != 0; rest &= rest - 1) {
+            const int k = std::countr_zero(rest);
+            Ops::Float t0 = Ops::broadcast(tnear_[k]), t1 = Ops::broadcast(tfar_[k]);
+            for (int axis = 0; axis < 3; ++axis)
+                clip_slab<Ops, true>(near_bound[axis], far_bound[axis], Ops::broadcast(origin_[axis][k]),
+                                     Ops::broadcast(inv_direction_[axis][k]), t0, t1);
+            hit_rays.add(k, t0, t1);
+        }
+        return hit_rays.store(child_rays_.data());
+    }
+
+    // A pushed child's node or first triangle block, whole, into the cache: by the time the stream pops it
+    // the fetch has overlapped the walk of its siblings (7% on the dragon's shadow view, where the tree
+    // does not fit in the cache; docs/accel/stream.md).
+    void prefetch(ChildRef ref) const {
+        const char* p = ref.prim_count > 0 ? reinterpret_cast<const char*>(&blocks_[ref.child])
+                                           : reinterpret_cast<const char*>(&nodes_[ref.child]);
+        const int lines = ref.prim_count > 0 ? 5 : 4;
+        for (int i = 0; i < lines; ++i)
+            _mm_prefetch(p + 64 * i, _MM_HINT_T0);
+    }
+
+    // A leaf's triangle blocks against each of `rays`, with bvh8's own block test.
+    template <bool kCount>
+    void test_leaf(ChildRef leaf, RayBits rays, TraversalCounters& counts) {
+        const std::uint32_t end = leaf.child + block_count(leaf.prim_count, Bvh8Accel::kBlockLanes);
+        for (RayBits rest = rays; rest != 0; rest &= rest - 1) {
+            const int k = std::countr_zero(rest);
+            if constexpr (kCount) ++counts.nodes_visited, counts.prims_tested += leaf.prim_count;
+            // Made at the ray's first leaf: most rays that reach one reach several.
+            auto& block_ray = block_rays_[static_cast<std::size_t>(k)];
+            if (!block_ray) {
+                prepared_[static_cast<std::size_t>(k)].emplace(*ray_[k]);
+                block_ray.emplace(*prepared_[static_cast<std::size_t>(k)], geometry_);
+            }
+            for (std::uint32_t b = leaf.child; b < end; ++b) {
+                if (occludes_block(geometry_, blocks_[b], *block_ray)) {
+                    alive_ &= ~(RayBits{1} << k);
+                    break;
+                }
+            }
+        }
+    }
+
+    const std::vector<Node>& nodes_;
+    const std::vector<Block>& blocks_;
+    const Geometry& geometry_;
+    alignas(32) float origin_[3][kCapacity];
+    alignas(32) float inv_direction_[3][kCapacity];
+    alignas(32) float tnear_[kCapacity];
+    alignas(32) float tfar_[kCapacity];
+    alignas(64) std::array<RayBits, kWidth> child_rays_;
+    const Ray* ray_[kCapacity];
+    std::array<std::optional<PreparedRay<TriangleTestT>>, kCapacity> prepared_;
+    std::array<std::optional<BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes>>, kCapacity> block_rays_;
+    RayBits alive_ = 0;  // the rays not yet occluded
+};
+
+// The batch's rays sorted into a stream per octant as they come, each stream traced when it is full and the
+// others at the end, as Embree's stream call sorts its rays. Invalid rays miss; a ray that starts behind its
+// origin (tnear < 0), which the stream's box test does not take, walks alone with bvh8's walk.
+template <class TriangleTestT>
+class OcclusionStreams {
+  public:
+    OcclusionStreams(const Bvh8Accel& bvh, const Geometry& geometry)
+        : bvh_(bvh), geometry_(geometry), stream_(bvh, geometry) {}
+
+    // Answers rays[i] in answers[i], now or by a later add or finish.
+    template <bool kCount>
+    void add(std::span<const Ray> rays, std::size_t i, std::span<std::uint8_t> answers,
+             TraversalCounters& counts) {
+        answers[i] = 0;
+        const Ray& ray = rays[i];
+        if (!lane_is_valid(ray)) return;
+        if (ray.tnear < 0.0f) {
+            const PreparedRay<TriangleTestT> prepared(ray);
+            Hit best;
+            answers[i] = wide_walk::traverse<kWidth, true, kCount>(bvh_.nodes(), bvh_.blocks(), geometry_,
+                                                                   prepared, best, counts)
+                             ? 1
+                             : 0;
+            return;
+        }
+        const unsigned octant = stream_octant(ray);
+        int& count = count_[octant];
+        waiting_[octant][static_cast<std::size_t>(count++)] = static_cast<std::uint32_t>(i);
+        if (count == kCapacity) trace<kCount>(octant, rays, answers, counts);
+    }
+
+    // Traces the streams that are not full.
+    template <bool kCount>
+    void finish(std::span<const Ray> rays, std::span<std::uint8_t> answers, TraversalCounters& counts) {
+        for (unsigned octant = 0; octant < 8; ++octant) {
+            if (count_[octant] != 0) trace<kCount>(octant, rays, answers, counts);
+        }
+    }
+
+  private:
+    static constexpr int kCapacity = OcclusionStream<TriangleTestT>::kCapacity;
+
+    template <bool kCount>
+    void trace(unsigned octant, std::span<const Ray> rays, std::span<std::uint8_t> answers,
+               TraversalCounters& counts) {
+        stream_.template trace<kCount>(rays, waiting_[octant].data(), count_[octant], octant, answers,
+                                       counts);
+        count_[octant] = 0;
+    }
+
+    const Bvh8Accel& bvh_;
+    const Geometry& geometry_;
+    OcclusionStream<TriangleTestT> stream_;
+    std::array<std::array<std::uint32_t, kCapacity>, 8> waiting_;  // the rays of each octant's next stream
+    std::array<int, 8> count_{};
+};
+
+}  // namespace
+}  // namespace LANCER_ISA_NAMESPACE
+}  // namespace lancer
+#endif
