@@ -3,7 +3,8 @@
 // splits), and against brute force, on the batches that reach the packet code: tiles of a pinhole camera
 // (coherent), rays of mixed direction signs (bvh_packet's fallback), batches that end in a partial packet,
 // rays clipped by tnear and tfar, zero direction components and invalid rays inside coherent packets,
-// incoherent streams of every size (bvh8_packet's hybrid walk). The
+// incoherent streams of every size (bvh8_packet's hybrid walk and occlusion streams), shadow rays around the
+// occlusion streams' capacities. The
 // oracle test's ray sets have random directions, so most of their packets are incoherent: here the same
 // adversarial sets are sorted by direction octant, which makes their packets coherent.
 #include <gtest/gtest.h>

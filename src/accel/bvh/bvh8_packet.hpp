@@ -5,10 +5,11 @@
 // Kernels for Modern CPU Architectures", JCGT 2015); a child that survives is tested against the packet's
 // active rays, 8 (AVX2) or 16 (AVX-512) per instruction, when it is visited; and a leaf tests each triangle
 // against the active rays with the same lane kernels as bvh8's triangle blocks (triangle_block.hpp), so every
-// ray gets bvh8's hit, bit for bit. A packet whose rays disagree on a direction sign, has a direction
-// component whose reciprocal is not finite, or (in a batch) directions that spread too far, goes through the
-// hybrid walk (bvh8_packet_hybrid.hpp): groups of 16 or 8 rays, handed one by one to bvh8's single-ray walk
-// where they part. docs/accel/packets.md and docs/accel/stream.md have the design notes and measurements.
+// ray gets bvh8's hit, bit for bit. The rays of a packet that disagree on a direction sign, have a direction
+// component whose reciprocal is not finite, or (in a batch) directions or origins that spread too far, join
+// instead the streams of 64 (or 32) rays of one direction octant that walk bvh8 together, each ray testing
+// the boxes of the nodes the stream visits (bvh8_packet_stream.hpp). docs/accel/packets.md and
+// docs/accel/stream.md have the design notes and measurements.
 #pragma once
 
 #include <cstdint>

@@ -14,7 +14,6 @@
 #include <vector>
 
 #include "accel/build_util.hpp"
-#include "accel/bvh/bvh8_packet_hybrid.hpp"
 #include "accel/bvh/bvh8_packet_leaf_tests.hpp"
 #include "accel/bvh/bvh8_packet_node_test.hpp"
 #include "accel/bvh/bvh8_packet_rays.hpp"
@@ -82,7 +81,7 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
                 const std::uint32_t prim_count = popped.parent->prim_count[popped.slot];
                 const std::uint32_t child = popped.parent->child[popped.slot];
                 if (prim_count == 0) {
-                    if (std::popcount(rays) < HybridPacket<Ops, TriangleTestT>::kHandover) {
+                    if (std::popcount(rays) < kHandover) {
                         walk_alone<kAnyHit, kCount>(child, rays, answers, counts);
                         if constexpr (kAnyHit) {
                             if (alive_ == 0) return;
@@ -113,10 +112,14 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
   private:
     using PacketLeafTests<Ops, TriangleTestT>::blocks_, PacketLeafTests<Ops, TriangleTestT>::geometry_;
 
+    // The fewest rays that still walk a node together: below it the single-ray walk is cheaper than the
+    // packet's tests (docs/accel/packets.md, "Few rays at a node"; 2 to 12 were measured).
+    static constexpr int kHandover = 4;
+
     // The `rays` that reach inner node `node` when too few of them are left for the packet's tests to pay
     // (where triangles are small beside the packet's footprint, as on the dragon): each finishes that
-    // subtree alone with bvh8's walk from its closest hit so far, as the hybrid walk hands its rays over
-    // (Benthin et al. 2012; docs/accel/stream.md).
+    // subtree alone with bvh8's walk from its closest hit so far, the hand-over of Benthin et al.'s hybrid
+    // traversal (TVCG 2012; docs/accel/packets.md).
     template <bool kAnyHit, bool kCount, class Answer>
     void walk_alone(std::uint32_t node, LaneMask rays, std::span<Answer> answers, TraversalCounters& counts) {
         for (LaneMask rest = rays; rest != 0; rest &= rest - 1) {
@@ -148,29 +151,23 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
 
 // Cuts the batch into packets of consecutive rays. A packet whose rays go together (the same direction signs,
 // finite reciprocals, directions close together, origins close together beside the tree's leaves) walks with
-// the interval cull. The rays of any other go, for closest hits, in groups of Ops::kWidth through the hybrid
-// walk (bvh8_packet_hybrid.hpp), and for occlusion into the octant's stream (bvh8_packet_stream.hpp), both of
-// which take any rays. Answer: Hit (closest hit) or std::uint8_t (occlusion, kAnyHit). docs/accel/stream.md
-// has the measurements behind the spread, the handover and the streams.
+// the interval cull; the rays of any other join the stream of their direction octant
+// (bvh8_packet_stream.hpp), which takes any rays. Answer: Hit (closest hit) or std::uint8_t (occlusion,
+// kAnyHit). docs/accel/stream.md has the measurements behind the spread and the streams.
 template <class Ops, bool kAnyHit, class Answer>
 void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<Answer> answers,
                  TraversalCounters* counters) {
     // The interval cull takes a packet whose directions agree to half their largest component and whose
-    // origins lie within 4 mean leaf diagonals: beyond, its rays share few leaves. The hybrid walks a group
-    // together when its origins lie within 32: beyond, they share no more than the root
-    // (docs/accel/stream.md).
+    // origins lie within 4 mean leaf diagonals: beyond, its rays share few leaves (docs/accel/stream.md).
     constexpr float kAgreeingSpread = 0.5f;
     constexpr float kCoherentLeaves = 4.0f;
-    constexpr float kSharedLeaves = 32.0f;
     const Bvh8Accel& bvh = target.bvh;
     const Geometry& geometry = target.geometry;
     constexpr auto kPacketRays = static_cast<std::size_t>(kPacketSize);
-    constexpr auto kLanes = static_cast<std::size_t>(Ops::kWidth);
     dispatch_policies(target.test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
         Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry);
-        HybridPacket<Ops, TriangleTestT> hybrid(bvh, geometry);
-        OcclusionStreams<TriangleTestT> streams(bvh, geometry);
+        RayStreams<TriangleTestT, kAnyHit> streams(bvh, geometry);
         for (std::size_t first = 0; first < rays.size(); first += kPacketRays) {
             const std::size_t count = std::min(kPacketRays, rays.size() - first);
             const std::span<const Ray> packet_rays = rays.subspan(first, count);
@@ -187,19 +184,10 @@ void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std:
                 }
                 continue;
             }
-            if constexpr (kAnyHit) {
-                for (std::size_t i = first; i < first + count; ++i)
-                    streams.template add<kCount>(rays, i, answers, counts);
-            } else {
-                for (std::size_t part = 0; part < count; part += kLanes) {
-                    const std::size_t part_count = std::min(kLanes, count - part);
-                    hybrid.template trace<kCount>(packet_rays.subspan(part, part_count),
-                                                  packet_answers.subspan(part, part_count),
-                                                  kSharedLeaves * target.coherent_width, counts);
-                }
-            }
+            for (std::size_t i = first; i < first + count; ++i)
+                streams.template add<kCount>(rays, i, answers, counts);
         }
-        if constexpr (kAnyHit) streams.template finish<kCount>(rays, answers, counts);
+        streams.template finish<kCount>(rays, answers, counts);
         if constexpr (kCount) *counters += counts;
     });
 }

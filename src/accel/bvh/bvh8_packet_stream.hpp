@@ -1,14 +1,16 @@
-// bvh8_packet's occlusion streams (docs/accel/stream.md): the any-hit rays of a batch that the interval cull
-// cannot take are sorted, as they come, into streams of up to 64 rays (32 with the AVX2 kernels) whose
-// reciprocal directions share their signs, and each stream walks bvh8 depth first as a whole. At an inner
-// node every ray of the stream that reached it tests the node's 8 child boxes on its own, with bvh8's box
-// test; the rays that hit each child are kept as a bit mask beside it, and a child is visited once for all of
-// them. This is the stream traversal Embree's rtcOccluded1M runs on the octant-sorted streams it cuts a call
-// into (Embree 3's BVHNIntersectorStream), its fastest call on shadow rays: a node is fetched once per
-// stream, and a ray's box test needs neither a sort of the children nor a stack of its own. A ray leaves its
-// stream at its first hit. Each ray's box tests are clip_slab's, as in bvh8's walk, and its leaves are tested
-// with bvh8's triangle blocks, so a ray is occluded exactly when bvh8 says so. Included by the packet
-// kernel's source alone (bvh8_packet_kernel.cpp).
+// bvh8_packet's ray streams (docs/accel/stream.md): the rays of a batch that the interval cull cannot take
+// are sorted, as they come, into streams of up to 64 rays (32 with the AVX2 kernels) whose reciprocal
+// directions share their signs, and each stream walks bvh8 depth first as a whole. At an inner node every ray
+// of the stream that reached it tests the node's 8 child boxes on its own, with bvh8's box test; the rays
+// that hit each child are kept as a bit mask beside it, and a child is visited once for all of them. This is
+// the stream traversal Embree's rtcOccluded1M runs on the octant-sorted streams it cuts a call into (Embree
+// 3's BVHNIntersectorStream), its fastest call on shadow rays: a node is fetched once per stream, and a
+// ray's box test needs neither a sort of the children nor a stack of its own. For occlusion a ray leaves its
+// stream at its first hit, and the children go in slot order as in bvh8's any-hit walk; for closest hits
+// they go nearest first along the octant's diagonal, and each ray's boxes are clipped at its closest hit so
+// far. Each ray's box tests are clip_slab's, as in bvh8's walk, against a limit never below its final hit,
+// and its leaves are tested with bvh8's triangle blocks, so every ray gets bvh8's answer bit for bit.
+// Included by the packet kernel's source alone (bvh8_packet_kernel.cpp).
 #pragma once
 
 #include <immintrin.h>
@@ -19,6 +21,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 #include "accel/bvh/bvh8_packet_rays.hpp"
@@ -76,33 +79,39 @@ struct ChildRays {
 };
 #endif
 
-template <class TriangleTestT>
-class OcclusionStream {
+// One stream: kAnyHit, occlusion (answers std::uint8_t); otherwise closest hits (Hit).
+template <class TriangleTestT, bool kAnyHit>
+class RayStream {
   public:
     static constexpr int kCapacity = 8 * static_cast<int>(sizeof(ChildRays::Bits));
+    using Answer = std::conditional_t<kAnyHit, std::uint8_t, Hit>;
 
-    OcclusionStream(const Bvh8Accel& bvh, const Geometry& geometry)
+    RayStream(const Bvh8Accel& bvh, const Geometry& geometry)
         : nodes_(bvh.nodes()), blocks_(bvh.blocks()), geometry_(geometry) {}
 
     // Traces rays[index[k]] for k < count <= kCapacity, each valid, with tnear >= 0 and in `octant`
-    // (stream_octant); sets answers[index[k]] to 1 where the ray is occluded and leaves the others.
+    // (stream_octant), into answers[index[k]].
     template <bool kCount>
     void trace(std::span<const Ray> rays, const std::uint32_t* index, int count, unsigned octant,
-               std::span<std::uint8_t> answers, TraversalCounters& counts) {
-        if (nodes_.empty() || count == 0) return;
+               std::span<Answer> answers, TraversalCounters& counts) {
         for (int k = 0; k < count; ++k) {
             const Ray& ray = rays[index[k]];
             const SlabRay slab(ray);
             for (int axis = 0; axis < 3; ++axis)
                 origin_[axis][k] = slab.origin[axis], inv_direction_[axis][k] = slab.inv_direction[axis];
-            tnear_[k] = ray.tnear, tfar_[k] = ray.tfar;
+            tnear_[k] = ray.tnear, tlimit_[k] = ray.tfar;
             ray_[k] = &ray;
             block_rays_[k].reset();
+            best_[k] = Hit{};
         }
         alive_ = count == kCapacity ? ~RayBits{0} : (RayBits{1} << count) - 1;
-        walk<kCount>(octant, counts);
+        if (!nodes_.empty()) walk<kCount>(octant, counts);
         for (int k = 0; k < count; ++k) {
-            if (((alive_ >> k) & 1u) == 0) answers[index[k]] = 1;
+            if constexpr (kAnyHit) {
+                answers[index[k]] = ((alive_ >> k) & 1u) == 0 ? 1 : 0;
+            } else {
+                answers[index[k]] = best_[k];
+            }
         }
     }
 
@@ -127,26 +136,42 @@ class OcclusionStream {
         while (true) {
             if (current.prim_count > 0) {
                 test_leaf<kCount>(current, rays & alive_, counts);
-                if (alive_ == 0) return;
+                if (kAnyHit && alive_ == 0) return;
             } else {
                 if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
-                const unsigned hit_children = test_children(nodes_[current.child], side, rays);
+                const Node& node = nodes_[current.child];
+                alignas(32) float along[kWidth];
+                const unsigned hit_children = test_children(node, side, rays, along);
                 if (hit_children != 0) {
-                    const Node& node = nodes_[current.child];
-                    // Slot order, as bvh8's any-hit walk: the first hit child is visited, the others pushed.
-                    const int first = std::countr_zero(hit_children);
-                    for (unsigned rest = hit_children & (hit_children - 1); rest != 0; rest &= rest - 1) {
-                        const int slot = std::countr_zero(rest);
-                        stack[static_cast<std::size_t>(stack_size++)] = {
-                            {node.child[slot], node.prim_count[slot]}, child_rays_[slot]};
-                        prefetch({node.child[slot], node.prim_count[slot]});
+                    const auto push = [&](int slot) {
+                        const ChildRef child{node.child[slot], node.prim_count[slot]};
+                        stack[static_cast<std::size_t>(stack_size++)] = {child, child_rays_[slot]};
+                        prefetch(child);
+                    };
+                    int first = 0;
+                    if constexpr (kAnyHit) {
+                        // Slot order, as bvh8's any-hit walk: the first hit child is visited, the others
+                        // pushed.
+                        first = std::countr_zero(hit_children);
+                        for (unsigned rest = hit_children & (hit_children - 1); rest != 0; rest &= rest - 1)
+                            push(std::countr_zero(rest));
+                    } else {
+                        // Nearest first along the octant's diagonal, a stand-in for each ray's own entry
+                        // order that the whole stream shares; the others pushed farthest first.
+                        std::array<int, kWidth> order;
+                        const int hit_count = order_by_entry<kWidth>(hit_children, along, order);
+                        for (int k = hit_count - 1; k > 0; --k)
+                            push(order[static_cast<std::size_t>(k)]);
+                        first = order[0];
                     }
                     current = {node.child[first], node.prim_count[first]};
                     rays = child_rays_[first];
                     continue;
                 }
             }
-            // POP the next child that some ray still in the stream reached.
+            // POP the next child that some ray still in the stream reached. (A ray whose closest hit has come
+            // nearer than the child is dropped there by its box tests, or its block tests find nothing
+            // closer.)
             while (true) {
                 if (stack_size == 0) return;
                 const Entry& popped = stack[static_cast<std::size_t>(--stack_size)];
@@ -159,9 +184,11 @@ class OcclusionStream {
     }
 
     // Every ray of `rays` against the node's 8 boxes (intersect_children's arithmetic, the entry planes
-    // chosen once for the octant): child_rays_[slot] gets the rays that hit the child in [tnear, tfar];
-    // returns the children hit by any.
-    [[nodiscard]] unsigned test_children(const Node& node, const std::array<int, 3>& side, RayBits rays) {
+    // chosen once for the octant, each ray clipped at its tlimit): child_rays_[slot] gets the rays that hit
+    // the child; returns the children hit by any. along[slot]: how far along the octant's diagonal the
+    // child's entry corner lies (closest hits' order).
+    [[nodiscard]] unsigned test_children(const Node& node, const std::array<int, 3>& side, RayBits rays,
+                                         float* along) {
         const float* lo_hi = &node.bounds[0][0][0];
         Ops::Float near_bound[3], far_bound[3];
         for (int axis = 0; axis < 3; ++axis) {
@@ -169,10 +196,18 @@ class OcclusionStream {
             near_bound[axis] = Ops::load(lo_hi + (s * 3 + axis) * kWidth);
             far_bound[axis] = Ops::load(lo_hi + ((1 - s) * 3 + axis) * kWidth);
         }
+        if constexpr (!kAnyHit) {
+            Ops::Float distance = Ops::broadcast(0.0f);
+            for (int axis = 0; axis < 3; ++axis) {
+                distance = side[static_cast<std::size_t>(axis)] != 0 ? Ops::sub(distance, near_bound[axis])
+                                                                     : Ops::add(distance, near_bound[axis]);
+            }
+            Ops::store(along, distance);
+        }
         ChildRays hit_rays;
         for (RayBits rest = rays; rest != 0; rest &= rest - 1) {
             const int k = std::countr_zero(rest);
-            Ops::Float t0 = Ops::broadcast(tnear_[k]), t1 = Ops::broadcast(tfar_[k]);
+            Ops::Float t0 = Ops::broadcast(tnear_[k]), t1 = Ops::broadcast(tlimit_[k]);
             for (int axis = 0; axis < 3; ++axis)
                 clip_slab<Ops, true>(near_bound[axis], far_bound[axis], Ops::broadcast(origin_[axis][k]),
                                      Ops::broadcast(inv_direction_[axis][k]), t0, t1);
@@ -182,17 +217,16 @@ class OcclusionStream {
     }
 
     // A pushed child's node or first triangle block, whole, into the cache: by the time the stream pops it
-    // the fetch has overlapped the walk of its siblings (7% on the dragon's shadow view, where the tree
-    // does not fit in the cache; docs/accel/stream.md).
+    // the fetch has overlapped the walk of its siblings (docs/accel/stream.md).
     void prefetch(ChildRef ref) const {
-        const char* p = ref.prim_count > 0 ? reinterpret_cast<const char*>(&blocks_[ref.child])
-                                           : reinterpret_cast<const char*>(&nodes_[ref.child]);
-        const int lines = ref.prim_count > 0 ? 5 : 4;
-        for (int i = 0; i < lines; ++i)
-            _mm_prefetch(p + 64 * i, _MM_HINT_T0);
+        const char* data = ref.prim_count > 0 ? reinterpret_cast<const char*>(&blocks_[ref.child])
+                                              : reinterpret_cast<const char*>(&nodes_[ref.child]);
+        const std::size_t bytes = ref.prim_count > 0 ? sizeof(Block) : sizeof(Node);
+        for (std::size_t offset = 0; offset < bytes; offset += 64)
+            _mm_prefetch(data + offset, _MM_HINT_T0);
     }
 
-    // A leaf's triangle blocks against each of `rays`, with bvh8's own block test.
+    // A leaf's triangle blocks against each of `rays`, with bvh8's own block tests.
     template <bool kCount>
     void test_leaf(ChildRef leaf, RayBits rays, TraversalCounters& counts) {
         const std::uint32_t end = leaf.child + block_count(leaf.prim_count, Bvh8Accel::kBlockLanes);
@@ -206,11 +240,16 @@ class OcclusionStream {
                 block_ray.emplace(*prepared_[static_cast<std::size_t>(k)], geometry_);
             }
             for (std::uint32_t b = leaf.child; b < end; ++b) {
-                if (occludes_block(geometry_, blocks_[b], *block_ray)) {
-                    alive_ &= ~(RayBits{1} << k);
-                    break;
+                if constexpr (kAnyHit) {
+                    if (occludes_block(geometry_, blocks_[b], *block_ray)) {
+                        alive_ &= ~(RayBits{1} << k);
+                        break;
+                    }
+                } else {
+                    intersect_block(geometry_, blocks_[b], *block_ray, best_[k]);
                 }
             }
+            if (!kAnyHit && best_[k].hit()) tlimit_[k] = best_[k].t;
         }
     }
 
@@ -220,37 +259,44 @@ class OcclusionStream {
     alignas(32) float origin_[3][kCapacity];
     alignas(32) float inv_direction_[3][kCapacity];
     alignas(32) float tnear_[kCapacity];
-    alignas(32) float tfar_[kCapacity];
+    alignas(32) float tlimit_[kCapacity];  // tfar, or the closest hit so far
     alignas(64) std::array<RayBits, kWidth> child_rays_;
     const Ray* ray_[kCapacity];
     std::array<std::optional<PreparedRay<TriangleTestT>>, kCapacity> prepared_;
     std::array<std::optional<BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes>>, kCapacity> block_rays_;
-    RayBits alive_ = 0;  // the rays not yet occluded
+    std::array<Hit, kCapacity> best_;
+    RayBits alive_ = 0;  // occlusion: the rays not yet occluded; closest hits: all of them
 };
 
 // The batch's rays sorted into a stream per octant as they come, each stream traced when it is full and the
 // others at the end, as Embree's stream call sorts its rays. Invalid rays miss; a ray that starts behind its
 // origin (tnear < 0), which the stream's box test does not take, walks alone with bvh8's walk.
-template <class TriangleTestT>
-class OcclusionStreams {
+template <class TriangleTestT, bool kAnyHit>
+class RayStreams {
   public:
-    OcclusionStreams(const Bvh8Accel& bvh, const Geometry& geometry)
+    using Answer = typename RayStream<TriangleTestT, kAnyHit>::Answer;
+
+    RayStreams(const Bvh8Accel& bvh, const Geometry& geometry)
         : bvh_(bvh), geometry_(geometry), stream_(bvh, geometry) {}
 
     // Answers rays[i] in answers[i], now or by a later add or finish.
     template <bool kCount>
-    void add(std::span<const Ray> rays, std::size_t i, std::span<std::uint8_t> answers,
-             TraversalCounters& counts) {
-        answers[i] = 0;
+    void add(std::span<const Ray> rays, std::size_t i, std::span<Answer> answers, TraversalCounters& counts) {
+        answers[i] = Answer{};
         const Ray& ray = rays[i];
         if (!lane_is_valid(ray)) return;
         if (ray.tnear < 0.0f) {
             const PreparedRay<TriangleTestT> prepared(ray);
-            Hit best;
-            answers[i] = wide_walk::traverse<kWidth, true, kCount>(bvh_.nodes(), bvh_.blocks(), geometry_,
-                                                                   prepared, best, counts)
-                             ? 1
-                             : 0;
+            if constexpr (kAnyHit) {
+                Hit best;
+                answers[i] = wide_walk::traverse<kWidth, true, kCount>(bvh_.nodes(), bvh_.blocks(), geometry_,
+                                                                       prepared, best, counts)
+                                 ? 1
+                                 : 0;
+            } else {
+                wide_walk::traverse<kWidth, false, kCount>(bvh_.nodes(), bvh_.blocks(), geometry_, prepared,
+                                                           answers[i], counts);
+            }
             return;
         }
         const unsigned octant = stream_octant(ray);
@@ -261,17 +307,17 @@ class OcclusionStreams {
 
     // Traces the streams that are not full.
     template <bool kCount>
-    void finish(std::span<const Ray> rays, std::span<std::uint8_t> answers, TraversalCounters& counts) {
+    void finish(std::span<const Ray> rays, std::span<Answer> answers, TraversalCounters& counts) {
         for (unsigned octant = 0; octant < 8; ++octant) {
             if (count_[octant] != 0) trace<kCount>(octant, rays, answers, counts);
         }
     }
 
   private:
-    static constexpr int kCapacity = OcclusionStream<TriangleTestT>::kCapacity;
+    static constexpr int kCapacity = RayStream<TriangleTestT, kAnyHit>::kCapacity;
 
     template <bool kCount>
-    void trace(unsigned octant, std::span<const Ray> rays, std::span<std::uint8_t> answers,
+    void trace(unsigned octant, std::span<const Ray> rays, std::span<Answer> answers,
                TraversalCounters& counts) {
         stream_.template trace<kCount>(rays, waiting_[octant].data(), count_[octant], octant, answers,
                                        counts);
@@ -280,7 +326,7 @@ class OcclusionStreams {
 
     const Bvh8Accel& bvh_;
     const Geometry& geometry_;
-    OcclusionStream<TriangleTestT> stream_;
+    RayStream<TriangleTestT, kAnyHit> stream_;
     std::array<std::array<std::uint32_t, kCapacity>, 8> waiting_;  // the rays of each octant's next stream
     std::array<int, 8> count_{};
 };

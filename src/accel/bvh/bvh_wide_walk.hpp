@@ -1,5 +1,5 @@
 // The single-ray walk of the wide BVHs (bvh_wide.hpp): bvh4 and bvh8 trace with it, and bvh8_packet's
-// hybrid walk (bvh8_packet_hybrid.hpp) hands each ray of a thinned packet to it at the subtree where the
+// interval cull (bvh8_packet_kernel.cpp) hands each ray of a thinned packet to it at the subtree where the
 // packet parted. Both compilations of the packet kernel include it, so its code is in the instruction
 // set's namespace (core/isa_namespace.hpp).
 #pragma once
@@ -37,7 +37,7 @@ constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
 // nearest is visited and the others pushed, farthest first. A popped child is skipped when it is entered
 // beyond the best hit. kForward: the ray has tnear >= 0, which allows clip_slab's cheaper exit widening.
 // The walk starts at `start`, the root or the subtree where a packet hands the ray over (bvh8_packet's
-// hybrid walk), with `best` the closest hit found before it.
+// interval cull), with `best` the closest hit found before it.
 template <int W, bool kAnyHit, bool kCount, bool kForward, class TriangleTestT>
 bool traverse_from(const std::vector<WideBvhNode<W>>& nodes,
                    const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
