@@ -5,12 +5,12 @@
 // that hit each child are kept as a bit mask beside it, and a child is visited once for all of them. This is
 // the stream traversal Embree's rtcOccluded1M runs on the octant-sorted streams it cuts a call into (Embree
 // 3's BVHNIntersectorStream), its fastest call on shadow rays: a node is fetched once per stream, and a
-// ray's box test needs neither a sort of the children nor a stack of its own. For occlusion a ray leaves its
-// stream at its first hit, and the children go in slot order as in bvh8's any-hit walk; for closest hits
-// they go nearest first along the octant's diagonal, and each ray's boxes are clipped at its closest hit so
-// far. Each ray's box tests are clip_slab's, as in bvh8's walk, against a limit never below its final hit,
-// and its leaves are tested with bvh8's triangle blocks, so every ray gets bvh8's answer bit for bit.
-// Included by the packet kernel's source alone (bvh8_packet_kernel.cpp).
+// ray's box test needs neither a sort of the children nor a stack of its own. The children go nearest first
+// along the octant's diagonal, one order for the stream. For occlusion a ray leaves its stream at its first
+// hit; for closest hits each ray's boxes are clipped at its closest hit so far. Each ray's box tests are
+// clip_slab's, as in bvh8's walk, against a limit never below its final hit, and its leaves are tested with
+// bvh8's triangle blocks, so every ray gets bvh8's answer bit for bit. Included by the packet kernel's source
+// alone (bvh8_packet_kernel.cpp).
 #pragma once
 
 #include <immintrin.h>
@@ -148,22 +148,13 @@ class RayStream {
                         stack[static_cast<std::size_t>(stack_size++)] = {child, child_rays_[slot]};
                         prefetch(child);
                     };
-                    int first = 0;
-                    if constexpr (kAnyHit) {
-                        // Slot order, as bvh8's any-hit walk: the first hit child is visited, the others
-                        // pushed.
-                        first = std::countr_zero(hit_children);
-                        for (unsigned rest = hit_children & (hit_children - 1); rest != 0; rest &= rest - 1)
-                            push(std::countr_zero(rest));
-                    } else {
-                        // Nearest first along the octant's diagonal, a stand-in for each ray's own entry
-                        // order that the whole stream shares; the others pushed farthest first.
-                        std::array<int, kWidth> order;
-                        const int hit_count = order_by_entry<kWidth>(hit_children, along, order);
-                        for (int k = hit_count - 1; k > 0; --k)
-                            push(order[static_cast<std::size_t>(k)]);
-                        first = order[0];
-                    }
+                    // Nearest first along the octant's diagonal, a stand-in for each ray's own entry order
+                    // that the whole stream shares; the others pushed farthest first.
+                    std::array<int, kWidth> order;
+                    const int hit_count = order_by_entry<kWidth>(hit_children, along, order);
+                    for (int k = hit_count - 1; k > 0; --k)
+                        push(order[static_cast<std::size_t>(k)]);
+                    const int first = order[0];
                     current = {node.child[first], node.prim_count[first]};
                     rays = child_rays_[first];
                     continue;
@@ -186,7 +177,7 @@ class RayStream {
     // Every ray of `rays` against the node's 8 boxes (intersect_children's arithmetic, the entry planes
     // chosen once for the octant, each ray clipped at its tlimit): child_rays_[slot] gets the rays that hit
     // the child; returns the children hit by any. along[slot]: how far along the octant's diagonal the
-    // child's entry corner lies (closest hits' order).
+    // child's entry corner lies (the walk's order).
     [[nodiscard]] unsigned test_children(const Node& node, const std::array<int, 3>& side, RayBits rays,
                                          float* along) {
         const float* lo_hi = &node.bounds[0][0][0];
@@ -196,14 +187,12 @@ class RayStream {
             near_bound[axis] = Ops::load(lo_hi + (s * 3 + axis) * kWidth);
             far_bound[axis] = Ops::load(lo_hi + ((1 - s) * 3 + axis) * kWidth);
         }
-        if constexpr (!kAnyHit) {
-            Ops::Float distance = Ops::broadcast(0.0f);
-            for (int axis = 0; axis < 3; ++axis) {
-                distance = side[static_cast<std::size_t>(axis)] != 0 ? Ops::sub(distance, near_bound[axis])
-                                                                     : Ops::add(distance, near_bound[axis]);
-            }
-            Ops::store(along, distance);
+        Ops::Float distance = Ops::broadcast(0.0f);
+        for (int axis = 0; axis < 3; ++axis) {
+            distance = side[static_cast<std::size_t>(axis)] != 0 ? Ops::sub(distance, near_bound[axis])
+                                                                 : Ops::add(distance, near_bound[axis]);
         }
+        Ops::store(along, distance);
         ChildRays hit_rays;
         for (RayBits rest = rays; rest != 0; rest &= rest - 1) {
             const int k = std::countr_zero(rest);
