@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <mutex>
+#include <numeric>
 #include <optional>
 #include <shared_mutex>
 #include <stdexcept>
@@ -30,6 +31,45 @@ std::vector<Vec3f> sample_directions(int samples) {
             Vec3f(component(0.6180339887, 0.1), component(0.4142135623, 0.3), component(0.7320508075, 0.7))));
     }
     return directions;
+}
+
+// The points (rows of x, y, z) in Morton order of the cells of a grid over their box, about four points a
+// cell, made by one counting sort: consecutive points lie close together, as bvh8_packet's packets want
+// their rays' origins. Points in one cell keep their order; a non-finite coordinate counts as the box's low
+// side.
+std::vector<std::size_t> spatial_order(const float* points, std::size_t count) {
+    Vec3f lo(kInfinity, kInfinity, kInfinity), hi(-kInfinity, -kInfinity, -kInfinity);
+    for (std::size_t i = 0; i < count; ++i) {
+        const Vec3f p(points[3 * i], points[3 * i + 1], points[3 * i + 2]);
+        if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) lo = min(lo, p), hi = max(hi, p);
+    }
+    int bits = 0;  // per axis: 8^bits cells
+    while (bits < 7 && (std::size_t{4} << (3 * bits)) < count)
+        ++bits;
+    const float cells = static_cast<float>(1u << bits);
+    const Vec3f extent = hi - lo;
+    // The cell of a coordinate, 0 for NaN and a flat axis, its bits spread to every third place.
+    const auto spread_cell = [&](float x, float low, float width) {
+        const float scaled = width > 0.0f ? (x - low) / width * cells : 0.0f;
+        auto cell = static_cast<std::uint32_t>(std::clamp(scaled, 0.0f, cells - 1.0f));
+        std::uint32_t spread = 0;
+        for (int bit = 0; bit < bits; ++bit)
+            spread |= ((cell >> bit) & 1u) << (3 * bit);
+        return spread;
+    };
+    std::vector<std::uint32_t> cell(count);
+    std::vector<std::size_t> first_of(std::size_t{1} << (3 * bits), 0);
+    for (std::size_t i = 0; i < count; ++i) {
+        cell[i] = spread_cell(points[3 * i], lo.x, extent.x) |
+                  spread_cell(points[3 * i + 1], lo.y, extent.y) << 1 |
+                  spread_cell(points[3 * i + 2], lo.z, extent.z) << 2;
+        ++first_of[cell[i]];
+    }
+    std::exclusive_scan(first_of.begin(), first_of.end(), first_of.begin(), std::size_t{0});
+    std::vector<std::size_t> order(count);
+    for (std::size_t i = 0; i < count; ++i)
+        order[first_of[cell[i]]++] = i;
+    return order;
 }
 
 void check_samples(int nsamples) {
@@ -308,46 +348,58 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
                     "primitive_normals"_a = open3d_like(normals));
 }
 
-bool RaycastingScene::inside(const GeometryQueries& all, const Vec3f& p,
-                             std::span<const Vec3f> directions) const {
-    std::size_t odd = 0;
-    // One buffer a thread rather than an allocation and its growth a point.
-    thread_local std::vector<Hit> hits;
-    for (const Vec3f& direction : directions) {
-        hits.clear();
-        all.all_hits({p, direction, 0.0f, kInfinity}, hits);
-        // A crossing through a shared vertex or edge is hit on each triangle that holds it, at the same t:
-        // one crossing.
-        std::size_t crossings = 0;
-        for (std::size_t h = 0; h < hits.size(); ++h)
-            crossings += (h == 0 || hits[h].t != hits[h - 1].t) ? 1 : 0;
-        odd += crossings % 2;
-    }
-    return 2 * odd > directions.size();
+std::vector<std::uint8_t> RaycastingScene::inside_points(const GeometryQueries& all, const float* points,
+                                                         std::size_t count, std::span<const Vec3f> directions,
+                                                         int nthreads) {
+    const std::vector<std::size_t> order = spatial_order(points, count);
+    std::vector<std::uint16_t> odd(count, 0);  // votes, at most check_samples' 1024
+    // A chunk starts at a multiple of kChunk, so that its packets of 64 rays are the same whatever the
+    // threads.
+    parallel_for(count, kChunk, nthreads, [&](std::size_t first, std::size_t last) {
+        std::vector<Ray> rays(last - first);
+        std::vector<std::uint32_t> crossings(last - first);
+        for (const Vec3f& direction : directions) {
+            for (std::size_t k = first; k < last; ++k) {
+                const float* p = points + 3 * order[k];
+                rays[k - first] = {{p[0], p[1], p[2]}, direction, 0.0f, kInfinity};
+            }
+            all.count_crossings(rays, crossings);
+            for (std::size_t k = first; k < last; ++k)
+                odd[order[k]] += static_cast<std::uint16_t>(crossings[k - first] % 2);
+        }
+    });
+    std::vector<std::uint8_t> inside(count);
+    for (std::size_t i = 0; i < count; ++i)
+        inside[i] = 2 * std::size_t{odd[i]} > directions.size() ? 1 : 0;
+    return inside;
 }
 
 template <class PerPoint>
-py::array RaycastingScene::map_points(const py::object& query_points, int nthreads, PerPoint&& per_point) {
+py::array RaycastingScene::map_points(const py::object& query_points, int nthreads,
+                                      std::span<const Vec3f> directions, PerPoint&& per_point) {
     const auto rows = float_rows(query_points, "query_points", 3);
     check_threads(nthreads);
     py::array_t<float> answers(answer_shape(rows));
     float* out = answers.mutable_data();
     const float* q = rows.data();
+    const auto count = static_cast<std::size_t>(rows.size() / 3);
     {
         py::gil_scoped_release released;
         const std::shared_lock lock = prepared(kQueries);
         const GeometryQueries& all = queries();
-        parallel_for(static_cast<std::size_t>(rows.size() / 3), kChunk, nthreads,
-                     [&](std::size_t first, std::size_t last) {
-                         for (std::size_t i = first; i < last; ++i)
-                             out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]));
-                     });
+        const std::vector<std::uint8_t> inside = directions.empty()
+                                                     ? std::vector<std::uint8_t>(count, 0)
+                                                     : inside_points(all, q, count, directions, nthreads);
+        parallel_for(count, kChunk, nthreads, [&](std::size_t first, std::size_t last) {
+            for (std::size_t i = first; i < last; ++i)
+                out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]), inside[i] != 0);
+        });
     }
     return open3d_like(answers);
 }
 
 py::array RaycastingScene::compute_distance(const py::object& query_points, int nthreads) {
-    return map_points(query_points, nthreads, [](const GeometryQueries& all, const Vec3f& p) {
+    return map_points(query_points, nthreads, {}, [](const GeometryQueries& all, const Vec3f& p, bool) {
         return all.nearest_point(p).distance;
     });
 }
@@ -355,19 +407,19 @@ py::array RaycastingScene::compute_distance(const py::object& query_points, int 
 py::array RaycastingScene::compute_occupancy(const py::object& query_points, int nthreads, int nsamples) {
     check_samples(nsamples);
     const std::vector<Vec3f> directions = sample_directions(nsamples);
-    return map_points(query_points, nthreads, [&](const GeometryQueries& all, const Vec3f& p) {
-        return inside(all, p, directions) ? 1.0f : 0.0f;
-    });
+    return map_points(query_points, nthreads, directions,
+                      [](const GeometryQueries&, const Vec3f&, bool inside) { return inside ? 1.0f : 0.0f; });
 }
 
 py::array RaycastingScene::compute_signed_distance(const py::object& query_points, int nthreads,
                                                    int nsamples) {
     check_samples(nsamples);
     const std::vector<Vec3f> directions = sample_directions(nsamples);
-    return map_points(query_points, nthreads, [&](const GeometryQueries& all, const Vec3f& p) {
-        const float distance = all.nearest_point(p).distance;
-        return inside(all, p, directions) ? -distance : distance;
-    });
+    return map_points(query_points, nthreads, directions,
+                      [](const GeometryQueries& all, const Vec3f& p, bool inside) {
+                          const float distance = all.nearest_point(p).distance;
+                          return inside ? -distance : distance;
+                      });
 }
 
 void RaycastingScene::save_structure(const std::filesystem::path& path) {

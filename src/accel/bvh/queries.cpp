@@ -10,7 +10,9 @@
 #include <vector>
 
 #include "accel/bvh/bvh.hpp"
+#include "accel/bvh/bvh8_packet.hpp"
 #include "accel/bvh/bvh_wide.hpp"
+#include "accel/bvh/bvh_wide_walk.hpp"
 #include "accel/bvh/nearest_point.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "accel/simd_float.hpp"
@@ -30,6 +32,10 @@ struct GeometryQueries::Impl {
     const Bvh4Accel* bvh4 = nullptr;
     const Bvh8Accel* bvh8 = nullptr;
     bool walks_accel = false;
+
+    // on_hit(hit) for every hit of `traced`, a valid ray conditioned for `scene`, in no order.
+    template <class OnHit>
+    void each_hit(const Ray& traced, OnHit&& on_hit) const;
 };
 
 GeometryQueries::GeometryQueries(const Geometry& geometry, TriangleTest test)
@@ -69,9 +75,9 @@ namespace {
 // Every primitive the ray hits, by the binary tree: every node whose box the ray crosses within [tnear,
 // tfar], in any order. Both children of a node may wait, so the stack holds at most one node per level and
 // the root.
-template <class TriangleTestT>
+template <class TriangleTestT, class OnHit>
 void binary_hits(const BvhAccel& bvh, const Geometry& geometry, const PreparedRay<TriangleTestT>& prepared,
-                 std::vector<Hit>& hits) {
+                 OnHit&& on_hit) {
     const std::vector<BvhNode>& nodes = bvh.nodes();
     const std::vector<std::uint32_t>& prim_indices = bvh.prim_indices();
     const Ray& ray = prepared.ray;
@@ -86,58 +92,13 @@ void binary_hits(const BvhAccel& bvh, const Geometry& geometry, const PreparedRa
         if (node.is_leaf()) {
             for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i) {
                 Hit hit;
-                if (intersect_primitive(geometry, prim_indices[i], prepared, hit)) hits.push_back(hit);
+                if (intersect_primitive(geometry, prim_indices[i], prepared, hit)) on_hit(hit);
             }
             continue;
         }
         for (const std::uint32_t child : {current + 1, node.offset}) {
             if (intersect_box(slab, nodes[child].bounds(), ray.tnear, ray.tfar, t_entry, t_exit))
                 stack[size++] = child;
-        }
-    }
-}
-
-// The same by a wide tree: all W child boxes at once, a leaf's triangles a block at a time with the block
-// kernel (the scalar kernel's bits), its scalar lanes and spheres by the scalar test.
-template <int W, class TriangleTestT>
-void wide_hits(const WideBvhAccel<W>& bvh, const Geometry& geometry,
-               const PreparedRay<TriangleTestT>& prepared, std::vector<Hit>& hits) {
-    const auto& nodes = bvh.nodes();
-    const auto& blocks = bvh.blocks();
-    const Ray& ray = prepared.ray;
-    const WideRay wide(SlabRay{ray});
-    const BlockRay<TriangleTestT, W> block_ray(prepared, geometry);
-    std::array<std::uint32_t, (W - 1) * BvhAccel::kMaxDepth + 1> stack;
-    std::size_t size = 0;
-    stack[size++] = 0;
-    while (size > 0) {
-        const WideBvhNode<W>& node = nodes[stack[--size]];
-        alignas(32) float entry[W];
-        for (unsigned mask = intersect_children<W>(node, wide, ray.tnear, ray.tfar, entry); mask != 0;
-             mask &= mask - 1) {
-            const int slot = std::countr_zero(mask);
-            if (node.prim_count[slot] == 0) {
-                stack[size++] = node.child[slot];
-                continue;
-            }
-            const std::uint32_t last = node.child[slot] + block_count(node.prim_count[slot], W);
-            for (std::uint32_t b = node.child[slot]; b < last; ++b) {
-                const TriangleBlock<W>& block = blocks[b];
-                BlockHits<W> found;
-                block_ray.kernel.test(block, ray.tnear, ray.tfar, found);
-                for (unsigned lanes = found.hit_lanes; lanes != 0; lanes &= lanes - 1) {
-                    const int lane = std::countr_zero(lanes);
-                    hits.push_back({found.t[lane], static_cast<std::int32_t>(block.prim[lane]), found.u[lane],
-                                    found.v[lane]});
-                }
-                for (unsigned lanes =
-                         scalar_lanes(block, geometry, block_ray.has_spheres, found.scalar_lanes);
-                     lanes != 0; lanes &= lanes - 1) {
-                    Hit hit;
-                    if (intersect_primitive(geometry, block.prim[std::countr_zero(lanes)], prepared, hit))
-                        hits.push_back(hit);
-                }
-            }
         }
     }
 }
@@ -290,24 +251,29 @@ Vec3f bounding_point(const Box3f& scene_bounds, const Vec3d& p) {
 
 }  // namespace
 
+template <class OnHit>
+void GeometryQueries::Impl::each_hit(const Ray& traced, OnHit&& on_hit) const {
+    const Geometry& geometry = scene->built_geometry();
+    dispatch_policies(test, false, [&]<class TriangleTestT, bool>() {
+        const PreparedRay<TriangleTestT> prepared(traced);
+        if (bvh8 != nullptr) {
+            wide_walk::all_hits(bvh8->nodes(), bvh8->blocks(), geometry, prepared, on_hit);
+        } else if (bvh4 != nullptr) {
+            wide_walk::all_hits(bvh4->nodes(), bvh4->blocks(), geometry, prepared, on_hit);
+        } else {
+            binary_hits(*binary, geometry, prepared, on_hit);
+        }
+    });
+}
+
 void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
     const Accel& scene = *impl_->scene;
-    const Geometry& geometry = scene.built_geometry();
-    if (!is_valid(ray) || geometry.size() == 0) return;
+    if (!is_valid(ray) || scene.built_geometry().size() == 0) return;
     const ConditionedRays conditioned =
         condition_rays(std::span(&ray, 1), scene.bounds(), scene.scale_exponent());
     const Ray& traced = conditioned.rays.empty() ? ray : conditioned.rays[0];
     const std::size_t first = hits.size();
-    dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
-        const PreparedRay<TriangleTestT> prepared(traced);
-        if (impl_->bvh8 != nullptr) {
-            wide_hits(*impl_->bvh8, geometry, prepared, hits);
-        } else if (impl_->bvh4 != nullptr) {
-            wide_hits(*impl_->bvh4, geometry, prepared, hits);
-        } else {
-            binary_hits(*impl_->binary, geometry, prepared, hits);
-        }
-    });
+    impl_->each_hit(traced, [&](const Hit& hit) { hits.push_back(hit); });
     if (!conditioned.rays.empty()) {
         // Back in the caller's parametrisation, as Accel::intersect maps its hits; one beyond the float
         // range is none.
@@ -325,6 +291,44 @@ void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
     hits.erase(std::unique(begin, hits.end(),
                            [](const Hit& a, const Hit& b) { return a.prim == b.prim && a.t == b.t; }),
                hits.end());
+}
+
+void GeometryQueries::count_crossings(std::span<const Ray> rays, std::span<std::uint32_t> crossings) const {
+    const Accel& scene = *impl_->scene;
+    std::fill_n(crossings.begin(), rays.size(), 0u);
+    if (scene.built_geometry().size() == 0) return;
+    const ConditionedRays conditioned = condition_rays(rays, scene.bounds(), scene.scale_exponent());
+    const std::span<const Ray> traced =
+        conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
+    // A list of t a ray, kept by the thread between calls so that a warm call allocates nothing.
+    thread_local std::vector<std::vector<float>> times;
+    if (times.size() < rays.size()) times.resize(rays.size());
+    const std::span<std::vector<float>> ray_times(times.data(), rays.size());
+    for (std::vector<float>& t : ray_times)
+        t.clear();
+    const auto* packets = dynamic_cast<const Bvh8PacketAccel*>(&scene);
+    if (packets == nullptr || !packets->hit_times(traced, ray_times)) {
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            if (is_valid(traced[i]))
+                impl_->each_hit(traced[i], [&](const Hit& hit) { ray_times[i].push_back(hit.t); });
+        }
+    }
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        std::vector<float>& t = ray_times[i];
+        // all_hits' t: mapped back where the ray was conditioned, one beyond the float range dropped.
+        if (!conditioned.how.empty() &&
+            (conditioned.how[i].shift != 0.0 || conditioned.how[i].exponent != 0)) {
+            std::size_t kept = 0;
+            for (const float conditioned_t : t) {
+                if (const std::optional<float> restored =
+                        restore_t(conditioned_t, conditioned.how[i], rays[i]))
+                    t[kept++] = *restored;
+            }
+            t.resize(kept);
+        }
+        std::sort(t.begin(), t.end());
+        crossings[i] = static_cast<std::uint32_t>(std::unique(t.begin(), t.end()) - t.begin());
+    }
 }
 
 NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {

@@ -16,6 +16,7 @@
 #include "accel/bvh/nearest_point.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "lancer/accel.hpp"
+#include "lancer/generate.hpp"
 #include "support/ray_sets.hpp"
 #include "support/test_scenes.hpp"
 
@@ -210,6 +211,89 @@ TEST(GeometryQueries, WalkTheStructuresOwnBvhWithBruteForcesAnswers) {
             }
         }
     }
+}
+
+// The distinct t among all_hits' hits: the crossings count_crossings must give.
+std::uint32_t distinct_times(const GeometryQueries& queries, const Ray& ray) {
+    std::vector<Hit> hits;
+    queries.all_hits(ray, hits);
+    std::uint32_t distinct = 0;
+    for (std::size_t h = 0; h < hits.size(); ++h)
+        distinct += (h == 0 || hits[h].t != hits[h - 1].t) ? 1 : 0;
+    return distinct;
+}
+
+// Occupancy's rays: one direction for a batch, origins in groups of 64 that lie close together (as the
+// points of a query in a spatial order), so that bvh8_packet walks them in packets. Each group is either
+// random points in a small cube, or points around one triangle: its corners and edge midpoints (rays from the
+// surface), and the same moved back along the direction (rays through its shared vertices and edges).
+std::vector<Ray> crossing_rays(std::span<const Triangle> triangles, const Box3f& bounds, Vec3f direction,
+                               std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::uniform_int_distribution<std::size_t> pick(0, triangles.size() - 1);
+    const Box3f around = bounds.grown(0.1f * length(bounds.extent()));
+    const float cube = 0.02f * length(bounds.extent());
+    std::vector<Ray> rays;
+    for (int group = 0; group < 60; ++group) {
+        const Vec3f corner = around.lo + Vec3f(unit(rng), unit(rng), unit(rng)) * around.extent();
+        const Triangle& tri = triangles[pick(rng)];
+        const Vec3f on_surface[6] = {tri.v0,
+                                     tri.v1,
+                                     tri.v2,
+                                     (tri.v0 + tri.v1) * 0.5f,
+                                     (tri.v1 + tri.v2) * 0.5f,
+                                     (tri.v2 + tri.v0) * 0.5f};
+        for (int k = 0; k < 64; ++k) {
+            Vec3f origin = corner + Vec3f(unit(rng), unit(rng), unit(rng)) * cube;
+            if (group % 2 == 1) origin = on_surface[k % 6] - direction * (k < 12 ? 0.0f : cube * unit(rng));
+            rays.push_back({origin, direction, 0.0f, kInfinity});
+        }
+    }
+    return rays;
+}
+
+// count_crossings counts the distinct t of all_hits' hits, bit for bit, on every structure the queries walk
+// (bvh8_packet's packets, bvh8's and the binary tree's walks), both triangle tests: on a closed icosphere and
+// a knot, on a plane of triangles whose vertices six share, along directions off the axes (packets), along
+// (1, 1, 1) through the plane's edges, along an axis (no packet: an infinite reciprocal), and from origins
+// far away (conditioned rays).
+TEST(GeometryQueries, CountCrossingsCountsAllHitsDistinctTimes) {
+    std::vector<Triangle> closed;
+    make_icosphere(3, Vec3f(0.0f), 1.0f).append_triangles(closed);
+    make_torus_knot(48, 12).append_triangles(closed);
+    std::vector<Triangle> plane = testing::planar_grid_triangles(40);
+    const Vec3f directions[] = {normalize(Vec3f(0.118f, -0.286f, 0.432f)),
+                                normalize(Vec3f(-0.7f, 0.2f, -0.3f)), normalize(Vec3f(1.0f, 1.0f, 1.0f)),
+                                Vec3f(0.0f, 0.0f, -1.0f)};
+    std::size_t checked = 0, odd = 0, several = 0;
+    for (const std::vector<Triangle>* triangles : std::array{&closed, &plane}) {
+        const Geometry geometry{*triangles, {}};
+        for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+            for (const std::string_view name : {"bvh8_packet", "bvh8", "bvh"}) {
+                const std::unique_ptr<Accel> accel = make_accel(name);
+                accel->build(geometry, build_options(test));
+                const GeometryQueries queries(*accel, geometry, test);
+                for (std::uint32_t d = 0; d < std::size(directions); ++d) {
+                    std::vector<Ray> rays =
+                        crossing_rays(*triangles, geometry.bounds(), directions[d], 51 + d);
+                    for (std::size_t i = rays.size() - 64; i < rays.size(); ++i)
+                        rays[i].origin = rays[i].origin + Vec3f(3e30f, -2e30f, 1e30f);  // far origins
+                    std::vector<std::uint32_t> crossings(rays.size());
+                    queries.count_crossings(rays, crossings);
+                    for (std::size_t i = 0; i < rays.size(); ++i) {
+                        ASSERT_EQ(crossings[i], distinct_times(queries, rays[i]))
+                            << name << " direction " << d << " ray " << i;
+                        odd += crossings[i] % 2, several += crossings[i] > 1 ? 1 : 0;
+                    }
+                    checked += rays.size();
+                }
+            }
+        }
+    }
+    EXPECT_EQ(checked, 2u * 2u * 3u * 4u * 60u * 64u);
+    EXPECT_GT(odd, checked / 10);  // origins inside the sphere and the knot
+    EXPECT_GT(several, checked / 10);
 }
 
 }  // namespace
