@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <mutex>
-#include <numeric>
 #include <optional>
 #include <shared_mutex>
 #include <stdexcept>
@@ -31,45 +30,6 @@ std::vector<Vec3f> sample_directions(int samples) {
             Vec3f(component(0.6180339887, 0.1), component(0.4142135623, 0.3), component(0.7320508075, 0.7))));
     }
     return directions;
-}
-
-// The points (rows of x, y, z) in Morton order of the cells of a grid over their box, about four points a
-// cell, made by one counting sort: consecutive points lie close together, as bvh8_packet's packets want
-// their rays' origins. Points in one cell keep their order; a non-finite coordinate counts as the box's low
-// side.
-std::vector<std::size_t> spatial_order(const float* points, std::size_t count) {
-    Vec3f lo(kInfinity, kInfinity, kInfinity), hi(-kInfinity, -kInfinity, -kInfinity);
-    for (std::size_t i = 0; i < count; ++i) {
-        const Vec3f p(points[3 * i], points[3 * i + 1], points[3 * i + 2]);
-        if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) lo = min(lo, p), hi = max(hi, p);
-    }
-    int bits = 0;  // per axis: 8^bits cells
-    while (bits < 7 && (std::size_t{4} << (3 * bits)) < count)
-        ++bits;
-    const float cells = static_cast<float>(1u << bits);
-    const Vec3f extent = hi - lo;
-    // The cell of a coordinate, 0 for NaN and a flat axis, its bits spread to every third place.
-    const auto spread_cell = [&](float x, float low, float width) {
-        const float scaled = width > 0.0f ? (x - low) / width * cells : 0.0f;
-        auto cell = static_cast<std::uint32_t>(std::clamp(scaled, 0.0f, cells - 1.0f));
-        std::uint32_t spread = 0;
-        for (int bit = 0; bit < bits; ++bit)
-            spread |= ((cell >> bit) & 1u) << (3 * bit);
-        return spread;
-    };
-    std::vector<std::uint32_t> cell(count);
-    std::vector<std::size_t> first_of(std::size_t{1} << (3 * bits), 0);
-    for (std::size_t i = 0; i < count; ++i) {
-        cell[i] = spread_cell(points[3 * i], lo.x, extent.x) |
-                  spread_cell(points[3 * i + 1], lo.y, extent.y) << 1 |
-                  spread_cell(points[3 * i + 2], lo.z, extent.z) << 2;
-        ++first_of[cell[i]];
-    }
-    std::exclusive_scan(first_of.begin(), first_of.end(), first_of.begin(), std::size_t{0});
-    std::vector<std::size_t> order(count);
-    for (std::size_t i = 0; i < count; ++i)
-        order[first_of[cell[i]]++] = i;
-    return order;
 }
 
 void check_samples(int nsamples) {
@@ -351,23 +311,16 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
 std::vector<std::uint8_t> RaycastingScene::inside_points(const GeometryQueries& all, const float* points,
                                                          std::size_t count, std::span<const Vec3f> directions,
                                                          int nthreads) {
-    const std::vector<std::size_t> order = spatial_order(points, count);
+    std::vector<Vec3f> origins(count);
+    for (std::size_t i = 0; i < count; ++i)
+        origins[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
     std::vector<std::uint16_t> odd(count, 0);  // votes, at most check_samples' 1024
-    // A chunk starts at a multiple of kChunk, so that its packets of 64 rays are the same whatever the
-    // threads.
-    parallel_for(count, kChunk, nthreads, [&](std::size_t first, std::size_t last) {
-        std::vector<Ray> rays(last - first);
-        std::vector<std::uint32_t> crossings(last - first);
-        for (const Vec3f& direction : directions) {
-            for (std::size_t k = first; k < last; ++k) {
-                const float* p = points + 3 * order[k];
-                rays[k - first] = {{p[0], p[1], p[2]}, direction, 0.0f, kInfinity};
-            }
-            all.count_crossings(rays, crossings);
-            for (std::size_t k = first; k < last; ++k)
-                odd[order[k]] += static_cast<std::uint16_t>(crossings[k - first] % 2);
-        }
-    });
+    std::vector<std::uint32_t> crossings(count);
+    for (const Vec3f& direction : directions) {
+        all.count_crossings(direction, origins, crossings, nthreads);
+        for (std::size_t i = 0; i < count; ++i)
+            odd[i] += static_cast<std::uint16_t>(crossings[i] % 2);
+    }
     std::vector<std::uint8_t> inside(count);
     for (std::size_t i = 0; i < count; ++i)
         inside[i] = 2 * std::size_t{odd[i]} > directions.size() ? 1 : 0;

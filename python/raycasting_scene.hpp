@@ -98,9 +98,8 @@ class RaycastingScene {
     py::array map_points(const py::object& query_points, int nthreads, std::span<const Vec3f> directions,
                          PerPoint&& per_point);
     // Whether each of the `count` points (rows of x, y, z) lies inside the closed meshes: the parity of the
-    // surface crossings of rays from it in `directions` (sample_directions), by majority. The points go in
-    // a spatial order (spatial_order), so that consecutive rays of a direction start close together and the
-    // queries walk them in packets (GeometryQueries::count_crossings). The answers do not depend on it.
+    // surface crossings of rays from it in `directions` (sample_directions), by majority, each direction's
+    // crossings counted for all the points at once (GeometryQueries::count_crossings).
     [[nodiscard]] static std::vector<std::uint8_t> inside_points(const GeometryQueries& all,
                                                                  const float* points, std::size_t count,
                                                                  std::span<const Vec3f> directions,

@@ -40,12 +40,14 @@ class GeometryQueries {
     // least one).
     void all_hits(const Ray& ray, std::vector<Hit>& hits) const;
 
-    // crossings[i]: the number of distinct t among all_hits(rays[i])'s hits, the surfaces the ray crosses
-    // (one where it passes through a shared vertex or edge), for occupancy's parity; crossings holds at least
-    // rays.size() entries. The counts all_hits gives, bit for bit; on `bvh8_packet` consecutive rays that
-    // share a direction and start close together (the points of an occupancy query in a spatial order) are
-    // walked in packets of 64, several times faster.
-    void count_crossings(std::span<const Ray> rays, std::span<std::uint32_t> crossings) const;
+    // crossings[i]: the number of distinct t among the hits all_hits gives the ray {origins[i], direction, 0,
+    // inf}, the surfaces it crosses (one where it passes through a shared vertex or edge), for occupancy's
+    // parity; crossings holds at least origins.size() entries. The same counts bit for bit, on `threads`
+    // threads as parallel_for takes them; from about one ray per four primitives by a grid of the primitives
+    // seen along `direction` (accel/crossing_grid.hpp), made for the call, whose rays test the triangles of
+    // their cell and walk no tree.
+    void count_crossings(const Vec3f& direction, std::span<const Vec3f> origins,
+                         std::span<std::uint32_t> crossings, int threads) const;
 
     // The nearest point of any primitive to `p` (ties by primitive index), computed in double and rounded
     // once; a sphere's is on its surface along the direction from its centre (its centre itself for p there).

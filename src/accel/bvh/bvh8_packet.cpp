@@ -59,12 +59,6 @@ int Bvh8PacketAccel::lane_count() const {
     return kernels_ != nullptr ? kernels_->lane_count : 1;
 }
 
-bool Bvh8PacketAccel::hit_times(std::span<const Ray> rays, std::span<std::vector<float>> times) const {
-    if (kernels_ == nullptr) return false;
-    kernels_->hit_times(target(), rays, times);
-    return true;
-}
-
 void Bvh8PacketAccel::intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
                                       TraversalCounters* counters) const {
     if (kernels_ == nullptr) return single_ray_.intersect(rays, hits, counters);

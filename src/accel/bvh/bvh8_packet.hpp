@@ -12,8 +12,6 @@
 #pragma once
 
 #include <cstdint>
-#include <span>
-#include <vector>
 
 #include "accel/bvh/bvh8_packet_kernel.hpp"
 #include "accel/bvh/bvh_wide.hpp"
@@ -30,10 +28,6 @@ class Bvh8PacketAccel final : public PacketAccel<Bvh8Accel> {
     // kernels, 8 with the AVX2 ones (BuildOptions::isa chooses), 1 in a build without AVX2, which traces
     // every ray through bvh8.
     [[nodiscard]] int lane_count() const;
-    // The t of every hit of ray i, rays conditioned as intersect_batch's are, appended to times[i] in no
-    // order (GeometryQueries::count_crossings): bvh8's all-hits walk's, bit for bit, by packets of 64
-    // consecutive rays where they go together. False, with nothing appended, in a build without AVX2.
-    [[nodiscard]] bool hit_times(std::span<const Ray> rays, std::span<std::vector<float>> times) const;
 
   private:
     void build_structure(const Geometry& geometry, const BuildOptions& options) override;

@@ -125,12 +125,6 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
                     {packet_.direction[0][i], packet_.direction[1][i], packet_.direction[2][i]},
                     packet_.tnear[i],
                     packet_.tfar[i]});
-            if constexpr (kListsHits<Answer>) {
-                HitTimes& times = answers[static_cast<std::size_t>(i)];
-                wide_walk::all_hits<kWidth>(nodes_, blocks_, geometry_, prepared,
-                                            [&](const Hit& hit) { times.push_back(hit.t); }, {node, 0});
-                continue;
-            }
             Hit best = packet_.prim[i] == kNoHit
                            ? Hit{}
                            : Hit{packet_.tlimit[i], packet_.prim[i], packet_.u[i], packet_.v[i]};
@@ -156,16 +150,16 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
 // the interval cull; any other goes in groups of Ops::kWidth rays through the hybrid walk
 // (bvh8_packet_hybrid.hpp), which takes any rays. Answer: Hit (closest hit) or std::uint8_t (occlusion,
 // kAnyHit). docs/accel/stream.md has the measurements behind the spread and the handover.
-// The interval cull takes a packet whose directions agree to half their largest component and whose
-// origins lie within 4 mean leaf diagonals: beyond, its rays share few leaves. The hybrid walks a group
-// together when its origins lie within 32: beyond, they share no more than the root (docs/accel/stream.md).
-constexpr float kAgreeingSpread = 0.5f;
-constexpr float kCoherentLeaves = 4.0f;
-constexpr float kSharedLeaves = 32.0f;
-
 template <class Ops, bool kAnyHit, class Answer>
 void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<Answer> answers,
                  TraversalCounters* counters) {
+    // The interval cull takes a packet whose directions agree to half their largest component and whose
+    // origins lie within 4 mean leaf diagonals: beyond, its rays share few leaves. The hybrid walks a group
+    // together when its origins lie within 32: beyond, they share no more than the root
+    // (docs/accel/stream.md).
+    constexpr float kAgreeingSpread = 0.5f;
+    constexpr float kCoherentLeaves = 4.0f;
+    constexpr float kSharedLeaves = 32.0f;
     const Bvh8Accel& bvh = target.bvh;
     const Geometry& geometry = target.geometry;
     constexpr auto kPacketRays = static_cast<std::size_t>(kPacketSize);
@@ -198,34 +192,6 @@ void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std:
             }
         }
         if constexpr (kCount) *counters += counts;
-    });
-}
-
-// Every hit of each ray, by packets of consecutive rays as trace_batch cuts them, each packet that goes
-// together walked with the interval cull and no hit narrowing any ray's interval; the others ray by ray
-// through bvh8's all-hits walk (the hybrid walk keeps closest hits only).
-template <class Ops>
-void trace_hit_times(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<HitTimes> times) {
-    constexpr auto kPacketRays = static_cast<std::size_t>(kPacketSize);
-    dispatch_policies(target.test, false, [&]<class TriangleTestT, bool>() {
-        TraversalCounters counts;
-        Bvh8PacketTraversal<Ops, TriangleTestT> tracer(target.bvh, target.geometry);
-        for (std::size_t first = 0; first < rays.size(); first += kPacketRays) {
-            const std::size_t count = std::min(kPacketRays, rays.size() - first);
-            const std::span<const Ray> packet_rays = rays.subspan(first, count);
-            const std::span<HitTimes> packet_times = times.subspan(first, count);
-            if (tracer.load(packet_rays) && tracer.directions_agree(kAgreeingSpread) &&
-                tracer.origin_width() <= kCoherentLeaves * target.coherent_width) {
-                tracer.template trace<false, false>(packet_times, counts);
-                continue;
-            }
-            for (std::size_t i = 0; i < count; ++i) {
-                if (!is_valid(packet_rays[i])) continue;
-                wide_walk::all_hits<kWidth>(target.bvh.nodes(), target.bvh.blocks(), target.geometry,
-                                            PreparedRay<TriangleTestT>(packet_rays[i]),
-                                            [&](const Hit& hit) { packet_times[i].push_back(hit.t); });
-            }
-        }
     });
 }
 
@@ -273,15 +239,10 @@ void intersect_packet(const Bvh8PacketTarget& target, const RayPacket& rays, Hit
     trace_soa_packet<KernelOps>(target, rays, hits, counters);
 }
 
-void hit_times(const Bvh8PacketTarget& target, std::span<const Ray> rays, std::span<HitTimes> times) {
-    trace_hit_times<KernelOps>(target, rays, times);
-}
-
 }  // namespace
 
 const Bvh8PacketKernels& bvh8_packet_kernels() {
-    static constexpr Bvh8PacketKernels kernels = {KernelOps::kWidth, intersect, occluded, intersect_packet,
-                                                  hit_times};
+    static constexpr Bvh8PacketKernels kernels = {KernelOps::kWidth, intersect, occluded, intersect_packet};
     return kernels;
 }
 

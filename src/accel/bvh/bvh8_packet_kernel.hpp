@@ -5,7 +5,6 @@
 
 #include <cstdint>
 #include <span>
-#include <vector>
 
 #include "accel/bvh/bvh_wide.hpp"
 #include "core/isa_namespace.hpp"
@@ -34,10 +33,6 @@ struct Bvh8PacketKernels {
                      std::span<std::uint8_t> occluded, TraversalCounters* counters);
     void (*intersect_packet)(const Bvh8PacketTarget& target, const RayPacket& rays, HitPacket& hits,
                              TraversalCounters* counters);
-    // The t of every hit of ray i appended to times[i], in no order, a primitive in several leaves once per
-    // leaf: the hits of bvh8's all-hits walk (wide_walk::all_hits), bit for bit, found by the packets.
-    void (*hit_times)(const Bvh8PacketTarget& target, std::span<const Ray> rays,
-                      std::span<std::vector<float>> times);
 };
 
 // Each compilation's table in its instruction set's namespace (core/isa_namespace.hpp). The namespace of the

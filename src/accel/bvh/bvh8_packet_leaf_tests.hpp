@@ -255,9 +255,6 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
                 answers[static_cast<std::size_t>(i)] = 1;
                 alive_ &= ~(LaneMask{1} << i);
                 found = true;
-            } else if constexpr (kListsHits<Answer>) {
-                answers[static_cast<std::size_t>(i)].push_back(t[lane]);
-                found = true;
             } else if (t[lane] < packet_.tlimit[i] ||
                        (t[lane] == packet_.tlimit[i] && prim < packet_.prim[i])) {
                 packet_.tlimit[i] = t[lane], packet_.prim[i] = prim;
@@ -356,17 +353,6 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
                 alive_ &= ~(static_cast<LaneMask>(hit_lanes) << first);
                 active &= ~hit_lanes;
             }
-        } else if constexpr (kListsHits<Answer>) {
-            // Every hit is kept and none narrows the ray's interval: best.t stays the ray's tfar.
-            found = hit_lanes != 0;
-            if (found) {
-                alignas(64) float t[kLanes];
-                Ops::store(t, result.t);
-                for (unsigned each = hit_lanes; each != 0; each &= each - 1) {
-                    const int lane = std::countr_zero(each);
-                    answers[static_cast<std::size_t>(first + lane)].push_back(t[lane]);
-                }
-            }
         } else {
             // Without a branch: whether a lane hits is data the predictor cannot learn.
             found = hit_lanes != 0;
@@ -410,11 +396,6 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
             if (!occludes(geometry_, prim, prepared)) return false;
             answers[static_cast<std::size_t>(i)] = 1;
             alive_ &= ~(LaneMask{1} << i);
-            return true;
-        } else if constexpr (kListsHits<Answer>) {
-            Hit hit;
-            if (!intersect_primitive(geometry_, prim, prepared, hit)) return false;
-            answers[static_cast<std::size_t>(i)].push_back(hit.t);
             return true;
         } else {
             Hit best = packet_.prim[i] == kNoHit

@@ -14,7 +14,6 @@
 #include <limits>
 #include <span>
 #include <type_traits>
-#include <vector>
 
 #include "accel/bvh/bvh8_packet_kernel.hpp"
 #include "accel/bvh/bvh_wide.hpp"
@@ -38,12 +37,6 @@ using LaneMask = std::uint64_t;  // bit i: ray i of the packet
 // A lane's best primitive before any hit: above every index, so that closer()'s tie rule (the smaller index
 // wins at equal t) accepts a first hit at exactly tfar, as it does against a missing Hit.
 constexpr std::int32_t kNoHit = std::numeric_limits<std::int32_t>::max();
-
-// An answer of the all-hits walk (Bvh8PacketKernels::hit_times): the t of each hit of one ray. The walk's
-// answer type says which of the three it is: closest hit (Hit), occlusion (std::uint8_t) or all hits.
-using HitTimes = std::vector<float>;
-template <class Answer>
-inline constexpr bool kListsHits = std::is_same_v<Answer, HitTimes>;
 
 // The watertight test's axis permutations (Watertight::permutation): six codes, 2 kz + (d[kz] < 0).
 constexpr int kPermutations = 6;

@@ -136,12 +136,11 @@ bool traverse(const std::vector<WideBvhNode<W>>& nodes,
 // Every hit of the ray, by on_hit(hit), in no particular order: every child box the ray crosses within
 // [tnear, tfar] is entered (nothing is culled by a hit), a leaf's triangles a block at a time with the block
 // kernel (the scalar kernel's bits) and its scalar lanes and spheres by the scalar test. A tree with spatial
-// splits reports a primitive once per leaf that holds it. The walk starts at `start`, the root or the subtree
-// where bvh8_packet's crossing walk hands a ray over.
+// splits reports a primitive once per leaf that holds it.
 template <int W, class TriangleTestT, class OnHit>
 void all_hits(const std::vector<WideBvhNode<W>>& nodes,
               const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
-              const PreparedRay<TriangleTestT>& prepared, OnHit&& on_hit, ChildRef start = {0, 0}) {
+              const PreparedRay<TriangleTestT>& prepared, OnHit&& on_hit) {
     constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
     if (nodes.empty()) return;
     const Ray& ray = prepared.ray;
@@ -150,7 +149,7 @@ void all_hits(const std::vector<WideBvhNode<W>>& nodes,
     // A popped node pushes at most W children: the stack grows by at most W - 1 a level.
     std::array<ChildRef, kStackSize<W>> stack;
     int stack_size = 0;
-    stack[stack_size++] = start;
+    stack[stack_size++] = {0, 0};  // the root
     while (stack_size > 0) {
         const ChildRef current = stack[--stack_size];
         if (current.prim_count == 0) {
@@ -164,22 +163,8 @@ void all_hits(const std::vector<WideBvhNode<W>>& nodes,
             continue;
         }
         const std::uint32_t end = current.child + block_count(current.prim_count, kLanes);
-        for (std::uint32_t b = current.child; b < end; ++b) {
-            const typename WideBvhAccel<W>::Block& block = blocks[b];
-            BlockHits<kLanes> found;
-            block_ray.kernel.test(block, ray.tnear, ray.tfar, found);
-            for (unsigned lanes = found.hit_lanes; lanes != 0; lanes &= lanes - 1) {
-                const int lane = std::countr_zero(lanes);
-                on_hit(Hit{found.t[lane], static_cast<std::int32_t>(block.prim[lane]), found.u[lane],
-                           found.v[lane]});
-            }
-            for (unsigned lanes = scalar_lanes(block, geometry, block_ray.has_spheres, found.scalar_lanes);
-                 lanes != 0; lanes &= lanes - 1) {
-                Hit hit;
-                if (intersect_primitive(geometry, block.prim[std::countr_zero(lanes)], prepared, hit))
-                    on_hit(hit);
-            }
-        }
+        for (std::uint32_t b = current.child; b < end; ++b)
+            each_block_hit(geometry, blocks[b], block_ray, on_hit);
     }
 }
 

@@ -5,18 +5,21 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <optional>
 #include <span>
 #include <vector>
 
+#include "accel/build_util.hpp"
 #include "accel/bvh/bvh.hpp"
-#include "accel/bvh/bvh8_packet.hpp"
 #include "accel/bvh/bvh_wide.hpp"
 #include "accel/bvh/bvh_wide_walk.hpp"
 #include "accel/bvh/nearest_point.hpp"
+#include "accel/crossing_grid.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "accel/simd_float.hpp"
 #include "core/ray_conditioning.hpp"
+#include "lancer/parallel.hpp"
 
 namespace lancer {
 
@@ -293,42 +296,103 @@ void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
                hits.end());
 }
 
-void GeometryQueries::count_crossings(std::span<const Ray> rays, std::span<std::uint32_t> crossings) const {
+namespace {
+
+// count_crossings' ray: its origin, the grid's cell of it, its index among the origins.
+struct RayInCell {
+    Vec3f origin;
+    std::uint32_t cell;
+    std::size_t index;
+};
+
+}  // namespace
+
+void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Vec3f> origins,
+                                      std::span<std::uint32_t> crossings, int threads) const {
     const Accel& scene = *impl_->scene;
-    std::fill_n(crossings.begin(), rays.size(), 0u);
-    if (scene.built_geometry().size() == 0) return;
-    const ConditionedRays conditioned = condition_rays(rays, scene.bounds(), scene.scale_exponent());
-    const std::span<const Ray> traced =
-        conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
-    // A list of t a ray, kept by the thread between calls so that a warm call allocates nothing.
-    thread_local std::vector<std::vector<float>> times;
-    if (times.size() < rays.size()) times.resize(rays.size());
-    const std::span<std::vector<float>> ray_times(times.data(), rays.size());
-    for (std::vector<float>& t : ray_times)
-        t.clear();
-    const auto* packets = dynamic_cast<const Bvh8PacketAccel*>(&scene);
-    if (packets == nullptr || !packets->hit_times(traced, ray_times)) {
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            if (is_valid(traced[i]))
-                impl_->each_hit(traced[i], [&](const Hit& hit) { ray_times[i].push_back(hit.t); });
+    const Geometry& geometry = scene.built_geometry();
+    std::fill_n(crossings.begin(), origins.size(), 0u);
+    if (geometry.size() == 0) return;
+    // The grid costs a pass over the triangles and their cells; a ray through it a few block tests, where a
+    // tree walk costs several times that: it pays from about one ray per four primitives. A scene scaled to
+    // the structures' range (Accel::scale_exponent) conditions every ray: those walk the tree.
+    std::optional<CrossingGrid> grid;
+    if (scene.scale_exponent() == 0 && 4 * origins.size() >= geometry.size())
+        grid.emplace(geometry, scene.built_bounds(), direction, geometry.size() / 2, threads);
+    // The rays in the order of their cells, so that a cell's triangles are gathered once for the rays in it,
+    // origins moved with their cells, so that the rays read them in turn (each read through an index is a
+    // cache miss): a radix sort, 11 bits of the cell a pass, each pass scattering into 2048 runs.
+    constexpr std::size_t kRaysPerTask = 1024;
+    std::vector<RayInCell> by_cell(origins.size());
+    parallel_for(origins.size(), kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
+        for (std::size_t i = first; i < last; ++i)
+            by_cell[i] = {origins[i], grid ? static_cast<std::uint32_t>(grid->cell_of(origins[i])) : 0u, i};
+    });
+    if (grid) {
+        constexpr int kRadixBits = 11;
+        constexpr std::size_t kRuns = std::size_t{1} << kRadixBits;
+        std::vector<RayInCell> scratch(origins.size());
+        for (int shift = 0; (grid->cell_count() - 1) >> shift != 0; shift += kRadixBits) {
+            std::array<std::size_t, kRuns + 1> next{};
+            for (const RayInCell& ray : by_cell)
+                ++next[((ray.cell >> shift) & (kRuns - 1)) + 1];
+            std::inclusive_scan(next.begin(), next.end(), next.begin());
+            for (const RayInCell& ray : by_cell)
+                scratch[next[(ray.cell >> shift) & (kRuns - 1)]++] = ray;
+            by_cell.swap(scratch);
         }
     }
-    for (std::size_t i = 0; i < rays.size(); ++i) {
-        std::vector<float>& t = ray_times[i];
-        // all_hits' t: mapped back where the ray was conditioned, one beyond the float range dropped.
-        if (!conditioned.how.empty() &&
-            (conditioned.how[i].shift != 0.0 || conditioned.how[i].exponent != 0)) {
-            std::size_t kept = 0;
-            for (const float conditioned_t : t) {
-                if (const std::optional<float> restored =
-                        restore_t(conditioned_t, conditioned.how[i], rays[i]))
-                    t[kept++] = *restored;
+    parallel_for(origins.size(), kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
+        std::vector<Ray> rays(last - first);
+        for (std::size_t k = first; k < last; ++k)
+            rays[k - first] = {by_cell[k].origin, direction, 0.0f, kInfinity};
+        const ConditionedRays conditioned = condition_rays(rays, scene.bounds(), scene.scale_exponent());
+        std::vector<float> times;
+        std::vector<Bvh8Accel::Block> blocks;
+        std::size_t blocks_cell = std::numeric_limits<std::size_t>::max();
+        dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
+            for (std::size_t k = 0; k < rays.size(); ++k) {
+                const bool moved = !conditioned.rays.empty() &&
+                                   (conditioned.how[k].shift != 0.0 || conditioned.how[k].exponent != 0);
+                const Ray& traced = moved ? conditioned.rays[k] : rays[k];
+                const bool by_grid = grid && !moved;
+                const std::size_t cell = by_cell[first + k].cell;
+                // A ray whose cell lists nothing crosses nothing; an invalid one hits nothing.
+                if ((by_grid && grid->primitives(cell).empty() && grid->every_ray().empty()) ||
+                    !is_valid(traced))
+                    continue;
+                times.clear();
+                const auto add = [&](const Hit& hit) { times.push_back(hit.t); };
+                if (by_grid) {
+                    // The cell's primitives in blocks, as a leaf's, once for the cell's rays.
+                    if (cell != blocks_cell) {
+                        blocks.clear();
+                        append_leaf_blocks(geometry, grid->primitives(cell), blocks);
+                        append_leaf_blocks(geometry, grid->every_ray(), blocks);
+                        blocks_cell = cell;
+                    }
+                    const PreparedRay<TriangleTestT> prepared(traced);
+                    const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, geometry);
+                    for (const Bvh8Accel::Block& block : blocks)
+                        each_block_hit(geometry, block, block_ray, add);
+                } else {
+                    impl_->each_hit(traced, add);
+                }
+                if (moved) {
+                    // all_hits' t: back in the caller's parametrisation, one beyond the float range dropped.
+                    std::size_t kept = 0;
+                    for (const float t : times) {
+                        if (const std::optional<float> restored = restore_t(t, conditioned.how[k], rays[k]))
+                            times[kept++] = *restored;
+                    }
+                    times.resize(kept);
+                }
+                std::sort(times.begin(), times.end());
+                crossings[by_cell[first + k].index] =
+                    static_cast<std::uint32_t>(std::unique(times.begin(), times.end()) - times.begin());
             }
-            t.resize(kept);
-        }
-        std::sort(t.begin(), t.end());
-        crossings[i] = static_cast<std::uint32_t>(std::unique(t.begin(), t.end()) - t.begin());
-    }
+        });
+    });
 }
 
 NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
