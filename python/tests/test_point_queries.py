@@ -144,8 +144,9 @@ def first_sample_direction():
 
 
 def test_occupancy_is_the_parity_of_the_listed_crossings(mesh_and_points):
-    """Occupancy counts crossings by closest hits; the listing counts every hit: the same parity, hits at one
-    t one crossing, on a closed mesh and on an open one (a sphere without some triangles)."""
+    """Occupancy counts crossings by a grid of the triangles along its direction; the listing walks the tree:
+    the same parity, hits at one t one crossing, on a closed mesh and on an open one (a sphere without some
+    triangles)."""
     (vertices, triangles), points = mesh_and_points
     open_mesh = (vertices, triangles[::3].copy())
     direction = first_sample_direction()
