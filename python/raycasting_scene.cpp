@@ -341,11 +341,12 @@ py::array RaycastingScene::map_points(const py::object& query_points, int nthrea
         const std::shared_lock lock = prepared(kQueries);
         const GeometryQueries& all = queries();
         const std::vector<std::uint8_t> inside = directions.empty()
-                                                     ? std::vector<std::uint8_t>(count, 0)
+                                                     ? std::vector<std::uint8_t>()
                                                      : inside_points(all, q, count, directions, nthreads);
         parallel_for(count, kChunk, nthreads, [&](std::size_t first, std::size_t last) {
             for (std::size_t i = first; i < last; ++i)
-                out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]), inside[i] != 0);
+                out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]),
+                                   !inside.empty() && inside[i] != 0);
         });
     }
     return open3d_like(answers);
