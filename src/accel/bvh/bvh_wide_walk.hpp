@@ -1,7 +1,7 @@
 // The single-ray walk of the wide BVHs (bvh_wide.hpp): bvh4 and bvh8 trace with it, and bvh8_packet's
 // hybrid walk (bvh8_packet_hybrid.hpp) hands each ray of a thinned packet to it at the subtree where the
-// packet parted. Beside it, the walk to every hit of a ray (GeometryQueries::all_hits). Both compilations of the packet kernel include it, so its code is in the instruction
-// set's namespace (core/isa_namespace.hpp).
+// packet parted. Beside it, the walk to every hit of a ray (GeometryQueries::all_hits). Both compilations of
+// the packet kernel include it, so its code is in the instruction set's namespace (core/isa_namespace.hpp).
 #pragma once
 
 #include <array>
