@@ -27,35 +27,37 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
     const auto l1 = [](const Vec3d& a) { return std::fabs(a.x) + std::fabs(a.y) + std::fabs(a.z); };
     const double grow_u = tolerance * l1(axis_u_) + rounding, grow_v = tolerance * l1(axis_v_) + rounding;
 
-    // Each triangle's shadow, in parallel; the cells wait for the shadows' union.
+    // Each triangle's shadow, made twice in parallel: for the shadows' union, which sizes the cells, then for
+    // its cells. Kept in between, the shadows would be an array of 32 bytes a triangle, whose fresh pages
+    // cost more than the projections.
     struct Shadow {
         double lo_u, hi_u, lo_v, hi_v;
         [[nodiscard]] bool finite() const {
             return std::isfinite(lo_u) && std::isfinite(hi_u) && std::isfinite(lo_v) && std::isfinite(hi_v);
         }
+        void extend(const Shadow& s) {
+            lo_u = std::min(lo_u, s.lo_u), hi_u = std::max(hi_u, s.hi_u);
+            lo_v = std::min(lo_v, s.lo_v), hi_v = std::max(hi_v, s.hi_v);
+        }
     };
+    const auto shadow_of = [&](const Triangle& tri) {
+        const Plane p0 = project(tri.v0), p1 = project(tri.v1), p2 = project(tri.v2);
+        return Shadow{std::min({p0.u, p1.u, p2.u}) - grow_u, std::max({p0.u, p1.u, p2.u}) + grow_u,
+                      std::min({p0.v, p1.v, p2.v}) - grow_v, std::max({p0.v, p1.v, p2.v}) + grow_v};
+    };
+    constexpr Shadow kNone{kInfinity, -kInfinity, kInfinity, -kInfinity};
     const std::size_t triangles = geometry.triangles.size();
-    std::vector<Shadow> shadows(triangles);
     constexpr std::size_t kTrianglesPerTask = 16384;
+    std::vector<Shadow> task_unions((triangles + kTrianglesPerTask - 1) / kTrianglesPerTask, kNone);
     parallel_for(triangles, kTrianglesPerTask, threads, [&](std::size_t first, std::size_t last) {
+        Shadow& all = task_unions[first / kTrianglesPerTask];
         for (std::size_t i = first; i < last; ++i) {
-            const Triangle& tri = geometry.triangles[i];
-            const Plane p0 = project(tri.v0), p1 = project(tri.v1), p2 = project(tri.v2);
-            shadows[i] = {std::min({p0.u, p1.u, p2.u}) - grow_u, std::max({p0.u, p1.u, p2.u}) + grow_u,
-                          std::min({p0.v, p1.v, p2.v}) - grow_v, std::max({p0.v, p1.v, p2.v}) + grow_v};
+            if (const Shadow s = shadow_of(geometry.triangles[i]); s.finite()) all.extend(s);
         }
     });
-    Shadow all{kInfinity, -kInfinity, kInfinity, -kInfinity};
-    for (std::size_t i = 0; i < triangles; ++i) {
-        const Shadow& s = shadows[i];
-        if (s.finite())
-            all = {std::min(all.lo_u, s.lo_u), std::max(all.hi_u, s.hi_u), std::min(all.lo_v, s.lo_v),
-                   std::max(all.hi_v, s.hi_v)};
-        else
-            every_ray_.push_back(static_cast<std::uint32_t>(i));
-    }
-    for (std::size_t s = 0; s < geometry.spheres.size(); ++s)
-        every_ray_.push_back(static_cast<std::uint32_t>(triangles + s));
+    Shadow all = kNone;
+    for (const Shadow& task_union : task_unions)
+        all.extend(task_union);
     // Square cells, about `cells` of them over the union of the shadows.
     cells = std::max<std::size_t>(cells, 1);
     if (all.lo_u <= all.hi_u) {
@@ -75,7 +77,7 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
     std::vector<Span> spans(triangles);
     parallel_for(triangles, kTrianglesPerTask, threads, [&](std::size_t first, std::size_t last) {
         for (std::size_t i = first; i < last; ++i) {
-            const Shadow& s = shadows[i];
+            const Shadow s = shadow_of(geometry.triangles[i]);
             spans[i] = s.finite() ? Span{static_cast<std::uint32_t>(column(s.lo_u)),
                                          static_cast<std::uint32_t>(column(s.hi_u)),
                                          static_cast<std::uint32_t>(row(s.lo_v)),
@@ -83,6 +85,11 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
                                   : Span{1, 0, 1, 0};
         }
     });
+    for (std::size_t i = 0; i < triangles; ++i) {
+        if (spans[i].c1 < spans[i].c0) every_ray_.push_back(static_cast<std::uint32_t>(i));
+    }
+    for (std::size_t s = 0; s < geometry.spheres.size(); ++s)
+        every_ray_.push_back(static_cast<std::uint32_t>(triangles + s));
     const auto each_cell = [&](const Span& span, auto&& body) {
         for (std::size_t r = span.r0; r <= span.r1; ++r) {
             for (std::size_t c = span.c0; c <= span.c1; ++c)
