@@ -308,46 +308,52 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
                     "primitive_normals"_a = open3d_like(normals));
 }
 
-bool RaycastingScene::inside(const GeometryQueries& all, const Vec3f& p,
-                             std::span<const Vec3f> directions) const {
-    std::size_t odd = 0;
-    // One buffer a thread rather than an allocation and its growth a point.
-    thread_local std::vector<Hit> hits;
+std::vector<std::uint8_t> RaycastingScene::inside_points(const GeometryQueries& all, const float* points,
+                                                         std::size_t count, std::span<const Vec3f> directions,
+                                                         int nthreads) {
+    std::vector<Vec3f> origins(count);
+    for (std::size_t i = 0; i < count; ++i)
+        origins[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
+    std::vector<std::uint16_t> odd(count, 0);  // votes, at most check_samples' 1024
+    std::vector<std::uint32_t> crossings(count);
     for (const Vec3f& direction : directions) {
-        hits.clear();
-        all.all_hits({p, direction, 0.0f, kInfinity}, hits);
-        // A crossing through a shared vertex or edge is hit on each triangle that holds it, at the same t:
-        // one crossing.
-        std::size_t crossings = 0;
-        for (std::size_t h = 0; h < hits.size(); ++h)
-            crossings += (h == 0 || hits[h].t != hits[h - 1].t) ? 1 : 0;
-        odd += crossings % 2;
+        all.count_crossings(direction, origins, crossings, nthreads);
+        for (std::size_t i = 0; i < count; ++i)
+            odd[i] += static_cast<std::uint16_t>(crossings[i] % 2);
     }
-    return 2 * odd > directions.size();
+    std::vector<std::uint8_t> inside(count);
+    for (std::size_t i = 0; i < count; ++i)
+        inside[i] = 2 * std::size_t{odd[i]} > directions.size() ? 1 : 0;
+    return inside;
 }
 
 template <class PerPoint>
-py::array RaycastingScene::map_points(const py::object& query_points, int nthreads, PerPoint&& per_point) {
+py::array RaycastingScene::map_points(const py::object& query_points, int nthreads,
+                                      std::span<const Vec3f> directions, PerPoint&& per_point) {
     const auto rows = float_rows(query_points, "query_points", 3);
     check_threads(nthreads);
     py::array_t<float> answers(answer_shape(rows));
     float* out = answers.mutable_data();
     const float* q = rows.data();
+    const auto count = static_cast<std::size_t>(rows.size() / 3);
     {
         py::gil_scoped_release released;
         const std::shared_lock lock = prepared(kQueries);
         const GeometryQueries& all = queries();
-        parallel_for(static_cast<std::size_t>(rows.size() / 3), kChunk, nthreads,
-                     [&](std::size_t first, std::size_t last) {
-                         for (std::size_t i = first; i < last; ++i)
-                             out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]));
-                     });
+        const std::vector<std::uint8_t> inside = directions.empty()
+                                                     ? std::vector<std::uint8_t>()
+                                                     : inside_points(all, q, count, directions, nthreads);
+        parallel_for(count, kChunk, nthreads, [&](std::size_t first, std::size_t last) {
+            for (std::size_t i = first; i < last; ++i)
+                out[i] = per_point(all, Vec3f(q[3 * i], q[3 * i + 1], q[3 * i + 2]),
+                                   !inside.empty() && inside[i] != 0);
+        });
     }
     return open3d_like(answers);
 }
 
 py::array RaycastingScene::compute_distance(const py::object& query_points, int nthreads) {
-    return map_points(query_points, nthreads, [](const GeometryQueries& all, const Vec3f& p) {
+    return map_points(query_points, nthreads, {}, [](const GeometryQueries& all, const Vec3f& p, bool) {
         return all.nearest_point(p).distance;
     });
 }
@@ -355,19 +361,19 @@ py::array RaycastingScene::compute_distance(const py::object& query_points, int 
 py::array RaycastingScene::compute_occupancy(const py::object& query_points, int nthreads, int nsamples) {
     check_samples(nsamples);
     const std::vector<Vec3f> directions = sample_directions(nsamples);
-    return map_points(query_points, nthreads, [&](const GeometryQueries& all, const Vec3f& p) {
-        return inside(all, p, directions) ? 1.0f : 0.0f;
-    });
+    return map_points(query_points, nthreads, directions,
+                      [](const GeometryQueries&, const Vec3f&, bool inside) { return inside ? 1.0f : 0.0f; });
 }
 
 py::array RaycastingScene::compute_signed_distance(const py::object& query_points, int nthreads,
                                                    int nsamples) {
     check_samples(nsamples);
     const std::vector<Vec3f> directions = sample_directions(nsamples);
-    return map_points(query_points, nthreads, [&](const GeometryQueries& all, const Vec3f& p) {
-        const float distance = all.nearest_point(p).distance;
-        return inside(all, p, directions) ? -distance : distance;
-    });
+    return map_points(query_points, nthreads, directions,
+                      [](const GeometryQueries& all, const Vec3f& p, bool inside) {
+                          const float distance = all.nearest_point(p).distance;
+                          return inside ? -distance : distance;
+                      });
 }
 
 void RaycastingScene::save_structure(const std::filesystem::path& path) {

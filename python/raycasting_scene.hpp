@@ -91,13 +91,19 @@ class RaycastingScene {
     // The built state, under prepared()'s lock.
     [[nodiscard]] const Accel& committed() const { return world_->accel(); }
     [[nodiscard]] const GeometryQueries& queries() const { return *queries_; }
-    // A float per query point (..., 3): per_point(queries, p) on nthreads threads, under the lock.
+    // A float per query point (..., 3): per_point(queries, p, inside) on nthreads threads, under the lock,
+    // where `inside` is whether p lies inside the closed meshes by `directions` (inside_points), all false
+    // for no directions.
     template <class PerPoint>
-    py::array map_points(const py::object& query_points, int nthreads, PerPoint&& per_point);
-    // Whether p lies inside the closed meshes: the parity of the surface crossings of rays from p in
-    // `directions` (sample_directions), by majority.
-    [[nodiscard]] bool inside(const GeometryQueries& all, const Vec3f& p,
-                              std::span<const Vec3f> directions) const;
+    py::array map_points(const py::object& query_points, int nthreads, std::span<const Vec3f> directions,
+                         PerPoint&& per_point);
+    // Whether each of the `count` points (rows of x, y, z) lies inside the closed meshes: the parity of the
+    // surface crossings of rays from it in `directions` (sample_directions), by majority, each direction's
+    // crossings counted for all the points at once (GeometryQueries::count_crossings).
+    [[nodiscard]] static std::vector<std::uint8_t> inside_points(const GeometryQueries& all,
+                                                                 const float* points, std::size_t count,
+                                                                 std::span<const Vec3f> directions,
+                                                                 int nthreads);
     // The unit geometric normal of each triangle, by global index, (v1 - v0) x (v2 - v0) as Embree's, laid
     // out as NormalTable says: made once after each change of the triangles (prepare), so that an answer
     // loads 12 bytes instead of its triangle's 36 and a square root.

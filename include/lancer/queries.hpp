@@ -3,7 +3,9 @@
 // bvh_packet, bvh4, bvh8, bvh8_packet), else over a binary SAH BVH of the geometry built once.
 #pragma once
 
+#include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "lancer/accel.hpp"
@@ -37,6 +39,15 @@ class GeometryQueries {
     // Two triangles that share an edge the ray crosses may both be hit (the watertight test guarantees at
     // least one).
     void all_hits(const Ray& ray, std::vector<Hit>& hits) const;
+
+    // crossings[i]: the number of distinct t among the hits all_hits gives the ray {origins[i], direction, 0,
+    // inf}, the surfaces it crosses (one where it passes through a shared vertex or edge), for occupancy's
+    // parity; crossings holds at least origins.size() entries. The same counts bit for bit, on `threads`
+    // threads as parallel_for takes them; from about one ray per four primitives by a grid of the primitives
+    // seen along `direction` (accel/crossing_grid.hpp), made for the call, whose rays test the triangles of
+    // their cell and walk no tree.
+    void count_crossings(const Vec3f& direction, std::span<const Vec3f> origins,
+                         std::span<std::uint32_t> crossings, int threads) const;
 
     // The nearest point of any primitive to `p` (ties by primitive index), computed in double and rounded
     // once; a sphere's is on its surface along the direction from its centre (its centre itself for p there).

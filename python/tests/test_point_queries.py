@@ -144,8 +144,9 @@ def first_sample_direction():
 
 
 def test_occupancy_is_the_parity_of_the_listed_crossings(mesh_and_points):
-    """Occupancy counts crossings by closest hits; the listing counts every hit: the same parity, hits at one
-    t one crossing, on a closed mesh and on an open one (a sphere without some triangles)."""
+    """Occupancy counts crossings by a grid of the triangles along its direction; the listing walks the tree:
+    the same parity, hits at one t one crossing, on a closed mesh and on an open one (a sphere without some
+    triangles)."""
     (vertices, triangles), points = mesh_and_points
     open_mesh = (vertices, triangles[::3].copy())
     direction = first_sample_direction()
@@ -160,3 +161,38 @@ def test_occupancy_is_the_parity_of_the_listed_crossings(mesh_and_points):
                 odd[i] = len(np.unique(t)) % 2 == 1
             assert odd.any() and not odd.all()
             assert np.array_equal(built.compute_occupancy(points) == 1, odd), accel
+
+
+def test_occupancy_through_shared_vertices_and_edges_whatever_the_order_and_threads(mesh_and_points):
+    """Dense clusters of points, which compute_occupancy walks in packets of 64 rays, and points moved back
+    from every vertex and edge midpoint along the first sample direction (rays through shared vertices and
+    edges): the parity of the distinct listed t, on every structure, whatever the points' order and the
+    threads."""
+    (vertices, triangles), _ = mesh_and_points
+    direction = first_sample_direction()
+    corners = vertices[triangles]
+    on_surface = np.vstack([vertices, (corners[:, 0] + corners[:, 1]) / 2])
+    rng = np.random.default_rng(9)
+    centres = rng.uniform(-1.5, 2.5, (40, 3))
+    points = np.vstack([
+        (centres[:, None, :] + rng.uniform(0, 0.05, (40, 256, 3))).reshape(-1, 3),
+        on_surface - np.float32(0.3) * direction,
+        on_surface - np.float32(1e-3) * direction,
+    ]).astype(np.float32)
+    rays = np.hstack([points, np.broadcast_to(direction, points.shape)]).astype(np.float32)
+    shuffled = rng.permutation(len(points))
+    for watertight in (False, True):
+        lister = lancer.RaycastingScene(accel="bvh", watertight=watertight)
+        lister.add_triangles(vertices, triangles)
+        listed = lister.list_intersections(rays)
+        splits, t = listed["ray_splits"], listed["t_hit"]
+        odd = np.array([len(np.unique(t[splits[i]:splits[i + 1]])) % 2 for i in range(len(points))], bool)
+        assert odd.sum() > 1000 and not odd.all()
+        for accel in ("bvh8_packet", "bvh8", "bvh"):
+            built = lancer.RaycastingScene(accel=accel, watertight=watertight)
+            built.add_triangles(vertices, triangles)
+            for nthreads in (1, 2):
+                occupancy = built.compute_occupancy(points, nthreads=nthreads)
+                assert np.array_equal(occupancy == 1, odd), (accel, watertight, nthreads)
+                assert np.array_equal(built.compute_occupancy(points[shuffled], nthreads=nthreads),
+                                      occupancy[shuffled]), (accel, watertight, nthreads)

@@ -1,7 +1,7 @@
 // The single-ray walk of the wide BVHs (bvh_wide.hpp): bvh4 and bvh8 trace with it, and bvh8_packet's
 // interval cull (bvh8_packet_kernel.cpp) hands each ray of a thinned packet to it at the subtree where the
-// packet parted. Both compilations of the packet kernel include it, so its code is in the instruction
-// set's namespace (core/isa_namespace.hpp).
+// packet parted. Beside it, the walk to every hit of a ray (GeometryQueries::all_hits). Both compilations of
+// the packet kernel include it, so its code is in the instruction set's namespace (core/isa_namespace.hpp).
 #pragma once
 
 #include <array>
@@ -131,6 +131,41 @@ bool traverse(const std::vector<WideBvhNode<W>>& nodes,
         return traverse_from<W, kAnyHit, kCount, true>(nodes, blocks, geometry, prepared, best, counters,
                                                        start);
     return traverse_from<W, kAnyHit, kCount, false>(nodes, blocks, geometry, prepared, best, counters, start);
+}
+
+// Every hit of the ray, by on_hit(hit), in no particular order: every child box the ray crosses within
+// [tnear, tfar] is entered (nothing is culled by a hit), a leaf's triangles a block at a time with the block
+// kernel (the scalar kernel's bits) and its scalar lanes and spheres by the scalar test. A tree with spatial
+// splits reports a primitive once per leaf that holds it.
+template <int W, class TriangleTestT, class OnHit>
+void all_hits(const std::vector<WideBvhNode<W>>& nodes,
+              const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
+              const PreparedRay<TriangleTestT>& prepared, OnHit&& on_hit) {
+    constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
+    if (nodes.empty()) return;
+    const Ray& ray = prepared.ray;
+    const WideRay wide_ray{SlabRay(ray)};
+    const BlockRay<TriangleTestT, kLanes> block_ray(prepared, geometry);
+    // A popped node pushes at most W children: the stack grows by at most W - 1 a level.
+    std::array<ChildRef, kStackSize<W>> stack;
+    int stack_size = 0;
+    stack[stack_size++] = {0, 0};  // the root
+    while (stack_size > 0) {
+        const ChildRef current = stack[--stack_size];
+        if (current.prim_count == 0) {
+            const WideBvhNode<W>& node = nodes[current.child];
+            alignas(32) float entry[W];
+            for (unsigned mask = intersect_children<W>(node, wide_ray, ray.tnear, ray.tfar, entry); mask != 0;
+                 mask &= mask - 1) {
+                const int slot = std::countr_zero(mask);
+                stack[stack_size++] = {node.child[slot], node.prim_count[slot]};
+            }
+            continue;
+        }
+        const std::uint32_t end = current.child + block_count(current.prim_count, kLanes);
+        for (std::uint32_t b = current.child; b < end; ++b)
+            each_block_hit(geometry, blocks[b], block_ray, on_hit);
+    }
 }
 
 }  // namespace wide_walk

@@ -5,16 +5,21 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <optional>
 #include <span>
 #include <vector>
 
+#include "accel/build_util.hpp"
 #include "accel/bvh/bvh.hpp"
 #include "accel/bvh/bvh_wide.hpp"
+#include "accel/bvh/bvh_wide_walk.hpp"
 #include "accel/bvh/nearest_point.hpp"
+#include "accel/crossing_grid.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "accel/simd_float.hpp"
 #include "core/ray_conditioning.hpp"
+#include "lancer/parallel.hpp"
 
 namespace lancer {
 
@@ -30,6 +35,10 @@ struct GeometryQueries::Impl {
     const Bvh4Accel* bvh4 = nullptr;
     const Bvh8Accel* bvh8 = nullptr;
     bool walks_accel = false;
+
+    // on_hit(hit) for every hit of `traced`, a valid ray conditioned for `scene`, in no order.
+    template <class OnHit>
+    void each_hit(const Ray& traced, OnHit&& on_hit) const;
 };
 
 GeometryQueries::GeometryQueries(const Geometry& geometry, TriangleTest test)
@@ -69,9 +78,9 @@ namespace {
 // Every primitive the ray hits, by the binary tree: every node whose box the ray crosses within [tnear,
 // tfar], in any order. Both children of a node may wait, so the stack holds at most one node per level and
 // the root.
-template <class TriangleTestT>
+template <class TriangleTestT, class OnHit>
 void binary_hits(const BvhAccel& bvh, const Geometry& geometry, const PreparedRay<TriangleTestT>& prepared,
-                 std::vector<Hit>& hits) {
+                 OnHit&& on_hit) {
     const std::vector<BvhNode>& nodes = bvh.nodes();
     const std::vector<std::uint32_t>& prim_indices = bvh.prim_indices();
     const Ray& ray = prepared.ray;
@@ -86,58 +95,13 @@ void binary_hits(const BvhAccel& bvh, const Geometry& geometry, const PreparedRa
         if (node.is_leaf()) {
             for (std::uint32_t i = node.offset; i < node.offset + node.prim_count; ++i) {
                 Hit hit;
-                if (intersect_primitive(geometry, prim_indices[i], prepared, hit)) hits.push_back(hit);
+                if (intersect_primitive(geometry, prim_indices[i], prepared, hit)) on_hit(hit);
             }
             continue;
         }
         for (const std::uint32_t child : {current + 1, node.offset}) {
             if (intersect_box(slab, nodes[child].bounds(), ray.tnear, ray.tfar, t_entry, t_exit))
                 stack[size++] = child;
-        }
-    }
-}
-
-// The same by a wide tree: all W child boxes at once, a leaf's triangles a block at a time with the block
-// kernel (the scalar kernel's bits), its scalar lanes and spheres by the scalar test.
-template <int W, class TriangleTestT>
-void wide_hits(const WideBvhAccel<W>& bvh, const Geometry& geometry,
-               const PreparedRay<TriangleTestT>& prepared, std::vector<Hit>& hits) {
-    const auto& nodes = bvh.nodes();
-    const auto& blocks = bvh.blocks();
-    const Ray& ray = prepared.ray;
-    const WideRay wide(SlabRay{ray});
-    const BlockRay<TriangleTestT, W> block_ray(prepared, geometry);
-    std::array<std::uint32_t, (W - 1) * BvhAccel::kMaxDepth + 1> stack;
-    std::size_t size = 0;
-    stack[size++] = 0;
-    while (size > 0) {
-        const WideBvhNode<W>& node = nodes[stack[--size]];
-        alignas(32) float entry[W];
-        for (unsigned mask = intersect_children<W>(node, wide, ray.tnear, ray.tfar, entry); mask != 0;
-             mask &= mask - 1) {
-            const int slot = std::countr_zero(mask);
-            if (node.prim_count[slot] == 0) {
-                stack[size++] = node.child[slot];
-                continue;
-            }
-            const std::uint32_t last = node.child[slot] + block_count(node.prim_count[slot], W);
-            for (std::uint32_t b = node.child[slot]; b < last; ++b) {
-                const TriangleBlock<W>& block = blocks[b];
-                BlockHits<W> found;
-                block_ray.kernel.test(block, ray.tnear, ray.tfar, found);
-                for (unsigned lanes = found.hit_lanes; lanes != 0; lanes &= lanes - 1) {
-                    const int lane = std::countr_zero(lanes);
-                    hits.push_back({found.t[lane], static_cast<std::int32_t>(block.prim[lane]), found.u[lane],
-                                    found.v[lane]});
-                }
-                for (unsigned lanes =
-                         scalar_lanes(block, geometry, block_ray.has_spheres, found.scalar_lanes);
-                     lanes != 0; lanes &= lanes - 1) {
-                    Hit hit;
-                    if (intersect_primitive(geometry, block.prim[std::countr_zero(lanes)], prepared, hit))
-                        hits.push_back(hit);
-                }
-            }
         }
     }
 }
@@ -290,24 +254,29 @@ Vec3f bounding_point(const Box3f& scene_bounds, const Vec3d& p) {
 
 }  // namespace
 
+template <class OnHit>
+void GeometryQueries::Impl::each_hit(const Ray& traced, OnHit&& on_hit) const {
+    const Geometry& geometry = scene->built_geometry();
+    dispatch_policies(test, false, [&]<class TriangleTestT, bool>() {
+        const PreparedRay<TriangleTestT> prepared(traced);
+        if (bvh8 != nullptr) {
+            wide_walk::all_hits(bvh8->nodes(), bvh8->blocks(), geometry, prepared, on_hit);
+        } else if (bvh4 != nullptr) {
+            wide_walk::all_hits(bvh4->nodes(), bvh4->blocks(), geometry, prepared, on_hit);
+        } else {
+            binary_hits(*binary, geometry, prepared, on_hit);
+        }
+    });
+}
+
 void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
     const Accel& scene = *impl_->scene;
-    const Geometry& geometry = scene.built_geometry();
-    if (!is_valid(ray) || geometry.size() == 0) return;
+    if (!is_valid(ray) || scene.built_geometry().size() == 0) return;
     const ConditionedRays conditioned =
         condition_rays(std::span(&ray, 1), scene.bounds(), scene.scale_exponent());
     const Ray& traced = conditioned.rays.empty() ? ray : conditioned.rays[0];
     const std::size_t first = hits.size();
-    dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
-        const PreparedRay<TriangleTestT> prepared(traced);
-        if (impl_->bvh8 != nullptr) {
-            wide_hits(*impl_->bvh8, geometry, prepared, hits);
-        } else if (impl_->bvh4 != nullptr) {
-            wide_hits(*impl_->bvh4, geometry, prepared, hits);
-        } else {
-            binary_hits(*impl_->binary, geometry, prepared, hits);
-        }
-    });
+    impl_->each_hit(traced, [&](const Hit& hit) { hits.push_back(hit); });
     if (!conditioned.rays.empty()) {
         // Back in the caller's parametrisation, as Accel::intersect maps its hits; one beyond the float
         // range is none.
@@ -325,6 +294,109 @@ void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
     hits.erase(std::unique(begin, hits.end(),
                            [](const Hit& a, const Hit& b) { return a.prim == b.prim && a.t == b.t; }),
                hits.end());
+}
+
+namespace {
+
+// count_crossings' ray: its origin, the grid's cell of it, its index among the origins. 20 bytes: the sort
+// moves every ray twice, and its time is memory's.
+struct RayInCell {
+    Vec3f origin;
+    std::uint32_t cell;
+    std::uint32_t index;
+};
+static_assert(sizeof(RayInCell) == 20);
+
+}  // namespace
+
+void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Vec3f> origins,
+                                      std::span<std::uint32_t> crossings, int threads) const {
+    const Accel& scene = *impl_->scene;
+    const Geometry& geometry = scene.built_geometry();
+    std::fill_n(crossings.begin(), origins.size(), 0u);
+    if (geometry.size() == 0) return;
+    // The grid costs a pass over the triangles and their cells; a ray through it a few block tests, where a
+    // tree walk costs several times that: it pays from about one ray per four primitives. A scene scaled to
+    // the structures' range (Accel::scale_exponent) conditions every ray: those walk the tree.
+    std::optional<CrossingGrid> grid;
+    if (scene.scale_exponent() == 0 && 4 * origins.size() >= geometry.size() &&
+        origins.size() <= std::numeric_limits<std::uint32_t>::max())
+        grid.emplace(geometry, scene.built_bounds(), direction, geometry.size() / 2, threads);
+    // The rays in the order of their cells, so that a cell's triangles are gathered once for the rays in it,
+    // origins moved with their cells, so that the rays read them in turn (each read through an index is a
+    // cache miss): a radix sort, 11 bits of the cell a pass, each pass scattering into 2048 runs.
+    constexpr std::size_t kRaysPerTask = 1024;
+    std::vector<RayInCell> by_cell(origins.size());
+    parallel_for(origins.size(), kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
+        for (std::size_t i = first; i < last; ++i)
+            by_cell[i] = {origins[i], grid ? static_cast<std::uint32_t>(grid->cell_of(origins[i])) : 0u,
+                          static_cast<std::uint32_t>(i)};
+    });
+    if (grid) {
+        constexpr int kRadixBits = 11;
+        constexpr std::size_t kRuns = std::size_t{1} << kRadixBits;
+        std::vector<RayInCell> scratch(origins.size());
+        for (int shift = 0; (grid->cell_count() - 1) >> shift != 0; shift += kRadixBits) {
+            std::array<std::size_t, kRuns + 1> next{};
+            for (const RayInCell& ray : by_cell)
+                ++next[((ray.cell >> shift) & (kRuns - 1)) + 1];
+            std::inclusive_scan(next.begin(), next.end(), next.begin());
+            for (const RayInCell& ray : by_cell)
+                scratch[next[(ray.cell >> shift) & (kRuns - 1)]++] = ray;
+            by_cell.swap(scratch);
+        }
+    }
+    parallel_for(origins.size(), kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
+        std::vector<Ray> rays(last - first);
+        for (std::size_t k = first; k < last; ++k)
+            rays[k - first] = {by_cell[k].origin, direction, 0.0f, kInfinity};
+        const ConditionedRays conditioned = condition_rays(rays, scene.bounds(), scene.scale_exponent());
+        std::vector<float> times;
+        std::vector<Bvh8Accel::Block> blocks;
+        std::size_t blocks_cell = std::numeric_limits<std::size_t>::max();
+        dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
+            for (std::size_t k = 0; k < rays.size(); ++k) {
+                const bool moved = !conditioned.rays.empty() &&
+                                   (conditioned.how[k].shift != 0.0 || conditioned.how[k].exponent != 0);
+                const Ray& traced = moved ? conditioned.rays[k] : rays[k];
+                const bool by_grid = grid && !moved;
+                const std::size_t cell = by_cell[first + k].cell;
+                // A ray whose cell lists nothing crosses nothing; an invalid one hits nothing.
+                if ((by_grid && grid->primitives(cell).empty() && grid->every_ray().empty()) ||
+                    !is_valid(traced))
+                    continue;
+                times.clear();
+                const auto add = [&](const Hit& hit) { times.push_back(hit.t); };
+                if (by_grid) {
+                    // The cell's primitives in blocks, as a leaf's, once for the cell's rays.
+                    if (cell != blocks_cell) {
+                        blocks.clear();
+                        append_leaf_blocks(geometry, grid->primitives(cell), blocks);
+                        append_leaf_blocks(geometry, grid->every_ray(), blocks);
+                        blocks_cell = cell;
+                    }
+                    const PreparedRay<TriangleTestT> prepared(traced);
+                    const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, geometry);
+                    for (const Bvh8Accel::Block& block : blocks)
+                        each_block_hit(geometry, block, block_ray, add);
+                } else {
+                    impl_->each_hit(traced, add);
+                }
+                if (moved) {
+                    // all_hits' t: back in the caller's parametrisation, one beyond the float range dropped.
+                    std::size_t kept = 0;
+                    for (const float t : times) {
+                        if (const std::optional<float> restored = restore_t(t, conditioned.how[k], rays[k]))
+                            times[kept++] = *restored;
+                    }
+                    times.resize(kept);
+                }
+                std::sort(times.begin(), times.end());
+                crossings[grid ? by_cell[first + k].index : first + k] =
+                    static_cast<std::uint32_t>(std::unique(times.begin(), times.end()) - times.begin());
+            }
+        });
+    });
 }
 
 NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {

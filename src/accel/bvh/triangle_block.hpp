@@ -445,6 +445,26 @@ inline void intersect_block(const Geometry& geometry, const TriangleBlock<K>& bl
         intersect_primitive(geometry, block.prim[std::countr_zero(lanes)], ray.prepared, best);
 }
 
+// Every hit of the ray on a block, by on_hit(hit), in lane order: the kernel's lanes in [tnear, tfar], then
+// the scalar test's (spheres and the kernel's uncertain lanes), as intersect_primitive gives them.
+template <class TriangleTestT, int K, class OnHit>
+inline void each_block_hit(const Geometry& geometry, const TriangleBlock<K>& block,
+                           const BlockRay<TriangleTestT, K>& ray, OnHit&& on_hit) {
+    const Ray& r = ray.prepared.ray;
+    BlockHits<K> found;
+    ray.kernel.test(block, r.tnear, r.tfar, found);
+    for (unsigned lanes = found.hit_lanes; lanes != 0; lanes &= lanes - 1) {
+        const int lane = std::countr_zero(lanes);
+        on_hit(Hit{found.t[lane], static_cast<std::int32_t>(block.prim[lane]), found.u[lane], found.v[lane]});
+    }
+    for (unsigned lanes = scalar_lanes(block, geometry, ray.has_spheres, found.scalar_lanes); lanes != 0;
+         lanes &= lanes - 1) {
+        Hit hit;
+        if (intersect_primitive(geometry, block.prim[std::countr_zero(lanes)], ray.prepared, hit))
+            on_hit(hit);
+    }
+}
+
 // occludes on every lane of a block: any hit in [tnear, tfar].
 template <class TriangleTestT, int K>
 [[nodiscard]] inline bool occludes_block(const Geometry& geometry, const TriangleBlock<K>& block,

@@ -16,6 +16,7 @@
 #include "accel/bvh/nearest_point.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "lancer/accel.hpp"
+#include "lancer/generate.hpp"
 #include "support/ray_sets.hpp"
 #include "support/test_scenes.hpp"
 
@@ -210,6 +211,92 @@ TEST(GeometryQueries, WalkTheStructuresOwnBvhWithBruteForcesAnswers) {
             }
         }
     }
+}
+
+// The distinct t among all_hits' hits: the crossings count_crossings must give.
+std::uint32_t distinct_times(const GeometryQueries& queries, const Ray& ray) {
+    std::vector<Hit> hits;
+    queries.all_hits(ray, hits);
+    std::uint32_t distinct = 0;
+    for (std::size_t h = 0; h < hits.size(); ++h)
+        distinct += (h == 0 || hits[h].t != hits[h - 1].t) ? 1 : 0;
+    return distinct;
+}
+
+// Occupancy's origins for one direction: random points around the geometry, and points around triangles:
+// their corners and edge midpoints (rays from the surface), and the same moved back along the direction
+// (rays through shared vertices and edges).
+std::vector<Vec3f> crossing_origins(std::span<const Triangle> triangles, const Box3f& bounds, Vec3f direction,
+                                    std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::uniform_int_distribution<std::size_t> pick(0, triangles.size() - 1);
+    const Box3f around = bounds.grown(0.1f * length(bounds.extent()));
+    const float step = 0.02f * length(bounds.extent());
+    std::vector<Vec3f> origins;
+    for (int n = 0; n < 2000; ++n)
+        origins.push_back(around.lo + Vec3f(unit(rng), unit(rng), unit(rng)) * around.extent());
+    for (int n = 0; n < 300; ++n) {
+        const Triangle& tri = triangles[pick(rng)];
+        for (const Vec3f& p : {tri.v0, tri.v1, tri.v2, (tri.v0 + tri.v1) * 0.5f, (tri.v1 + tri.v2) * 0.5f}) {
+            origins.push_back(p);
+            origins.push_back(p - direction * (step * unit(rng)));
+        }
+    }
+    return origins;
+}
+
+// count_crossings counts the distinct t of all_hits' hits, bit for bit, by its grid (a batch of more than a
+// ray per four triangles) and by tree walks (a smaller batch), on bvh8_packet's, bvh8's and the binary tree,
+// both triangle tests: on a closed icosphere and a knot, on a plane of triangles whose vertices six share,
+// along directions off the axes, along (1, 1, 1) through the plane's edges and along an axis, and from
+// origins far away (conditioned rays, which walk the tree).
+TEST(GeometryQueries, CountCrossingsCountsAllHitsDistinctTimes) {
+    std::vector<Triangle> closed;
+    make_icosphere(3, Vec3f(0.0f), 1.0f).append_triangles(closed);
+    make_torus_knot(48, 12).append_triangles(closed);
+    std::vector<Triangle> plane = testing::planar_grid_triangles(40);
+    const Vec3f directions[] = {normalize(Vec3f(0.118f, -0.286f, 0.432f)),
+                                normalize(Vec3f(-0.7f, 0.2f, -0.3f)), normalize(Vec3f(1.0f, 1.0f, 1.0f)),
+                                Vec3f(0.0f, 0.0f, -1.0f)};
+    std::size_t checked = 0, odd = 0, several = 0;
+    for (const std::vector<Triangle>* triangles : std::array{&closed, &plane}) {
+        const Geometry geometry{*triangles, {}};
+        for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
+            for (const std::string_view name : {"bvh8_packet", "bvh8", "bvh"}) {
+                const std::unique_ptr<Accel> accel = make_accel(name);
+                accel->build(geometry, build_options(test));
+                const GeometryQueries queries(*accel, geometry, test);
+                for (std::uint32_t d = 0; d < std::size(directions); ++d) {
+                    std::vector<Vec3f> origins =
+                        crossing_origins(*triangles, geometry.bounds(), directions[d], 51 + d);
+                    for (std::size_t i = 0; i < 20; ++i)
+                        origins[i] = origins[i] + Vec3f(3e30f, -2e30f, 1e30f);  // far origins
+                    ASSERT_GE(4 * origins.size(), geometry.size());             // the grid
+                    std::vector<std::uint32_t> crossings(origins.size()), walked(origins.size());
+                    queries.count_crossings(directions[d], origins, crossings, 2);
+                    for (std::size_t first = 0; first < origins.size(); first += 64) {  // tree walks
+                        const std::size_t count = std::min<std::size_t>(64, origins.size() - first);
+                        ASSERT_LT(4 * count, geometry.size());
+                        queries.count_crossings(directions[d], std::span(origins).subspan(first, count),
+                                                std::span(walked).subspan(first, count), 1);
+                    }
+                    for (std::size_t i = 0; i < origins.size(); ++i) {
+                        const std::uint32_t expected =
+                            distinct_times(queries, {origins[i], directions[d], 0.0f, kInfinity});
+                        ASSERT_EQ(crossings[i], expected) << name << " direction " << d << " origin " << i;
+                        ASSERT_EQ(walked[i], expected) << name << " direction " << d << " origin " << i;
+                        odd += crossings[i] % 2, several += crossings[i] > 1 ? 1 : 0;
+                    }
+                    checked += origins.size();
+                }
+            }
+        }
+    }
+    EXPECT_EQ(checked, 2u * 2u * 3u * 4u * 5000u);
+    EXPECT_GT(odd,
+              checked / 10);  // origins inside the sphere and the knot, and rays from the plane's surface
+    EXPECT_GT(several, checked / 20);
 }
 
 }  // namespace

@@ -1,0 +1,109 @@
+#include "accel/crossing_grid.hpp"
+
+#include <numeric>
+
+#include "accel/build_util.hpp"
+#include "core/ray_conditioning.hpp"
+#include "lancer/parallel.hpp"
+
+namespace lancer {
+
+CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const Vec3f& direction,
+                           std::size_t cells, int threads) {
+    // Two unit vectors across the direction: the cross product with the axis it is least along, then the
+    // third side of the frame.
+    const Vec3d d = normalize(Vec3d(direction));
+    const Vec3d least = std::fabs(d.x) <= std::fabs(d.y) && std::fabs(d.x) <= std::fabs(d.z) ? Vec3d(1, 0, 0)
+                        : std::fabs(d.y) <= std::fabs(d.z)                                   ? Vec3d(0, 1, 0)
+                                                                                             : Vec3d(0, 0, 1);
+    axis_u_ = normalize(cross(d, least));
+    axis_v_ = cross(d, axis_u_);
+    // A cube of half-side g projects onto an axis a as g (|a.x| + |a.y| + |a.z|) either way. The double
+    // rounding of a projection is below 2^-50 of the coordinates it sums, the corners' and the origins'.
+    const double tolerance = geometric_tolerance(bounds);
+    const double reach = std::max(max_component(abs(bounds.lo)), max_component(abs(bounds.hi))) +
+                         (kFarOriginSides + 1.0) * max_component(bounds.extent());
+    const double rounding = 0x1p-40 * reach;
+    const auto l1 = [](const Vec3d& a) { return std::fabs(a.x) + std::fabs(a.y) + std::fabs(a.z); };
+    const double grow_u = tolerance * l1(axis_u_) + rounding, grow_v = tolerance * l1(axis_v_) + rounding;
+
+    // Each triangle's shadow, made twice in parallel: for the shadows' union, which sizes the cells, then for
+    // its cells. Kept in between, the shadows would be an array of 32 bytes a triangle, whose fresh pages
+    // cost more than the projections.
+    struct Shadow {
+        double lo_u, hi_u, lo_v, hi_v;
+        [[nodiscard]] bool finite() const {
+            return std::isfinite(lo_u) && std::isfinite(hi_u) && std::isfinite(lo_v) && std::isfinite(hi_v);
+        }
+        void extend(const Shadow& s) {
+            lo_u = std::min(lo_u, s.lo_u), hi_u = std::max(hi_u, s.hi_u);
+            lo_v = std::min(lo_v, s.lo_v), hi_v = std::max(hi_v, s.hi_v);
+        }
+    };
+    const auto shadow_of = [&](const Triangle& tri) {
+        const Plane p0 = project(tri.v0), p1 = project(tri.v1), p2 = project(tri.v2);
+        return Shadow{std::min({p0.u, p1.u, p2.u}) - grow_u, std::max({p0.u, p1.u, p2.u}) + grow_u,
+                      std::min({p0.v, p1.v, p2.v}) - grow_v, std::max({p0.v, p1.v, p2.v}) + grow_v};
+    };
+    constexpr Shadow kNone{kInfinity, -kInfinity, kInfinity, -kInfinity};
+    const std::size_t triangles = geometry.triangles.size();
+    constexpr std::size_t kTrianglesPerTask = 16384;
+    std::vector<Shadow> task_unions((triangles + kTrianglesPerTask - 1) / kTrianglesPerTask, kNone);
+    parallel_for(triangles, kTrianglesPerTask, threads, [&](std::size_t first, std::size_t last) {
+        Shadow& all = task_unions[first / kTrianglesPerTask];
+        for (std::size_t i = first; i < last; ++i) {
+            if (const Shadow s = shadow_of(geometry.triangles[i]); s.finite()) all.extend(s);
+        }
+    });
+    Shadow all = kNone;
+    for (const Shadow& task_union : task_unions)
+        all.extend(task_union);
+    // Square cells, about `cells` of them over the union of the shadows.
+    cells = std::max<std::size_t>(cells, 1);
+    if (all.lo_u <= all.hi_u) {
+        lo_u_ = all.lo_u, lo_v_ = all.lo_v;
+        const double width = all.hi_u - all.lo_u, height = all.hi_v - all.lo_v;
+        const double side = std::sqrt(width * height / static_cast<double>(cells));
+        if (side > 0.0) {
+            cells_per_unit_ = 1.0 / side;
+            columns_ = std::min(static_cast<std::size_t>(width * cells_per_unit_) + 1, cells + 1);
+            rows_ = std::min(static_cast<std::size_t>(height * cells_per_unit_) + 1, cells + 1);
+        }
+    }
+    // Each shadow's columns and rows, in parallel; then two passes: count each cell's triangles, list them.
+    struct Span {
+        std::uint32_t c0, c1, r0, r1;  // c1 < c0 for a triangle listed apart
+    };
+    std::vector<Span> spans(triangles);
+    parallel_for(triangles, kTrianglesPerTask, threads, [&](std::size_t first, std::size_t last) {
+        for (std::size_t i = first; i < last; ++i) {
+            const Shadow s = shadow_of(geometry.triangles[i]);
+            spans[i] = s.finite() ? Span{static_cast<std::uint32_t>(column(s.lo_u)),
+                                         static_cast<std::uint32_t>(column(s.hi_u)),
+                                         static_cast<std::uint32_t>(row(s.lo_v)),
+                                         static_cast<std::uint32_t>(row(s.hi_v))}
+                                  : Span{1, 0, 1, 0};
+        }
+    });
+    for (std::size_t i = 0; i < triangles; ++i) {
+        if (spans[i].c1 < spans[i].c0) every_ray_.push_back(static_cast<std::uint32_t>(i));
+    }
+    for (std::size_t s = 0; s < geometry.spheres.size(); ++s)
+        every_ray_.push_back(static_cast<std::uint32_t>(triangles + s));
+    const auto each_cell = [&](const Span& span, auto&& body) {
+        for (std::size_t r = span.r0; r <= span.r1; ++r) {
+            for (std::size_t c = span.c0; c <= span.c1; ++c)
+                body(r * columns_ + c);
+        }
+    };
+    first_.assign(columns_ * rows_ + 1, 0);
+    for (const Span& span : spans)
+        each_cell(span, [&](std::size_t cell) { ++first_[cell + 1]; });
+    std::inclusive_scan(first_.begin(), first_.end(), first_.begin());
+    prims_.resize(first_.back());
+    std::vector<std::size_t> next(first_.begin(), first_.end() - 1);
+    for (std::size_t i = 0; i < triangles; ++i)
+        each_cell(spans[i], [&](std::size_t cell) { prims_[next[cell]++] = static_cast<std::uint32_t>(i); });
+}
+
+}  // namespace lancer

@@ -1,0 +1,79 @@
+// The triangles of a geometry seen along one direction: projected onto the plane across it and binned in a
+// grid of square cells over that plane, so that a ray of that direction can hit only the triangles listed
+// in its origin's cell. Occupancy casts every point's ray along the same few directions
+// (GeometryQueries::count_crossings): one grid a direction serves all of them, and each ray tests its
+// cell's triangles without a walk (docs/python.md, "Point queries").
+//
+// A cell lists every triangle whose shadow covers some of it: the bounding rectangle of its corners'
+// projections, grown by the projection of a cube of side twice the scene's geometric tolerance, which holds
+// every hit the triangle tests report (accel/build_util.hpp, docs/numerical-contract.md, "Boxes"), so that
+// the line of every ray the triangle test says hits it projects inside. The projections are made in
+// double, and each shadow grown by a bound of their rounding for every origin a cell is asked for (within
+// kFarOriginSides sides of the scene's centre; farther ones are conditioned); the cell of a coordinate is
+// monotone in it, so the origin's cell lies among the shadow's. Spheres and triangles with a non-finite
+// corner are listed apart, for every ray.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "lancer/box.hpp"
+#include "lancer/scene.hpp"
+#include "lancer/vec.hpp"
+#include "lancer/vec3d.hpp"
+
+namespace lancer {
+
+class CrossingGrid {
+  public:
+    // The grid of `geometry`, whose box is `bounds`, along `direction` (non-zero, finite), of about `cells`
+    // cells (at least 1), made on `threads` threads as parallel_for takes them.
+    CrossingGrid(const Geometry& geometry, const Box3f& bounds, const Vec3f& direction, std::size_t cells,
+                 int threads);
+
+    [[nodiscard]] std::size_t cell_count() const { return first_.size() - 1; }
+    // The cell of a ray from `origin` along the direction.
+    [[nodiscard]] std::size_t cell_of(const Vec3f& origin) const {
+        const Plane p = project(origin);
+        return row(p.v) * columns_ + column(p.u);
+    }
+    // The primitives a ray in `cell` can hit, by increasing index, and every_ray's.
+    [[nodiscard]] std::span<const std::uint32_t> primitives(std::size_t cell) const {
+        return {prims_.data() + first_[cell], prims_.data() + first_[cell + 1]};
+    }
+    // The primitives no cell bounds: spheres, and triangles with a non-finite corner.
+    [[nodiscard]] std::span<const std::uint32_t> every_ray() const { return every_ray_; }
+
+  private:
+    struct Plane {
+        double u, v;
+    };
+    [[nodiscard]] Plane project(const Vec3f& p) const {
+        const Vec3d q(p);
+        return {dot(q, axis_u_), dot(q, axis_v_)};
+    }
+    // floor((x - lo) / side) clamped to [0, cells - 1] (NaN, which no valid ray has, to 0): monotone in x.
+    [[nodiscard]] static std::size_t cell_along(double x, double lo, double cells_per_unit,
+                                                std::size_t cells) {
+        const double cell = std::floor((x - lo) * cells_per_unit);
+        return cell > 0.0 ? static_cast<std::size_t>(std::min(cell, static_cast<double>(cells - 1))) : 0;
+    }
+    [[nodiscard]] std::size_t column(double u) const {
+        return cell_along(u, lo_u_, cells_per_unit_, columns_);
+    }
+    [[nodiscard]] std::size_t row(double v) const { return cell_along(v, lo_v_, cells_per_unit_, rows_); }
+
+    Vec3d axis_u_{0, 0, 0}, axis_v_{0, 0, 0};  // unit vectors across the direction and each other
+    double lo_u_ = 0.0, lo_v_ = 0.0;
+    double cells_per_unit_ = 0.0;  // 1 / the cells' side
+    std::size_t columns_ = 1, rows_ = 1;
+    std::vector<std::size_t> first_;  // cell c lists prims_[first_[c], first_[c + 1])
+    std::vector<std::uint32_t> prims_;
+    std::vector<std::uint32_t> every_ray_;
+};
+
+}  // namespace lancer
