@@ -63,6 +63,8 @@ class BinnedBuilder {
 
     // Nodes of more references bin them in parallel.
     static constexpr std::size_t kParallelBinning = 65536;
+    // References per task of the parallel binning.
+    static constexpr std::size_t kBinningChunk = 16384;
 
   private:
     static constexpr int kMaxBins = 256;

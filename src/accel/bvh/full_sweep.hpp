@@ -69,13 +69,18 @@ void partition_sweep_orders(const Refs& refs, std::size_t count, const Split& sp
     for (int axis = 0; axis < 3; ++axis) {
         if (axis == split.axis) continue;
         typename Refs::Index* order = refs.order(axis);
+        // Branch-free: each reference is written to both sides and only its own side's end moves on (which
+        // side is as good as random, a branch would mispredict half the time). A left write lands at or
+        // before the read position, and a stale one is overwritten by a later reference or the right side's
+        // copy.
         std::size_t left_end = 0, right_end = 0;
         for (std::size_t i = 0; i < count; ++i) {
-            if (on_left[order[i]]) {
-                order[left_end++] = order[i];
-            } else {
-                right_scratch[right_end++] = order[i];
-            }
+            const auto ref = order[i];
+            const auto goes_left = static_cast<std::size_t>(on_left[ref]);
+            order[left_end] = ref;
+            right_scratch[right_end] = ref;
+            left_end += goes_left;
+            right_end += 1 - goes_left;
         }
         std::copy_n(right_scratch, right_end, order + left_end);
     }
