@@ -69,10 +69,9 @@ void partition_sweep_orders(const Refs& refs, std::size_t count, const Split& sp
     for (int axis = 0; axis < 3; ++axis) {
         if (axis == split.axis) continue;
         typename Refs::Index* order = refs.order(axis);
-        // Branch-free: each reference is written to both sides and only its own side's end moves on (which
-        // side is as good as random, a branch would mispredict half the time). A left write lands at or
-        // before the read position, and a stale one is overwritten by a later reference or the right side's
-        // copy.
+        // Branch-free: each reference is written to both sides and only its own side's end moves on (the
+        // side is close to random, so a branch would mispredict often). A left write lands at or before the
+        // read position, and a stale one is overwritten by a later reference or the right side's copy.
         std::size_t left_end = 0, right_end = 0;
         for (std::size_t i = 0; i < count; ++i) {
             const auto ref = order[i];
