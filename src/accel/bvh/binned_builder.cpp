@@ -6,6 +6,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <mutex>
 #include <optional>
 #include <tuple>
 
@@ -54,10 +55,12 @@ struct BinnedBuilder::BinMap {
     }
 };
 
-BinnedBuilder::BinnedBuilder(BuildRefs& refs, const Geometry& geometry, const BvhOptions& options)
+BinnedBuilder::BinnedBuilder(BuildRefs& refs, const Geometry& geometry, const BvhOptions& options,
+                             std::size_t whole_leaf_size)
     : refs_(refs),
       geometry_(geometry),
       max_leaf_(leaf_size_limit(options)),
+      whole_leaf_size_(whole_leaf_size),
       bins_(std::clamp(options.bins, 2, kMaxBins)),
       spatial_splits_(options.spatial_splits) {}
 
@@ -128,16 +131,16 @@ void BinnedBuilder::bin(std::size_t begin, std::size_t end, const BinMap& map, c
         }
     };
     if (end - begin > kParallelBinning) {
-        bins = parallel::reduce(
-            begin, end, 16384, Bins(bins_),
-            [&](std::size_t from, std::size_t to, Bins chunk) {
-                fill(from, to, chunk);
-                return chunk;
-            },
-            [this](Bins a, const Bins& b) {
-                a.merge(b, bins_);
-                return a;
-            });
+        // Each chunk bins into its own Bins on its stack, merged into the node's under a lock: merges are
+        // exact (counts, min and max), so their order does not matter, and no 27 KB Bins is copied, as a
+        // reduction's partial results passed by value were (docs/accel/bvh.md, "Build speed").
+        std::mutex merging;
+        parallel::for_each_chunk(begin, end, kBinningChunk, [&](std::size_t from, std::size_t to) {
+            Bins chunk(map.bins);
+            fill(from, to, chunk);
+            const std::lock_guard lock(merging);
+            bins.merge(chunk, map.bins);
+        });
         return;
     }
     fill(begin, end, bins);
@@ -145,24 +148,24 @@ void BinnedBuilder::bin(std::size_t begin, std::size_t end, const BinMap& map, c
 
 BinnedBuilder::ObjectSplit BinnedBuilder::best_split(std::size_t begin, std::size_t end, const BinMap& map,
                                                      const Box3f& centroids) const {
-    Bins bins(bins_);
+    Bins bins(map.bins);
     bin(begin, end, map, centroids, bins);
     Split best;
-    std::array<float, kMaxBins> right_costs{};
+    std::array<float, kMaxBins> right_costs;
     for (int axis = 0; axis < 3; ++axis) {
         if (!(centroids.hi[axis] > centroids.lo[axis])) continue;
         const auto& boxes = bins.boxes[static_cast<std::size_t>(axis)];
         const auto& counts = bins.counts[static_cast<std::size_t>(axis)];
         BinBox right = BinBox::none();
         std::uint32_t right_count = 0;
-        for (int b = bins_ - 1; b > 0; --b) {
+        for (int b = map.bins - 1; b > 0; --b) {
             right.extend(boxes[static_cast<std::size_t>(b)]);
             right_count += counts[static_cast<std::size_t>(b)];
             right_costs[static_cast<std::size_t>(b)] = right.area() * static_cast<float>(right_count);
         }
         BinBox left = BinBox::none();
         std::uint32_t left_count = 0;
-        for (int b = 1; b < bins_; ++b) {
+        for (int b = 1; b < map.bins; ++b) {
             left.extend(boxes[static_cast<std::size_t>(b - 1)]);
             left_count += counts[static_cast<std::size_t>(b - 1)];
             if (left_count == 0 || left_count == end - begin) continue;
@@ -174,7 +177,7 @@ BinnedBuilder::ObjectSplit BinnedBuilder::best_split(std::size_t begin, std::siz
     ObjectSplit object{best, {}, {}};
     if (spatial_splits_ && best.axis >= 0) {
         BinBox left = BinBox::none(), right = BinBox::none();
-        for (int b = 0; b < bins_; ++b)
+        for (int b = 0; b < map.bins; ++b)
             (b < best.bin ? left : right).extend(bins.boxes[static_cast<std::size_t>(best.axis)][b]);
         object.left_bounds = left.box(), object.right_bounds = right.box();
     }
@@ -185,11 +188,15 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t slot, const RefRange& ra
                           const NodeBounds& node) {
     const auto& [bounds, centroids] = node;
     const std::size_t count = range.size();
+    if (count <= whole_leaf_size_) {
+        slots.set_leaf(slot, bounds, range.begin, count);
+        return;
+    }
     if (count <= kExactSplitBelow) {
         // No spatial split here: the references are large beside the node and cross most of its bins, so
         // chopped binning would cost the most per reference, for the least gain (docs/accel/bvh.md,
         // "Spatial splits": half the bunny's build time, for at most 0.5% of the SAH cost).
-        SmallSubtree(refs_, max_leaf_, slots, range).build(slot, range, depth, bounds);
+        SmallSubtree(refs_, max_leaf_, whole_leaf_size_, slots, range).build(slot, range, depth, bounds);
         return;
     }
     const BinMap map(centroids, bins_);
@@ -258,9 +265,9 @@ BinnedBuilder::Children BinnedBuilder::object_partition(const RefRange& range, S
 }
 
 BvhBuildResult build_binned_sah(BuildRefs& refs, std::size_t primitives, const Geometry& geometry,
-                                const BvhOptions& options) {
+                                const BvhOptions& options, std::size_t whole_leaf_size) {
     NodeSlots slots(refs.size());
-    BinnedBuilder builder(refs, geometry, options);
+    BinnedBuilder builder(refs, geometry, options, whole_leaf_size);
     builder.build(slots, primitives);
     return slots.compact([&](std::size_t i) { return refs[i].prim; });
 }

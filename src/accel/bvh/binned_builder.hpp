@@ -55,12 +55,16 @@ class BinnedBuilder {
     using NodeBounds = std::pair<Box3f, Box3f>;
 
     // refs[0, primitives) are the primitives' references; the rest of `refs` is free for spatial splits.
-    BinnedBuilder(BuildRefs& refs, const Geometry& geometry, const BvhOptions& options);
+    // Nodes of at most `whole_leaf_size` references are leaves (build_bvh).
+    BinnedBuilder(BuildRefs& refs, const Geometry& geometry, const BvhOptions& options,
+                  std::size_t whole_leaf_size);
 
     void build(NodeSlots& slots, std::size_t primitives);
 
     // Nodes of more references bin them in parallel.
     static constexpr std::size_t kParallelBinning = 65536;
+    // References per task of the parallel binning.
+    static constexpr std::size_t kBinningChunk = 16384;
 
   private:
     static constexpr int kMaxBins = 256;
@@ -117,6 +121,7 @@ class BinnedBuilder {
     BuildRefs& refs_;
     const Geometry& geometry_;
     int max_leaf_;
+    std::size_t whole_leaf_size_;
     int bins_;
     bool spatial_splits_;
     float min_overlap_area_ = 0.0f;

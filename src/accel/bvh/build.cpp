@@ -42,14 +42,15 @@ BuildRefs make_refs(const Geometry& geometry, std::size_t capacity) {
 
 }  // namespace
 
-BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options) {
+BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options, std::size_t whole_leaf_size) {
     if (geometry.size() == 0) return {};
+    whole_leaf_size = std::min<std::size_t>(whole_leaf_size, BvhAccel::kMaxLeafSize);
     const std::size_t primitives = geometry.size();
     const bool spatial_splits = options.spatial_splits && options.builder != BvhBuilder::SweepSah;
     BuildRefs refs = make_refs(geometry, spatial_splits ? reference_capacity(primitives) : primitives);
-    if (options.builder == BvhBuilder::SweepSah) return build_sweep_sah(refs, options);
+    if (options.builder == BvhBuilder::SweepSah) return build_sweep_sah(refs, options, whole_leaf_size);
     if (spatial_splits) refs.resize(reference_capacity(primitives));
-    return build_binned_sah(refs, primitives, geometry, options);
+    return build_binned_sah(refs, primitives, geometry, options, whole_leaf_size);
 }
 
 BvhBuildResult build_bvh_over_boxes(std::span<const Box3f> boxes, std::span<const std::uint32_t> ids,
@@ -60,8 +61,8 @@ BvhBuildResult build_bvh_over_boxes(std::span<const Box3f> boxes, std::span<cons
         refs[i] = {boxes[ids[i]], boxes[ids[i]].center(), ids[i]};
     BvhOptions without_splits = options;
     without_splits.spatial_splits = false;
-    if (options.builder == BvhBuilder::SweepSah) return build_sweep_sah(refs, without_splits);
-    return build_binned_sah(refs, refs.size(), Geometry{}, without_splits);
+    if (options.builder == BvhBuilder::SweepSah) return build_sweep_sah(refs, without_splits, 0);
+    return build_binned_sah(refs, refs.size(), Geometry{}, without_splits, 0);
 }
 
 double bvh_sah_cost(const std::vector<BvhNode>& nodes) {

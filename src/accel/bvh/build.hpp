@@ -20,7 +20,13 @@ inline constexpr float kSahNodeCost = 1.0f;
 inline constexpr float kSahPrimitiveCost = 1.0f;
 
 // Deterministic: the same geometry and options give the same nodes, whatever the thread count.
-[[nodiscard]] BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options);
+//
+// Nodes of at most `whole_leaf_size` references (at most BvhAccel::kMaxLeafSize) become leaves without
+// being split, their references in the order they reached the node. A wide BVH keeps every binary subtree
+// of at most one triangle block's references as one leaf (bvh_wide.cpp), so the levels below those
+// subtrees are work it would drop. 0: every node splits while the SAH says so.
+[[nodiscard]] BvhBuildResult build_bvh(const Geometry& geometry, const BvhOptions& options,
+                                       std::size_t whole_leaf_size = 0);
 
 // The same tree over boxes, for a BVH whose leaves are not primitives of a Geometry (the instances of a
 // two-level scene): references `ids`, each with the box boxes[id]. Spatial splits are off, a box having

@@ -53,12 +53,15 @@ struct Split {
     return kSahNodeCost + split.cost / node_area >= static_cast<float>(count) * kSahPrimitiveCost;
 }
 
-// The full sweep over the primitives' references (sweep_builder.cpp).
-[[nodiscard]] BvhBuildResult build_sweep_sah(BuildRefs& refs, const BvhOptions& options);
+// The full sweep over the primitives' references (sweep_builder.cpp). Nodes of at most `whole_leaf_size`
+// references are leaves (build_bvh).
+[[nodiscard]] BvhBuildResult build_sweep_sah(BuildRefs& refs, const BvhOptions& options,
+                                             std::size_t whole_leaf_size);
 
 // The binned builder (binned_builder.cpp): refs[0, primitives) are the primitives' references, the rest of
-// `refs` free positions for spatial splits.
+// `refs` free positions for spatial splits. Nodes of at most `whole_leaf_size` references are leaves.
 [[nodiscard]] BvhBuildResult build_binned_sah(BuildRefs& refs, std::size_t primitives,
-                                              const Geometry& geometry, const BvhOptions& options);
+                                              const Geometry& geometry, const BvhOptions& options,
+                                              std::size_t whole_leaf_size);
 
 }  // namespace lancer

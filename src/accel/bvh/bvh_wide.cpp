@@ -94,7 +94,8 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
 
 template <int W>
 void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& options) {
-    BvhBuildResult binary = build_bvh(geometry, options.group<BvhOptions>());
+    // Subtrees of at most one block become leaves whole (SubtreeRange): the binary build leaves them unsplit.
+    BvhBuildResult binary = build_bvh(geometry, options.group<BvhOptions>(), kBlockLanes);
     nodes_.clear();
     blocks_.clear();
     if (!binary.nodes.empty()) {

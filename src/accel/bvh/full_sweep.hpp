@@ -15,7 +15,8 @@ namespace lancer {
 // A node's references in the three centroid orders, each at positions [0, count) of `order(axis)`, whose
 // entries are indices the `Refs` view reads:
 //   typename Refs::Index              the reference indices
-//   static Refs::empty_box()          the box that bounds nothing, of a type with extend(box)
+//   typename Refs::Box                the box type the sweep extends, with extend(box)
+//   static Refs::empty_box()          the Box that bounds nothing
 //   static float Refs::area(box)      the box's surface area
 //   order(axis)                       the node's first entry of axis's order (Index*)
 //   box(index)                        the reference's box
@@ -23,17 +24,25 @@ namespace lancer {
 //   centroid_point(index)             its centroid
 // The builders keep their own box type: the small subtrees sweep SIMD boxes (bin_box.hpp).
 
-// The node's cheapest boundary on each axis: a sweep right to left for the right boxes' areas, then left to
-// right evaluating every boundary. `right_areas` holds at least `count` floats of scratch.
+// A node's best split and the bounds of the references on each side of it, which its children need.
+template <class Box>
+struct SweepSplit {
+    Split split;
+    Box left_bounds, right_bounds;
+};
+
+// The node's cheapest boundary on each axis: a sweep right to left for the right boxes, then left to right
+// evaluating every boundary. `right_boxes` holds at least `count` boxes of scratch.
 template <class Refs>
-[[nodiscard]] Split best_sweep_split(const Refs& refs, std::size_t count, std::span<float> right_areas) {
-    Split best;
+[[nodiscard]] SweepSplit<typename Refs::Box> best_sweep_split(const Refs& refs, std::size_t count,
+                                                              std::span<typename Refs::Box> right_boxes) {
+    SweepSplit<typename Refs::Box> best;
     for (int axis = 0; axis < 3; ++axis) {
         const auto* order = refs.order(axis);
         auto right = Refs::empty_box();
         for (std::size_t i = count - 1; i > 0; --i) {
             right.extend(refs.box(order[i]));
-            right_areas[i] = Refs::area(right);
+            right_boxes[i] = right;
         }
         auto left = Refs::empty_box();
         for (std::size_t i = 0; i + 1 < count; ++i) {
@@ -41,8 +50,8 @@ template <class Refs>
             // A boundary between equal centroids would not separate anything a ray could tell apart.
             if (refs.centroid(order[i], axis) == refs.centroid(order[i + 1], axis)) continue;
             const float cost = Refs::area(left) * static_cast<float>(i + 1) +
-                               right_areas[i + 1] * static_cast<float>(count - i - 1);
-            if (cost < best.cost) best = {axis, cost, i + 1, 0};
+                               Refs::area(right_boxes[i + 1]) * static_cast<float>(count - i - 1);
+            if (cost < best.split.cost) best = {{axis, cost, i + 1, 0}, left, right_boxes[i + 1]};
         }
     }
     return best;
@@ -60,13 +69,17 @@ void partition_sweep_orders(const Refs& refs, std::size_t count, const Split& sp
     for (int axis = 0; axis < 3; ++axis) {
         if (axis == split.axis) continue;
         typename Refs::Index* order = refs.order(axis);
+        // Branch-free: each reference is written to both sides and only its own side's end moves on (the
+        // side is close to random, so a branch would mispredict often). A left write lands at or before the
+        // read position, and a stale one is overwritten by a later reference or the right side's copy.
         std::size_t left_end = 0, right_end = 0;
         for (std::size_t i = 0; i < count; ++i) {
-            if (on_left[order[i]]) {
-                order[left_end++] = order[i];
-            } else {
-                right_scratch[right_end++] = order[i];
-            }
+            const auto ref = order[i];
+            const auto goes_left = static_cast<std::size_t>(on_left[ref]);
+            order[left_end] = ref;
+            right_scratch[right_end] = ref;
+            left_end += goes_left;
+            right_end += 1 - goes_left;
         }
         std::copy_n(right_scratch, right_end, order + left_end);
     }

@@ -14,6 +14,7 @@ namespace lancer {
 // swept four floats at a time, their centroids from the ranking's keys.
 struct SmallSubtree::NodeRefs {
     using Index = std::uint8_t;
+    using Box = BinBox;
 
     SmallSubtree& subtree;
     std::size_t first;
@@ -30,8 +31,9 @@ struct SmallSubtree::NodeRefs {
     [[nodiscard]] const Vec3f& centroid_point(Index ref) const { return subtree.refs_[ref].centroid; }
 };
 
-SmallSubtree::SmallSubtree(BuildRefs& refs, int max_leaf, NodeSlots& slots, const RefRange& range)
-    : builder_refs_(refs), max_leaf_(max_leaf), slots_(slots) {
+SmallSubtree::SmallSubtree(BuildRefs& refs, int max_leaf, std::size_t whole_leaf_size, NodeSlots& slots,
+                           const RefRange& range)
+    : builder_refs_(refs), max_leaf_(max_leaf), whole_leaf_size_(whole_leaf_size), slots_(slots) {
     const std::size_t count = range.size();
     // Padding sorts after every reference: its key is +inf, above every centroid.
     std::array<std::uint32_t, kExactSplitBelow> prims;
@@ -64,9 +66,12 @@ void SmallSubtree::build(std::size_t slot, const RefRange& range, int depth, con
                          std::size_t first, int arrival_axis) {
     const NodeRefs node{*this, first};
     const std::size_t count = range.size();
-    std::array<float, kExactSplitBelow> right_areas{};
-    Split split = depth < kMedianSplitDepth ? best_sweep_split(node, count, right_areas) : Split{};
-    if (stays_leaf(count, bounds.surface_area(), split, max_leaf_)) {
+    const bool whole = count <= whole_leaf_size_;
+    std::array<BinBox, kExactSplitBelow> right_boxes;
+    SweepSplit<BinBox> sweep;
+    if (!whole && depth < kMedianSplitDepth) sweep = best_sweep_split(node, count, std::span(right_boxes));
+    Split& split = sweep.split;
+    if (whole || stays_leaf(count, bounds.surface_area(), split, max_leaf_)) {
         slots_.set_leaf(slot, bounds, range.begin, count);
         for (std::size_t i = 0; i < count; ++i) {
             const std::size_t local =
@@ -75,14 +80,19 @@ void SmallSubtree::build(std::size_t slot, const RefRange& range, int depth, con
         }
         return;
     }
-    if (split.axis < 0) split = median_sweep_split(node, count);
-    std::array<bool, kExactSplitBelow> on_left{};
+    Box3f left_bounds, right_bounds;
+    if (split.axis >= 0) {
+        left_bounds = sweep.left_bounds.box(), right_bounds = sweep.right_bounds.box();
+    } else {
+        split = median_sweep_split(node, count);
+        left_bounds = bounds_of(split.axis, first, split.left_count);
+        right_bounds = bounds_of(split.axis, first + split.left_count, count - split.left_count);
+    }
+    std::array<bool, kExactSplitBelow> on_left;
     std::array<std::uint8_t, kExactSplitBelow> right_scratch;
     partition_sweep_orders(node, count, split, on_left.data(), right_scratch.data());
     const std::size_t left_count = split.left_count, right_count = count - left_count;
     const auto [left, right] = share_free_positions(range, left_count, right_count);
-    const Box3f left_bounds = bounds_of(split.axis, first, left_count);
-    const Box3f right_bounds = bounds_of(split.axis, first + left_count, right_count);
     const auto [first_slot, second_slot] = slots_.set_inner(slot, bounds, split.axis, left.capacity());
     build(first_slot, left, depth + 1, left_bounds, first, split.axis);
     build(second_slot, right, depth + 1, right_bounds, first + left_count, split.axis);

@@ -24,8 +24,10 @@ inline constexpr std::size_t kExactSplitBelow = 32;
 // "Small subtrees sorted once").
 class SmallSubtree {
   public:
-    // The subtree over refs[range.begin, range.end), whose leaves hold at most `max_leaf` references.
-    SmallSubtree(BuildRefs& refs, int max_leaf, NodeSlots& slots, const RefRange& range);
+    // The subtree over refs[range.begin, range.end), whose leaves hold at most `max_leaf` references, and
+    // whose nodes of at most `whole_leaf_size` references are leaves (build_bvh).
+    SmallSubtree(BuildRefs& refs, int max_leaf, std::size_t whole_leaf_size, NodeSlots& slots,
+                 const RefRange& range);
 
     // The node whose references are at positions [first, first + range.size()) of every order, and whose
     // references' array order is that of `arrival_axis`'s order there (its parent's split axis; -1: the
@@ -37,11 +39,13 @@ class SmallSubtree {
     struct NodeRefs;
 
     // The boxes of the references at [first, first + count) of `axis`'s order, in that order: the bits
-    // the binned builder's bounds_of gives over the same array.
+    // the binned builder's bounds_of gives over the same array (for a median split; the sweep gives a
+    // split's bounds).
     [[nodiscard]] Box3f bounds_of(int axis, std::size_t first, std::size_t count) const;
 
     BuildRefs& builder_refs_;
     int max_leaf_;
+    std::size_t whole_leaf_size_;
     NodeSlots& slots_;
     std::array<BuildRef, kExactSplitBelow> refs_;
     std::array<BinBox, kExactSplitBelow> boxes_;

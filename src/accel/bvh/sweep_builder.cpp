@@ -18,11 +18,12 @@ namespace {
 // of positions of the three orders.
 class SweepBuilder {
   public:
-    SweepBuilder(BuildRefs& refs, const BvhOptions& options)
+    SweepBuilder(BuildRefs& refs, const BvhOptions& options, std::size_t whole_leaf_size)
         : refs_(refs),
           max_leaf_(leaf_size_limit(options)),
+          whole_leaf_size_(whole_leaf_size),
           on_left_(refs.size()),
-          right_areas_(refs.size()),
+          right_boxes_(refs.size()),
           scratch_(refs.size()) {
         for (int axis = 0; axis < 3; ++axis) {
             std::vector<std::uint32_t>& order = orders_[static_cast<std::size_t>(axis)];
@@ -34,25 +35,38 @@ class SweepBuilder {
         }
     }
 
-    void build(NodeSlots& slots, std::size_t slot, std::size_t begin, std::size_t end, int depth) {
-        const NodeRefs node{*this, begin};
+    [[nodiscard]] Box3f bounds_of(std::size_t begin, std::size_t end) const {
         Box3f bounds;
         for (std::size_t i = begin; i < end; ++i)
             bounds.extend(refs_[orders_[0][i]].bounds);
+        return bounds;
+    }
+
+    // The node over positions [begin, end) of the orders, whose references `bounds` bounds.
+    void build(NodeSlots& slots, std::size_t slot, std::size_t begin, std::size_t end, int depth,
+               const Box3f& bounds) {
+        const NodeRefs node{*this, begin};
         const std::size_t count = end - begin;
-        Split split = depth >= kMedianSplitDepth
-                          ? Split{}
-                          : best_sweep_split(node, count, std::span(right_areas_).subspan(begin, count));
-        if (stays_leaf(count, bounds.surface_area(), split, max_leaf_)) {
+        const bool whole = count <= whole_leaf_size_;
+        SweepSplit<Box3f> sweep;
+        if (!whole && depth < kMedianSplitDepth)
+            sweep = best_sweep_split(node, count, std::span(right_boxes_).subspan(begin, count));
+        Split& split = sweep.split;
+        if (whole || stays_leaf(count, bounds.surface_area(), split, max_leaf_)) {
             slots.set_leaf(slot, bounds, begin, count);
             return;
         }
-        if (split.axis < 0) split = median_sweep_split(node, count);
+        // A median split's sides were not swept.
+        const bool median = split.axis < 0;
+        if (median) split = median_sweep_split(node, count);
         partition_sweep_orders(node, count, split, on_left_.data(), scratch_.data());
         const std::size_t middle = begin + split.left_count;
+        if (median) {
+            sweep.left_bounds = bounds_of(begin, middle), sweep.right_bounds = bounds_of(middle, end);
+        }
         const auto [first, second] = slots.set_inner(slot, bounds, split.axis, split.left_count);
-        build(slots, first, begin, middle, depth + 1);
-        build(slots, second, middle, end, depth + 1);
+        build(slots, first, begin, middle, depth + 1, sweep.left_bounds);
+        build(slots, second, middle, end, depth + 1, sweep.right_bounds);
     }
 
     // The primitive at position i of the leaves' ranges.
@@ -62,6 +76,7 @@ class SweepBuilder {
     // A node's references, from position `begin` of each order, as full_sweep.hpp reads them.
     struct NodeRefs {
         using Index = std::uint32_t;
+        using Box = Box3f;
 
         SweepBuilder& builder;
         std::size_t begin;
@@ -78,18 +93,19 @@ class SweepBuilder {
 
     BuildRefs& refs_;
     int max_leaf_;
+    std::size_t whole_leaf_size_;
     std::array<std::vector<std::uint32_t>, 3> orders_;
     std::vector<std::uint8_t> on_left_;
-    std::vector<float> right_areas_;
+    std::vector<Box3f> right_boxes_;
     std::vector<std::uint32_t> scratch_;
 };
 
 }  // namespace
 
-BvhBuildResult build_sweep_sah(BuildRefs& refs, const BvhOptions& options) {
+BvhBuildResult build_sweep_sah(BuildRefs& refs, const BvhOptions& options, std::size_t whole_leaf_size) {
     NodeSlots slots(refs.size());
-    SweepBuilder builder(refs, options);
-    builder.build(slots, 0, 0, refs.size(), 0);
+    SweepBuilder builder(refs, options, whole_leaf_size);
+    builder.build(slots, 0, 0, refs.size(), 0, builder.bounds_of(0, refs.size()));
     return slots.compact([&](std::size_t i) { return builder.prim_at(i); });
 }
 

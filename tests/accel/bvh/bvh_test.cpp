@@ -219,6 +219,59 @@ TEST(Bvh, BuildIsDeterministicWhateverTheThreadCount) {
     }
 }
 
+// build_bvh's whole leaves (the wide BVHs' binary build) are the full tree cut at its subtrees of at most
+// that many references: the same nodes above them, in the same order, and each such subtree one leaf with
+// its box and its primitives.
+TEST(Bvh, WholeLeavesAreTheFullTreeCutAtTheirSize) {
+    constexpr std::size_t kWholeLeafSize = 8;
+    const std::vector<Triangle> triangles = knot_triangles(600);
+    const Geometry geometry{triangles, {}};
+    for (const BuildOptions& options :
+         {with_builder(BvhBuilder::BinnedSah), with_builder(BvhBuilder::SweepSah), with_spatial_splits()}) {
+        const BvhOptions& bvh_options = options.group<BvhOptions>();
+        const BvhBuildResult full = build_bvh(geometry, bvh_options);
+        const BvhBuildResult cut = build_bvh(geometry, bvh_options, kWholeLeafSize);
+        // The primitives under each node of the full tree (children follow their parent).
+        std::vector<std::vector<std::uint32_t>> prims_under(full.nodes.size());
+        for (std::size_t i = full.nodes.size(); i-- > 0;) {
+            const BvhNode& node = full.nodes[i];
+            if (node.is_leaf()) {
+                const auto first = full.prim_indices.begin() + node.offset;
+                prims_under[i].assign(first, first + node.prim_count);
+            } else {
+                prims_under[i] = prims_under[i + 1];
+                prims_under[i].insert(prims_under[i].end(), prims_under[node.offset].begin(),
+                                      prims_under[node.offset].end());
+            }
+        }
+        std::size_t next = 0;
+        std::vector<std::uint32_t> pending = {0};
+        while (!pending.empty()) {
+            const std::uint32_t index = pending.back();
+            pending.pop_back();
+            const BvhNode& node = full.nodes[index];
+            ASSERT_LT(next, cut.nodes.size());
+            const BvhNode& cut_node = cut.nodes[next++];
+            EXPECT_EQ(std::memcmp(&cut_node.lo, &node.lo, sizeof(Vec3f)), 0) << index;
+            EXPECT_EQ(std::memcmp(&cut_node.hi, &node.hi, sizeof(Vec3f)), 0) << index;
+            std::vector<std::uint32_t> expected = prims_under[index];
+            ASSERT_EQ(cut_node.is_leaf(), node.is_leaf() || expected.size() <= kWholeLeafSize) << index;
+            if (cut_node.is_leaf()) {
+                const auto first = cut.prim_indices.begin() + cut_node.offset;
+                std::vector<std::uint32_t> actual(first, first + cut_node.prim_count);
+                std::sort(expected.begin(), expected.end());
+                std::sort(actual.begin(), actual.end());
+                EXPECT_EQ(actual, expected) << index;
+                continue;
+            }
+            pending.push_back(node.offset);
+            pending.push_back(index + 1);
+        }
+        EXPECT_EQ(next, cut.nodes.size());
+        EXPECT_LT(cut.nodes.size(), full.nodes.size() / 2);
+    }
+}
+
 TEST(Bvh, CoincidentPrimitivesStayBounded) {
     const std::vector<Triangle> triangles(5000, Triangle{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
     for (const BuildOptions& options :
