@@ -54,7 +54,7 @@ const std::vector<Entry>& registry() {
         {"bvh8", "8-wide BVH collapsed from the binary one, SIMD boxes and triangle blocks",
          [] { return std::make_unique<Bvh8Accel>(); }, &BvhAccel::option_rows},
         {"bvh8_packet",
-         "the 8-wide BVH for packets: 64 coherent rays at once, others 16 or 8 together until they part",
+         "the 8-wide BVH for packets: 64 coherent rays at once, others in streams of one direction octant",
          [] { return std::make_unique<Bvh8PacketAccel>(); }, &BvhAccel::option_rows},
 #if LANCER_HAS_EMBREE
         {"embree", "Intel Embree 3, rtcIntersect1 and rtcOccluded1",
