@@ -69,7 +69,7 @@ struct ChildRays {
 
     void add(int ray, __m256 t0, __m256 t1) {
         const __m256i hit = _mm256_castps_si256(_mm256_cmp_ps(t0, t1, _CMP_LE_OQ));
-        rays = _mm256_or_si256(rays, _mm256_and_si256(hit, _mm256_set1_epi32(1 << ray)));
+        rays = _mm256_or_si256(rays, _mm256_and_si256(hit, _mm256_set1_epi32(static_cast<int>(1u << ray))));
     }
     unsigned store(Bits* out) const {
         _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), rays);
@@ -102,7 +102,7 @@ class RayStream {
             tnear_[k] = ray.tnear, tlimit_[k] = ray.tfar;
             ray_[k] = &ray;
             block_rays_[k].reset();
-            best_[k] = Hit{};
+            if constexpr (!kAnyHit) best_[k] = Hit{};
         }
         alive_ = count == kCapacity ? ~RayBits{0} : (RayBits{1} << count) - 1;
         if (!nodes_.empty()) walk<kCount>(octant, counts);
