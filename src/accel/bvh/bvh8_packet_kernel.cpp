@@ -1,6 +1,7 @@
 // The kernel of bvh8_packet (bvh8_packet.hpp): its traversal loop and its entry points. The packet
-// (bvh8_packet_rays.hpp), the node test (bvh8_packet_node_test.hpp) and the leaf tests
-// (bvh8_packet_leaf_tests.hpp) are in headers of their own, included here alone. This one source is compiled
+// (bvh8_packet_rays.hpp), the node test (bvh8_packet_node_test.hpp), the leaf tests
+// (bvh8_packet_leaf_tests.hpp) and the ray streams of incoherent rays (bvh8_packet_stream.hpp) are in
+// headers of their own, included here alone. This one source is compiled
 // once per instruction set, by lancer_core for AVX2 (8 rays per instruction) and by lancer_kernels_avx512 for
 // AVX-512 (16), each into its own namespace (core/isa_namespace.hpp), and Bvh8PacketAccel picks one when it
 // is built (lancer/isa.hpp).
