@@ -37,12 +37,13 @@ namespace lancer {
 inline namespace LANCER_ISA_NAMESPACE {
 namespace {
 
-// The octant of a ray for the stream: bit a set where the reciprocal of the direction's component a has
-// its sign bit set, the side by which the ray enters every box on that axis (WideRay::entry_side).
+// The octant of a valid ray for the stream: bit a set where the direction's component a has its sign bit
+// set. The reciprocal, whose sign picks the side by which the ray enters every box on that axis
+// (WideRay::entry_side), has the same sign bit for every non-NaN component, zeros and denormals included
+// (1 / -0 = -inf), so the divisions wait for the stream.
 [[nodiscard]] inline unsigned stream_octant(const Ray& ray) {
-    const SlabRay slab(ray);
-    return (std::signbit(slab.inv_direction.x) ? 1u : 0u) | (std::signbit(slab.inv_direction.y) ? 2u : 0u) |
-           (std::signbit(slab.inv_direction.z) ? 4u : 0u);
+    return (std::signbit(ray.direction.x) ? 1u : 0u) | (std::signbit(ray.direction.y) ? 2u : 0u) |
+           (std::signbit(ray.direction.z) ? 4u : 0u);
 }
 
 // The rays that hit each of a node's 8 children, one bit per ray of the stream: 8 x 64 bits in one AVX-512
