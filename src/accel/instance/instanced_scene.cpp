@@ -65,10 +65,6 @@ double elapsed_ms(std::chrono::steady_clock::time_point start) {
 struct InstancedScene::State {
     BuildOptions top_level;
     std::vector<ObjectRecord> objects;
-    // By object: what traces a group of rays at one of its instances (InstancedScene::Walk): the structure
-    // itself, whose batch call may trace them together (a packet structure's packets), when it takes rays
-    // at the object's own scale as its single-ray structure does; the single-ray structure otherwise.
-    std::vector<const Accel*> batched;
     // By instance id; a removed instance keeps its slot (ids are never given again).
     std::vector<InstanceRecord> records;
     std::vector<Transform> transforms;
@@ -241,7 +237,7 @@ struct InstancedScene::State {
     template <bool kAnyHit, class Answer>
     void walk_each(std::span<const Ray> traced, std::span<Answer> answers,
                    TraversalCounters* counters) const {
-        Walk(nodes, records, batched).trace<kAnyHit>(traced, answers, counters);
+        Walk(nodes, records).each<kAnyHit>(traced, answers, counters);
     }
 };
 
@@ -263,8 +259,6 @@ std::uint32_t InstancedScene::add_object(std::shared_ptr<const Accel> structure)
     const Accel* single_ray = structure->exported_layout().single_ray;
     object.traced = single_ray != nullptr ? single_ray : structure.get();
     object.primitives = structure->stats().primitives;
-    state_->batched.push_back(structure->scale_exponent() == object.traced->scale_exponent() ? structure.get()
-                                                                                             : object.traced);
     object.structure = std::move(structure);
     state_->objects.push_back(std::move(object));
     return static_cast<std::uint32_t>(state_->objects.size() - 1);

@@ -819,11 +819,12 @@ std::vector<Ray> backward_rays(const Box3f& bounds, std::size_t count, std::uint
 
 class InstancedBatches : public ::testing::TestWithParam<Case> {};
 
-// A batch's rays walk the top level in groups and reach each instance together, in another order than
-// each ray alone: every ray's closest hit (t, primitive, barycentrics, instance, object) and occlusion must
-// be its own walk's, bit for bit, for batches of every size: partial groups, whole ones, one more, many.
-// The scene has identical instances (ties), the rays every kind the oracle test traces and more: coherent
-// rays from near and from far, rays behind their origins, random and grazing ones, invalid ones among them.
+// A batch answers each ray as a call with that ray alone: its closest hit (t, primitive, barycentrics,
+// instance, object) and its occlusion, bit for bit, for batches of every size (15; 64, the packets' and a
+// bench tile's; 65; 4,096, intersect_parallel's tasks), whatever a batch's walk shares between its rays
+// (groups of 64 rays walking the top level together were measured: docs/accel/instances.md). The scene has
+// identical instances (ties), the rays every kind the oracle test traces and more: coherent rays from near
+// and from far, rays behind their origins, random and grazing ones, invalid ones among them.
 TEST_P(InstancedBatches, EveryRayAnswersAsItsOwnWalk) {
     Fixture fixture = random_fixture(41, 30);
     for (std::size_t i = 0; i < 6; ++i) {
