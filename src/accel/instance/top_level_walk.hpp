@@ -99,12 +99,11 @@ class InstancedScene::Walk {
     }
 
     // The end of the interval an instance visit traces: the ray's tfar, or once it has a hit, the float
-    // after that hit's t (closed). An instance's hit then wins the tie rule of lancer::closer whichever
-    // instance was visited first: mapped back from a moved origin (ObjectRay::shift), a hit whose t' lies
-    // beyond the mapped end of [tnear, best t] can still round to best t, and with best t itself as the
-    // end, an instance visited after the one that found it lost such a tie it should win by its smaller
-    // id (InstancedScene.TiesGoToTheSmallerInstanceIdVisitedSecond: 974 of 2,000 rays). A hit found
-    // beyond best t loses to it by lancer::closer, so the answer is the same in any order of visits
+    // after that hit's t (closed). A hit mapped back from a moved origin (ObjectRay::shift) may lie beyond
+    // the mapped end of [tnear, best t] and still round to best t: with best t itself as the end, an
+    // instance visited after the one that found such a hit would miss it and lose the tie its smaller id
+    // wins (lancer::closer; InstancedScene.TiesGoToTheSmallerInstanceIdVisitedSecond). A hit found beyond
+    // best t loses to it by lancer::closer, so a ray's answer does not depend on the order of its visits
     // (docs/numerical-contract.md, "Instances").
     [[nodiscard]] static float clipped(const Ray& ray, const InstanceHit& best) {
         return best.hit() ? std::fmin(std::nextafter(best.t, kInfinity), ray.tfar) : ray.tfar;
