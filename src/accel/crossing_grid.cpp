@@ -1,5 +1,6 @@
 #include "accel/crossing_grid.hpp"
 
+#include <algorithm>
 #include <numeric>
 
 #include "accel/build_util.hpp"
@@ -9,7 +10,8 @@
 namespace lancer {
 
 CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const Vec3f& direction,
-                           std::size_t cells, int threads) {
+                           std::size_t cells, int threads)
+    : direction_(direction) {
     // Two unit vectors across the direction: the cross product with the axis it is least along, then the
     // third side of the frame.
     const Vec3d d = normalize(Vec3d(direction));
@@ -104,6 +106,37 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
     std::vector<std::size_t> next(first_.begin(), first_.end() - 1);
     for (std::size_t i = 0; i < triangles; ++i)
         each_cell(spans[i], [&](std::size_t cell) { prims_[next[cell]++] = static_cast<std::uint32_t>(i); });
+}
+
+std::shared_ptr<const CrossingGrid> CrossingGrids::grid(const Geometry& geometry, const Box3f& bounds,
+                                                        const Vec3f& direction, std::size_t cells,
+                                                        int threads, std::uint64_t version) {
+    {
+        const std::lock_guard lock(mutex_);
+        if (version != version_) grids_.clear(), version_ = version;
+        const auto kept = std::find_if(grids_.begin(), grids_.end(),
+                                       [&](const auto& grid) { return grid->direction() == direction; });
+        if (kept != grids_.end()) {
+            std::rotate(kept, kept + 1, grids_.end());
+            return grids_.back();
+        }
+    }
+    auto made = std::make_shared<const CrossingGrid>(geometry, bounds, direction, cells, threads);
+    const std::lock_guard lock(mutex_);
+    if (version != version_) return made;  // the geometry changed meanwhile: this one is not to keep
+    // Another call may have made the same grid meanwhile: one is kept.
+    if (std::none_of(grids_.begin(), grids_.end(),
+                     [&](const auto& grid) { return grid->direction() == direction; }))
+        grids_.push_back(made);
+    // The least recently used dropped while the grids kept exceed the budget, the newest kept.
+    std::size_t bytes = 0;
+    for (const auto& grid : grids_)
+        bytes += grid->memory_bytes();
+    while (grids_.size() > 1 && bytes > geometry.triangles.size() * sizeof(Triangle)) {
+        bytes -= grids_.front()->memory_bytes();
+        grids_.erase(grids_.begin());
+    }
+    return made;
 }
 
 }  // namespace lancer

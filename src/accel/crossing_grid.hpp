@@ -18,6 +18,8 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <span>
 #include <vector>
 
@@ -35,6 +37,7 @@ class CrossingGrid {
     CrossingGrid(const Geometry& geometry, const Box3f& bounds, const Vec3f& direction, std::size_t cells,
                  int threads);
 
+    [[nodiscard]] const Vec3f& direction() const { return direction_; }
     [[nodiscard]] std::size_t cell_count() const { return first_.size() - 1; }
     // The cell of a ray from `origin` along the direction.
     [[nodiscard]] std::size_t cell_of(const Vec3f& origin) const {
@@ -47,6 +50,14 @@ class CrossingGrid {
     }
     // The primitives no cell bounds: spheres, and triangles with a non-finite corner.
     [[nodiscard]] std::span<const std::uint32_t> every_ray() const { return every_ray_; }
+    // Whether a ray in `cell` has any primitive to test.
+    [[nodiscard]] bool lists_any(std::size_t cell) const {
+        return first_[cell] != first_[cell + 1] || !every_ray_.empty();
+    }
+    [[nodiscard]] std::size_t memory_bytes() const {
+        return sizeof(*this) + first_.capacity() * sizeof(std::size_t) +
+               (prims_.capacity() + every_ray_.capacity()) * sizeof(std::uint32_t);
+    }
 
   private:
     struct Plane {
@@ -67,6 +78,7 @@ class CrossingGrid {
     }
     [[nodiscard]] std::size_t row(double v) const { return cell_along(v, lo_v_, cells_per_unit_, rows_); }
 
+    Vec3f direction_;
     Vec3d axis_u_{0, 0, 0}, axis_v_{0, 0, 0};  // unit vectors across the direction and each other
     double lo_u_ = 0.0, lo_v_ = 0.0;
     double cells_per_unit_ = 0.0;  // 1 / the cells' side
@@ -74,6 +86,27 @@ class CrossingGrid {
     std::vector<std::size_t> first_;  // cell c lists prims_[first_[c], first_[c + 1])
     std::vector<std::uint32_t> prims_;
     std::vector<std::uint32_t> every_ray_;
+};
+
+// The grids of one geometry along the directions last asked for, kept between calls: a grid depends only on
+// the triangles and the direction, and occupancy asks for the same few directions at every call (a third of
+// the dragon's count_crossings was its grid's build; docs/python.md, "Occupancy"). The grids kept take at
+// most as many bytes as the geometry's triangles, the most recently used kept first, and the last one
+// whatever its size. Safe to call from several threads: a grid is built outside the lock and shared
+// read-only.
+class CrossingGrids {
+  public:
+    // The grid of `geometry` (CrossingGrid's arguments) along `direction`: a kept one when `version`
+    // numbers the geometry the kept ones were made for (those of another are dropped), else a new one, then
+    // kept.
+    [[nodiscard]] std::shared_ptr<const CrossingGrid> grid(const Geometry& geometry, const Box3f& bounds,
+                                                           const Vec3f& direction, std::size_t cells,
+                                                           int threads, std::uint64_t version);
+
+  private:
+    std::mutex mutex_;
+    std::uint64_t version_ = 0;
+    std::vector<std::shared_ptr<const CrossingGrid>> grids_;  // the most recently used last
 };
 
 }  // namespace lancer

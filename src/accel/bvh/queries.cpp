@@ -5,6 +5,8 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <numeric>
 #include <optional>
 #include <span>
@@ -18,10 +20,43 @@
 #include "accel/crossing_grid.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "accel/simd_float.hpp"
+#include "core/host_device.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/parallel.hpp"
 
 namespace lancer {
+
+namespace {
+
+// An array reused from call to call: grown when too small, never shrunk nor cleared, so that a call no larger
+// than an earlier one writes into pages already faulted in (each fresh 4 KiB page cost about 13 us on the
+// benchmark's machine; docs/python.md, "Occupancy").
+template <class T>
+class ReusedArray {
+  public:
+    [[nodiscard]] std::span<T> first(std::size_t count) {
+        if (count > capacity_) data_ = std::make_unique_for_overwrite<T[]>(count), capacity_ = count;
+        return {data_.get(), count};
+    }
+
+  private:
+    std::unique_ptr<T[]> data_;
+    std::size_t capacity_ = 0;
+};
+
+// The distinct values of `times`, which it sorts.
+std::uint32_t distinct_count(std::vector<float>& times) {
+    std::sort(times.begin(), times.end());
+    return static_cast<std::uint32_t>(std::unique(times.begin(), times.end()) - times.begin());
+}
+
+// count_crossings' arrays, kept between calls: each ray's cell, the counting sort's counts and ends, the
+// rays in the order of their cells.
+struct CrossingBuffers {
+    ReusedArray<std::uint32_t> cells, ends, by_cell;
+};
+
+}  // namespace
 
 // One of the trees below is walked: the structure's own (binary, bvh4's or bvh8's), or `own`. Either was
 // built on `scene`'s built geometry, which is the caller's scaled by 2^scale_exponent
@@ -36,9 +71,17 @@ struct GeometryQueries::Impl {
     const Bvh8Accel* bvh8 = nullptr;
     bool walks_accel = false;
 
+    // count_crossings' grids, and its arrays, kept between calls (docs/python.md, "Occupancy").
+    CrossingGrids grids;
+    std::mutex buffers_mutex;
+    CrossingBuffers buffers;
+
     // on_hit(hit) for every hit of `traced`, a valid ray conditioned for `scene`, in no order.
     template <class OnHit>
     void each_hit(const Ray& traced, OnHit&& on_hit) const;
+    // The crossings of a valid ray (count_crossings) by a walk of the tree, its hits as all_hits gives them;
+    // `times` is scratch.
+    std::uint32_t walked_crossings(const Ray& ray, std::vector<float>& times) const;
 };
 
 GeometryQueries::GeometryQueries(const Geometry& geometry, TriangleTest test)
@@ -296,107 +339,129 @@ void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
                hits.end());
 }
 
-namespace {
-
-// count_crossings' ray: its origin, the grid's cell of it, its index among the origins. 20 bytes: the sort
-// moves every ray twice, and its time is memory's.
-struct RayInCell {
-    Vec3f origin;
-    std::uint32_t cell;
-    std::uint32_t index;
-};
-static_assert(sizeof(RayInCell) == 20);
-
-}  // namespace
+std::uint32_t GeometryQueries::Impl::walked_crossings(const Ray& ray, std::vector<float>& times) const {
+    const ConditionedRays conditioned =
+        condition_rays(std::span(&ray, 1), scene->bounds(), scene->scale_exponent());
+    times.clear();
+    if (conditioned.rays.empty()) {
+        each_hit(ray, [&](const Hit& hit) { times.push_back(hit.t); });
+    } else {
+        // all_hits' t: back in the caller's parametrisation, one beyond the float range dropped.
+        each_hit(conditioned.rays[0], [&](const Hit& hit) {
+            if (const std::optional<float> t = restore_t(hit.t, conditioned.how[0], ray)) times.push_back(*t);
+        });
+    }
+    return distinct_count(times);
+}
 
 void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Vec3f> origins,
                                       std::span<std::uint32_t> crossings, int threads) const {
     const Accel& scene = *impl_->scene;
     const Geometry& geometry = scene.built_geometry();
-    std::fill_n(crossings.begin(), origins.size(), 0u);
-    if (geometry.size() == 0) return;
+    const std::size_t count = origins.size();
+    constexpr std::size_t kRaysPerTask = 1024;
+    if (geometry.size() == 0) {
+        std::fill_n(crossings.begin(), count, 0u);
+        return;
+    }
     // The grid costs a pass over the triangles and their cells; a ray through it a few block tests, where a
     // tree walk costs several times that: it pays from about one ray per four primitives. A scene scaled to
-    // the structures' range (Accel::scale_exponent) conditions every ray: those walk the tree.
-    std::optional<CrossingGrid> grid;
-    if (scene.scale_exponent() == 0 && 4 * origins.size() >= geometry.size() &&
-        origins.size() <= std::numeric_limits<std::uint32_t>::max())
-        grid.emplace(geometry, scene.built_bounds(), direction, geometry.size() / 2, threads);
-    // The rays in the order of their cells, so that a cell's triangles are gathered once for the rays in it,
-    // origins moved with their cells, so that the rays read them in turn (each read through an index is a
-    // cache miss): a radix sort, 11 bits of the cell a pass, each pass scattering into 2048 runs.
-    constexpr std::size_t kRaysPerTask = 1024;
-    std::vector<RayInCell> by_cell(origins.size());
-    parallel_for(origins.size(), kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
-        for (std::size_t i = first; i < last; ++i)
-            by_cell[i] = {origins[i], grid ? static_cast<std::uint32_t>(grid->cell_of(origins[i])) : 0u,
-                          static_cast<std::uint32_t>(i)};
-    });
-    if (grid) {
-        constexpr int kRadixBits = 11;
-        constexpr std::size_t kRuns = std::size_t{1} << kRadixBits;
-        std::vector<RayInCell> scratch(origins.size());
-        for (int shift = 0; (grid->cell_count() - 1) >> shift != 0; shift += kRadixBits) {
-            std::array<std::size_t, kRuns + 1> next{};
-            for (const RayInCell& ray : by_cell)
-                ++next[((ray.cell >> shift) & (kRuns - 1)) + 1];
-            std::inclusive_scan(next.begin(), next.end(), next.begin());
-            for (const RayInCell& ray : by_cell)
-                scratch[next[(ray.cell >> shift) & (kRuns - 1)]++] = ray;
-            by_cell.swap(scratch);
-        }
-    }
-    parallel_for(origins.size(), kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
-        std::vector<Ray> rays(last - first);
-        for (std::size_t k = first; k < last; ++k)
-            rays[k - first] = {by_cell[k].origin, direction, 0.0f, kInfinity};
-        const ConditionedRays conditioned = condition_rays(rays, scene.bounds(), scene.scale_exponent());
-        std::vector<float> times;
-        std::vector<Bvh8Accel::Block> blocks;
-        std::size_t blocks_cell = std::numeric_limits<std::size_t>::max();
-        dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
-            for (std::size_t k = 0; k < rays.size(); ++k) {
-                const bool moved = !conditioned.rays.empty() &&
-                                   (conditioned.how[k].shift != 0.0 || conditioned.how[k].exponent != 0);
-                const Ray& traced = moved ? conditioned.rays[k] : rays[k];
-                const bool by_grid = grid && !moved;
-                const std::size_t cell = by_cell[first + k].cell;
-                // A ray whose cell lists nothing crosses nothing; an invalid one hits nothing.
-                if ((by_grid && grid->primitives(cell).empty() && grid->every_ray().empty()) ||
-                    !is_valid(traced))
-                    continue;
-                times.clear();
-                const auto add = [&](const Hit& hit) { times.push_back(hit.t); };
-                if (by_grid) {
-                    // The cell's primitives in blocks, as a leaf's, once for the cell's rays.
-                    if (cell != blocks_cell) {
-                        blocks.clear();
-                        append_leaf_blocks(geometry, grid->primitives(cell), blocks);
-                        append_leaf_blocks(geometry, grid->every_ray(), blocks);
-                        blocks_cell = cell;
-                    }
-                    const PreparedRay<TriangleTestT> prepared(traced);
-                    const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, geometry);
-                    for (const Bvh8Accel::Block& block : blocks)
-                        each_block_hit(geometry, block, block_ray, add);
-                } else {
-                    impl_->each_hit(traced, add);
-                }
-                if (moved) {
-                    // all_hits' t: back in the caller's parametrisation, one beyond the float range dropped.
-                    std::size_t kept = 0;
-                    for (const float t : times) {
-                        if (const std::optional<float> restored = restore_t(t, conditioned.how[k], rays[k]))
-                            times[kept++] = *restored;
-                    }
-                    times.resize(kept);
-                }
-                std::sort(times.begin(), times.end());
-                crossings[grid ? by_cell[first + k].index : first + k] =
-                    static_cast<std::uint32_t>(std::unique(times.begin(), times.end()) - times.begin());
+    // the structures' range (Accel::scale_exponent) conditions every ray: those walk the tree. Cells are
+    // numbered below 2^32 - 1 (at most about 1.5 a primitive, and primitives below 2^31).
+    if (scene.scale_exponent() != 0 || 4 * count < geometry.size() ||
+        count > std::numeric_limits<std::uint32_t>::max()) {
+        parallel_for(count, kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
+            std::vector<float> task_times;
+            for (std::size_t i = first; i < last; ++i) {
+                const Ray ray{origins[i], direction, 0.0f, kInfinity};
+                crossings[i] = is_valid(ray) ? impl_->walked_crossings(ray, task_times) : 0u;
             }
         });
+        return;
+    }
+    const std::shared_ptr<const CrossingGrid> grid = impl_->grids.grid(
+        geometry, scene.built_bounds(), direction, geometry.size() / 2, threads, scene.geometry_version_);
+    // The arrays of the last call, unless another thread's call holds them.
+    std::unique_lock<std::mutex> buffers_lock(impl_->buffers_mutex, std::try_to_lock);
+    CrossingBuffers own_buffers;
+    CrossingBuffers& buffers = buffers_lock.owns_lock() ? impl_->buffers : own_buffers;
+
+    // First pass, in kSortChunks runs of consecutive rays: the rays that test a cell's primitives are
+    // counted by cell (ends[cell * kSortChunks + run]); the others get their answer now: an invalid ray or
+    // one whose cell lists nothing crosses nothing, and one that may need conditioning walks the tree.
+    constexpr std::uint32_t kUnlisted = std::numeric_limits<std::uint32_t>::max();
+    constexpr std::size_t kSortChunks = 4;
+    const std::size_t run = std::max<std::size_t>((count + kSortChunks - 1) / kSortChunks, 1);
+    const std::span<std::uint32_t> cells = buffers.cells.first(count);
+    const std::span<std::uint32_t> ends = buffers.ends.first(grid->cell_count() * kSortChunks + 1);
+    std::fill(ends.begin(), ends.end(), 0u);
+    const FarOriginFrame frame(scene.bounds());
+    parallel_for(count, run, threads, [&](std::size_t first, std::size_t last) {
+        const std::size_t chunk = first / run;
+        std::vector<float> task_times;
+        for (std::size_t i = first; i < last; ++i) {
+            const Ray ray{origins[i], direction, 0.0f, kInfinity};
+            cells[i] = kUnlisted;
+            if (!is_valid(ray)) {
+                crossings[i] = 0;
+            } else if (may_need_conditioning(ray, frame)) {
+                crossings[i] = impl_->walked_crossings(ray, task_times);
+            } else if (const std::size_t cell = grid->cell_of(ray.origin); !grid->lists_any(cell)) {
+                crossings[i] = 0;
+            } else {
+                cells[i] = static_cast<std::uint32_t>(cell);
+                ++ends[cell * kSortChunks + chunk];
+            }
+        }
     });
+    // A counting sort, stable: each (cell, run) its first place, then the rays moved there run by run, after
+    // which ends[cell * kSortChunks + run] is where that run's rays of the cell end (the last entry, one
+    // past the cells', holds the total).
+    std::exclusive_scan(ends.begin(), ends.end(), ends.begin(), 0u);
+    const std::span<std::uint32_t> by_cell = buffers.by_cell.first(ends.back());
+    parallel_for(count, run, threads, [&](std::size_t first, std::size_t last) {
+        const std::size_t chunk = first / run;
+        for (std::size_t i = first; i < last; ++i) {
+            if (cells[i] != kUnlisted)
+                by_cell[ends[cells[i] * kSortChunks + chunk]++] = static_cast<std::uint32_t>(i);
+        }
+    });
+    // Cell by cell: its primitives gathered into blocks once for its rays, each ray read through by_cell
+    // (its origin and its answer prefetched a few rays ahead, each a cache miss) and tested against them by
+    // bvh8's block kernel, the tree's own bits.
+    constexpr std::size_t kCellsPerTask = 1024;
+    constexpr std::size_t kPrefetchAhead = 8;
+    parallel_for(
+        grid->cell_count(), kCellsPerTask, threads, [&](std::size_t first_cell, std::size_t last_cell) {
+            std::vector<float> task_times;
+            std::vector<Bvh8Accel::Block> blocks;
+            dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
+                for (std::size_t cell = first_cell; cell < last_cell; ++cell) {
+                    const std::size_t begin = cell == 0 ? 0 : ends[cell * kSortChunks - 1];
+                    const std::size_t end = ends[cell * kSortChunks + kSortChunks - 1];
+                    if (begin == end) continue;
+                    blocks.clear();
+                    append_leaf_blocks(geometry, grid->primitives(cell), blocks);
+                    append_leaf_blocks(geometry, grid->every_ray(), blocks);
+                    for (std::size_t k = begin; k < end; ++k) {
+                        if (k + kPrefetchAhead < by_cell.size()) {
+                            prefetch_line(&origins[by_cell[k + kPrefetchAhead]]);
+                            prefetch_line(&crossings[by_cell[k + kPrefetchAhead]]);
+                        }
+                        const std::uint32_t i = by_cell[k];
+                        const PreparedRay<TriangleTestT> prepared(
+                            Ray{origins[i], direction, 0.0f, kInfinity});
+                        const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, geometry);
+                        task_times.clear();
+                        for (const Bvh8Accel::Block& block : blocks) {
+                            each_block_hit(geometry, block, block_ray,
+                                           [&](const Hit& hit) { task_times.push_back(hit.t); });
+                        }
+                        crossings[i] = distinct_count(task_times);
+                    }
+                }
+            });
+        });
 }
 
 NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
