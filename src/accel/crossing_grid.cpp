@@ -106,6 +106,10 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
     std::vector<std::size_t> next(first_.begin(), first_.end() - 1);
     for (std::size_t i = 0; i < triangles; ++i)
         each_cell(spans[i], [&](std::size_t cell) { prims_[next[cell]++] = static_cast<std::uint32_t>(i); });
+    listed_.assign((cell_count() + 63) / 64, 0);
+    for (std::size_t cell = 0; cell < cell_count(); ++cell) {
+        if (first_[cell] != first_[cell + 1]) listed_[cell / 64] |= std::uint64_t{1} << (cell % 64);
+    }
 }
 
 std::shared_ptr<const CrossingGrid> CrossingGrids::grid(const Geometry& geometry, const Box3f& bounds,

@@ -50,11 +50,16 @@ std::uint32_t distinct_count(std::vector<float>& times) {
     return static_cast<std::uint32_t>(std::unique(times.begin(), times.end()) - times.begin());
 }
 
-// count_crossings' arrays, kept between calls: each ray's cell, the counting sort's counts and ends, the
-// rays in the order of their cells.
+// count_crossings' arrays, kept between calls: the keys (cell, index) of the rays that test a cell's
+// primitives, in their order and by cell (a radix sort's two arrays), and the counts of the keys' digits.
 struct CrossingBuffers {
-    ReusedArray<std::uint32_t> cells, ends, by_cell;
+    ReusedArray<std::uint64_t> keys, sorted;
+    ReusedArray<std::uint32_t> digit_counts;
 };
+
+// The radix sort's digits: at most 2^11 values, so that the counts and the places they scatter to stay in
+// the first-level cache.
+constexpr int kMaxDigitBits = 11;
 
 }  // namespace
 
@@ -386,22 +391,28 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
     CrossingBuffers own_buffers;
     CrossingBuffers& buffers = buffers_lock.owns_lock() ? impl_->buffers : own_buffers;
 
-    // First pass, in kSortChunks runs of consecutive rays: the rays that test a cell's primitives are
-    // counted by cell (ends[cell * kSortChunks + run]); the others get their answer now: an invalid ray or
-    // one whose cell lists nothing crosses nothing, and one that may need conditioning walks the tree.
-    constexpr std::uint32_t kUnlisted = std::numeric_limits<std::uint32_t>::max();
-    constexpr std::size_t kSortChunks = 4;
-    const std::size_t run = std::max<std::size_t>((count + kSortChunks - 1) / kSortChunks, 1);
-    const std::span<std::uint32_t> cells = buffers.cells.first(count);
-    const std::span<std::uint32_t> ends = buffers.ends.first(grid->cell_count() * kSortChunks + 1);
-    std::fill(ends.begin(), ends.end(), 0u);
+    // First pass, in kRuns runs of consecutive rays: the rays that test a cell's primitives are written as
+    // keys, (cell, index), each run from its own place on; the others get their answer now: an invalid ray
+    // or one whose cell lists nothing crosses nothing, and one that may need conditioning walks the tree.
+    // The keys' digits are counted on the way for the radix sort.
+    constexpr std::size_t kRuns = 4;
+    const std::size_t run = std::max<std::size_t>((count + kRuns - 1) / kRuns, 1);
+    const int cell_bits = static_cast<int>(std::bit_width(grid->cell_count() - 1));
+    const int passes = std::max(1, (cell_bits + kMaxDigitBits - 1) / kMaxDigitBits);
+    const int digit_bits = std::max(1, (cell_bits + passes - 1) / passes);
+    const std::size_t digits = std::size_t{1} << digit_bits;
+    const std::span<std::uint64_t> keys = buffers.keys.first(count), sorted = buffers.sorted.first(count);
+    const std::span<std::uint32_t> digit_counts = buffers.digit_counts.first(kRuns * passes * digits);
+    std::fill(digit_counts.begin(), digit_counts.end(), 0u);
+    std::array<std::size_t, kRuns> run_keys{};
     const FarOriginFrame frame(scene.bounds());
     parallel_for(count, run, threads, [&](std::size_t first, std::size_t last) {
-        const std::size_t chunk = first / run;
+        const std::size_t r = first / run;
+        std::uint32_t* counts = digit_counts.data() + r * passes * digits;
+        std::size_t written = first;
         std::vector<float> task_times;
         for (std::size_t i = first; i < last; ++i) {
             const Ray ray{origins[i], direction, 0.0f, kInfinity};
-            cells[i] = kUnlisted;
             if (!is_valid(ray)) {
                 crossings[i] = 0;
             } else if (may_need_conditioning(ray, frame)) {
@@ -409,59 +420,74 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
             } else if (const std::size_t cell = grid->cell_of(ray.origin); !grid->lists_any(cell)) {
                 crossings[i] = 0;
             } else {
-                cells[i] = static_cast<std::uint32_t>(cell);
-                ++ends[cell * kSortChunks + chunk];
+                keys[written++] = std::uint64_t{cell} << 32 | i;
+                for (int pass = 0; pass < passes; ++pass)
+                    ++counts[pass * digits + ((cell >> (pass * digit_bits)) & (digits - 1))];
             }
         }
+        run_keys[r] = written - first;
     });
-    // A counting sort, stable: each (cell, run) its first place, then the rays moved there run by run, after
-    // which ends[cell * kSortChunks + run] is where that run's rays of the cell end (the last entry, one
-    // past the cells', holds the total).
-    std::exclusive_scan(ends.begin(), ends.end(), ends.begin(), 0u);
-    const std::span<std::uint32_t> by_cell = buffers.by_cell.first(ends.back());
-    parallel_for(count, run, threads, [&](std::size_t first, std::size_t last) {
-        const std::size_t chunk = first / run;
-        for (std::size_t i = first; i < last; ++i) {
-            if (cells[i] != kUnlisted)
-                by_cell[ends[cells[i] * kSortChunks + chunk]++] = static_cast<std::uint32_t>(i);
+    // An LSD radix sort of the keys by cell, stable, so that a cell's rays stay in the order of their index.
+    std::size_t listed = 0;
+    for (const std::size_t n : run_keys)
+        listed += n;
+    std::span<std::uint64_t> from = keys, to = sorted;
+    for (int pass = 0; pass < passes; ++pass) {
+        std::vector<std::size_t> next(digits, 0);
+        std::size_t place = 0;
+        for (std::size_t d = 0; d < digits; ++d) {
+            next[d] = place;
+            for (std::size_t r = 0; r < kRuns; ++r)
+                place += digit_counts[(r * passes + pass) * digits + d];
         }
-    });
-    // Cell by cell: its primitives gathered into blocks once for its rays, each ray read through by_cell
-    // (its origin and its answer prefetched a few rays ahead, each a cache miss) and tested against them by
-    // bvh8's block kernel, the tree's own bits.
-    constexpr std::size_t kCellsPerTask = 1024;
+        const int shift = 32 + pass * digit_bits;
+        const auto move = [&](std::size_t first, std::size_t last) {
+            for (std::size_t k = first; k < last; ++k)
+                to[next[(from[k] >> shift) & (digits - 1)]++] = from[k];
+        };
+        if (pass == 0) {
+            for (std::size_t r = 0; r < kRuns; ++r)
+                move(r * run, r * run + run_keys[r]);
+        } else {
+            move(0, listed);
+        }
+        std::swap(from, to);
+    }
+    const std::span<const std::uint64_t> by_cell = from.first(listed);
+    // Cell by cell: its primitives gathered into blocks once for its rays (once per task that holds some of
+    // them), each ray's origin read through its key (prefetched a few rays ahead, as its answer: each is a
+    // cache miss) and tested against them by bvh8's block kernel, the tree's own bits.
     constexpr std::size_t kPrefetchAhead = 8;
-    parallel_for(
-        grid->cell_count(), kCellsPerTask, threads, [&](std::size_t first_cell, std::size_t last_cell) {
-            std::vector<float> task_times;
-            std::vector<Bvh8Accel::Block> blocks;
-            dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
-                for (std::size_t cell = first_cell; cell < last_cell; ++cell) {
-                    const std::size_t begin = cell == 0 ? 0 : ends[cell * kSortChunks - 1];
-                    const std::size_t end = ends[cell * kSortChunks + kSortChunks - 1];
-                    if (begin == end) continue;
+    parallel_for(listed, kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
+        std::vector<float> task_times;
+        std::vector<Bvh8Accel::Block> blocks;
+        std::size_t blocks_cell = std::numeric_limits<std::size_t>::max();
+        dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
+            for (std::size_t k = first; k < last; ++k) {
+                if (k + kPrefetchAhead < listed) {
+                    const auto ahead = static_cast<std::uint32_t>(by_cell[k + kPrefetchAhead]);
+                    prefetch_line(&origins[ahead]);
+                    prefetch_line(&crossings[ahead]);
+                }
+                const std::size_t cell = by_cell[k] >> 32;
+                const auto i = static_cast<std::uint32_t>(by_cell[k]);
+                if (cell != blocks_cell) {
                     blocks.clear();
                     append_leaf_blocks(geometry, grid->primitives(cell), blocks);
                     append_leaf_blocks(geometry, grid->every_ray(), blocks);
-                    for (std::size_t k = begin; k < end; ++k) {
-                        if (k + kPrefetchAhead < by_cell.size()) {
-                            prefetch_line(&origins[by_cell[k + kPrefetchAhead]]);
-                            prefetch_line(&crossings[by_cell[k + kPrefetchAhead]]);
-                        }
-                        const std::uint32_t i = by_cell[k];
-                        const PreparedRay<TriangleTestT> prepared(
-                            Ray{origins[i], direction, 0.0f, kInfinity});
-                        const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, geometry);
-                        task_times.clear();
-                        for (const Bvh8Accel::Block& block : blocks) {
-                            each_block_hit(geometry, block, block_ray,
-                                           [&](const Hit& hit) { task_times.push_back(hit.t); });
-                        }
-                        crossings[i] = distinct_count(task_times);
-                    }
+                    blocks_cell = cell;
                 }
-            });
+                const PreparedRay<TriangleTestT> prepared(Ray{origins[i], direction, 0.0f, kInfinity});
+                const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, geometry);
+                task_times.clear();
+                for (const Bvh8Accel::Block& block : blocks) {
+                    each_block_hit(geometry, block, block_ray,
+                                   [&](const Hit& hit) { task_times.push_back(hit.t); });
+                }
+                crossings[i] = distinct_count(task_times);
+            }
         });
+    });
 }
 
 NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
