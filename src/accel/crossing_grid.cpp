@@ -87,8 +87,29 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
                                   : Span{1, 0, 1, 0};
         }
     });
-    for (std::size_t i = 0; i < triangles; ++i) {
-        if (spans[i].c1 < spans[i].c0) every_ray_.push_back(static_cast<std::uint32_t>(i));
+    // The triangles copied in the order of their shadow's first cell, row by row (those listed apart last),
+    // so that the triangles of neighbouring cells lie together in memory: the rays go through the cells in
+    // that order, and gathering a cell's triangles from the geometry's order was a cache miss for most
+    // (a third of the dragon's count_crossings). A stable counting sort.
+    const std::size_t cell_total = columns_ * rows_;
+    const auto home = [&](const Span& span) {
+        return span.c1 < span.c0 ? cell_total : std::size_t{span.r0} * columns_ + span.c0;
+    };
+    std::vector<std::uint32_t> by_home(cell_total + 2, 0);
+    for (const Span& span : spans)
+        ++by_home[home(span) + 1];
+    std::inclusive_scan(by_home.begin(), by_home.end(), by_home.begin());
+    std::vector<std::uint32_t> order(triangles);  // the original index of each copied triangle
+    for (std::size_t i = 0; i < triangles; ++i)
+        order[by_home[home(spans[i])]++] = static_cast<std::uint32_t>(i);
+    triangles_.resize(triangles);
+    parallel_for(triangles, kTrianglesPerTask, threads, [&](std::size_t first, std::size_t last) {
+        for (std::size_t p = first; p < last; ++p)
+            triangles_[p] = geometry.triangles[order[p]];
+    });
+    for (std::size_t p = 0; p < triangles; ++p) {
+        if (const Span& span = spans[order[p]]; span.c1 < span.c0)
+            every_ray_.push_back(static_cast<std::uint32_t>(p));
     }
     for (std::size_t s = 0; s < geometry.spheres.size(); ++s)
         every_ray_.push_back(static_cast<std::uint32_t>(triangles + s));
@@ -98,14 +119,16 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
                 body(r * columns_ + c);
         }
     };
-    first_.assign(columns_ * rows_ + 1, 0);
+    first_.assign(cell_total + 1, 0);
     for (const Span& span : spans)
         each_cell(span, [&](std::size_t cell) { ++first_[cell + 1]; });
     std::inclusive_scan(first_.begin(), first_.end(), first_.begin());
     prims_.resize(first_.back());
     std::vector<std::size_t> next(first_.begin(), first_.end() - 1);
-    for (std::size_t i = 0; i < triangles; ++i)
-        each_cell(spans[i], [&](std::size_t cell) { prims_[next[cell]++] = static_cast<std::uint32_t>(i); });
+    for (std::size_t p = 0; p < triangles; ++p) {
+        each_cell(spans[order[p]],
+                  [&](std::size_t cell) { prims_[next[cell]++] = static_cast<std::uint32_t>(p); });
+    }
     listed_.assign((cell_count() + 63) / 64, 0);
     for (std::size_t cell = 0; cell < cell_count(); ++cell) {
         if (first_[cell] != first_[cell + 1]) listed_[cell / 64] |= std::uint64_t{1} << (cell % 64);

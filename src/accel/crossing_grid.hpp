@@ -44,6 +44,10 @@ class CrossingGrid {
         const Plane p = project(origin);
         return row(p.v) * columns_ + column(p.u);
     }
+    // The geometry's triangles in the grid's order, which primitives() and every_ray() number (a sphere s
+    // as triangles().size() + s, as in the geometry): the same triangles, bit for bit, so that a ray's hits
+    // on them have the geometry's t.
+    [[nodiscard]] std::span<const Triangle> triangles() const { return triangles_; }
     // The primitives a ray in `cell` can hit, by increasing index, and every_ray's.
     [[nodiscard]] std::span<const std::uint32_t> primitives(std::size_t cell) const {
         return {prims_.data() + first_[cell], prims_.data() + first_[cell + 1]};
@@ -55,7 +59,8 @@ class CrossingGrid {
         return ((listed_[cell / 64] >> (cell % 64)) & 1u) != 0 || !every_ray_.empty();
     }
     [[nodiscard]] std::size_t memory_bytes() const {
-        return sizeof(*this) + first_.capacity() * sizeof(std::size_t) +
+        return sizeof(*this) + triangles_.capacity() * sizeof(Triangle) +
+               first_.capacity() * sizeof(std::size_t) +
                (prims_.capacity() + every_ray_.capacity()) * sizeof(std::uint32_t) +
                listed_.capacity() * sizeof(std::uint64_t);
     }
@@ -84,6 +89,7 @@ class CrossingGrid {
     double lo_u_ = 0.0, lo_v_ = 0.0;
     double cells_per_unit_ = 0.0;  // 1 / the cells' side
     std::size_t columns_ = 1, rows_ = 1;
+    std::vector<Triangle> triangles_;
     std::vector<std::size_t> first_;  // cell c lists prims_[first_[c], first_[c + 1])
     std::vector<std::uint32_t> prims_;
     std::vector<std::uint32_t> every_ray_;

@@ -454,6 +454,7 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
         std::swap(from, to);
     }
     const std::span<const std::uint64_t> by_cell = from.first(listed);
+    const Geometry in_grid_order{grid->triangles(), geometry.spheres};
     // Cell by cell: its primitives gathered into blocks once for its rays (once per task that holds some of
     // them), each ray's origin read through its key (prefetched a few rays ahead, as its answer: each is a
     // cache miss) and tested against them by bvh8's block kernel, the tree's own bits.
@@ -473,15 +474,15 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
                 const auto i = static_cast<std::uint32_t>(by_cell[k]);
                 if (cell != blocks_cell) {
                     blocks.clear();
-                    append_leaf_blocks(geometry, grid->primitives(cell), blocks);
-                    append_leaf_blocks(geometry, grid->every_ray(), blocks);
+                    append_leaf_blocks(in_grid_order, grid->primitives(cell), blocks);
+                    append_leaf_blocks(in_grid_order, grid->every_ray(), blocks);
                     blocks_cell = cell;
                 }
                 const PreparedRay<TriangleTestT> prepared(Ray{origins[i], direction, 0.0f, kInfinity});
-                const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, geometry);
+                const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, in_grid_order);
                 task_times.clear();
                 for (const Bvh8Accel::Block& block : blocks) {
-                    each_block_hit(geometry, block, block_ray,
+                    each_block_hit(in_grid_order, block, block_ray,
                                    [&](const Hit& hit) { task_times.push_back(hit.t); });
                 }
                 crossings[i] = distinct_count(task_times);
