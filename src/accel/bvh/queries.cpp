@@ -50,10 +50,20 @@ std::uint32_t distinct_count(std::vector<float>& times) {
     return static_cast<std::uint32_t>(std::unique(times.begin(), times.end()) - times.begin());
 }
 
-// count_crossings' arrays, kept between calls: the keys (cell, index) of the rays that test a cell's
-// primitives, in their order and by cell (a radix sort's two arrays), and the counts of the keys' digits.
+// A ray of count_crossings that tests a cell's primitives: its cell, its index among the origins, and its
+// origin, moved with it by the sort so that the rays of a cell read theirs in turn: read through the index,
+// each origin was a TLB and cache miss, 12% of the dragon's time even prefetched.
+struct RayInCell {
+    std::uint32_t cell;
+    std::uint32_t index;
+    Vec3f origin;
+};
+static_assert(sizeof(RayInCell) == 20);
+
+// count_crossings' arrays, kept between calls: the rays that test a cell's primitives, in their order and by
+// cell (a radix sort's two arrays), and the counts of the cells' digits.
 struct CrossingBuffers {
-    ReusedArray<std::uint64_t> keys, sorted;
+    ReusedArray<RayInCell> rays, sorted;
     ReusedArray<std::uint32_t> digit_counts;
 };
 
@@ -391,20 +401,20 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
     CrossingBuffers own_buffers;
     CrossingBuffers& buffers = buffers_lock.owns_lock() ? impl_->buffers : own_buffers;
 
-    // First pass, in kRuns runs of consecutive rays: the rays that test a cell's primitives are written as
-    // keys, (cell, index), each run from its own place on; the others get their answer now: an invalid ray
-    // or one whose cell lists nothing crosses nothing, and one that may need conditioning walks the tree.
-    // The keys' digits are counted on the way for the radix sort.
+    // First pass, in kRuns runs of consecutive rays: the rays that test a cell's primitives are written out,
+    // each run's from its own place on; the others get their answer now: an invalid ray or one whose cell
+    // lists nothing crosses nothing, and one that may need conditioning walks the tree. The cells' digits
+    // are counted on the way for the radix sort.
     constexpr std::size_t kRuns = 4;
     const std::size_t run = std::max<std::size_t>((count + kRuns - 1) / kRuns, 1);
     const int cell_bits = static_cast<int>(std::bit_width(grid->cell_count() - 1));
     const int passes = std::max(1, (cell_bits + kMaxDigitBits - 1) / kMaxDigitBits);
     const int digit_bits = std::max(1, (cell_bits + passes - 1) / passes);
     const std::size_t digits = std::size_t{1} << digit_bits;
-    const std::span<std::uint64_t> keys = buffers.keys.first(count), sorted = buffers.sorted.first(count);
+    const std::span<RayInCell> listed_rays = buffers.rays.first(count), sorted = buffers.sorted.first(count);
     const std::span<std::uint32_t> digit_counts = buffers.digit_counts.first(kRuns * passes * digits);
     std::fill(digit_counts.begin(), digit_counts.end(), 0u);
-    std::array<std::size_t, kRuns> run_keys{};
+    std::array<std::size_t, kRuns> run_rays{};
     const FarOriginFrame frame(scene.bounds());
     parallel_for(count, run, threads, [&](std::size_t first, std::size_t last) {
         const std::size_t r = first / run;
@@ -420,18 +430,19 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
             } else if (const std::size_t cell = grid->cell_of(ray.origin); !grid->lists_any(cell)) {
                 crossings[i] = 0;
             } else {
-                keys[written++] = std::uint64_t{cell} << 32 | i;
+                listed_rays[written++] = {static_cast<std::uint32_t>(cell), static_cast<std::uint32_t>(i),
+                                          ray.origin};
                 for (int pass = 0; pass < passes; ++pass)
                     ++counts[pass * digits + ((cell >> (pass * digit_bits)) & (digits - 1))];
             }
         }
-        run_keys[r] = written - first;
+        run_rays[r] = written - first;
     });
-    // An LSD radix sort of the keys by cell, stable, so that a cell's rays stay in the order of their index.
+    // An LSD radix sort by cell, stable, so that a cell's rays stay in the order of their index.
     std::size_t listed = 0;
-    for (const std::size_t n : run_keys)
+    for (const std::size_t n : run_rays)
         listed += n;
-    std::span<std::uint64_t> from = keys, to = sorted;
+    std::span<RayInCell> from = listed_rays, to = sorted;
     for (int pass = 0; pass < passes; ++pass) {
         std::vector<std::size_t> next(digits, 0);
         std::size_t place = 0;
@@ -440,24 +451,24 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
             for (std::size_t r = 0; r < kRuns; ++r)
                 place += digit_counts[(r * passes + pass) * digits + d];
         }
-        const int shift = 32 + pass * digit_bits;
+        const int shift = pass * digit_bits;
         const auto move = [&](std::size_t first, std::size_t last) {
             for (std::size_t k = first; k < last; ++k)
-                to[next[(from[k] >> shift) & (digits - 1)]++] = from[k];
+                to[next[(from[k].cell >> shift) & (digits - 1)]++] = from[k];
         };
         if (pass == 0) {
             for (std::size_t r = 0; r < kRuns; ++r)
-                move(r * run, r * run + run_keys[r]);
+                move(r * run, r * run + run_rays[r]);
         } else {
             move(0, listed);
         }
         std::swap(from, to);
     }
-    const std::span<const std::uint64_t> by_cell = from.first(listed);
+    const std::span<const RayInCell> by_cell = from.first(listed);
     const Geometry in_grid_order{grid->triangles(), geometry.spheres};
     // Cell by cell: its primitives gathered into blocks once for its rays (once per task that holds some of
-    // them), each ray's origin read through its key (prefetched a few rays ahead, as its answer: each is a
-    // cache miss) and tested against them by bvh8's block kernel, the tree's own bits.
+    // them), each ray tested against them by bvh8's block kernel, the tree's own bits, its answer's place
+    // prefetched a few rays ahead (each is a cache miss).
     constexpr std::size_t kPrefetchAhead = 8;
     parallel_for(listed, kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
         std::vector<float> task_times;
@@ -465,20 +476,15 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
         std::size_t blocks_cell = std::numeric_limits<std::size_t>::max();
         dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
             for (std::size_t k = first; k < last; ++k) {
-                if (k + kPrefetchAhead < listed) {
-                    const auto ahead = static_cast<std::uint32_t>(by_cell[k + kPrefetchAhead]);
-                    prefetch_line(&origins[ahead]);
-                    prefetch_line(&crossings[ahead]);
-                }
-                const std::size_t cell = by_cell[k] >> 32;
-                const auto i = static_cast<std::uint32_t>(by_cell[k]);
+                if (k + kPrefetchAhead < listed) prefetch_line(&crossings[by_cell[k + kPrefetchAhead].index]);
+                const auto [cell, i, origin] = by_cell[k];
                 if (cell != blocks_cell) {
                     blocks.clear();
                     append_leaf_blocks(in_grid_order, grid->primitives(cell), blocks);
                     append_leaf_blocks(in_grid_order, grid->every_ray(), blocks);
                     blocks_cell = cell;
                 }
-                const PreparedRay<TriangleTestT> prepared(Ray{origins[i], direction, 0.0f, kInfinity});
+                const PreparedRay<TriangleTestT> prepared(Ray{origin, direction, 0.0f, kInfinity});
                 const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, in_grid_order);
                 task_times.clear();
                 for (const Bvh8Accel::Block& block : blocks) {
