@@ -375,21 +375,26 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
     const Geometry& geometry = scene.built_geometry();
     const std::size_t count = origins.size();
     constexpr std::size_t kRaysPerTask = 1024;
-    if (geometry.size() == 0) {
+    // The rays share their direction and interval [0, inf]: a direction that leaves them invalid hits
+    // nothing.
+    if (geometry.size() == 0 || !is_valid(Ray{Vec3f(0.0f), direction, 0.0f, kInfinity})) {
         std::fill_n(crossings.begin(), count, 0u);
         return;
     }
     // The grid costs a pass over the triangles and their cells; a ray through it a few block tests, where a
     // tree walk costs several times that: it pays from about one ray per four primitives. A scene scaled to
-    // the structures' range (Accel::scale_exponent) conditions every ray: those walk the tree. Cells are
-    // numbered below 2^32 - 1 (at most about 1.5 a primitive, and primitives below 2^31).
+    // the structures' range (Accel::scale_exponent), or a direction scaled to the kernels' (a component
+    // beyond [2^-32, 2^32]), conditions every ray: those walk the tree. Cells are numbered below 2^32 - 1 (at
+    // most about 1.5 a primitive, and primitives below 2^31).
+    const FarOriginFrame frame(scene.bounds());
     if (scene.scale_exponent() != 0 || 4 * count < geometry.size() ||
-        count > std::numeric_limits<std::uint32_t>::max()) {
+        count > std::numeric_limits<std::uint32_t>::max() ||
+        may_need_conditioning(Ray{frame.centre(), direction, 0.0f, kInfinity}, frame)) {
         parallel_for(count, kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
             std::vector<float> task_times;
             for (std::size_t i = first; i < last; ++i) {
                 const Ray ray{origins[i], direction, 0.0f, kInfinity};
-                crossings[i] = is_valid(ray) ? impl_->walked_crossings(ray, task_times) : 0u;
+                crossings[i] = is_finite(ray.origin) ? impl_->walked_crossings(ray, task_times) : 0u;
             }
         });
         return;
@@ -402,9 +407,10 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
     CrossingBuffers& buffers = buffers_lock.owns_lock() ? impl_->buffers : own_buffers;
 
     // First pass, in kRuns runs of consecutive rays: the rays that test a cell's primitives are written out,
-    // each run's from its own place on; the others get their answer now: an invalid ray or one whose cell
-    // lists nothing crosses nothing, and one that may need conditioning walks the tree. The cells' digits
-    // are counted on the way for the radix sort.
+    // each run's from its own place on; the others get their answer now: a ray from a non-finite origin
+    // (invalid) or one whose cell lists nothing crosses nothing, and one from far away, which conditioning
+    // moves, walks the tree (the direction is valid and needs none: of a ray, only the origin is checked).
+    // The cells' digits are counted on the way for the radix sort.
     constexpr std::size_t kRuns = 4;
     const std::size_t run = std::max<std::size_t>((count + kRuns - 1) / kRuns, 1);
     const int cell_bits = static_cast<int>(std::bit_width(grid->cell_count() - 1));
@@ -415,23 +421,22 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
     const std::span<std::uint32_t> digit_counts = buffers.digit_counts.first(kRuns * passes * digits);
     std::fill(digit_counts.begin(), digit_counts.end(), 0u);
     std::array<std::size_t, kRuns> run_rays{};
-    const FarOriginFrame frame(scene.bounds());
     parallel_for(count, run, threads, [&](std::size_t first, std::size_t last) {
         const std::size_t r = first / run;
         std::uint32_t* counts = digit_counts.data() + r * passes * digits;
         std::size_t written = first;
         std::vector<float> task_times;
         for (std::size_t i = first; i < last; ++i) {
-            const Ray ray{origins[i], direction, 0.0f, kInfinity};
-            if (!is_valid(ray)) {
+            const Vec3f& origin = origins[i];
+            if (!is_finite(origin)) {
                 crossings[i] = 0;
-            } else if (may_need_conditioning(ray, frame)) {
-                crossings[i] = impl_->walked_crossings(ray, task_times);
-            } else if (const std::size_t cell = grid->cell_of(ray.origin); !grid->lists_any(cell)) {
+            } else if (frame.is_far(origin)) {
+                crossings[i] = impl_->walked_crossings({origin, direction, 0.0f, kInfinity}, task_times);
+            } else if (const std::size_t cell = grid->cell_of(origin); !grid->lists_any(cell)) {
                 crossings[i] = 0;
             } else {
                 listed_rays[written++] = {static_cast<std::uint32_t>(cell), static_cast<std::uint32_t>(i),
-                                          ray.origin};
+                                          origin};
                 for (int pass = 0; pass < passes; ++pass)
                     ++counts[pass * digits + ((cell >> (pass * digit_bits)) & (digits - 1))];
             }
