@@ -311,19 +311,26 @@ py::dict RaycastingScene::compute_closest_points(const py::object& query_points,
 std::vector<std::uint8_t> RaycastingScene::inside_points(const GeometryQueries& all, const float* points,
                                                          std::size_t count, std::span<const Vec3f> directions,
                                                          int nthreads) {
+    // Every pass over the points in parallel: on two cores the serial ones were a fifth of the bunny's call.
     std::vector<Vec3f> origins(count);
-    for (std::size_t i = 0; i < count; ++i)
-        origins[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
-    std::vector<std::uint16_t> odd(count, 0);  // votes, at most check_samples' 1024
+    parallel_for(count, kChunk, nthreads, [&](std::size_t first, std::size_t last) {
+        for (std::size_t i = first; i < last; ++i)
+            origins[i] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]};
+    });
+    std::vector<std::uint16_t> odd(count);  // votes, at most check_samples' 1024
     std::vector<std::uint32_t> crossings(count);
-    for (const Vec3f& direction : directions) {
-        all.count_crossings(direction, origins, crossings, nthreads);
-        for (std::size_t i = 0; i < count; ++i)
-            odd[i] += static_cast<std::uint16_t>(crossings[i] % 2);
+    for (std::size_t d = 0; d < directions.size(); ++d) {
+        all.count_crossings(directions[d], origins, crossings, nthreads);
+        parallel_for(count, kChunk, nthreads, [&](std::size_t first, std::size_t last) {
+            for (std::size_t i = first; i < last; ++i)
+                odd[i] = static_cast<std::uint16_t>((d == 0 ? 0 : odd[i]) + crossings[i] % 2);
+        });
     }
     std::vector<std::uint8_t> inside(count);
-    for (std::size_t i = 0; i < count; ++i)
-        inside[i] = 2 * std::size_t{odd[i]} > directions.size() ? 1 : 0;
+    parallel_for(count, kChunk, nthreads, [&](std::size_t first, std::size_t last) {
+        for (std::size_t i = first; i < last; ++i)
+            inside[i] = 2 * std::size_t{odd[i]} > directions.size() ? 1 : 0;
+    });
     return inside;
 }
 
