@@ -72,6 +72,7 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
             rows_ = std::min(static_cast<std::size_t>(height * cells_per_unit_) + 1, cells + 1);
         }
     }
+    last_column_ = static_cast<double>(columns_ - 1), last_row_ = static_cast<double>(rows_ - 1);
     // Each shadow's columns and rows, in parallel; then two passes: count each cell's triangles, list them.
     struct Span {
         std::uint32_t c0, c1, r0, r1;  // c1 < c0 for a triangle listed apart

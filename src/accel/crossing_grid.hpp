@@ -10,8 +10,13 @@
 // the line of every ray the triangle test says hits it projects inside. The projections are made in
 // double, and each shadow grown by a bound of their rounding for every origin a cell is asked for (within
 // kFarOriginSides sides of the scene's centre; farther ones are conditioned); the cell of a coordinate is
-// monotone in it, so the origin's cell lies among the shadow's. Spheres and triangles with a non-finite
-// corner are listed apart, for every ray.
+// monotone in it, so the origin's cell lies among the shadow's. Of the shadow's cells, those inside the
+// grid that an edge of the projected triangle separates from the triangle, the cell grown as the shadow is
+// (and by a bound of its own rounding), are dropped: no such hit projects there. Spheres and triangles with
+// a non-finite corner are listed apart, for every ray.
+//
+// The grid holds its own copy of the triangles, in the order of their shadows' first cells, so that the
+// triangles of neighbouring cells, which the rays visit in turn, lie together in memory.
 #pragma once
 
 #include <algorithm>
@@ -73,22 +78,24 @@ class CrossingGrid {
         const Vec3d q(p);
         return {dot(q, axis_u_), dot(q, axis_v_)};
     }
-    // floor((x - lo) / side) clamped to [0, cells - 1] (NaN, which no valid ray has, to 0): monotone in x.
-    [[nodiscard]] static std::size_t cell_along(double x, double lo, double cells_per_unit,
-                                                std::size_t cells) {
+    // floor((x - lo) / side) clamped to [0, last] (NaN, which no valid ray has, to 0): monotone in x. The
+    // last cell given as a double and the result converted through a signed integer (exact: below 2^32),
+    // which x86 does in one instruction each, where size_t takes a branch: every ray asks twice.
+    [[nodiscard]] static std::size_t cell_along(double x, double lo, double cells_per_unit, double last) {
         const double cell = std::floor((x - lo) * cells_per_unit);
-        return cell > 0.0 ? static_cast<std::size_t>(std::min(cell, static_cast<double>(cells - 1))) : 0;
+        return cell > 0.0 ? static_cast<std::size_t>(static_cast<std::int64_t>(std::min(cell, last))) : 0;
     }
     [[nodiscard]] std::size_t column(double u) const {
-        return cell_along(u, lo_u_, cells_per_unit_, columns_);
+        return cell_along(u, lo_u_, cells_per_unit_, last_column_);
     }
-    [[nodiscard]] std::size_t row(double v) const { return cell_along(v, lo_v_, cells_per_unit_, rows_); }
+    [[nodiscard]] std::size_t row(double v) const { return cell_along(v, lo_v_, cells_per_unit_, last_row_); }
 
     Vec3f direction_;
     Vec3d axis_u_{0, 0, 0}, axis_v_{0, 0, 0};  // unit vectors across the direction and each other
     double lo_u_ = 0.0, lo_v_ = 0.0;
     double cells_per_unit_ = 0.0;  // 1 / the cells' side
     std::size_t columns_ = 1, rows_ = 1;
+    double last_column_ = 0.0, last_row_ = 0.0;  // columns_ - 1, rows_ - 1
     std::vector<Triangle> triangles_;
     std::vector<std::size_t> first_;  // cell c lists prims_[first_[c], first_[c + 1])
     std::vector<std::uint32_t> prims_;
