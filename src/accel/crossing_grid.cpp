@@ -28,6 +28,8 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
     const double rounding = 0x1p-40 * reach;
     const auto l1 = [](const Vec3d& a) { return std::fabs(a.x) + std::fabs(a.y) + std::fabs(a.z); };
     const double grow_u = tolerance * l1(axis_u_) + rounding, grow_v = tolerance * l1(axis_v_) + rounding;
+    axis_w_ = d;
+    depth_slack_ = tolerance * l1(d) + rounding;
 
     // Each triangle's shadow, made twice in parallel: for the shadows' union, which sizes the cells, then for
     // its cells. Kept in between, the shadows would be an array of 32 bytes a triangle, whose fresh pages
@@ -161,6 +163,22 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
         each_cell(triangles_[p], spans[order[p]],
                   [&](std::size_t cell) { prims_[next[cell]++] = static_cast<std::uint32_t>(p); });
     }
+    // Each cell's triangles by their farthest depth along the direction (ties by index), so that a ray
+    // skips the leading ones, which lie wholly behind its origin (far_depth).
+    std::vector<double> far(triangles);
+    parallel_for(triangles, kTrianglesPerTask, threads, [&](std::size_t first, std::size_t last) {
+        for (std::size_t p = first; p < last; ++p)
+            far[p] = far_depth(triangles_[p]);
+    });
+    parallel_for(cell_total, kTrianglesPerTask, threads, [&](std::size_t first, std::size_t last) {
+        for (std::size_t cell = first; cell < last; ++cell) {
+            std::sort(prims_.begin() + static_cast<std::ptrdiff_t>(first_[cell]),
+                      prims_.begin() + static_cast<std::ptrdiff_t>(first_[cell + 1]),
+                      [&](std::uint32_t a, std::uint32_t b) {
+                          return far[a] < far[b] || (far[a] == far[b] && a < b);
+                      });
+        }
+    });
     listed_.assign((cell_count() + 63) / 64, 0);
     for (std::size_t cell = 0; cell < cell_count(); ++cell) {
         if (first_[cell] != first_[cell + 1]) listed_[cell / 64] |= std::uint64_t{1} << (cell % 64);

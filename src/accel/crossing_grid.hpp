@@ -53,12 +53,22 @@ class CrossingGrid {
     // as triangles().size() + s, as in the geometry): the same triangles, bit for bit, so that a ray's hits
     // on them have the geometry's t.
     [[nodiscard]] std::span<const Triangle> triangles() const { return triangles_; }
-    // The primitives a ray in `cell` can hit, by increasing index, and every_ray's.
+    // The primitives a ray in `cell` can hit, by increasing far_depth (ties by index), and every_ray's.
     [[nodiscard]] std::span<const std::uint32_t> primitives(std::size_t cell) const {
         return {prims_.data() + first_[cell], prims_.data() + first_[cell + 1]};
     }
     // The primitives no cell bounds: spheres, and triangles with a non-finite corner.
     [[nodiscard]] std::span<const std::uint32_t> every_ray() const { return every_ray_; }
+    // The depth along the direction (the unit vector's dot product, in double) of a ray's origin, and the
+    // farthest of a triangle's corners: a ray hits no triangle whose far_depth lies below its origin's
+    // depth by more than depth_slack(), the reach of the geometric tolerance's cube along the direction and
+    // the depths' rounding (t >= 0 puts every hit at or beyond the origin's depth). primitives(cell) are in
+    // increasing far_depth.
+    [[nodiscard]] double depth(const Vec3f& p) const { return dot(Vec3d(p), axis_w_); }
+    [[nodiscard]] double far_depth(const Triangle& tri) const {
+        return std::max({depth(tri.v0), depth(tri.v1), depth(tri.v2)});
+    }
+    [[nodiscard]] double depth_slack() const { return depth_slack_; }
     // Whether a ray in `cell` has any primitive to test.
     [[nodiscard]] bool lists_any(std::size_t cell) const {
         return ((listed_[cell / 64] >> (cell % 64)) & 1u) != 0 || !every_ray_.empty();
@@ -92,6 +102,8 @@ class CrossingGrid {
 
     Vec3f direction_;
     Vec3d axis_u_{0, 0, 0}, axis_v_{0, 0, 0};  // unit vectors across the direction and each other
+    Vec3d axis_w_{0, 0, 0};                    // the direction's unit vector
+    double depth_slack_ = 0.0;
     double lo_u_ = 0.0, lo_v_ = 0.0;
     double cells_per_unit_ = 0.0;  // 1 / the cells' side
     std::size_t columns_ = 1, rows_ = 1;

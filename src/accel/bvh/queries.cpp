@@ -475,25 +475,37 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
     // them), each ray tested against them by bvh8's block kernel, the tree's own bits, its answer's place
     // prefetched a few rays ahead (each is a cache miss).
     constexpr std::size_t kPrefetchAhead = 8;
+    constexpr auto kLanes = static_cast<std::size_t>(Bvh8Accel::kBlockLanes);
     parallel_for(listed, kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
         std::vector<float> task_times;
         std::vector<Bvh8Accel::Block> blocks;
+        std::vector<double> block_far;  // the farthest depth of each of the cell's blocks
         std::size_t blocks_cell = std::numeric_limits<std::size_t>::max();
         dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
             for (std::size_t k = first; k < last; ++k) {
                 if (k + kPrefetchAhead < listed) prefetch_line(&crossings[by_cell[k + kPrefetchAhead].index]);
                 const auto [cell, i, origin] = by_cell[k];
                 if (cell != blocks_cell) {
+                    const std::span<const std::uint32_t> prims = grid->primitives(cell);
                     blocks.clear();
-                    append_leaf_blocks(in_grid_order, grid->primitives(cell), blocks);
+                    append_leaf_blocks(in_grid_order, prims, blocks);
+                    block_far.clear();
+                    for (std::size_t last_lane = kLanes - 1; last_lane < prims.size() + kLanes - 1;
+                         last_lane += kLanes)
+                        block_far.push_back(grid->far_depth(
+                            in_grid_order.triangles[prims[std::min(last_lane, prims.size() - 1)]]));
                     append_leaf_blocks(in_grid_order, grid->every_ray(), blocks);
                     blocks_cell = cell;
                 }
                 const PreparedRay<TriangleTestT> prepared(Ray{origin, direction, 0.0f, kInfinity});
                 const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, in_grid_order);
                 task_times.clear();
-                for (const Bvh8Accel::Block& block : blocks) {
-                    each_block_hit(in_grid_order, block, block_ray,
+                // The cell's blocks wholly behind the origin skipped (their triangles by far depth).
+                const double behind = grid->depth(origin) - grid->depth_slack();
+                const auto first_block = static_cast<std::size_t>(
+                    std::lower_bound(block_far.begin(), block_far.end(), behind) - block_far.begin());
+                for (std::size_t b = first_block; b < blocks.size(); ++b) {
+                    each_block_hit(in_grid_order, blocks[b], block_ray,
                                    [&](const Hit& hit) { task_times.push_back(hit.t); });
                 }
                 crossings[i] = distinct_count(task_times);
