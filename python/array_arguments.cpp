@@ -82,7 +82,7 @@ py::array_t<float, py::array::c_style> float_rows(const py::object& argument, co
     const float* data = rows.data();
     const auto size = static_cast<std::size_t>(rows.size());
     // Block by block without a branch, which the compiler vectorises (a loop that stops at the first bad
-    // value stays scalar: several ms for 10^6 points), then the bad block's values one by one for the row.
+    // value stays scalar), then the bad block's values one by one for the row.
     constexpr std::size_t kBlock = 4096;
     for (std::size_t first = 0; check_finite && first < size; first += kBlock) {
         const std::size_t last = std::min(first + kBlock, size);

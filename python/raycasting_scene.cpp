@@ -313,8 +313,8 @@ std::vector<std::uint8_t> RaycastingScene::inside_points(const GeometryQueries& 
                                                          std::size_t count, std::span<const Vec3f> directions,
                                                          int nthreads) {
     // The rows read in place as points (x, y, z, three floats as the rows), and every pass over them in
-    // parallel, into arrays left uninitialised where they are written whole: on two cores the serial copy
-    // and the zeroing were a fifth of the bunny's call.
+    // parallel, into arrays left uninitialised where they are written whole: on two cores the serial passes
+    // were a large share of a call (docs/python.md, "Occupancy").
     static_assert(sizeof(Vec3f) == 3 * sizeof(float) && alignof(Vec3f) == alignof(float));
     const std::span<const Vec3f> origins(reinterpret_cast<const Vec3f*>(points), count);
     const auto odd = std::make_unique_for_overwrite<std::uint16_t[]>(count);  // votes, at most 1024

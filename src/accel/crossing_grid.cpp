@@ -92,8 +92,8 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
     });
     // The triangles copied in the order of their shadow's first cell, row by row (those listed apart last),
     // so that the triangles of neighbouring cells lie together in memory: the rays go through the cells in
-    // that order, and gathering a cell's triangles from the geometry's order was a cache miss for most
-    // (a third of the dragon's count_crossings). A stable counting sort.
+    // that order, and gathered from the geometry's order most of a cell's triangles were cache misses
+    // (docs/python.md, "Occupancy"). A stable counting sort.
     const std::size_t cell_total = columns_ * rows_;
     const auto home = [&](const Span& span) {
         return span.c1 < span.c0 ? cell_total : std::size_t{span.r0} * columns_ + span.c0;
@@ -119,9 +119,8 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
     // The cells of a triangle's shadow that its projection, grown as the shadow is, may reach: those of the
     // grid's edge (which reach to infinity), and the others unless one of the triangle's edge normals
     // separates the triangle from the cell grown by (grow_u, grow_v) and a bound of the cell's own rounding
-    // (the test's separating axes, Gottschalk, Lin & Manocha's OBBTree, with a margin far above the double
-    // rounding of these dot products). A fifth to a quarter of the shadows' cells (the bunny's, the
-    // dragon's) are dropped: their rays test fewer triangles.
+    // (the separating axis test, with a margin far above the double rounding of these dot products): the
+    // cells' rays then test fewer triangles.
     const double side = cells_per_unit_ > 0.0 ? 1.0 / cells_per_unit_ : 0.0;
     const double reach_u = grow_u + rounding, reach_v = grow_v + rounding;
     const auto each_cell = [&](const Triangle& tri, const Span& span, auto&& body) {

@@ -118,8 +118,8 @@ class CrossingGrid {
 };
 
 // The grids of one geometry along the directions last asked for, kept between calls: a grid depends only on
-// the triangles and the direction, and occupancy asks for the same few directions at every call (a third of
-// the dragon's count_crossings was its grid's build; docs/python.md, "Occupancy"). The grids kept take at
+// the triangles and the direction, and occupancy asks for the same few directions at every call, whose rays
+// cost less than the grid's build (docs/python.md, "Occupancy"). The grids kept take at
 // most as many bytes as the geometry's triangles, the most recently used kept first, and the last one
 // whatever its size. Safe to call from several threads: a grid is built outside the lock and shared
 // read-only.

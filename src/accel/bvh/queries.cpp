@@ -29,8 +29,8 @@ namespace lancer {
 namespace {
 
 // An array reused from call to call: grown when too small, never shrunk nor cleared, so that a call no larger
-// than an earlier one writes into pages already faulted in (each fresh 4 KiB page cost about 13 us on the
-// benchmark's machine; docs/python.md, "Occupancy").
+// than an earlier one writes into pages already faulted in, which fresh ones cost more than the work on
+// them (docs/python.md, "Occupancy").
 template <class T>
 class ReusedArray {
   public:
@@ -52,7 +52,7 @@ std::uint32_t distinct_count(std::vector<float>& times) {
 
 // A ray of count_crossings that tests a cell's primitives: its cell, its index among the origins, and its
 // origin, moved with it by the sort so that the rays of a cell read theirs in turn: read through the index,
-// each origin was a TLB and cache miss, 12% of the dragon's time even prefetched.
+// each origin is a TLB and cache miss, which prefetching did not hide (docs/python.md, "Occupancy").
 struct RayInCell {
     std::uint32_t cell;
     std::uint32_t index;
