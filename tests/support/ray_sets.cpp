@@ -187,6 +187,7 @@ RaySet hostile_rays(const Box3f& bounds) {
              {outside, {0, 0, 0}, 0.0f, kInfinity},
              {outside, {0, 0, -1}, 5.0f, 1.0f},
              {outside, {0, 0, -1}, nan, kInfinity},
+             {outside, {0, 0, -1}, -kInfinity, kInfinity},
              {outside, {0, 0, -1}, 0.0f, nan},
              {outside, {denormal, denormal, -1}, 0.0f, kInfinity},
              {c, {denormal, 0, 0}, 0.0f, kInfinity},

@@ -38,12 +38,6 @@ using LaneMask = std::uint64_t;  // bit i: ray i of the packet
 // wins at equal t) accepts a first hit at exactly tfar, as it does against a missing Hit.
 constexpr std::int32_t kNoHit = std::numeric_limits<std::int32_t>::max();
 
-// is_valid, inlined whole: an out-of-line copy compiled here would carry the name the AVX2 baseline's has
-// (core/isa_namespace.hpp; tests/core/isa_symbols_test.sh).
-[[nodiscard, gnu::flatten]] inline bool lane_is_valid(const Ray& ray) {
-    return is_valid(ray);
-}
-
 // The watertight test's axis permutations (Watertight::permutation): six codes, 2 kz + (d[kz] < 0).
 constexpr int kPermutations = 6;
 [[nodiscard]] constexpr std::array<int, 3> permutation_axes(int code) {

@@ -18,6 +18,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -37,13 +38,27 @@ namespace lancer {
 inline namespace LANCER_ISA_NAMESPACE {
 namespace {
 
-// The octant of a valid ray for the stream: bit a set where the direction's component a has its sign bit
-// set. The reciprocal, whose sign picks the side by which the ray enters every box on that axis
+// Where a ray of a batch goes (RayStreams::add), read off its 8 fields in one register: is_valid's tests
+// lane by lane, and the octant from the direction's sign bits. kInvalid: the ray misses; kBehind: tnear < 0,
+// the ray walks alone; otherwise the octant, bit a set where direction component a has its sign bit set. The
+// reciprocal, whose sign picks the side by which the ray enters every box on that axis
 // (WideRay::entry_side), has the same sign bit for every non-NaN component, zeros and denormals included
 // (1 / -0 = -inf), so the divisions wait for the stream.
-[[nodiscard]] inline unsigned stream_octant(const Ray& ray) {
-    return (std::signbit(ray.direction.x) ? 1u : 0u) | (std::signbit(ray.direction.y) ? 2u : 0u) |
-           (std::signbit(ray.direction.z) ? 4u : 0u);
+constexpr int kInvalid = -1;
+constexpr int kBehind = 8;
+[[nodiscard]] inline int stream_entry(const Ray& ray) {
+    static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, tfar) == 7 * sizeof(float));
+    const __m256 fields = _mm256_loadu_ps(&ray.origin.x);
+    // NaN compares false: `|x| < inf` is isfinite. The origin, the direction and tnear must be finite.
+    const __m256 magnitude = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), fields);
+    const auto finite = static_cast<unsigned>(
+        _mm256_movemask_ps(_mm256_cmp_ps(magnitude, _mm256_set1_ps(kInfinity), _CMP_LT_OQ)));
+    const auto nonzero =
+        static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(fields, _mm256_setzero_ps(), _CMP_NEQ_UQ)));
+    // tnear <= tfar is false when tfar is NaN: is_valid's `tfar == tfar` with it.
+    if ((finite & 0x7fu) != 0x7fu || (nonzero & 0x38u) == 0 || !(ray.tnear <= ray.tfar)) return kInvalid;
+    if (ray.tnear < 0.0f) return kBehind;
+    return static_cast<int>((static_cast<unsigned>(_mm256_movemask_ps(fields)) >> 3) & 7u);
 }
 
 // The rays that hit each of a node's 8 children, one bit per ray of the stream: 8 x 64 bits in one AVX-512
@@ -274,8 +289,9 @@ class RayStreams {
     void add(std::span<const Ray> rays, std::size_t i, std::span<Answer> answers, TraversalCounters& counts) {
         answers[i] = Answer{};
         const Ray& ray = rays[i];
-        if (!lane_is_valid(ray)) return;
-        if (ray.tnear < 0.0f) {
+        const int entry = stream_entry(ray);
+        if (entry == kInvalid) return;
+        if (entry == kBehind) {
             const PreparedRay<TriangleTestT> prepared(ray);
             if constexpr (kAnyHit) {
                 Hit best;
@@ -289,7 +305,7 @@ class RayStreams {
             }
             return;
         }
-        const unsigned octant = stream_octant(ray);
+        const auto octant = static_cast<unsigned>(entry);
         int& count = count_[octant];
         waiting_[octant][static_cast<std::size_t>(count++)] = static_cast<std::uint32_t>(i);
         if (count == kCapacity) trace<kCount>(octant, rays, answers, counts);

@@ -184,8 +184,10 @@ struct MollerTrumboreLanes {
         return test(moller_trumbore_edges(v0, v1, v2), tnear, tfar);
     }
 
-    [[nodiscard]] LaneHits<Ops> test(const MollerTrumboreEdges<Ops>& triangle, Float tnear,
-                                     Float tfar) const {
+    // Always inlined: GCC kept the AVX2 compilation's copy out of line, and its callers built the edges in
+    // memory for the call (docs/accel/stream.md, "Where a shadow ray's instructions go").
+    [[nodiscard, gnu::always_inline]] LaneHits<Ops> test(const MollerTrumboreEdges<Ops>& triangle,
+                                                         Float tnear, Float tfar) const {
         const Vec3v<Ops>&v0 = triangle.v0, &e1 = triangle.e1, &e2 = triangle.e2;
         const Float e1_scale = triangle.e1_scale, e2_scale = triangle.e2_scale;
         const Vec3v<Ops> p = cross(direction, e2);

@@ -98,6 +98,17 @@ class InstancedScene::Walk {
                max_component(abs(ray.origin - record.object_centre)) <= record.far_limit;
     }
 
+    // The end of the interval an instance visit traces: the ray's tfar, or once it has a hit, the float
+    // after that hit's t (closed). A hit mapped back from a moved origin (ObjectRay::shift) may lie beyond
+    // the mapped end of [tnear, best t] and still round to best t: with best t itself as the end, an
+    // instance visited after the one that found such a hit would miss it and lose the tie its smaller id
+    // wins (lancer::closer; InstancedScene.TiesGoToTheSmallerInstanceIdVisitedSecond). A hit found beyond
+    // best t loses to it by lancer::closer, so a ray's answer does not depend on the order of its visits
+    // (docs/numerical-contract.md, "Instances").
+    [[nodiscard]] static float clipped(const Ray& ray, const InstanceHit& best) {
+        return best.hit() ? std::fmin(std::nextafter(best.t, kInfinity), ray.tfar) : ray.tfar;
+    }
+
     // An instance's object traced with the ray mapped into its frame: true for an any-hit query that found
     // one; for a closest-hit query, `best` improved by the rule of lancer::closer.
     template <bool kAnyHit>
@@ -105,7 +116,7 @@ class InstancedScene::Walk {
                TraversalCounters* object_counters) const {
         const InstanceRecord& record = records_[id];
         Ray world = ray;
-        if constexpr (!kAnyHit) world.tfar = best.hit() ? best.t : ray.tfar;
+        if constexpr (!kAnyHit) world.tfar = clipped(ray, best);
         const ObjectRay local = record.to_object.to_object(world, record.object_centre, record.far_limit);
         // Accel's public calls condition their rays first. to_object has moved a far origin near the object
         // already, so a ray with an ordinary direction, into an object seen at its own scale, goes straight
