@@ -512,6 +512,9 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
             }
         });
     });
+    // Arrays for more rays than kKeptRays are dropped: kept, a call of 10^8 points would hold 4 GB after it.
+    constexpr std::size_t kKeptRays = std::size_t{1} << 22;
+    if (count > kKeptRays) buffers = CrossingBuffers{};
 }
 
 NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {
