@@ -267,6 +267,9 @@ class Accel {
     std::vector<Sphere> scaled_spheres_;
     Geometry built_geometry_;
     Box3f built_bounds_;
+    // Counts the geometries this structure was given (builds and updates), so that what a reader keeps
+    // derived from one (GeometryQueries' crossing grids) can tell when it no longer holds.
+    std::uint64_t geometry_version_ = 0;
 };
 
 // intersect() and occluded() on `threads` threads (0: all, or those of the oneTBB arena the caller runs in),

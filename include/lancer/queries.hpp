@@ -44,8 +44,11 @@ class GeometryQueries {
     // inf}, the surfaces it crosses (one where it passes through a shared vertex or edge), for occupancy's
     // parity; crossings holds at least origins.size() entries. The same counts bit for bit, on `threads`
     // threads as parallel_for takes them; from about one ray per four primitives by a grid of the primitives
-    // seen along `direction` (accel/crossing_grid.hpp), made for the call, whose rays test the triangles of
-    // their cell and walk no tree.
+    // seen along `direction` (accel/crossing_grid.hpp), whose rays test the triangles of their cell and walk
+    // no tree. The grids of the last directions and the call's arrays are kept for the next calls (the grids
+    // as long as the structure's geometry stays the same; at most as many bytes as its triangles; the arrays
+    // for at most 2^22 rays, 160 MB), so that calls along the same directions neither build them again nor
+    // fault in fresh memory. Safe to call from several threads.
     void count_crossings(const Vec3f& direction, std::span<const Vec3f> origins,
                          std::span<std::uint32_t> crossings, int threads) const;
 

@@ -65,6 +65,7 @@ void Accel::accept_geometry(const Geometry& geometry) {
 }
 
 void Accel::make_built_geometry(const Geometry& geometry) {
+    ++geometry_version_;
     if (scale_exponent_ == 0) {
         scaled_triangles_ = {}, scaled_spheres_ = {};
         built_geometry_ = geometry;

@@ -5,6 +5,8 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <numeric>
 #include <optional>
 #include <span>
@@ -18,10 +20,58 @@
 #include "accel/crossing_grid.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "accel/simd_float.hpp"
+#include "core/host_device.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/parallel.hpp"
 
 namespace lancer {
+
+namespace {
+
+// An array reused from call to call: grown when too small, never shrunk nor cleared, so that a call no larger
+// than an earlier one writes into pages already faulted in, which fresh ones cost more than the work on
+// them (docs/python.md, "Occupancy").
+template <class T>
+class ReusedArray {
+  public:
+    [[nodiscard]] std::span<T> first(std::size_t count) {
+        if (count > capacity_) data_ = std::make_unique_for_overwrite<T[]>(count), capacity_ = count;
+        return {data_.get(), count};
+    }
+
+  private:
+    std::unique_ptr<T[]> data_;
+    std::size_t capacity_ = 0;
+};
+
+// The distinct values of `times`, which it sorts.
+std::uint32_t distinct_count(std::vector<float>& times) {
+    std::sort(times.begin(), times.end());
+    return static_cast<std::uint32_t>(std::unique(times.begin(), times.end()) - times.begin());
+}
+
+// A ray of count_crossings that tests a cell's primitives: its cell, its index among the origins, and its
+// origin, moved with it by the sort so that the rays of a cell read theirs in turn: read through the index,
+// each origin is a TLB and cache miss, which prefetching did not hide (docs/python.md, "Occupancy").
+struct RayInCell {
+    std::uint32_t cell;
+    std::uint32_t index;
+    Vec3f origin;
+};
+static_assert(sizeof(RayInCell) == 20);
+
+// count_crossings' arrays, kept between calls: the rays that test a cell's primitives, in their order and by
+// cell (a radix sort's two arrays), and the counts of the cells' digits.
+struct CrossingBuffers {
+    ReusedArray<RayInCell> rays, sorted;
+    ReusedArray<std::uint32_t> digit_counts;
+};
+
+// The radix sort's digits: at most 2^11 values, so that the counts and the places they scatter to stay in
+// the first-level cache.
+constexpr int kMaxDigitBits = 11;
+
+}  // namespace
 
 // One of the trees below is walked: the structure's own (binary, bvh4's or bvh8's), or `own`. Either was
 // built on `scene`'s built geometry, which is the caller's scaled by 2^scale_exponent
@@ -36,9 +86,17 @@ struct GeometryQueries::Impl {
     const Bvh8Accel* bvh8 = nullptr;
     bool walks_accel = false;
 
+    // count_crossings' grids, and its arrays, kept between calls (docs/python.md, "Occupancy").
+    CrossingGrids grids;
+    std::mutex buffers_mutex;
+    CrossingBuffers buffers;
+
     // on_hit(hit) for every hit of `traced`, a valid ray conditioned for `scene`, in no order.
     template <class OnHit>
     void each_hit(const Ray& traced, OnHit&& on_hit) const;
+    // The crossings of a valid ray (count_crossings) by a walk of the tree, its hits as all_hits gives them;
+    // `times` is scratch.
+    std::uint32_t walked_crossings(const Ray& ray, std::vector<float>& times) const;
 };
 
 GeometryQueries::GeometryQueries(const Geometry& geometry, TriangleTest test)
@@ -296,107 +354,167 @@ void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
                hits.end());
 }
 
-namespace {
-
-// count_crossings' ray: its origin, the grid's cell of it, its index among the origins. 20 bytes: the sort
-// moves every ray twice, and its time is memory's.
-struct RayInCell {
-    Vec3f origin;
-    std::uint32_t cell;
-    std::uint32_t index;
-};
-static_assert(sizeof(RayInCell) == 20);
-
-}  // namespace
+std::uint32_t GeometryQueries::Impl::walked_crossings(const Ray& ray, std::vector<float>& times) const {
+    const ConditionedRays conditioned =
+        condition_rays(std::span(&ray, 1), scene->bounds(), scene->scale_exponent());
+    times.clear();
+    if (conditioned.rays.empty()) {
+        each_hit(ray, [&](const Hit& hit) { times.push_back(hit.t); });
+    } else {
+        // all_hits' t: back in the caller's parametrisation, one beyond the float range dropped.
+        each_hit(conditioned.rays[0], [&](const Hit& hit) {
+            if (const std::optional<float> t = restore_t(hit.t, conditioned.how[0], ray)) times.push_back(*t);
+        });
+    }
+    return distinct_count(times);
+}
 
 void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Vec3f> origins,
                                       std::span<std::uint32_t> crossings, int threads) const {
     const Accel& scene = *impl_->scene;
     const Geometry& geometry = scene.built_geometry();
-    std::fill_n(crossings.begin(), origins.size(), 0u);
-    if (geometry.size() == 0) return;
+    const std::size_t count = origins.size();
+    constexpr std::size_t kRaysPerTask = 1024;
+    // The rays share their direction and interval [0, inf]: a direction that leaves them invalid hits
+    // nothing.
+    if (geometry.size() == 0 || !is_valid(Ray{Vec3f(0.0f), direction, 0.0f, kInfinity})) {
+        std::fill_n(crossings.begin(), count, 0u);
+        return;
+    }
     // The grid costs a pass over the triangles and their cells; a ray through it a few block tests, where a
     // tree walk costs several times that: it pays from about one ray per four primitives. A scene scaled to
-    // the structures' range (Accel::scale_exponent) conditions every ray: those walk the tree.
-    std::optional<CrossingGrid> grid;
-    if (scene.scale_exponent() == 0 && 4 * origins.size() >= geometry.size() &&
-        origins.size() <= std::numeric_limits<std::uint32_t>::max())
-        grid.emplace(geometry, scene.built_bounds(), direction, geometry.size() / 2, threads);
-    // The rays in the order of their cells, so that a cell's triangles are gathered once for the rays in it,
-    // origins moved with their cells, so that the rays read them in turn (each read through an index is a
-    // cache miss): a radix sort, 11 bits of the cell a pass, each pass scattering into 2048 runs.
-    constexpr std::size_t kRaysPerTask = 1024;
-    std::vector<RayInCell> by_cell(origins.size());
-    parallel_for(origins.size(), kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
-        for (std::size_t i = first; i < last; ++i)
-            by_cell[i] = {origins[i], grid ? static_cast<std::uint32_t>(grid->cell_of(origins[i])) : 0u,
-                          static_cast<std::uint32_t>(i)};
-    });
-    if (grid) {
-        constexpr int kRadixBits = 11;
-        constexpr std::size_t kRuns = std::size_t{1} << kRadixBits;
-        std::vector<RayInCell> scratch(origins.size());
-        for (int shift = 0; (grid->cell_count() - 1) >> shift != 0; shift += kRadixBits) {
-            std::array<std::size_t, kRuns + 1> next{};
-            for (const RayInCell& ray : by_cell)
-                ++next[((ray.cell >> shift) & (kRuns - 1)) + 1];
-            std::inclusive_scan(next.begin(), next.end(), next.begin());
-            for (const RayInCell& ray : by_cell)
-                scratch[next[(ray.cell >> shift) & (kRuns - 1)]++] = ray;
-            by_cell.swap(scratch);
-        }
+    // the structures' range (Accel::scale_exponent), or a direction scaled to the kernels' (a component
+    // beyond [2^-32, 2^32]), conditions every ray: those walk the tree. Cells are numbered below 2^32 - 1 (at
+    // most about 1.5 a primitive, and primitives below 2^31).
+    const FarOriginFrame frame(scene.bounds());
+    if (scene.scale_exponent() != 0 || 4 * count < geometry.size() ||
+        count > std::numeric_limits<std::uint32_t>::max() ||
+        may_need_conditioning(Ray{frame.centre(), direction, 0.0f, kInfinity}, frame)) {
+        parallel_for(count, kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
+            std::vector<float> task_times;
+            for (std::size_t i = first; i < last; ++i) {
+                const Ray ray{origins[i], direction, 0.0f, kInfinity};
+                crossings[i] = is_finite(ray.origin) ? impl_->walked_crossings(ray, task_times) : 0u;
+            }
+        });
+        return;
     }
-    parallel_for(origins.size(), kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
-        std::vector<Ray> rays(last - first);
-        for (std::size_t k = first; k < last; ++k)
-            rays[k - first] = {by_cell[k].origin, direction, 0.0f, kInfinity};
-        const ConditionedRays conditioned = condition_rays(rays, scene.bounds(), scene.scale_exponent());
-        std::vector<float> times;
+    const std::shared_ptr<const CrossingGrid> grid = impl_->grids.grid(
+        geometry, scene.built_bounds(), direction, geometry.size() / 2, threads, scene.geometry_version_);
+    // The arrays of the last call, unless another thread's call holds them.
+    std::unique_lock<std::mutex> buffers_lock(impl_->buffers_mutex, std::try_to_lock);
+    CrossingBuffers own_buffers;
+    CrossingBuffers& buffers = buffers_lock.owns_lock() ? impl_->buffers : own_buffers;
+
+    // First pass, in kRuns runs of consecutive rays: the rays that test a cell's primitives are written out,
+    // each run's from its own place on; the others get their answer now: a ray from a non-finite origin
+    // (invalid) or one whose cell lists nothing crosses nothing, and one from far away, which conditioning
+    // moves, walks the tree (the direction is valid and needs none: of a ray, only the origin is checked).
+    // The cells' digits are counted on the way for the radix sort.
+    constexpr std::size_t kRuns = 4;
+    const std::size_t run = std::max<std::size_t>((count + kRuns - 1) / kRuns, 1);
+    const int cell_bits = static_cast<int>(std::bit_width(grid->cell_count() - 1));
+    const int passes = std::max(1, (cell_bits + kMaxDigitBits - 1) / kMaxDigitBits);
+    const int digit_bits = std::max(1, (cell_bits + passes - 1) / passes);
+    const std::size_t digits = std::size_t{1} << digit_bits;
+    const std::span<RayInCell> listed_rays = buffers.rays.first(count), sorted = buffers.sorted.first(count);
+    const std::span<std::uint32_t> digit_counts = buffers.digit_counts.first(kRuns * passes * digits);
+    std::fill(digit_counts.begin(), digit_counts.end(), 0u);
+    std::array<std::size_t, kRuns> run_rays{};
+    parallel_for(count, run, threads, [&](std::size_t first, std::size_t last) {
+        const std::size_t r = first / run;
+        std::uint32_t* counts = digit_counts.data() + r * passes * digits;
+        std::size_t written = first;
+        std::vector<float> task_times;
+        for (std::size_t i = first; i < last; ++i) {
+            const Vec3f& origin = origins[i];
+            if (!is_finite(origin)) {
+                crossings[i] = 0;
+            } else if (frame.is_far(origin)) {
+                crossings[i] = impl_->walked_crossings({origin, direction, 0.0f, kInfinity}, task_times);
+            } else if (const std::size_t cell = grid->cell_of(origin); !grid->lists_any(cell)) {
+                crossings[i] = 0;
+            } else {
+                listed_rays[written++] = {static_cast<std::uint32_t>(cell), static_cast<std::uint32_t>(i),
+                                          origin};
+                for (int pass = 0; pass < passes; ++pass)
+                    ++counts[pass * digits + ((cell >> (pass * digit_bits)) & (digits - 1))];
+            }
+        }
+        run_rays[r] = written - first;
+    });
+    // An LSD radix sort by cell, stable, so that a cell's rays stay in the order of their index.
+    std::size_t listed = 0;
+    for (const std::size_t n : run_rays)
+        listed += n;
+    std::span<RayInCell> from = listed_rays, to = sorted;
+    for (int pass = 0; pass < passes; ++pass) {
+        std::vector<std::size_t> next(digits, 0);
+        std::size_t place = 0;
+        for (std::size_t d = 0; d < digits; ++d) {
+            next[d] = place;
+            for (std::size_t r = 0; r < kRuns; ++r)
+                place += digit_counts[(r * passes + pass) * digits + d];
+        }
+        const int shift = pass * digit_bits;
+        const auto move = [&](std::size_t first, std::size_t last) {
+            for (std::size_t k = first; k < last; ++k)
+                to[next[(from[k].cell >> shift) & (digits - 1)]++] = from[k];
+        };
+        if (pass == 0) {
+            for (std::size_t r = 0; r < kRuns; ++r)
+                move(r * run, r * run + run_rays[r]);
+        } else {
+            move(0, listed);
+        }
+        std::swap(from, to);
+    }
+    const std::span<const RayInCell> by_cell = from.first(listed);
+    const Geometry in_grid_order{grid->triangles(), geometry.spheres};
+    // Cell by cell: its primitives gathered into blocks once for its rays (once per task that holds some of
+    // them), each ray tested against them by bvh8's block kernel, the tree's own bits, its answer's place
+    // prefetched a few rays ahead (each is a cache miss).
+    constexpr std::size_t kPrefetchAhead = 8;
+    constexpr auto kLanes = static_cast<std::size_t>(Bvh8Accel::kBlockLanes);
+    parallel_for(listed, kRaysPerTask, threads, [&](std::size_t first, std::size_t last) {
+        std::vector<float> task_times;
         std::vector<Bvh8Accel::Block> blocks;
+        std::vector<double> block_far;  // the farthest depth of each of the cell's blocks
         std::size_t blocks_cell = std::numeric_limits<std::size_t>::max();
         dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
-            for (std::size_t k = 0; k < rays.size(); ++k) {
-                const bool moved = !conditioned.rays.empty() &&
-                                   (conditioned.how[k].shift != 0.0 || conditioned.how[k].exponent != 0);
-                const Ray& traced = moved ? conditioned.rays[k] : rays[k];
-                const bool by_grid = grid && !moved;
-                const std::size_t cell = by_cell[first + k].cell;
-                // A ray whose cell lists nothing crosses nothing; an invalid one hits nothing.
-                if ((by_grid && grid->primitives(cell).empty() && grid->every_ray().empty()) ||
-                    !is_valid(traced))
-                    continue;
-                times.clear();
-                const auto add = [&](const Hit& hit) { times.push_back(hit.t); };
-                if (by_grid) {
-                    // The cell's primitives in blocks, as a leaf's, once for the cell's rays.
-                    if (cell != blocks_cell) {
-                        blocks.clear();
-                        append_leaf_blocks(geometry, grid->primitives(cell), blocks);
-                        append_leaf_blocks(geometry, grid->every_ray(), blocks);
-                        blocks_cell = cell;
-                    }
-                    const PreparedRay<TriangleTestT> prepared(traced);
-                    const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, geometry);
-                    for (const Bvh8Accel::Block& block : blocks)
-                        each_block_hit(geometry, block, block_ray, add);
-                } else {
-                    impl_->each_hit(traced, add);
+            for (std::size_t k = first; k < last; ++k) {
+                if (k + kPrefetchAhead < listed) prefetch_line(&crossings[by_cell[k + kPrefetchAhead].index]);
+                const auto [cell, i, origin] = by_cell[k];
+                if (cell != blocks_cell) {
+                    const std::span<const std::uint32_t> prims = grid->primitives(cell);
+                    blocks.clear();
+                    append_leaf_blocks(in_grid_order, prims, blocks);
+                    block_far.clear();
+                    for (std::size_t last_lane = kLanes - 1; last_lane < prims.size() + kLanes - 1;
+                         last_lane += kLanes)
+                        block_far.push_back(grid->far_depth(
+                            in_grid_order.triangles[prims[std::min(last_lane, prims.size() - 1)]]));
+                    append_leaf_blocks(in_grid_order, grid->every_ray(), blocks);
+                    blocks_cell = cell;
                 }
-                if (moved) {
-                    // all_hits' t: back in the caller's parametrisation, one beyond the float range dropped.
-                    std::size_t kept = 0;
-                    for (const float t : times) {
-                        if (const std::optional<float> restored = restore_t(t, conditioned.how[k], rays[k]))
-                            times[kept++] = *restored;
-                    }
-                    times.resize(kept);
+                const PreparedRay<TriangleTestT> prepared(Ray{origin, direction, 0.0f, kInfinity});
+                const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, in_grid_order);
+                task_times.clear();
+                // The cell's blocks wholly behind the origin skipped (their triangles by far depth).
+                const double behind = grid->depth(origin) - grid->depth_slack();
+                const auto first_block = static_cast<std::size_t>(
+                    std::lower_bound(block_far.begin(), block_far.end(), behind) - block_far.begin());
+                for (std::size_t b = first_block; b < blocks.size(); ++b) {
+                    each_block_hit(in_grid_order, blocks[b], block_ray,
+                                   [&](const Hit& hit) { task_times.push_back(hit.t); });
                 }
-                std::sort(times.begin(), times.end());
-                crossings[grid ? by_cell[first + k].index : first + k] =
-                    static_cast<std::uint32_t>(std::unique(times.begin(), times.end()) - times.begin());
+                crossings[i] = distinct_count(task_times);
             }
         });
     });
+    // Arrays for more rays than kKeptRays are dropped: kept, a call of 10^8 points would hold 4 GB after it.
+    constexpr std::size_t kKeptRays = std::size_t{1} << 22;
+    if (count > kKeptRays) buffers = CrossingBuffers{};
 }
 
 NearestPoint GeometryQueries::nearest_point(const Vec3f& point) const {

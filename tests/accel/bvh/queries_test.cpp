@@ -11,6 +11,7 @@
 #include <random>
 #include <span>
 #include <string_view>
+#include <thread>
 #include <vector>
 
 #include "accel/bvh/nearest_point.hpp"
@@ -297,6 +298,68 @@ TEST(GeometryQueries, CountCrossingsCountsAllHitsDistinctTimes) {
     EXPECT_GT(odd,
               checked / 10);  // origins inside the sphere and the knot, and rays from the plane's surface
     EXPECT_GT(several, checked / 20);
+}
+
+// count_crossings keeps its grid of a direction between calls: after the triangles move (an update that
+// rewrites the same arrays in place), the next call along that direction counts the moved triangles.
+TEST(GeometryQueries, CountCrossingsFollowsTheTrianglesAfterAnUpdate) {
+    std::vector<Triangle> triangles;
+    make_icosphere(3, Vec3f(0.0f), 1.0f).append_triangles(triangles);
+    const Geometry geometry{triangles, {}};
+    const std::unique_ptr<Accel> accel = make_accel("bvh8_packet");
+    accel->build(geometry, build_options(TriangleTest::Watertight));
+    const GeometryQueries queries(*accel, geometry, TriangleTest::Watertight);
+    const Vec3f direction = normalize(Vec3f(0.118f, -0.286f, 0.432f));
+    const std::vector<Vec3f> origins = crossing_origins(triangles, geometry.bounds(), direction, 7);
+    std::vector<std::uint32_t> crossings(origins.size());
+    queries.count_crossings(direction, origins, crossings, 2);  // the grid of the sphere where it was
+    for (Triangle& tri : triangles) {
+        const Vec3f shift(0.6f, -0.4f, 0.0f);
+        tri = {tri.v0 + shift, tri.v1 + shift, tri.v2 + shift};
+    }
+    accel->update(geometry);
+    queries.count_crossings(direction, origins, crossings, 2);
+    std::size_t changed = 0;
+    for (std::size_t i = 0; i < origins.size(); ++i) {
+        const std::uint32_t expected = distinct_times(queries, {origins[i], direction, 0.0f, kInfinity});
+        ASSERT_EQ(crossings[i], expected) << "origin " << i;
+        changed += expected % 2 != 0 && length(origins[i]) > 1.0f ? 1 : 0;  // outside before, inside now
+    }
+    EXPECT_GT(changed, 100u);
+}
+
+// Calls from several threads at once, along the same and other directions, give each call's own answers
+// (the grids and arrays kept between calls are shared by them).
+TEST(GeometryQueries, CountCrossingsFromSeveralThreadsAtOnce) {
+    std::vector<Triangle> triangles;
+    make_torus_knot(48, 12).append_triangles(triangles);
+    const Geometry geometry{triangles, {}};
+    const std::unique_ptr<Accel> accel = make_accel("bvh8_packet");
+    accel->build(geometry, build_options(TriangleTest::MollerTrumbore));
+    const GeometryQueries queries(*accel, geometry, TriangleTest::MollerTrumbore);
+    const Vec3f directions[] = {normalize(Vec3f(0.118f, -0.286f, 0.432f)),
+                                normalize(Vec3f(-0.7f, 0.2f, -0.3f))};
+    constexpr int kCallers = 4;
+    std::vector<std::vector<Vec3f>> origins;
+    std::vector<std::vector<std::uint32_t>> expected(kCallers), answers(kCallers);
+    for (int c = 0; c < kCallers; ++c) {
+        const Vec3f& direction = directions[c % 2];
+        origins.push_back(
+            crossing_origins(triangles, geometry.bounds(), direction, 90 + static_cast<std::uint32_t>(c)));
+        for (const Vec3f& origin : origins.back())
+            expected[c].push_back(distinct_times(queries, {origin, direction, 0.0f, kInfinity}));
+        answers[c].resize(origins.back().size());
+    }
+    for (int round = 0; round < 5; ++round) {
+        std::vector<std::thread> callers;
+        for (int c = 0; c < kCallers; ++c)
+            callers.emplace_back(
+                [&, c] { queries.count_crossings(directions[c % 2], origins[c], answers[c], 1); });
+        for (std::thread& caller : callers)
+            caller.join();
+        for (int c = 0; c < kCallers; ++c)
+            ASSERT_EQ(answers[c], expected[c]) << "round " << round << " caller " << c;
+    }
 }
 
 }  // namespace
