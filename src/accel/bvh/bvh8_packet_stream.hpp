@@ -106,7 +106,7 @@ class RayStream {
         : nodes_(bvh.nodes()), blocks_(bvh.blocks()), geometry_(geometry) {}
 
     // Traces rays[index[k]] for k < count <= kCapacity, each valid, with tnear >= 0 and in `octant`
-    // (stream_octant), into answers[index[k]].
+    // (stream_entry), into answers[index[k]].
     template <bool kCount>
     void trace(std::span<const Ray> rays, const std::uint32_t* index, int count, unsigned octant,
                std::span<Answer> answers, TraversalCounters& counts) {
