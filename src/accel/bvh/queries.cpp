@@ -94,6 +94,11 @@ struct GeometryQueries::Impl {
     // on_hit(hit) for every hit of `traced`, a valid ray conditioned for `scene`, in no order.
     template <class OnHit>
     void each_hit(const Ray& traced, OnHit&& on_hit) const;
+    // on_hit(hit) for every hit of `ray`, a valid ray as the caller gave it, in no order: conditioned and
+    // walked as each_hit, each t mapped back to the caller's parametrisation as Accel::intersect maps its
+    // hits (one beyond the float range is none).
+    template <class OnHit>
+    void each_caller_hit(const Ray& ray, OnHit&& on_hit) const;
     // The crossings of a valid ray (count_crossings) by a walk of the tree, its hits as all_hits gives them;
     // `times` is scratch.
     std::uint32_t walked_crossings(const Ray& ray, std::vector<float>& times) const;
@@ -330,21 +335,8 @@ void GeometryQueries::Impl::each_hit(const Ray& traced, OnHit&& on_hit) const {
 void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
     const Accel& scene = *impl_->scene;
     if (!is_valid(ray) || scene.built_geometry().size() == 0) return;
-    const ConditionedRays conditioned =
-        condition_rays(std::span(&ray, 1), scene.bounds(), scene.scale_exponent());
-    const Ray& traced = conditioned.rays.empty() ? ray : conditioned.rays[0];
     const std::size_t first = hits.size();
-    impl_->each_hit(traced, [&](const Hit& hit) { hits.push_back(hit); });
-    if (!conditioned.rays.empty()) {
-        // Back in the caller's parametrisation, as Accel::intersect maps its hits; one beyond the float
-        // range is none.
-        std::size_t kept = first;
-        for (std::size_t i = first; i < hits.size(); ++i) {
-            if (const std::optional<float> t = restore_t(hits[i].t, conditioned.how[0], ray))
-                hits[kept] = hits[i], hits[kept++].t = *t;
-        }
-        hits.resize(kept);
-    }
+    impl_->each_caller_hit(ray, [&](const Hit& hit) { hits.push_back(hit); });
     const auto begin = hits.begin() + static_cast<std::ptrdiff_t>(first);
     std::sort(begin, hits.end(),
               [](const Hit& a, const Hit& b) { return a.t < b.t || (a.t == b.t && a.prim < b.prim); });
@@ -354,18 +346,25 @@ void GeometryQueries::all_hits(const Ray& ray, std::vector<Hit>& hits) const {
                hits.end());
 }
 
-std::uint32_t GeometryQueries::Impl::walked_crossings(const Ray& ray, std::vector<float>& times) const {
+template <class OnHit>
+void GeometryQueries::Impl::each_caller_hit(const Ray& ray, OnHit&& on_hit) const {
     const ConditionedRays conditioned =
         condition_rays(std::span(&ray, 1), scene->bounds(), scene->scale_exponent());
-    times.clear();
     if (conditioned.rays.empty()) {
-        each_hit(ray, [&](const Hit& hit) { times.push_back(hit.t); });
-    } else {
-        // all_hits' t: back in the caller's parametrisation, one beyond the float range dropped.
-        each_hit(conditioned.rays[0], [&](const Hit& hit) {
-            if (const std::optional<float> t = restore_t(hit.t, conditioned.how[0], ray)) times.push_back(*t);
-        });
+        each_hit(ray, on_hit);
+        return;
     }
+    each_hit(conditioned.rays[0], [&](Hit hit) {
+        if (const std::optional<float> t = restore_t(hit.t, conditioned.how[0], ray)) {
+            hit.t = *t;
+            on_hit(hit);
+        }
+    });
+}
+
+std::uint32_t GeometryQueries::Impl::walked_crossings(const Ray& ray, std::vector<float>& times) const {
+    times.clear();
+    each_caller_hit(ray, [&](const Hit& hit) { times.push_back(hit.t); });
     return distinct_count(times);
 }
 

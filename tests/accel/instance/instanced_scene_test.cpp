@@ -550,13 +550,15 @@ TEST(InstancedScene, TiesGoToTheSmallerInstanceIdVisitedSecond) {
     EXPECT_EQ(lost, 0u);
 }
 
+// The same answer bit for bit: t, primitive, barycentrics, instance and object.
+bool same_hit(const InstanceHit& a, const InstanceHit& b) {
+    const auto bits = [](float x) { return std::bit_cast<std::uint32_t>(x); };
+    return bits(a.t) == bits(b.t) && a.prim == b.prim && bits(a.u) == bits(b.u) && bits(a.v) == bits(b.v) &&
+           a.instance == b.instance && a.object == b.object;
+}
+
 bool same_hits(const std::vector<InstanceHit>& a, const std::vector<InstanceHit>& b) {
-    for (std::size_t i = 0; i < a.size(); ++i) {
-        if (a[i].t != b[i].t || a[i].prim != b[i].prim || a[i].u != b[i].u || a[i].v != b[i].v ||
-            a[i].instance != b[i].instance || a[i].object != b[i].object)
-            return false;
-    }
-    return true;
+    return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), same_hit);
 }
 
 // Moving, adding and removing instances rebuilds or refits the top level only: the objects are the same
@@ -860,15 +862,8 @@ TEST_P(InstancedBatches, EveryRayAnswersAsItsOwnWalk) {
             scene.occluded(std::span(rays).subspan(first, count), std::span(occluded).subspan(first, count));
         }
         std::size_t differ = 0;
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            const InstanceHit &a = alone[i], &b = hits[i];
-            const bool same = std::bit_cast<std::uint32_t>(a.t) == std::bit_cast<std::uint32_t>(b.t) &&
-                              a.prim == b.prim &&
-                              std::bit_cast<std::uint32_t>(a.u) == std::bit_cast<std::uint32_t>(b.u) &&
-                              std::bit_cast<std::uint32_t>(a.v) == std::bit_cast<std::uint32_t>(b.v) &&
-                              a.instance == b.instance && a.object == b.object;
-            differ += same ? 0 : 1;
-        }
+        for (std::size_t i = 0; i < rays.size(); ++i)
+            differ += same_hit(alone[i], hits[i]) ? 0 : 1;
         EXPECT_EQ(differ, 0u) << "batches of " << batch;
         EXPECT_EQ(occluded, occluded_alone) << "batches of " << batch;
     }
