@@ -10,6 +10,7 @@
 #include <numeric>
 #include <optional>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 #include "accel/build_util.hpp"
@@ -53,12 +54,18 @@ std::uint32_t distinct_count(std::vector<float>& times) {
 // A ray of count_crossings that tests a cell's primitives: its cell, its index among the origins, and its
 // origin, moved with it by the sort so that the rays of a cell read theirs in turn: read through the index,
 // each origin is a TLB and cache miss, which prefetching did not hide (docs/python.md, "Occupancy").
+// Its origin as three floats, not a Vec3f, whose member initialisers made make_unique_for_overwrite zero the
+// arrays (40 bytes a point, at every first call; docs/python.md, "Occupancy").
 struct RayInCell {
     std::uint32_t cell;
     std::uint32_t index;
-    Vec3f origin;
+    float x, y, z;
+
+    RayInCell() = default;
+    RayInCell(std::uint32_t c, std::uint32_t i, const Vec3f& o) : cell(c), index(i), x(o.x), y(o.y), z(o.z) {}
+    [[nodiscard]] Vec3f origin() const { return {x, y, z}; }
 };
-static_assert(sizeof(RayInCell) == 20);
+static_assert(sizeof(RayInCell) == 20 && std::is_trivially_default_constructible_v<RayInCell>);
 
 // count_crossings' arrays, kept between calls: the rays that test a cell's primitives, in their order and by
 // cell (a radix sort's two arrays), and the counts of the cells' digits.
@@ -515,7 +522,9 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
             BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, in_grid_order);
             for (std::size_t k = first; k < last; ++k) {
                 if (k + kPrefetchAhead < listed) prefetch_line(&crossings[by_cell[k + kPrefetchAhead].index]);
-                const auto [cell, i, origin] = by_cell[k];
+                const RayInCell& ray = by_cell[k];
+                const std::uint32_t cell = ray.cell, i = ray.index;
+                const Vec3f origin = ray.origin();
                 if (cell != blocks_cell) {
                     const std::span<const std::uint32_t> prims = grid->primitives(cell);
                     blocks.clear();
