@@ -416,7 +416,7 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
     // each run's from its own place on; the others get their answer now: a ray from a non-finite origin
     // (invalid) or one whose cell lists nothing crosses nothing, and one from far away, which conditioning
     // moves, walks the tree (the direction is valid and needs none: of a ray, only the origin is checked).
-    // The cells' digits are counted on the way for the radix sort.
+    // The cells' first digits are counted on the way for the radix sort.
     constexpr std::size_t kRuns = 4;
     const std::size_t run = std::max<std::size_t>((count + kRuns - 1) / kRuns, 1);
     const int cell_bits = static_cast<int>(std::bit_width(grid->cell_count() - 1));
@@ -443,8 +443,7 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
             } else {
                 listed_rays[written++] = {static_cast<std::uint32_t>(cell), static_cast<std::uint32_t>(i),
                                           origin};
-                for (int pass = 0; pass < passes; ++pass)
-                    ++counts[pass * digits + ((cell >> (pass * digit_bits)) & (digits - 1))];
+                ++counts[cell & (digits - 1)];
             }
         };
         // Eight origins at a time where all are finite and near (the grid's vector cells), without a branch
@@ -468,38 +467,58 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
                 crossings[i + j] = 0;
                 listed_rays[written] = {cell, static_cast<std::uint32_t>(i + j), origins[i + j]};
                 written += kept;
-                for (int pass = 0; pass < passes; ++pass)
-                    counts[pass * digits + ((cell >> (pass * digit_bits)) & (digits - 1))] += kept;
+                counts[cell & (digits - 1)] += kept;
             }
         }
         for (; i < last; ++i)
             one(i);
         run_rays[r] = written - first;
     });
-    // An LSD radix sort by cell, stable, so that a cell's rays stay in the order of their index.
+    // An LSD radix sort by cell, stable, so that a cell's rays stay in the order of their index. Each pass
+    // in kRuns chunks on the threads, each chunk's rays scattered from its own places on, those of a digit
+    // after the earlier chunks' (the first pass's chunks are the runs, whose digits it counted; a later
+    // pass's are counted first): on one thread, the sort was a serial part of a call on two (docs/python.md,
+    // "Occupancy").
     std::size_t listed = 0;
     for (const std::size_t n : run_rays)
         listed += n;
     std::span<RayInCell> from = listed_rays, to = sorted;
+    std::array<std::size_t, kRuns> chunk_first{}, chunk_last{};
+    for (std::size_t r = 0; r < kRuns; ++r)
+        chunk_first[r] = r * run, chunk_last[r] = r * run + run_rays[r];
+    std::vector<std::size_t> next(kRuns * digits);
     for (int pass = 0; pass < passes; ++pass) {
-        std::vector<std::size_t> next(digits, 0);
+        const int shift = pass * digit_bits;
+        const auto digit = [&](const RayInCell& ray) { return (ray.cell >> shift) & (digits - 1); };
+        const auto counts_of = [&](std::size_t r) {
+            return digit_counts.data() +
+                   (r * static_cast<std::size_t>(passes) + static_cast<std::size_t>(pass)) * digits;
+        };
+        if (pass > 0) {
+            const std::size_t chunk = (listed + kRuns - 1) / kRuns;
+            for (std::size_t r = 0; r < kRuns; ++r)
+                chunk_first[r] = std::min(r * chunk, listed),
+                chunk_last[r] = std::min(r * chunk + chunk, listed);
+            parallel_for(kRuns, 1, threads, [&](std::size_t first, std::size_t last) {
+                for (std::size_t r = first; r < last; ++r) {
+                    std::uint32_t* counts = counts_of(r);
+                    for (std::size_t k = chunk_first[r]; k < chunk_last[r]; ++k)
+                        ++counts[digit(from[k])];
+                }
+            });
+        }
         std::size_t place = 0;
         for (std::size_t d = 0; d < digits; ++d) {
-            next[d] = place;
             for (std::size_t r = 0; r < kRuns; ++r)
-                place += digit_counts[(r * passes + pass) * digits + d];
+                next[r * digits + d] = place, place += counts_of(r)[d];
         }
-        const int shift = pass * digit_bits;
-        const auto move = [&](std::size_t first, std::size_t last) {
-            for (std::size_t k = first; k < last; ++k)
-                to[next[(from[k].cell >> shift) & (digits - 1)]++] = from[k];
-        };
-        if (pass == 0) {
-            for (std::size_t r = 0; r < kRuns; ++r)
-                move(r * run, r * run + run_rays[r]);
-        } else {
-            move(0, listed);
-        }
+        parallel_for(kRuns, 1, threads, [&](std::size_t first, std::size_t last) {
+            for (std::size_t r = first; r < last; ++r) {
+                std::size_t* at = next.data() + r * digits;
+                for (std::size_t k = chunk_first[r]; k < chunk_last[r]; ++k)
+                    to[at[digit(from[k])]++] = from[k];
+            }
+        });
         std::swap(from, to);
     }
     const std::span<const RayInCell> by_cell = from.first(listed);

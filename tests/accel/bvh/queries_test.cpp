@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "accel/bvh/nearest_point.hpp"
+#include "accel/crossing_grid.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
@@ -298,6 +299,39 @@ TEST(GeometryQueries, CountCrossingsCountsAllHitsDistinctTimes) {
     EXPECT_GT(odd,
               checked / 10);  // origins inside the sphere and the knot, and rays from the plane's surface
     EXPECT_GT(several, checked / 20);
+}
+
+// With more than 2^11 cells the radix sort of the listed rays by cell takes two passes, the second counted
+// and scattered in chunks of its own: every ray still gets its own crossings, on 1 and 2 threads.
+TEST(GeometryQueries, CountCrossingsThroughATwoPassSort) {
+    std::vector<Triangle> triangles;
+    make_icosphere(5, Vec3f(0.0f), 1.0f).append_triangles(triangles);
+    const Geometry geometry{triangles, {}};
+    const std::unique_ptr<Accel> accel = make_accel("bvh8_packet");
+    accel->build(geometry, build_options(TriangleTest::Watertight));
+    const GeometryQueries queries(*accel, geometry, TriangleTest::Watertight);
+    const Vec3f direction = normalize(Vec3f(0.118f, -0.286f, 0.432f));
+    // The grid count_crossings makes (about a cell per two triangles): more than 2^11 cells.
+    ASSERT_GT(CrossingGrid(geometry, geometry.bounds(), direction, geometry.size() / 2, 1).cell_count(),
+              std::size_t{1} << 11);
+    std::vector<Vec3f> origins;
+    for (int round = 0; round < 3; ++round) {
+        const std::vector<Vec3f> more = crossing_origins(triangles, geometry.bounds(), direction,
+                                                         200 + static_cast<std::uint32_t>(round));
+        origins.insert(origins.end(), more.begin(), more.end());
+    }
+    ASSERT_GE(4 * origins.size(), geometry.size());  // the grid, not tree walks
+    std::size_t inside = 0;
+    for (const int threads : {1, 2}) {
+        std::vector<std::uint32_t> crossings(origins.size());
+        queries.count_crossings(direction, origins, crossings, threads);
+        for (std::size_t i = 0; i < origins.size(); ++i) {
+            ASSERT_EQ(crossings[i], distinct_times(queries, {origins[i], direction, 0.0f, kInfinity}))
+                << "origin " << i << ", " << threads << " threads";
+            inside += crossings[i] % 2;
+        }
+    }
+    EXPECT_GT(inside, origins.size() / 10);
 }
 
 // count_crossings keeps its grid of a direction between calls: after the triangles move (an update that
