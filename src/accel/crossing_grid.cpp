@@ -1,6 +1,7 @@
 #include "accel/crossing_grid.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <numeric>
 
 #include "accel/build_util.hpp"
@@ -182,6 +183,72 @@ CrossingGrid::CrossingGrid(const Geometry& geometry, const Box3f& bounds, const 
     for (std::size_t cell = 0; cell < cell_count(); ++cell) {
         if (first_[cell] != first_[cell + 1]) listed_[cell / 64] |= std::uint64_t{1} << (cell % 64);
     }
+}
+
+int CrossingGrid::listed_cells(const Vec3f* origins, const Vec3f& centre, float limit,
+                               std::uint32_t* cells) const {
+    const bool every = !every_ray_.empty();
+    int listed = 0;
+#if defined(__AVX2__)
+    // The x, y and z of the eight from their 24 floats: each blend gathers one coordinate of every origin,
+    // permuted (x0 x3 x6 x1 x4 x7 x2 x5 for x), which one permutation puts in order.
+    const float* f = &origins[0].x;
+    const __m256 a = _mm256_loadu_ps(f), b = _mm256_loadu_ps(f + 8), c = _mm256_loadu_ps(f + 16);
+    const auto coordinate = [&](int from_a, int from_b, __m256i order) {
+        return _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(c, a, from_a), b, from_b), order);
+    };
+    const __m256 x = coordinate(0x49, 0x92, _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
+    const __m256 y = coordinate(0x92, 0x24, _mm256_setr_epi32(1, 4, 7, 2, 5, 0, 3, 6));
+    const __m256 z = coordinate(0x24, 0x49, _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
+    // Finite and near: |o - centre| <= limit on every axis (a NaN or an infinity fails it). An infinite limit
+    // (an empty scene's frame) leaves only the finite check, as is_far and is_finite do.
+    const __m256 sign = _mm256_set1_ps(-0.0f);
+    const __m256 bound = _mm256_set1_ps(std::min(limit, std::numeric_limits<float>::max()));
+    const auto near = [&](__m256 p, float middle) {
+        return _mm256_cmp_ps(_mm256_andnot_ps(sign, _mm256_sub_ps(p, _mm256_set1_ps(middle))), bound,
+                             _CMP_LE_OQ);
+    };
+    const __m256 finite = _mm256_and_ps(
+        _mm256_cmp_ps(_mm256_andnot_ps(sign, x), _mm256_set1_ps(kInfinity), _CMP_LT_OQ),
+        _mm256_and_ps(_mm256_cmp_ps(_mm256_andnot_ps(sign, y), _mm256_set1_ps(kInfinity), _CMP_LT_OQ),
+                      _mm256_cmp_ps(_mm256_andnot_ps(sign, z), _mm256_set1_ps(kInfinity), _CMP_LT_OQ)));
+    const __m256 ordinary = _mm256_and_ps(
+        finite, _mm256_and_ps(near(x, centre.x), _mm256_and_ps(near(y, centre.y), near(z, centre.z))));
+    if (_mm256_movemask_ps(ordinary) != 0xff) return -1;
+    // cell_of on four origins at a time: dot(Vec3d(p), axis) as ((x a.x + y a.y) + z a.z), and cell_along's
+    // floor and clamp (minpd and maxpd return their second operand where one is NaN: NaN to 0, as there).
+    const auto four = [&](__m128 px, __m128 py, __m128 pz) {
+        const __m256d qx = _mm256_cvtps_pd(px), qy = _mm256_cvtps_pd(py), qz = _mm256_cvtps_pd(pz);
+        const auto dot = [&](const Vec3d& axis) {
+            return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(qx, _mm256_set1_pd(axis.x)),
+                                               _mm256_mul_pd(qy, _mm256_set1_pd(axis.y))),
+                                 _mm256_mul_pd(qz, _mm256_set1_pd(axis.z)));
+        };
+        const auto along = [&](__m256d p, double lo, double last) {
+            const __m256d cell = _mm256_floor_pd(
+                _mm256_mul_pd(_mm256_sub_pd(p, _mm256_set1_pd(lo)), _mm256_set1_pd(cells_per_unit_)));
+            return _mm256_cvttpd_epi32(
+                _mm256_max_pd(_mm256_min_pd(_mm256_set1_pd(last), cell), _mm256_setzero_pd()));
+        };
+        const __m128i column = along(dot(axis_u_), lo_u_, last_column_);
+        const __m128i row = along(dot(axis_v_), lo_v_, last_row_);
+        return _mm_add_epi32(_mm_mullo_epi32(row, _mm_set1_epi32(static_cast<int>(columns_))), column);
+    };
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(cells),
+                     four(_mm256_castps256_ps128(x), _mm256_castps256_ps128(y), _mm256_castps256_ps128(z)));
+    _mm_storeu_si128(
+        reinterpret_cast<__m128i*>(cells + 4),
+        four(_mm256_extractf128_ps(x, 1), _mm256_extractf128_ps(y, 1), _mm256_extractf128_ps(z, 1)));
+#else
+    for (int j = 0; j < 8; ++j) {
+        const Vec3f& origin = origins[j];
+        if (!is_finite(origin) || max_component(abs(origin - centre)) > limit) return -1;
+        cells[j] = static_cast<std::uint32_t>(cell_of(origin));
+    }
+#endif
+    for (int j = 0; j < 8; ++j)
+        listed |= static_cast<int>(((listed_[cells[j] / 64] >> (cells[j] % 64)) & 1u) | every) << j;
+    return listed;
 }
 
 std::shared_ptr<const CrossingGrid> CrossingGrids::grid(const Geometry& geometry, const Box3f& bounds,

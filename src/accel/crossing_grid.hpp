@@ -28,6 +28,10 @@
 #include <span>
 #include <vector>
 
+#if defined(__AVX2__)
+#include <immintrin.h>
+#endif
+
 #include "lancer/box.hpp"
 #include "lancer/scene.hpp"
 #include "lancer/vec.hpp"
@@ -49,6 +53,15 @@ class CrossingGrid {
         const Plane p = project(origin);
         return row(p.v) * columns_ + column(p.u);
     }
+    // The cells of the eight origins from `origins` on, as cell_of gives them, into `cells`, and a bit for
+    // each whose cell lists any primitive (lists_any), when every origin is finite and within `limit` of
+    // `centre` on every axis (the difference in float, as FarOriginFrame::is_far); -1 otherwise, `cells`
+    // left unspecified. With AVX2 the eight in vectors, each projection in the same double operations as
+    // cell_of's, in the same order: the first pass over a call's points asks this of each (docs/python.md,
+    // "Occupancy").
+    [[nodiscard]] int listed_cells(const Vec3f* origins, const Vec3f& centre, float limit,
+                                   std::uint32_t* cells) const;
+
     // The geometry's triangles in the grid's order, which primitives() and every_ray() number (a sphere s
     // as triangles().size() + s, as in the geometry): the same triangles, bit for bit, so that a ray's hits
     // on them have the geometry's t.

@@ -18,6 +18,10 @@ struct PreparedRay {
     typename TriangleTestT::RayData triangle_data;
 
     explicit PreparedRay(const Ray& r) : ray(r), triangle_data(r) {}
+
+    // The same ray from `origin`: what the test precomputes depends on the direction alone, so rays that
+    // share it are prepared once (GeometryQueries::count_crossings).
+    void set_origin(const Vec3f& origin) { ray.origin = origin, triangle_data.origin = origin; }
 };
 
 // Tests primitive `prim` (triangles first, then spheres) against the ray within [ray.tnear, best.t] for a

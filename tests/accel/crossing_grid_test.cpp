@@ -8,11 +8,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <span>
 #include <vector>
 
 #include "accel/build_util.hpp"
 #include "lancer/generate.hpp"
+#include "lancer/ray.hpp"
 
 namespace lancer {
 namespace {
@@ -79,6 +81,83 @@ TEST(CrossingGrid, ListsATriangleWhoseEdgePassesACellCornerWithinTheTolerance) {
                             corner_y - 0.5f * gap + 0.9f * tolerance, 2.0f);
     ASSERT_EQ(grid.cell_of(near_corner), grid.cell_of(above_corner));
     EXPECT_TRUE(lists(grid, near_corner, shapes.back()));
+}
+
+// listed_cells gives eight origins' cells as cell_of does, one by one, and whether each lists anything, or
+// -1 when one is not finite or lies beyond the limit: on points uniform around the geometry, points on the
+// cells' boundaries (the first float past one and the last before it), points at the limit and past it, and
+// NaN and infinite coordinates; on a grid with a triangle listed for every ray, every cell lists.
+TEST(CrossingGrid, ListedCellsAreCellOfsEightAtATime) {
+    std::vector<Triangle> shapes;
+    make_icosphere(3, Vec3f(0.0f), 1.0f).append_triangles(shapes);
+    make_torus_knot(24, 6).append_triangles(shapes);
+    const Box3f bounds = Geometry{shapes, {}}.bounds();
+    const Vec3f centre = bounds.center();
+    const float limit = 4.0f * max_component(bounds.extent());
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    const Box3f around = bounds.grown(0.2f * length(bounds.extent()));
+    std::vector<Triangle> with_apart = shapes;
+    with_apart.push_back({{0.0f, 0.0f, kInfinity}, {1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}});
+    std::size_t listed_seen = 0, unlisted_seen = 0, refused = 0;
+    for (const Vec3f direction : {normalize(Vec3f(0.118f, -0.286f, 0.432f)), Vec3f(0.0f, 0.0f, -1.0f)}) {
+        const CrossingGrid grid(Geometry{shapes, {}}, bounds, direction, shapes.size() / 2, 1);
+        const CrossingGrid every(Geometry{with_apart, {}}, bounds, direction, with_apart.size() / 2, 1);
+        ASSERT_FALSE(every.every_ray().empty());
+        std::vector<Vec3f> points;
+        for (int n = 0; n < 4000; ++n) {
+            const Vec3f p = around.lo + Vec3f(unit(rng), unit(rng), unit(rng)) * around.extent();
+            points.push_back(p);
+            // The two floats either side of a boundary, where one lies ahead along x (beyond the last
+            // cell, none does).
+            if (n % 8 == 0 && grid.cell_of({p.x + around.extent().x, p.y, p.z}) != grid.cell_of(p)) {
+                const float x = next_boundary(grid, p, 0);
+                points.push_back({x, p.y, p.z});
+                points.push_back({std::nextafter(x, -kInfinity), p.y, p.z});
+            }
+        }
+        const std::size_t ordinary = points.size() / 8 * 8;
+        points.resize(ordinary);
+        for (const Vec3f& odd :
+             {Vec3f(centre.x + limit, centre.y, centre.z), Vec3f(centre.x, centre.y - limit, centre.z),
+              Vec3f(centre.x, centre.y, std::nextafter(centre.z + limit, kInfinity)),
+              Vec3f(std::nanf(""), 0.0f, 0.0f), Vec3f(0.0f, -kInfinity, 0.0f), Vec3f(0.0f, 0.0f, kInfinity),
+              Vec3f(3e38f, 0.0f, 0.0f)}) {
+            for (int slot = 0; slot < 8; ++slot) {  // in every lane, among ordinary points
+                for (int j = 0; j < 8; ++j)
+                    points.push_back(j == slot ? odd : points[static_cast<std::size_t>(j)]);
+            }
+        }
+        for (const CrossingGrid* g : {&grid, &every}) {
+            for (std::size_t first = 0; first < points.size(); first += 8) {
+                std::uint32_t cells[8];
+                const int listed = g->listed_cells(&points[first], centre, limit, cells);
+                bool expected_refused = false;
+                for (std::size_t j = first; j < first + 8; ++j) {
+                    const Vec3f& p = points[j];
+                    expected_refused |= !is_finite(p) || max_component(abs(p - centre)) > limit;
+                }
+                ASSERT_EQ(listed < 0, expected_refused) << "origins from " << first;
+                if (listed < 0) {
+                    ++refused;
+                    continue;
+                }
+                for (std::size_t j = 0; j < 8; ++j) {
+                    const std::size_t cell = g->cell_of(points[first + j]);
+                    ASSERT_EQ(cells[j], cell) << "origin " << first + j;
+                    const bool lists = ((listed >> j) & 1) != 0;
+                    ASSERT_EQ(lists, g->lists_any(cell)) << "origin " << first + j;
+                    (lists ? listed_seen : unlisted_seen) += g == &grid ? 1 : 0;
+                    ASSERT_TRUE(lists || g != &every);
+                }
+            }
+        }
+    }
+    EXPECT_GT(listed_seen, 1000u);
+    EXPECT_GT(unlisted_seen, 1000u);
+    // The non-finite points and the far ones (those at the limit's float may fall either side of it).
+    EXPECT_GE(refused, 2u * 2u * 4u * 8u);
+    EXPECT_LE(refused, 2u * 2u * 7u * 8u);
 }
 
 }  // namespace

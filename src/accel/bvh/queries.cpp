@@ -10,6 +10,7 @@
 #include <numeric>
 #include <optional>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 #include "accel/build_util.hpp"
@@ -53,12 +54,18 @@ std::uint32_t distinct_count(std::vector<float>& times) {
 // A ray of count_crossings that tests a cell's primitives: its cell, its index among the origins, and its
 // origin, moved with it by the sort so that the rays of a cell read theirs in turn: read through the index,
 // each origin is a TLB and cache miss, which prefetching did not hide (docs/python.md, "Occupancy").
+// Its origin as three floats, not a Vec3f, whose member initialisers made make_unique_for_overwrite zero the
+// arrays (40 bytes a point, at every first call; docs/python.md, "Occupancy").
 struct RayInCell {
     std::uint32_t cell;
     std::uint32_t index;
-    Vec3f origin;
+    float x, y, z;
+
+    RayInCell() = default;
+    RayInCell(std::uint32_t c, std::uint32_t i, const Vec3f& o) : cell(c), index(i), x(o.x), y(o.y), z(o.z) {}
+    [[nodiscard]] Vec3f origin() const { return {x, y, z}; }
 };
-static_assert(sizeof(RayInCell) == 20);
+static_assert(sizeof(RayInCell) == 20 && std::is_trivially_default_constructible_v<RayInCell>);
 
 // count_crossings' arrays, kept between calls: the rays that test a cell's primitives, in their order and by
 // cell (a radix sort's two arrays), and the counts of the cells' digits.
@@ -409,7 +416,7 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
     // each run's from its own place on; the others get their answer now: a ray from a non-finite origin
     // (invalid) or one whose cell lists nothing crosses nothing, and one from far away, which conditioning
     // moves, walks the tree (the direction is valid and needs none: of a ray, only the origin is checked).
-    // The cells' digits are counted on the way for the radix sort.
+    // The cells' first digits are counted on the way for the radix sort.
     constexpr std::size_t kRuns = 4;
     const std::size_t run = std::max<std::size_t>((count + kRuns - 1) / kRuns, 1);
     const int cell_bits = static_cast<int>(std::bit_width(grid->cell_count() - 1));
@@ -425,7 +432,7 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
         std::uint32_t* counts = digit_counts.data() + r * passes * digits;
         std::size_t written = first;
         std::vector<float> task_times;
-        for (std::size_t i = first; i < last; ++i) {
+        const auto one = [&](std::size_t i) {
             const Vec3f& origin = origins[i];
             if (!is_finite(origin)) {
                 crossings[i] = 0;
@@ -436,36 +443,82 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
             } else {
                 listed_rays[written++] = {static_cast<std::uint32_t>(cell), static_cast<std::uint32_t>(i),
                                           origin};
-                for (int pass = 0; pass < passes; ++pass)
-                    ++counts[pass * digits + ((cell >> (pass * digit_bits)) & (digits - 1))];
+                ++counts[cell & (digits - 1)];
+            }
+        };
+        // Eight origins at a time where all are finite and near (the grid's vector cells), without a branch
+        // on whether each is listed: every ray is written at the next place, which only a listed one keeps,
+        // and every answer set to 0, which the listed ones' tests overwrite. Taken ray by ray, that branch
+        // went either way at random (41% of the bunny's rays are listed) and mispredicted (docs/python.md,
+        // "Occupancy").
+        const Vec3f centre = frame.centre();
+        const float limit = frame.far_limit();
+        std::size_t i = first;
+        for (; i + 8 <= last; i += 8) {
+            std::array<std::uint32_t, 8> cells;
+            const int listed = grid->listed_cells(&origins[i], centre, limit, cells.data());
+            if (listed < 0) {
+                for (std::size_t j = i; j < i + 8; ++j)
+                    one(j);
+                continue;
+            }
+            for (std::size_t j = 0; j < 8; ++j) {
+                const std::uint32_t cell = cells[j], kept = (static_cast<unsigned>(listed) >> j) & 1u;
+                crossings[i + j] = 0;
+                listed_rays[written] = {cell, static_cast<std::uint32_t>(i + j), origins[i + j]};
+                written += kept;
+                counts[cell & (digits - 1)] += kept;
             }
         }
+        for (; i < last; ++i)
+            one(i);
         run_rays[r] = written - first;
     });
-    // An LSD radix sort by cell, stable, so that a cell's rays stay in the order of their index.
+    // An LSD radix sort by cell, stable, so that a cell's rays stay in the order of their index. Each pass
+    // in kRuns chunks on the threads, each chunk's rays scattered from its own places on, those of a digit
+    // after the earlier chunks' (the first pass's chunks are the runs, whose digits it counted; a later
+    // pass's are counted first): on one thread, the sort was a serial part of a call on two (docs/python.md,
+    // "Occupancy").
     std::size_t listed = 0;
     for (const std::size_t n : run_rays)
         listed += n;
     std::span<RayInCell> from = listed_rays, to = sorted;
+    std::array<std::size_t, kRuns> chunk_first{}, chunk_last{};
+    for (std::size_t r = 0; r < kRuns; ++r)
+        chunk_first[r] = r * run, chunk_last[r] = r * run + run_rays[r];
+    std::vector<std::size_t> next(kRuns * digits);
     for (int pass = 0; pass < passes; ++pass) {
-        std::vector<std::size_t> next(digits, 0);
+        const int shift = pass * digit_bits;
+        const auto digit = [&](const RayInCell& ray) { return (ray.cell >> shift) & (digits - 1); };
+        const auto counts_of = [&](std::size_t r) {
+            return digit_counts.data() +
+                   (r * static_cast<std::size_t>(passes) + static_cast<std::size_t>(pass)) * digits;
+        };
+        if (pass > 0) {
+            const std::size_t chunk = (listed + kRuns - 1) / kRuns;
+            for (std::size_t r = 0; r < kRuns; ++r)
+                chunk_first[r] = std::min(r * chunk, listed),
+                chunk_last[r] = std::min(r * chunk + chunk, listed);
+            parallel_for(kRuns, 1, threads, [&](std::size_t first, std::size_t last) {
+                for (std::size_t r = first; r < last; ++r) {
+                    std::uint32_t* counts = counts_of(r);
+                    for (std::size_t k = chunk_first[r]; k < chunk_last[r]; ++k)
+                        ++counts[digit(from[k])];
+                }
+            });
+        }
         std::size_t place = 0;
         for (std::size_t d = 0; d < digits; ++d) {
-            next[d] = place;
             for (std::size_t r = 0; r < kRuns; ++r)
-                place += digit_counts[(r * passes + pass) * digits + d];
+                next[r * digits + d] = place, place += counts_of(r)[d];
         }
-        const int shift = pass * digit_bits;
-        const auto move = [&](std::size_t first, std::size_t last) {
-            for (std::size_t k = first; k < last; ++k)
-                to[next[(from[k].cell >> shift) & (digits - 1)]++] = from[k];
-        };
-        if (pass == 0) {
-            for (std::size_t r = 0; r < kRuns; ++r)
-                move(r * run, r * run + run_rays[r]);
-        } else {
-            move(0, listed);
-        }
+        parallel_for(kRuns, 1, threads, [&](std::size_t first, std::size_t last) {
+            for (std::size_t r = first; r < last; ++r) {
+                std::size_t* at = next.data() + r * digits;
+                for (std::size_t k = chunk_first[r]; k < chunk_last[r]; ++k)
+                    to[at[digit(from[k])]++] = from[k];
+            }
+        });
         std::swap(from, to);
     }
     const std::span<const RayInCell> by_cell = from.first(listed);
@@ -481,9 +534,16 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
         std::vector<double> block_far;  // the farthest depth of each of the cell's blocks
         std::size_t blocks_cell = std::numeric_limits<std::size_t>::max();
         dispatch_policies(impl_->test, false, [&]<class TriangleTestT, bool>() {
+            // The ray prepared and broadcast once, its origin set for each: built per ray, its copies through
+            // the stack stalled on store forwarding and its set-up's calls were not inlined (docs/python.md,
+            // "Occupancy").
+            PreparedRay<TriangleTestT> prepared(Ray{Vec3f(0.0f), direction, 0.0f, kInfinity});
+            BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, in_grid_order);
             for (std::size_t k = first; k < last; ++k) {
                 if (k + kPrefetchAhead < listed) prefetch_line(&crossings[by_cell[k + kPrefetchAhead].index]);
-                const auto [cell, i, origin] = by_cell[k];
+                const RayInCell& ray = by_cell[k];
+                const std::uint32_t cell = ray.cell, i = ray.index;
+                const Vec3f origin = ray.origin();
                 if (cell != blocks_cell) {
                     const std::span<const std::uint32_t> prims = grid->primitives(cell);
                     blocks.clear();
@@ -496,8 +556,8 @@ void GeometryQueries::count_crossings(const Vec3f& direction, std::span<const Ve
                     append_leaf_blocks(in_grid_order, grid->every_ray(), blocks);
                     blocks_cell = cell;
                 }
-                const PreparedRay<TriangleTestT> prepared(Ray{origin, direction, 0.0f, kInfinity});
-                const BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes> block_ray(prepared, in_grid_order);
+                prepared.set_origin(origin);
+                block_ray.kernel.set_origin(origin);
                 task_times.clear();
                 // The cell's blocks wholly behind the origin skipped (their triangles by far depth).
                 const double behind = grid->depth(origin) - grid->depth_slack();

@@ -11,6 +11,7 @@
 // closest lane is chosen with closer(), ties to the smaller index.
 #pragma once
 
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -306,6 +307,12 @@ struct MollerTrumboreBlock {
                  Ops::broadcast(ray.direction.z)},
                 Ops::broadcast(ray.direction_scale)) {}
 
+    // The kernel of a ray of the same direction from `origin`: the constructor's broadcast of the origin
+    // alone, for callers whose rays share their direction (GeometryQueries::count_crossings).
+    void set_origin(const Vec3f& origin) {
+        lanes.origin = {Ops::broadcast(origin.x), Ops::broadcast(origin.y), Ops::broadcast(origin.z)};
+    }
+
     template <int K>
     void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
         store_hits(lanes.test(load_vertex<Ops>(block, 0), load_vertex<Ops>(block, 1),
@@ -332,6 +339,14 @@ struct WatertightBlock {
           ky(ray.ky),
           kz(ray.kz) {}
 
+    // The kernel of a ray of the same direction from `origin`: the constructor's broadcasts of the origin
+    // alone (the permutation and the shear depend on the direction only).
+    void set_origin(const Vec3f& origin) {
+        const std::array<float, 3> o = as_array(origin);
+        lanes.origin_x = Ops::broadcast(o[kx]), lanes.origin_y = Ops::broadcast(o[ky]),
+        lanes.origin_z = Ops::broadcast(o[kz]);
+    }
+
     template <int K>
     [[nodiscard]] Vec3v<Ops> permuted(const TriangleBlock<K>& block, int v) const {
         return {Ops::load(block.vertex[v][kx]), Ops::load(block.vertex[v][ky]),
@@ -353,6 +368,8 @@ struct ScalarBlock {
     typename TriangleTestT::RayData ray;
 
     explicit ScalarBlock(const typename TriangleTestT::RayData& data) : ray(data) {}
+
+    void set_origin(const Vec3f& origin) { ray.origin = origin; }
 
     template <int K>
     void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "accel/bvh/nearest_point.hpp"
+#include "accel/crossing_grid.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
@@ -300,15 +301,61 @@ TEST(GeometryQueries, CountCrossingsCountsAllHitsDistinctTimes) {
     EXPECT_GT(several, checked / 20);
 }
 
+// An icosphere of radius 1 in bvh8_packet with the watertight test, and its queries; the triangles may be
+// moved in place and the structure updated.
+struct SphereQueries {
+    std::vector<Triangle> triangles;
+    Geometry geometry;
+    std::unique_ptr<Accel> accel = make_accel("bvh8_packet");
+    std::unique_ptr<GeometryQueries> queries;
+
+    explicit SphereQueries(int subdivisions) {
+        make_icosphere(subdivisions, Vec3f(0.0f), 1.0f).append_triangles(triangles);
+        geometry = {triangles, {}};
+        accel->build(geometry, build_options(TriangleTest::Watertight));
+        queries = std::make_unique<GeometryQueries>(*accel, geometry, TriangleTest::Watertight);
+    }
+};
+
+// With more than 2^11 cells the radix sort of the listed rays by cell takes two passes, the second counted
+// and scattered in chunks of its own: every ray still gets its own crossings, on 1 and 2 threads.
+TEST(GeometryQueries, CountCrossingsThroughATwoPassSort) {
+    const SphereQueries sphere(5);
+    const std::vector<Triangle>& triangles = sphere.triangles;
+    const Geometry& geometry = sphere.geometry;
+    const GeometryQueries& queries = *sphere.queries;
+    const Vec3f direction = normalize(Vec3f(0.118f, -0.286f, 0.432f));
+    // The grid count_crossings makes (about a cell per two triangles): more than 2^11 cells.
+    ASSERT_GT(CrossingGrid(geometry, geometry.bounds(), direction, geometry.size() / 2, 1).cell_count(),
+              std::size_t{1} << 11);
+    std::vector<Vec3f> origins;
+    for (int round = 0; round < 3; ++round) {
+        const std::vector<Vec3f> more = crossing_origins(triangles, geometry.bounds(), direction,
+                                                         200 + static_cast<std::uint32_t>(round));
+        origins.insert(origins.end(), more.begin(), more.end());
+    }
+    ASSERT_GE(4 * origins.size(), geometry.size());  // the grid, not tree walks
+    std::size_t inside = 0;
+    for (const int threads : {1, 2}) {
+        std::vector<std::uint32_t> crossings(origins.size());
+        queries.count_crossings(direction, origins, crossings, threads);
+        for (std::size_t i = 0; i < origins.size(); ++i) {
+            ASSERT_EQ(crossings[i], distinct_times(queries, {origins[i], direction, 0.0f, kInfinity}))
+                << "origin " << i << ", " << threads << " threads";
+            inside += crossings[i] % 2;
+        }
+    }
+    EXPECT_GT(inside, origins.size() / 10);
+}
+
 // count_crossings keeps its grid of a direction between calls: after the triangles move (an update that
 // rewrites the same arrays in place), the next call along that direction counts the moved triangles.
 TEST(GeometryQueries, CountCrossingsFollowsTheTrianglesAfterAnUpdate) {
-    std::vector<Triangle> triangles;
-    make_icosphere(3, Vec3f(0.0f), 1.0f).append_triangles(triangles);
-    const Geometry geometry{triangles, {}};
-    const std::unique_ptr<Accel> accel = make_accel("bvh8_packet");
-    accel->build(geometry, build_options(TriangleTest::Watertight));
-    const GeometryQueries queries(*accel, geometry, TriangleTest::Watertight);
+    SphereQueries sphere(3);
+    std::vector<Triangle>& triangles = sphere.triangles;
+    const Geometry& geometry = sphere.geometry;
+    Accel* const accel = sphere.accel.get();
+    const GeometryQueries& queries = *sphere.queries;
     const Vec3f direction = normalize(Vec3f(0.118f, -0.286f, 0.432f));
     const std::vector<Vec3f> origins = crossing_origins(triangles, geometry.bounds(), direction, 7);
     std::vector<std::uint32_t> crossings(origins.size());
