@@ -373,8 +373,9 @@ class LoadedPacket {
     }
 
     // load's copies of a partial packet, padded to kPacketSize rays.
-    // Raw storage, not Rays: the tracer is made for every packet, and 64 Rays' member initialisers cost it
-    // 2% of the dragon's camera-ray instructions (callgrind), though only a partial batch packet uses them.
+    // Raw storage, not Rays: the tracer is made for every packet, and only a batch's partial packet needs
+    // these, whose member initialisers were a measurable share of a camera packet's work
+    // (docs/accel/packets.md, "Large meshes").
     alignas(Ray) std::array<std::byte, sizeof(Ray) * kPacketSize> padded_rays_;
     RayPacket padded_packet_;
 
@@ -383,10 +384,10 @@ class LoadedPacket {
     PacketInterval interval_;
     std::array<PacketInterval, kGroups> group_intervals_;
     unsigned groups_ready_ = 0;  // bit g: prepare_group(g) has run
-    // Per group of lanes, the lanes of each watertight axis permutation.
-    std::array<std::array<unsigned, kPermutations>, kGroups> code_lanes_;
-    // Per group, bit c: some lane has permutation c (camera rays: one bit), so that a leaf test loops over
+    // Per group of lanes, made by prepare_group: the lanes of each watertight axis permutation, and in
+    // codes_ bit c when some lane has permutation c (camera rays: one bit), so that a leaf test loops over
     // those alone.
+    std::array<std::array<unsigned, kPermutations>, kGroups> code_lanes_;
     std::array<unsigned, kGroups> codes_;
     LaneMask valid_ = 0, alive_ = 0;
     float tlimit_max_ = 0.0f;  // the largest tlimit of the packet
