@@ -92,7 +92,7 @@ template <class Ops, class TriangleTestT>
 class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
   protected:
     using Packet = LoadedPacket<Ops, TriangleTestT>;
-    using Packet::alive_, Packet::code_lanes_, Packet::packet_, Packet::tlimit_max_;
+    using Packet::alive_, Packet::code_lanes_, Packet::codes_, Packet::packet_, Packet::tlimit_max_;
     using Packet::kGroup, Packet::kGroups, Packet::kLanes, Packet::kWatertight;
     using Packet::load_best, Packet::prepare_group, Packet::store_best;
     using typename Packet::Float, typename Packet::GroupBest, typename Packet::Vec3v;
@@ -294,7 +294,9 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
                 if (prim >= geometry_.triangles.size()) {
                     found |= take_scalar<kAnyHit>(prim, first, active, best, answers);  // a sphere
                 } else if constexpr (kWatertight) {
-                    for (int code = 0; code < kPermutations; ++code) {
+                    for (unsigned codes = codes_[static_cast<std::size_t>(group)]; codes != 0;
+                         codes &= codes - 1) {
+                        const int code = std::countr_zero(codes);
                         const unsigned lanes =
                             active &
                             code_lanes_[static_cast<std::size_t>(group)][static_cast<std::size_t>(code)];

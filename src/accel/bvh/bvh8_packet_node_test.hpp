@@ -5,6 +5,7 @@
 // anonymous namespace).
 #pragma once
 
+#include <bit>
 #include <cstddef>
 
 #include "accel/bvh/bvh8_packet_rays.hpp"
@@ -103,9 +104,12 @@ template <class Ops>
         far_bound[axis] = Ops::broadcast(node.bounds[1 - side][axis][slot]);
     }
     LaneMask result = 0;
-    for (int first = 0; first < kPacketSize; first += lanes) {
-        const LaneMask group = (rays >> first) & kGroup;
-        if (group == 0) continue;
+    // The groups with rays alone: where triangles are small beside the packet (the dragon), most children
+    // are met by one group's rays.
+    for (LaneMask rest = rays; rest != 0;) {
+        const int first = std::countr_zero(rest) & -lanes;
+        const LaneMask group = (rest >> first) & kGroup;
+        rest &= ~(kGroup << first);
         auto t0 = Ops::load(&packet.tnear[first]);
         auto t1 = Ops::load(&packet.tlimit[first]);
         for (std::size_t axis = 0; axis < 3; ++axis) {

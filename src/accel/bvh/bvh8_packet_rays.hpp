@@ -12,6 +12,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <new>
 #include <span>
 #include <type_traits>
 
@@ -110,10 +112,11 @@ class LoadedPacket {
         const Ray* source = rays.data();
         if (rays.size() < static_cast<std::size_t>(kPacketSize)) {
             // A partial packet, padded with rays of zero direction (invalid: no lane of theirs is traced).
-            std::copy(rays.begin(), rays.end(), padded_rays_.begin());
-            std::fill(padded_rays_.begin() + static_cast<std::ptrdiff_t>(rays.size()), padded_rays_.end(),
-                      Ray{{}, {}, 0.0f, 0.0f});
-            source = padded_rays_.data();
+            static_assert(std::is_trivially_destructible_v<Ray>);
+            auto* padded = reinterpret_cast<Ray*>(padded_rays_.data());
+            std::uninitialized_fill(std::uninitialized_copy(rays.begin(), rays.end(), padded),
+                                    padded + kPacketSize, Ray{{}, {}, 0.0f, 0.0f});
+            source = std::launder(padded);
         }
         // The fields of kLanes consecutive rays, transposed: ox oy oz dx dy dz tnear tfar.
         static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, tfar) == 7 * sizeof(float));
@@ -265,7 +268,6 @@ class LoadedPacket {
         std::array<LaneMask, 3> negative{};
         valid_ = 0;
         groups_ready_ = 0;
-        code_lanes_ = {};
         for (int group = 0; group < kGroups; ++group) {
             const int first = group * kLanes;
             Float fields[8];
@@ -348,11 +350,15 @@ class LoadedPacket {
         Ops::store(&packet_.shear[2][first], Ops::div(Ops::broadcast(1.0f), d_kz));
         const unsigned swapped_lanes = Ops::bits(swapped);
         const unsigned kz_lanes[3] = {kz_x, kz_y, ~(kz_x | kz_y)};
+        auto& lanes = code_lanes_[static_cast<std::size_t>(group)];
+        unsigned& codes = codes_[static_cast<std::size_t>(group)];
+        codes = 0;
         for (int kz = 0; kz < 3; ++kz) {
-            auto& lanes = code_lanes_[static_cast<std::size_t>(group)];
             lanes[static_cast<std::size_t>(2 * kz)] = kz_lanes[kz] & ~swapped_lanes & valid_lanes;
             lanes[static_cast<std::size_t>(2 * kz + 1)] = kz_lanes[kz] & swapped_lanes & valid_lanes;
         }
+        for (int code = 0; code < kPermutations; ++code)
+            codes |= (lanes[static_cast<std::size_t>(code)] != 0 ? 1u : 0u) << code;
     }
 
     // The group's closest hits as `Hit` fields: a lane still at kNoHit (no hit, or an invalid ray) answers a
@@ -367,7 +373,10 @@ class LoadedPacket {
     }
 
     // load's copies of a partial packet, padded to kPacketSize rays.
-    std::array<Ray, kPacketSize> padded_rays_;
+    // Raw storage, not Rays: the tracer is made for every packet, and only a batch's partial packet needs
+    // these, whose member initialisers were a measurable share of a camera packet's work
+    // (docs/accel/packets.md, "Large meshes").
+    alignas(Ray) std::array<std::byte, sizeof(Ray) * kPacketSize> padded_rays_;
     RayPacket padded_packet_;
 
   protected:
@@ -375,8 +384,11 @@ class LoadedPacket {
     PacketInterval interval_;
     std::array<PacketInterval, kGroups> group_intervals_;
     unsigned groups_ready_ = 0;  // bit g: prepare_group(g) has run
-    // Per group of lanes, the lanes of each watertight axis permutation.
-    std::array<std::array<unsigned, kPermutations>, kGroups> code_lanes_{};
+    // Per group of lanes, made by prepare_group: the lanes of each watertight axis permutation, and in
+    // codes_ bit c when some lane has permutation c (camera rays: one bit), so that a leaf test loops over
+    // those alone.
+    std::array<std::array<unsigned, kPermutations>, kGroups> code_lanes_;
+    std::array<unsigned, kGroups> codes_;
     LaneMask valid_ = 0, alive_ = 0;
     float tlimit_max_ = 0.0f;  // the largest tlimit of the packet
 };

@@ -28,6 +28,27 @@ struct StackEntry {
     float t_entry;  // where the ray enters the child's box: the child is skipped once a hit is closer
 };
 
+// Starts the loads of a child that a walk will pop later: an inner node's lines, or a leaf's blocks.
+// bvh8_packet's walk requests every child it pushes (docs/accel/packets.md, "Large meshes: prefetching the
+// pushed children").
+template <int W>
+[[gnu::always_inline]] inline void prefetch_child(const std::vector<WideBvhNode<W>>& nodes,
+                                                  const std::vector<typename WideBvhAccel<W>::Block>& blocks,
+                                                  std::uint32_t child, std::uint32_t prim_count) {
+    constexpr std::size_t kLine = 64;
+    if (prim_count == 0) {
+        const auto* bytes = reinterpret_cast<const char*>(&nodes[child]);
+        for (std::size_t at = 0; at < sizeof(WideBvhNode<W>); at += kLine)
+            __builtin_prefetch(bytes + at);
+        return;
+    }
+    const auto* bytes = reinterpret_cast<const char*>(&blocks[child]);
+    const std::size_t size =
+        sizeof(typename WideBvhAccel<W>::Block) * block_count(prim_count, WideBvhAccel<W>::kBlockLanes);
+    for (std::size_t at = 0; at < size; at += kLine)
+        __builtin_prefetch(bytes + at);
+}
+
 // Each wide level pushes at most W - 1 children, and the wide tree is no deeper than the binary one.
 template <int W>
 constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
