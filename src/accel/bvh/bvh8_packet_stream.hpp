@@ -162,7 +162,8 @@ class RayStream {
                     const auto push = [&](int slot) {
                         const ChildRef child{node.child[slot], node.prim_count[slot]};
                         stack[static_cast<std::size_t>(stack_size++)] = {child, child_rays_[slot]};
-                        prefetch(child);
+                        // Fetched while the stream walks the child's siblings (docs/accel/stream.md).
+                        wide_walk::prefetch_child<kWidth>(nodes_, blocks_, child.child, child.prim_count);
                     };
                     // Nearest first along the octant's diagonal, a stand-in for each ray's own entry order
                     // that the whole stream shares; the others pushed farthest first.
@@ -219,16 +220,6 @@ class RayStream {
             hit_rays.add(k, t0, t1);
         }
         return hit_rays.store(child_rays_.data());
-    }
-
-    // A pushed child's node or first triangle block, whole, into the cache: by the time the stream pops it
-    // the fetch has overlapped the walk of its siblings (docs/accel/stream.md).
-    void prefetch(ChildRef ref) const {
-        const char* data = ref.prim_count > 0 ? reinterpret_cast<const char*>(&blocks_[ref.child])
-                                              : reinterpret_cast<const char*>(&nodes_[ref.child]);
-        const std::size_t bytes = ref.prim_count > 0 ? sizeof(Block) : sizeof(Node);
-        for (std::size_t offset = 0; offset < bytes; offset += 64)
-            _mm_prefetch(data + offset, _MM_HINT_T0);
     }
 
     // A leaf's triangle blocks against each of `rays`, with bvh8's own block tests.

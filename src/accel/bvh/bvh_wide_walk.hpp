@@ -29,8 +29,8 @@ struct StackEntry {
 };
 
 // Starts the loads of a child that a walk will pop later: an inner node's lines, or a leaf's blocks.
-// bvh8_packet's walk requests every child it pushes (docs/accel/packets.md, "Large meshes: prefetching the
-// pushed children").
+// bvh8_packet's packets and streams request every child they push (docs/accel/packets.md, "Large meshes:
+// prefetching the pushed children"; docs/accel/stream.md).
 template <int W>
 [[gnu::always_inline]] inline void prefetch_child(const std::vector<WideBvhNode<W>>& nodes,
                                                   const std::vector<typename WideBvhAccel<W>::Block>& blocks,
