@@ -4,6 +4,10 @@
 #include <limits>
 #include <numeric>
 
+#if defined(__AVX2__)
+#include <immintrin.h>
+#endif
+
 #include "accel/build_util.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/parallel.hpp"

@@ -28,10 +28,6 @@
 #include <span>
 #include <vector>
 
-#if defined(__AVX2__)
-#include <immintrin.h>
-#endif
-
 #include "lancer/box.hpp"
 #include "lancer/scene.hpp"
 #include "lancer/vec.hpp"
