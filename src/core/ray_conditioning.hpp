@@ -12,8 +12,10 @@
 #endif
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <span>
@@ -44,14 +46,39 @@ inline constexpr float kFarOriginSides = 4.0f;
 inline constexpr float kKernelTolerance = 0x1p-19f;
 static_assert(kKernelTolerance >= 6.0f * (kFarOriginSides + 0.5f) * 0x1p-24f);
 
+// The float after `value` towards +inf, and the one before it towards -inf: std::nextafter(value, +-inf) for
+// a value that is not NaN, without the library call (whose call clobbers every vector register: the instance
+// walk's double map spilled its state around three of them, docs/accel/instances.md). An infinity towards
+// itself stays; either zero steps to the smallest subnormal of the direction's sign.
+[[nodiscard]] inline float next_float_up(float value) {
+    if (value == kInfinity) return value;
+    if (value == 0.0f) return std::numeric_limits<float>::denorm_min();
+    const auto bits = std::bit_cast<std::uint32_t>(value);
+    return std::bit_cast<float>(value > 0.0f ? bits + 1 : bits - 1);
+}
+[[nodiscard]] inline float next_float_down(float value) {
+    return -next_float_up(-value);
+}
+
+// The larger and the smaller of two numbers neither of which is NaN, as std::fmax and std::fmin (glibc's
+// maxsd/minsd, which return the second operand on equal ones, -0 and +0 among them) without the call.
+template <class T>
+[[nodiscard]] inline T max_of_numbers(T a, T b) {
+    return a > b ? a : b;
+}
+template <class T>
+[[nodiscard]] inline T min_of_numbers(T a, T b) {
+    return a < b ? a : b;
+}
+
 // A double rounded to the float at or below it, and at or above it (beyond FLT_MAX: +inf).
 [[nodiscard]] inline float round_down(double value) {
     const float rounded = static_cast<float>(value);
-    return double(rounded) > value ? std::nextafter(rounded, -kInfinity) : rounded;
+    return double(rounded) > value ? next_float_down(rounded) : rounded;
 }
 [[nodiscard]] inline float round_up(double value) {
     const float rounded = static_cast<float>(value);
-    return double(rounded) < value ? std::nextafter(rounded, kInfinity) : rounded;
+    return double(rounded) < value ? next_float_up(rounded) : rounded;
 }
 
 // What the re-parametrisation needs of the scene: its box's centre and the distance beyond which an origin

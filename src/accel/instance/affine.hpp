@@ -50,7 +50,7 @@ struct InverseAffine {
         local.ray.tfar = world.tfar;
         double distance = 0.0;
         for (int r = 0; r < 3; ++r)
-            distance = std::fmax(distance, std::fabs(local_origin[r] - double(object_centre[r])));
+            distance = max_of_numbers(distance, std::fabs(local_origin[r] - double(object_centre[r])));
         if (distance > double(far_limit)) {
             double to_centre = 0.0, length_squared = 0.0;
             for (int r = 0; r < 3; ++r) {
@@ -60,8 +60,8 @@ struct InverseAffine {
             local.shift = to_centre / length_squared;
             for (int r = 0; r < 3; ++r)
                 local_origin[r] += local.shift * local_direction[r];
-            local.ray.tnear =
-                std::fmax(round_down(double(world.tnear) - local.shift), -std::numeric_limits<float>::max());
+            local.ray.tnear = max_of_numbers(round_down(double(world.tnear) - local.shift),
+                                             -std::numeric_limits<float>::max());
             local.ray.tfar = round_up(double(world.tfar) - local.shift);
         }
         for (int r = 0; r < 3; ++r) {

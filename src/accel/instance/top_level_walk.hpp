@@ -106,7 +106,7 @@ class InstancedScene::Walk {
     // best t loses to it by lancer::closer, so a ray's answer does not depend on the order of its visits
     // (docs/numerical-contract.md, "Instances").
     [[nodiscard]] static float clipped(const Ray& ray, const InstanceHit& best) {
-        return best.hit() ? std::fmin(std::nextafter(best.t, kInfinity), ray.tfar) : ray.tfar;
+        return best.hit() ? min_of_numbers(next_float_up(best.t), ray.tfar) : ray.tfar;
     }
 
     // An instance's object traced with the ray mapped into its frame: true for an any-hit query that found
@@ -142,8 +142,8 @@ class InstancedScene::Walk {
             // Back to the world's parameter; the interval was rounded outwards, so clamp as restore_t does.
             float t = hit.t;
             if (local.shift != 0.0)
-                t = std::fmin(std::fmax(static_cast<float>(double(hit.t) + local.shift), world.tnear),
-                              world.tfar);
+                t = min_of_numbers(
+                    max_of_numbers(static_cast<float>(double(hit.t) + local.shift), world.tnear), world.tfar);
             if (closer(t, static_cast<std::int32_t>(id), hit.prim, best)) {
                 best = {t,
                         hit.prim,
