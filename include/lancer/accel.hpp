@@ -151,6 +151,15 @@ struct PluckerLayout;
 // The arrays of a structure that other code reads as they are: the GPU tracer uploads a binary BVH or a
 // Plücker octree (CudaTracer), a `.plo` file stores a Plücker octree (World::save_structure). A structure
 // names the ones it has; the others are null.
+// One valid ray through a single-ray structure's own walk (SingleRayAccel's trace), without the batch call
+// around it: its loop over the rays, validity test and dispatch of the triangle test. For InstancedScene,
+// whose instance visits trace one ray a call (docs/accel/instances.md). closest improves `best` by
+// lancer::closer, any returns whether anything is hit; both add to the counters when they are given.
+struct SingleRayWalk {
+    void (*closest)(const Accel& structure, const Ray& ray, Hit& best, TraversalCounters* counters) = nullptr;
+    bool (*any)(const Accel& structure, const Ray& ray, TraversalCounters* counters) = nullptr;
+};
+
 struct ExportedLayout {
     const BvhAccel* bvh = nullptr;
     const plucker::PluckerLayout* plucker = nullptr;
@@ -247,6 +256,8 @@ class Accel {
 
     // The arrays this structure lends as they are; none by default.
     [[nodiscard]] virtual ExportedLayout exported_layout() const { return {}; }
+    // The structure's one-ray walk, for the triangle test it was built with; none (null) by default.
+    [[nodiscard]] virtual SingleRayWalk single_ray_walk() const { return {}; }
 
     // The box of `geometry`'s primitives that can be hit; throws std::invalid_argument for a coordinate
     // outside the contract's domain.

@@ -28,6 +28,7 @@ class SingleRayAccel : public Accel {
     void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                         TraversalCounters* counters) const final;
     UpdateReport update_structure(const Geometry& geometry) final;
+    [[nodiscard]] SingleRayWalk single_ray_walk() const final;
     // The update of a structure that declares none: a build with the same options.
     UpdateReport update_from(const Geometry& geometry) {
         const BuildOptions options = options_;
@@ -38,6 +39,13 @@ class SingleRayAccel : public Accel {
     Geometry geometry_;
     BuildOptions options_;
     double build_ms_ = 0.0;
+
+  private:
+    // single_ray_walk's entries: the batch calls' body for one ray.
+    template <class TriangleTestT>
+    static void closest_one(const Accel& structure, const Ray& ray, Hit& best, TraversalCounters* counters);
+    template <class TriangleTestT>
+    static bool any_one(const Accel& structure, const Ray& ray, TraversalCounters* counters);
 };
 
 // Defined out of the class, so that they are not inline: each structure's source file, where its trace()
@@ -79,6 +87,45 @@ void SingleRayAccel<Derived>::occluded_batch(std::span<const Ray> rays, std::spa
                       Hit unused;
                       return self.template trace<true, kCount>(prepared, unused, counts);
                   });
+}
+
+template <class Derived>
+SingleRayWalk SingleRayAccel<Derived>::single_ray_walk() const {
+    SingleRayWalk walk;
+    dispatch_policies(options_.triangle_test, false, [&]<class TriangleTestT, bool>() {
+        walk.closest = &SingleRayAccel::closest_one<TriangleTestT>;
+        walk.any = &SingleRayAccel::any_one<TriangleTestT>;
+    });
+    return walk;
+}
+
+template <class Derived>
+template <class TriangleTestT>
+void SingleRayAccel<Derived>::closest_one(const Accel& structure, const Ray& ray, Hit& best,
+                                          TraversalCounters* counters) {
+    const auto& self = static_cast<const Derived&>(structure);
+    const PreparedRay<TriangleTestT> prepared(ray);
+    if (counters == nullptr) {
+        TraversalCounters unused;
+        self.template trace<false, false>(prepared, best, unused);
+    } else {
+        ++counters->rays;
+        self.template trace<false, true>(prepared, best, *counters);
+    }
+}
+
+template <class Derived>
+template <class TriangleTestT>
+bool SingleRayAccel<Derived>::any_one(const Accel& structure, const Ray& ray, TraversalCounters* counters) {
+    const auto& self = static_cast<const Derived&>(structure);
+    const PreparedRay<TriangleTestT> prepared(ray);
+    Hit unused;
+    if (counters == nullptr) {
+        TraversalCounters uncounted;
+        return self.template trace<true, false>(prepared, unused, uncounted);
+    }
+    ++counters->rays;
+    return self.template trace<true, true>(prepared, unused, *counters);
 }
 
 }  // namespace lancer

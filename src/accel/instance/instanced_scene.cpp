@@ -103,7 +103,7 @@ struct InstancedScene::State {
         std::string problem;
         const FarOriginFrame frame(objects[object].traced->bounds());
         InstanceRecord record{invert(transform, problem), objects[object].traced, object, frame.centre(),
-                              frame.far_limit()};
+                              frame.far_limit(),          objects[object].walk};
         if (!problem.empty()) {
             throw std::invalid_argument("InstancedScene: instance " + std::to_string(instance) +
                                         "'s transform " + problem);
@@ -258,6 +258,7 @@ std::uint32_t InstancedScene::add_object(std::shared_ptr<const Accel> structure)
     ObjectRecord object;
     const Accel* single_ray = structure->exported_layout().single_ray;
     object.traced = single_ray != nullptr ? single_ray : structure.get();
+    object.walk = object.traced->single_ray_walk();
     object.primitives = structure->stats().primitives;
     object.structure = std::move(structure);
     state_->objects.push_back(std::move(object));

@@ -25,12 +25,13 @@ struct ObjectRecord {
     std::shared_ptr<const Accel> structure;
     // What the walk traces: the structure, or the single-ray structure a packet structure holds.
     const Accel* traced = nullptr;
+    SingleRayWalk walk;  // traced's one-ray walk, where it has one
     // The triangles the scene flattened, when it built the object itself.
     std::shared_ptr<const std::vector<Triangle>> triangles;
     std::size_t primitives = 0;
 };
 
-// What the walk reads of an instance: 144 bytes.
+// What the walk reads of an instance: 160 bytes.
 struct InstanceRecord {
     InverseAffine to_object;
     const Accel* traced = nullptr;
@@ -39,7 +40,9 @@ struct InstanceRecord {
     // beyond which an origin is far.
     Vec3f object_centre;
     float far_limit = kInfinity;
+    SingleRayWalk walk;  // the object's (ObjectRecord::walk)
 };
+static_assert(sizeof(InstanceRecord) == 160);
 
 // The top level's nodes: the wide BVH's (accel/bvh/bvh_wide.hpp), 8 children tested at once.
 constexpr int kTopWidth = 8;
@@ -120,10 +123,16 @@ class InstancedScene::Walk {
         const ObjectRay local = record.to_object.to_object(world, record.object_centre, record.far_limit);
         // Accel's public calls condition their rays first. to_object has moved a far origin near the object
         // already, so a ray with an ordinary direction, into an object seen at its own scale, goes straight
-        // to the structure's batch call, 5% fewer instructions on the views of 1,000 bunnies
-        // (docs/accel/instances.md).
+        // to the structure's walk: its one-ray walk where it has one (SingleRayWalk: the batch call's body
+        // without its loop, validity test and dispatch), its batch call otherwise (docs/accel/instances.md
+        // has the instructions each saves). Such a ray is valid (is_valid): the world ray is, the map in
+        // double of its finite components is finite and rounds to floats that is_ordinary bounds (a finite,
+        // nonzero direction; an origin within far_limit of the object), and the interval, moved by a finite
+        // shift and rounded outwards, keeps tnear <= tfar, tnear >= -FLT_MAX.
         const bool as_is = record.traced->scale_exponent() == 0 && is_ordinary(local.ray, record);
         if constexpr (kAnyHit) {
+            if (as_is && record.walk.any != nullptr)
+                return record.walk.any(*record.traced, local.ray, object_counters);
             std::uint8_t occluded = 0;
             if (as_is) {
                 record.traced->occluded_batch({&local.ray, 1}, {&occluded, 1}, object_counters);
@@ -133,7 +142,9 @@ class InstancedScene::Walk {
             return occluded != 0;
         } else {
             Hit hit;
-            if (as_is) {
+            if (as_is && record.walk.closest != nullptr) {
+                record.walk.closest(*record.traced, local.ray, hit, object_counters);
+            } else if (as_is) {
                 record.traced->intersect_batch({&local.ray, 1}, {&hit, 1}, object_counters);
             } else {
                 record.traced->intersect({&local.ray, 1}, {&hit, 1}, object_counters);

@@ -1,6 +1,7 @@
 // Two-level scenes (lancer/instances.hpp) as a structure: rigid motion (the objects untouched, the answers a
-// fresh build's), skipped ids, the top level's rebuild, bad transforms, every structure as an object, and
-// batches answering as each ray alone. The numerical contract: instanced_contract_test.cpp.
+// fresh build's), skipped ids, the top level's rebuild, bad transforms, every structure as an object,
+// batches answering as each ray alone, the objects' one-ray walks answering as their batch calls. The
+// numerical contract: instanced_contract_test.cpp.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,11 +10,15 @@
 #include <limits>
 #include <memory>
 #include <random>
+#include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "instanced_fixture.hpp"
+#include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
 #include "lancer/instances.hpp"
 #include "support/ray_sets.hpp"
@@ -346,6 +351,82 @@ INSTANTIATE_TEST_SUITE_P(PacketAndSingleRayObjects, InstancedBatches,
                                            Case{"bvh8_packet", TriangleTest::Watertight},
                                            Case{"bvh8_packet", TriangleTest::MollerTrumbore}),
                          case_name);
+
+// A structure that the scene can trace only through its batch calls (it has no SingleRayWalk), which
+// forward to the public calls of the structure it holds. For a ray the scene hands over as it is, those
+// calls find nothing to condition: the scene's answers through it are what the batch calls give.
+class BatchCallsOnly final : public Accel {
+  public:
+    explicit BatchCallsOnly(std::shared_ptr<const Accel> held) : held_(std::move(held)) {}
+    [[nodiscard]] std::string_view name() const override { return "batch_calls_only"; }
+    [[nodiscard]] AccelStats stats() const override { return held_->stats(); }
+    [[nodiscard]] std::size_t memory_bytes() const override { return held_->memory_bytes(); }
+
+  protected:
+    void build_structure(const Geometry& /*geometry*/, const BuildOptions& /*options*/) override {}
+    UpdateReport update_structure(const Geometry& /*geometry*/) override { return {}; }
+    void intersect_batch(std::span<const Ray> rays, std::span<Hit> hits,
+                         TraversalCounters* counters) const override {
+        held_->intersect(rays, hits, counters);
+    }
+    void occluded_batch(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
+                        TraversalCounters* counters) const override {
+        held_->occluded(rays, occluded, counters);
+    }
+
+  private:
+    std::shared_ptr<const Accel> held_;
+};
+
+// The one-ray walks (SingleRayWalk: the objects' walk without the batch call around it, what the scene uses
+// for every single-ray structure) answer as the batch calls, bit for bit: the same scene with each object
+// behind BatchCallsOnly, for each single-ray structure (and bvh8_packet, traced through its bvh8) and both
+// triangle tests, on the ray sets of InstancedBatches.
+TEST(InstancedScene, OneRayWalksAnswerAsTheBatchCalls) {
+    const Fixture fixture = random_fixture(51, 24);
+    const FlatScene flat = flatten(fixture);
+    for (const std::string_view name : {"brute", "grid", "kdtree", "bvh", "bvh4", "bvh8", "bvh8_packet"}) {
+        for (const TriangleTest test : {TriangleTest::Watertight, TriangleTest::MollerTrumbore}) {
+            InstancedScene walks, batch_calls;
+            for (const std::vector<Triangle>& triangles : fixture.object_triangles) {
+                const Geometry geometry{triangles, {}};
+                std::shared_ptr<Accel> structure = make_accel(name);
+                structure->build(geometry, build_options(test));
+                auto wrapped = std::make_shared<BatchCallsOnly>(structure);
+                wrapped->build(geometry, build_options(test));
+                walks.add_object(structure);
+                batch_calls.add_object(wrapped);
+            }
+            for (std::size_t i = 0; i < fixture.transforms.size(); ++i) {
+                walks.add_instance(fixture.objects[i], fixture.transforms[i]);
+                batch_calls.add_instance(fixture.objects[i], fixture.transforms[i]);
+            }
+            walks.commit();
+            batch_calls.commit();
+            const Box3f bounds = walks.bounds();
+            std::vector<Ray> rays = testing::canonical_view_rays(bounds, 32).rays;
+            for (const std::vector<Ray>& set :
+                 {far_view_rays(bounds, 32), testing::random_rays(bounds, 1000, 52).rays,
+                  testing::axis_parallel_rays(bounds, 200, 53).rays,
+                  testing::clipped_rays(bounds, 200, 54).rays, testing::hostile_rays(bounds).rays,
+                  inside_and_grazing_rays(fixture, flat, 400, 55).rays, backward_rays(bounds, 200, 56)})
+                rays.insert(rays.end(), set.begin(), set.end());
+            std::vector<InstanceHit> expected(rays.size()), hits(rays.size());
+            std::vector<std::uint8_t> expected_occluded(rays.size()), occluded(rays.size());
+            batch_calls.intersect(rays, expected);
+            batch_calls.occluded(rays, expected_occluded);
+            walks.intersect(rays, hits);
+            walks.occluded(rays, occluded);
+            std::size_t hit_count = 0;
+            for (const InstanceHit& hit : expected)
+                hit_count += hit.hit() ? 1 : 0;
+            EXPECT_GT(hit_count, rays.size() / 5) << name;
+            EXPECT_TRUE(same_hits(expected, hits))
+                << name << (test == TriangleTest::Watertight ? " watertight" : " moller");
+            EXPECT_EQ(occluded, expected_occluded) << name;
+        }
+    }
+}
 
 // intersect_parallel and occluded_parallel answer as one call.
 TEST(InstancedScene, ParallelBatchesAnswerAsOneCall) {
