@@ -102,15 +102,17 @@ struct InstancedScene::State {
                                            const Transform& transform) const {
         std::string problem;
         const FarOriginFrame frame(objects[object].traced->bounds());
-        InstanceRecord record{invert(transform, problem), objects[object].traced, object, frame.centre(),
-                              frame.far_limit(),          objects[object].walk};
+        const Box3f& object_bounds = objects[object].traced->bounds();
+        const Box3f grown = object_bounds.grown(geometric_tolerance(object_bounds));
+        InstanceRecord record{
+            invert(transform, problem), objects[object].traced,     object, frame.centre(), frame.far_limit(),
+            objects[object].walk,       top_level::ObjectBox(grown)};
         if (!problem.empty()) {
             throw std::invalid_argument("InstancedScene: instance " + std::to_string(instance) +
                                         "'s transform " + problem);
         }
         // The object's box as its structure treats it: grown by its geometric tolerance.
-        const Box3f& object_bounds = objects[object].traced->bounds();
-        const Box3f box = world_box(object_bounds.grown(geometric_tolerance(object_bounds)), transform);
+        const Box3f box = world_box(grown, transform);
         if (!in_coordinate_domain(box.lo) || !in_coordinate_domain(box.hi)) {
             throw std::invalid_argument("InstancedScene: instance " + std::to_string(instance) +
                                         "'s transform takes its object outside the coordinate domain [-2^60, "

@@ -1,7 +1,7 @@
 // Two-level scenes (lancer/instances.hpp) as a structure: rigid motion (the objects untouched, the answers a
 // fresh build's), skipped ids, the top level's rebuild, bad transforms, every structure as an object,
-// batches answering as each ray alone, the objects' one-ray walks answering as their batch calls. The
-// numerical contract: instanced_contract_test.cpp.
+// batches answering as each ray alone, the objects' one-ray walks answering as their batch calls and the
+// object box cull as the slab test. The numerical contract: instanced_contract_test.cpp.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -17,6 +17,8 @@
 #include <utility>
 #include <vector>
 
+#include "accel/instance/top_level_walk.hpp"
+#include "core/intersect.hpp"
 #include "instanced_fixture.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
@@ -426,6 +428,43 @@ TEST(InstancedScene, OneRayWalksAnswerAsTheBatchCalls) {
             EXPECT_EQ(occluded, expected_occluded) << name;
         }
     }
+}
+
+// The cull before an instance visit (top_level::crosses, SSE) answers as the scalar slab test it stands for
+// (intersect_box) on every ray: random boxes, flat ones among them, and rays from inside and outside, with
+// zero direction components (infinite reciprocals; an origin in a face's plane makes a NaN plane), tnear < 0
+// and finite tfar.
+TEST(InstancedScene, ObjectBoxCullAnswersAsTheSlabTest) {
+    std::mt19937 rng(61);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::uniform_int_distribution<int> pick(0, 7);
+    std::size_t crossed = 0, missed = 0, differ = 0;
+    for (int i = 0; i < 200000; ++i) {
+        Box3f box;
+        box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
+        box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
+        if (pick(rng) == 0) box.hi.y = box.lo.y;  // flat
+        Ray ray{Vec3f(unit(rng), unit(rng), unit(rng)) * 8.0f,
+                {unit(rng), unit(rng), unit(rng)},
+                0.0f,
+                kInfinity};
+        for (int axis = 0; axis < 3; ++axis) {
+            const int choice = pick(rng);
+            if (choice == 0) ray.direction[axis] = 0.0f;
+            if (choice == 1) ray.direction[axis] = -0.0f;
+            if (choice <= 1 && pick(rng) < 4) ray.origin[axis] = pick(rng) < 4 ? box.lo[axis] : box.hi[axis];
+        }
+        if (!is_valid(ray)) continue;
+        if (pick(rng) < 3) ray.tnear = -8.0f * std::fabs(unit(rng));
+        if (pick(rng) < 3) ray.tfar = ray.tnear + 8.0f * std::fabs(unit(rng));
+        float t_entry = 0.0f, t_exit = 0.0f;
+        const bool expected = intersect_box(SlabRay(ray), box, ray.tnear, ray.tfar, t_entry, t_exit);
+        (expected ? crossed : missed) += 1;
+        differ += top_level::crosses(ray, top_level::ObjectBox(box)) != expected ? 1 : 0;
+    }
+    EXPECT_EQ(differ, 0u);
+    EXPECT_GT(crossed, 5000u);
+    EXPECT_GT(missed, 20000u);
 }
 
 // intersect_parallel and occluded_parallel answer as one call.
