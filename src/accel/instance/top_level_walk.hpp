@@ -8,7 +8,8 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
-#if defined(__SSE4_1__)
+#include <limits>
+#if defined(__SSE4_1__) || defined(__AVX2__)
 #include <immintrin.h>
 #endif
 #include <memory>
@@ -77,6 +78,24 @@ struct alignas(16) ObjectBox {
 #endif
 }
 
+// is_valid (lancer/ray.hpp) on the ray's 8 floats at once: origin, direction and tnear finite, a nonzero
+// direction component, tfar not NaN and tnear <= tfar. The same answer (checked by
+// InstancedScene.RayValidityAnswersAsIsValid) without is_valid's 50 scalar instructions a ray, 4% of the
+// primary view's walk on 1,000 bunnies.
+[[nodiscard]] inline bool is_valid_ray(const Ray& ray) {
+#if defined(__AVX2__)
+    static_assert(sizeof(Ray) == 8 * sizeof(float));
+    const __m256 lanes = _mm256_loadu_ps(&ray.origin.x);  // origin, direction, tnear, tfar
+    const __m256 magnitude = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), lanes);
+    const int finite = _mm256_movemask_ps(
+        _mm256_cmp_ps(magnitude, _mm256_set1_ps(std::numeric_limits<float>::max()), _CMP_LE_OQ));
+    const int nonzero = _mm256_movemask_ps(_mm256_cmp_ps(lanes, _mm256_setzero_ps(), _CMP_NEQ_UQ));
+    return (finite & 0x7f) == 0x7f && (nonzero & 0x38) != 0 && ray.tfar == ray.tfar && ray.tnear <= ray.tfar;
+#else
+    return is_valid(ray);
+#endif
+}
+
 // What the walk reads of an instance: 192 bytes.
 struct InstanceRecord {
     InverseAffine to_object;
@@ -119,7 +138,8 @@ class InstancedScene::Walk {
             TraversalCounters counts;
             for (std::size_t i = 0; i < traced.size(); ++i) {
                 InstanceHit best;
-                const bool found = is_valid(traced[i]) && walk<kAnyHit, kCount>(traced[i], best, counts);
+                const bool found =
+                    top_level::is_valid_ray(traced[i]) && walk<kAnyHit, kCount>(traced[i], best, counts);
                 if constexpr (kAnyHit) {
                     answers[i] = found;
                 } else {

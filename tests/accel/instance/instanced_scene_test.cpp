@@ -1,7 +1,8 @@
 // Two-level scenes (lancer/instances.hpp) as a structure: rigid motion (the objects untouched, the answers a
 // fresh build's), skipped ids, the top level's rebuild, bad transforms, every structure as an object,
 // batches answering as each ray alone, the objects' one-ray walks answering as their batch calls and the
-// object box cull as the slab test. The numerical contract: instanced_contract_test.cpp.
+// object box cull and ray validity test as the scalar tests. The numerical contract:
+// instanced_contract_test.cpp.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -465,6 +466,41 @@ TEST(InstancedScene, ObjectBoxCullAnswersAsTheSlabTest) {
     EXPECT_EQ(differ, 0u);
     EXPECT_GT(crossed, 5000u);
     EXPECT_GT(missed, 20000u);
+}
+
+// The walk's validity test of a world ray (top_level::is_valid_ray, AVX2) answers as is_valid: on the
+// hostile rays (NaN, infinite, zero directions, tnear > tfar) and on rays whose floats are drawn among
+// zeros of both signs, subnormals, FLT_MAX, infinities, NaNs and ordinary numbers.
+TEST(InstancedScene, RayValidityAnswersAsIsValid) {
+    std::vector<Ray> rays = testing::hostile_rays(Box3f{{-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}}).rays;
+    const float values[] = {0.0f,
+                            -0.0f,
+                            1.0f,
+                            -2.5f,
+                            std::numeric_limits<float>::denorm_min(),
+                            -std::numeric_limits<float>::denorm_min(),
+                            std::numeric_limits<float>::max(),
+                            -std::numeric_limits<float>::max(),
+                            kInfinity,
+                            -kInfinity,
+                            std::numeric_limits<float>::quiet_NaN()};
+    std::mt19937 rng(71);
+    std::uniform_int_distribution<std::size_t> pick(0, std::size(values) - 1);
+    std::uniform_int_distribution<int> ordinary(0, 3);
+    for (int i = 0; i < 200000; ++i) {
+        float lanes[8];
+        for (float& lane : lanes)
+            lane = ordinary(rng) != 0 ? 1.0f + float(ordinary(rng)) : values[pick(rng)];
+        rays.push_back(std::bit_cast<Ray>(lanes));
+    }
+    std::size_t valid = 0, differ = 0;
+    for (const Ray& ray : rays) {
+        valid += is_valid(ray) ? 1 : 0;
+        differ += top_level::is_valid_ray(ray) != is_valid(ray) ? 1 : 0;
+    }
+    EXPECT_EQ(differ, 0u);
+    EXPECT_GT(valid, rays.size() / 10);
+    EXPECT_LT(valid, rays.size() - rays.size() / 10);
 }
 
 // intersect_parallel and occluded_parallel answer as one call.
