@@ -148,9 +148,6 @@ namespace plucker {
 struct PluckerLayout;
 }
 
-// The arrays of a structure that other code reads as they are: the GPU tracer uploads a binary BVH or a
-// Plücker octree (CudaTracer), a `.plo` file stores a Plücker octree (World::save_structure). A structure
-// names the ones it has; the others are null.
 // One valid ray through a single-ray structure's own walk (SingleRayAccel's trace), without the batch call
 // around it: its loop over the rays, validity test and dispatch of the triangle test. For InstancedScene,
 // whose instance visits trace one ray a call (docs/accel/instances.md). closest improves `best` by
@@ -160,6 +157,9 @@ struct SingleRayWalk {
     bool (*any)(const Accel& structure, const Ray& ray, TraversalCounters* counters) = nullptr;
 };
 
+// The arrays of a structure that other code reads as they are: the GPU tracer uploads a binary BVH or a
+// Plücker octree (CudaTracer), a `.plo` file stores a Plücker octree (World::save_structure). A structure
+// names the ones it has; the others are null.
 struct ExportedLayout {
     const BvhAccel* bvh = nullptr;
     const plucker::PluckerLayout* plucker = nullptr;
