@@ -25,7 +25,7 @@ namespace lancer {
 class NodeSlots {
   public:
     explicit NodeSlots(std::size_t capacity)
-        : slots_(uninitialised<BvhNode>(2 * capacity - 1)), used_(2 * capacity - 1, 0) {}
+        : slots_(uninitialised_huge_pages<BvhNode>(2 * capacity - 1)), used_(2 * capacity - 1, 0) {}
 
     void set_leaf(std::size_t slot, const Box3f& bounds, std::size_t first, std::size_t count) {
         BvhNode& node = *std::construct_at(&slots_[slot]);
@@ -78,7 +78,7 @@ class NodeSlots {
         reserve_huge_pages(result.prim_indices, refs_before.back());
         result.prim_indices.resize(refs_before.back());
         // Each used slot's node index, for the inner nodes' second children.
-        const Storage<std::uint32_t> index = uninitialised<std::uint32_t>(slot_count);
+        const HugePageBuffer<std::uint32_t> index = uninitialised_huge_pages<std::uint32_t>(slot_count);
         const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
         parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
             std::size_t node_index = nodes_before[from / kCompactBlock];
@@ -114,18 +114,7 @@ class NodeSlots {
     // The slots are allocated, not initialised (2n - 1 of them, about twice the nodes a tree uses): a node is
     // constructed in its slot when set, and compact() reads only the nodes reached from the root. In whole
     // huge pages, as compact()'s node indices: both are made and dropped on every build.
-    template <class T>
-    struct StorageDeleter {
-        std::size_t count;
-        void operator()(T* items) const { HugePageAllocator<T>().deallocate(items, count); }
-    };
-    template <class T>
-    using Storage = std::unique_ptr<T[], StorageDeleter<T>>;
-    template <class T>
-    [[nodiscard]] static Storage<T> uninitialised(std::size_t count) {
-        return Storage<T>(HugePageAllocator<T>().allocate(count), StorageDeleter<T>{count});
-    }
-    Storage<BvhNode> slots_;
+    HugePageBuffer<BvhNode> slots_;
     std::vector<std::uint8_t> used_;
 };
 
