@@ -66,4 +66,18 @@ struct HugePageAllocator {
 template <class T>
 using HugePageVector = std::vector<T, HugePageAllocator<T>>;
 
+// Storage for `count` T from a HugePageAllocator, allocated, not initialised: a build's scratch whose
+// elements are each written before they are read, where a vector would first write them all.
+template <class T>
+struct HugePageDeleter {
+    std::size_t count;
+    void operator()(T* items) const { HugePageAllocator<T>().deallocate(items, count); }
+};
+template <class T>
+using HugePageBuffer = std::unique_ptr<T[], HugePageDeleter<T>>;
+template <class T>
+[[nodiscard]] HugePageBuffer<T> uninitialised_huge_pages(std::size_t count) {
+    return HugePageBuffer<T>(HugePageAllocator<T>().allocate(count), HugePageDeleter<T>{count});
+}
+
 }  // namespace lancer

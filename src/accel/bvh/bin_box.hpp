@@ -50,6 +50,14 @@ struct BinBox {
     void clip(const BinBox& other) {
         lo = _mm_max_ps(other.lo, lo), hi = _mm_min_ps(other.hi, hi);
     }
+    // Extends `if_true` by `other` where `which`, `if_false` otherwise, without a branch (a partition's sides
+    // are close to random): the other box is extended by the empty box, which leaves it as it was.
+    static void extend_either(BinBox& if_true, BinBox& if_false, const BinBox& other, bool which) {
+        const __m128 mask = _mm_castsi128_ps(_mm_set1_epi32(-static_cast<int>(which)));
+        const BinBox empty = none();
+        if_true.extend({select(mask, other.lo, empty.lo), select(mask, other.hi, empty.hi)});
+        if_false.extend({select(mask, empty.lo, other.lo), select(mask, empty.hi, other.hi)});
+    }
     // As Box3f::empty: lo > hi, or a NaN, on some axis.
     [[nodiscard]] bool empty() const {
         return (_mm_movemask_ps(_mm_cmpnle_ps(lo, hi)) & 0b111) != 0;
@@ -62,6 +70,14 @@ struct BinBox {
         const __m128 sum = _mm_add_ss(_mm_add_ss(products, _mm_shuffle_ps(products, products, 1)),
                                       _mm_movehl_ps(products, products));
         return 2.0f * _mm_cvtss_f32(sum);
+    }
+    // Per lane, `if_set` where `mask` is set, else `if_clear`.
+    [[nodiscard]] static __m128 select(__m128 mask, __m128 if_set, __m128 if_clear) {
+#if defined(__SSE4_1__)
+        return _mm_blendv_ps(if_clear, if_set, mask);
+#else
+        return _mm_or_ps(_mm_and_ps(mask, if_set), _mm_andnot_ps(mask, if_clear));
+#endif
     }
     [[nodiscard]] Box3f box() const {
         alignas(16) float low[4], high[4];
@@ -91,6 +107,9 @@ struct BinBox {
     }
     void clip(const BinBox& other) {
         bounds = intersection(bounds, other.bounds);
+    }
+    static void extend_either(BinBox& if_true, BinBox& if_false, const BinBox& other, bool which) {
+        (which ? if_true : if_false).extend(other);
     }
     [[nodiscard]] bool empty() const {
         return bounds.empty();

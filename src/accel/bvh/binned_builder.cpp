@@ -9,8 +9,11 @@
 #include <mutex>
 #include <optional>
 #include <tuple>
+#include <type_traits>
+#include <vector>
 
 #include "accel/bvh/bin_box.hpp"
+#include "accel/bvh/pair_partition.hpp"
 #include "accel/bvh/small_subtree.hpp"
 #include "core/parallel.hpp"
 
@@ -55,6 +58,24 @@ struct BinnedBuilder::BinMap {
     }
 };
 
+namespace {
+
+// f(std::integral_constant<int, axis>()) for an axis known at run time: a loop over references whose axis is
+// a constant reads the coordinate without Vec3f::operator[]'s select on every reference.
+template <class F>
+void with_axis(int axis, F&& f) {
+    switch (axis) {
+        case 0:
+            return f(std::integral_constant<int, 0>());
+        case 1:
+            return f(std::integral_constant<int, 1>());
+        default:
+            return f(std::integral_constant<int, 2>());
+    }
+}
+
+}  // namespace
+
 BinnedBuilder::BinnedBuilder(BuildRefs& refs, const Geometry& geometry, const BvhOptions& options,
                              std::size_t whole_leaf_size)
     : refs_(refs),
@@ -62,7 +83,8 @@ BinnedBuilder::BinnedBuilder(BuildRefs& refs, const Geometry& geometry, const Bv
       max_leaf_(leaf_size_limit(options)),
       whole_leaf_size_(whole_leaf_size),
       bins_(std::clamp(options.bins, 2, kMaxBins)),
-      spatial_splits_(options.spatial_splits) {}
+      spatial_splits_(options.spatial_splits),
+      partition_scratch_(uninitialised_huge_pages<std::uint32_t>(refs.size())) {}
 
 void BinnedBuilder::build(NodeSlots& slots, std::size_t primitives) {
     const NodeBounds root = bounds_of(0, primitives);
@@ -70,29 +92,56 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t primitives) {
     build(slots, 0, {0, primitives, refs_.size()}, 0, root);
 }
 
-// Two-pointer partition by the split's bin, which accumulates both sides' boxes and centroid bounds on
-// the way: the children's NodeBounds without another pass over their references.
+// The two-pointer partition by the split's bin, as pair_partition makes it (in parallel over large nodes),
+// which accumulates both sides' boxes and centroid bounds on the way: the children's NodeBounds without
+// another pass over their references.
 std::tuple<std::size_t, BinnedBuilder::NodeBounds, BinnedBuilder::NodeBounds> BinnedBuilder::partition(
     std::size_t begin, std::size_t end, const BinMap& map, const Split& split) {
-    BinBox left_boxes = BinBox::none(), right_boxes = BinBox::none();
-    BinBox left_centroids = BinBox::none(), right_centroids = BinBox::none();
-    auto goes_left = [&](const BuildRef& ref) { return map.bin(ref.centroid, split.axis) < split.bin; };
-    auto add = [](BinBox& boxes, BinBox& centroids, const BuildRef& ref) {
-        boxes.extend(BinBox::of(ref));
-        centroids.extend(BinBox::of_point(ref.centroid));
+    // Each side's boxes and centroids.
+    struct SideBounds {
+        BinBox left_boxes = BinBox::none(), right_boxes = BinBox::none();
+        BinBox left_centroids = BinBox::none(), right_centroids = BinBox::none();
+
+        bool add(const BuildRef& ref, bool left) {
+            BinBox::extend_either(left_boxes, right_boxes, BinBox::of(ref), left);
+            BinBox::extend_either(left_centroids, right_centroids, BinBox::of_point(ref.centroid), left);
+            return left;
+        }
+        void merge(const SideBounds& other) {
+            left_boxes.extend(other.left_boxes), right_boxes.extend(other.right_boxes);
+            left_centroids.extend(other.left_centroids), right_centroids.extend(other.right_centroids);
+        }
     };
-    std::size_t i = begin, j = end;
-    while (true) {
-        for (; i < j && goes_left(refs_[i]); ++i)
-            add(left_boxes, left_centroids, refs_[i]);
-        for (; i < j && !goes_left(refs_[j - 1]); --j)
-            add(right_boxes, right_centroids, refs_[j - 1]);
-        if (i >= j) break;
-        std::swap(refs_[i], refs_[j - 1]);
-        add(left_boxes, left_centroids, refs_[i++]);
-        add(right_boxes, right_centroids, refs_[--j]);
-    }
-    return {i, {left_boxes.box(), left_centroids.box()}, {right_boxes.box(), right_centroids.box()}};
+    // The map and the split's bin as locals (the scratch's stores could alias the split's int), and the axis
+    // a constant in each of the three loops: the same bins as map.bin, with fewer loads per reference.
+    const BinMap local_map = map;
+    const int split_bin = split.bin;
+    const std::size_t count = end - begin;
+    BuildRef* const refs = refs_.data() + begin;
+    std::uint32_t* const scratch = partition_scratch_.get() + begin;
+    SideBounds sides;
+    std::size_t middle = 0;
+    with_axis(split.axis, [&](auto axis) {
+        auto goes_left = [&](const BuildRef& ref) { return local_map.bin(ref.centroid, axis) < split_bin; };
+        if (count <= kParallelBinning) {
+            // One block, its bounds in registers.
+            middle = pair_partition(
+                refs, count, count, scratch,
+                [&](std::size_t /*block*/, const BuildRef& ref) { return sides.add(ref, goes_left(ref)); });
+            return;
+        }
+        std::vector<SideBounds> per_block((count + kBinningChunk - 1) / kBinningChunk);
+        middle =
+            pair_partition(refs, count, kBinningChunk, scratch, [&](std::size_t block, const BuildRef& ref) {
+                return per_block[block].add(ref, goes_left(ref));
+            });
+        // Merged in block order: the same bits whatever the threads.
+        for (const SideBounds& block : per_block)
+            sides.merge(block);
+    });
+    return {begin + middle,
+            {sides.left_boxes.box(), sides.left_centroids.box()},
+            {sides.right_boxes.box(), sides.right_centroids.box()}};
 }
 
 BinnedBuilder::NodeBounds BinnedBuilder::bounds_of(std::size_t begin, std::size_t end) const {

@@ -10,6 +10,7 @@
 
 #include "accel/bvh/build_common.hpp"
 #include "accel/bvh/node_slots.hpp"
+#include "core/huge_pages.hpp"
 
 namespace lancer {
 
@@ -125,6 +126,8 @@ class BinnedBuilder {
     int bins_;
     bool spatial_splits_;
     float min_overlap_area_ = 0.0f;
+    // pair_partition's scratch, one entry per reference position: a node's partition uses its own range.
+    HugePageBuffer<std::uint32_t> partition_scratch_;
 };
 
 }  // namespace lancer

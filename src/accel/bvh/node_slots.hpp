@@ -25,14 +25,14 @@ namespace lancer {
 class NodeSlots {
   public:
     explicit NodeSlots(std::size_t capacity)
-        : slots_(uninitialised<BvhNode>(2 * capacity - 1)), used_(2 * capacity - 1, 0) {}
+        : slots_(uninitialised_huge_pages<BvhNode>(2 * capacity - 1)), used_(2 * capacity - 1, 0) {}
 
     void set_leaf(std::size_t slot, const Box3f& bounds, std::size_t first, std::size_t count) {
         BvhNode& node = *std::construct_at(&slots_[slot]);
         node.lo = bounds.lo, node.hi = bounds.hi;
         node.offset = static_cast<std::uint32_t>(first);
         node.prim_count = static_cast<std::uint16_t>(count);
-        used_[slot] = 1;
+        used_[slot] = static_cast<std::uint8_t>(kLeafUse + count);
     }
     // Returns the slots of the two children.
     std::pair<std::size_t, std::size_t> set_inner(std::size_t slot, const Box3f& bounds, int axis,
@@ -41,7 +41,7 @@ class NodeSlots {
         node.lo = bounds.lo, node.hi = bounds.hi;
         node.axis = static_cast<std::uint8_t>(axis);
         node.offset = static_cast<std::uint32_t>(slot + 2 * first_child_capacity);
-        used_[slot] = 1;
+        used_[slot] = kInnerUse;
         return {slot + 1, node.offset};
     }
 
@@ -61,11 +61,13 @@ class NodeSlots {
         // Per block, the nodes and references of the blocks before it (prefix sums of each block's).
         std::vector<std::size_t> nodes_before(blocks + 1, 0), refs_before(blocks + 1, 0);
         parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
+            // From used_ alone: the used slots lie scattered over the slots' array (56 MB for the dragon),
+            // which the second pass reads.
             std::size_t nodes = 0, refs = 0;
             for (std::size_t slot = from; slot < to; ++slot) {
-                if (used_[slot] == 0) continue;
-                ++nodes;
-                refs += slots_[slot].prim_count;
+                const std::uint8_t use = used_[slot];
+                nodes += static_cast<std::size_t>(use != 0);
+                refs += use >= kLeafUse ? use - kLeafUse : 0u;
             }
             nodes_before[from / kCompactBlock + 1] = nodes, refs_before[from / kCompactBlock + 1] = refs;
         });
@@ -78,7 +80,7 @@ class NodeSlots {
         reserve_huge_pages(result.prim_indices, refs_before.back());
         result.prim_indices.resize(refs_before.back());
         // Each used slot's node index, for the inner nodes' second children.
-        const Storage<std::uint32_t> index = uninitialised<std::uint32_t>(slot_count);
+        const HugePageBuffer<std::uint32_t> index = uninitialised_huge_pages<std::uint32_t>(slot_count);
         const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
         parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
             std::size_t node_index = nodes_before[from / kCompactBlock];
@@ -110,22 +112,14 @@ class NodeSlots {
   private:
     // Slots per task of compact().
     static constexpr std::size_t kCompactBlock = std::size_t{1} << 16;
+    // used_ per slot: 0 unused, kInnerUse an inner node, kLeafUse + its reference count a leaf.
+    static constexpr std::uint8_t kInnerUse = 1, kLeafUse = 2;
+    static_assert(kLeafUse + BvhAccel::kMaxLeafSize <= 255);
 
     // The slots are allocated, not initialised (2n - 1 of them, about twice the nodes a tree uses): a node is
     // constructed in its slot when set, and compact() reads only the nodes reached from the root. In whole
     // huge pages, as compact()'s node indices: both are made and dropped on every build.
-    template <class T>
-    struct StorageDeleter {
-        std::size_t count;
-        void operator()(T* items) const { HugePageAllocator<T>().deallocate(items, count); }
-    };
-    template <class T>
-    using Storage = std::unique_ptr<T[], StorageDeleter<T>>;
-    template <class T>
-    [[nodiscard]] static Storage<T> uninitialised(std::size_t count) {
-        return Storage<T>(HugePageAllocator<T>().allocate(count), StorageDeleter<T>{count});
-    }
-    Storage<BvhNode> slots_;
+    HugePageBuffer<BvhNode> slots_;
     std::vector<std::uint8_t> used_;
 };
 

@@ -37,6 +37,11 @@ struct alignas(K * 4) TriangleBlock {
     // 4 K bytes: global primitive index of each lane; kNoPrimitive for padding.
     std::uint32_t prim[K];
 
+    // Left uninitialised, as a local block is: every writer fills all of a block's lanes, and a vector of
+    // blocks sized for a build (the dragon's 47 MB) would otherwise be zeroed first, serially. Not
+    // `= default`, which value-initialisation zeroes.
+    TriangleBlock() {}  // NOLINT(modernize-use-equals-default)
+
     [[nodiscard]] Triangle triangle(int lane) const {
         auto corner = [&](int v) {
             return Vec3f(vertex[v][0][lane], vertex[v][1][lane], vertex[v][2][lane]);

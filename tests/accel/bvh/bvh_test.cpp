@@ -5,14 +5,18 @@
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <numeric>
 #include <random>
 
 #include "accel/build_util.hpp"
+#include "accel/bvh/binned_builder.hpp"
 #include "accel/bvh/build.hpp"
+#include "accel/bvh/pair_partition.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
 #include "support/ray_sets.hpp"
@@ -194,9 +198,67 @@ TEST(Bvh, FullSweepFindsARootSplitNoWorseThanBinning) {
     }
 }
 
+// The two-pointer partition that pair_partition makes without branches: i up from the left, j down from the
+// right, each stopping at an item on the wrong side, the two swapped.
+std::size_t two_pointer_partition(std::vector<int>& items, const std::vector<char>& goes_left) {
+    std::size_t i = 0, j = items.size();
+    while (true) {
+        while (i < j && goes_left[static_cast<std::size_t>(items[i])] != 0)
+            ++i;
+        while (i < j && goes_left[static_cast<std::size_t>(items[j - 1])] == 0)
+            --j;
+        if (i >= j) return i;
+        std::swap(items[i++], items[--j]);
+    }
+}
+
+TEST(PairPartition, LeavesTheTwoPointerPartitionsArrayWhateverTheBlocksAndThreads) {
+    std::mt19937 rng(50);
+    for (const std::size_t count : {0, 1, 2, 3, 17, 100, 1000, 40000}) {
+        for (const double left_share : {0.0, 0.03, 0.5, 0.97, 1.0}) {
+            std::vector<int> items(count);
+            std::iota(items.begin(), items.end(), 0);
+            std::shuffle(items.begin(), items.end(), rng);
+            std::vector<char> goes_left(count);
+            std::bernoulli_distribution left(left_share);
+            for (char& side : goes_left)
+                side = static_cast<char>(left(rng));
+            std::vector<std::size_t> position_of(count);
+            for (std::size_t i = 0; i < count; ++i)
+                position_of[static_cast<std::size_t>(items[i])] = i;
+            std::vector<int> expected = items;
+            const std::size_t expected_middle = two_pointer_partition(expected, goes_left);
+            for (const std::size_t block :
+                 {std::max<std::size_t>(count, 1), std::size_t{1}, std::size_t{7}, std::size_t{4096}}) {
+                for (const int threads : {1, 4}) {
+                    std::vector<int> partitioned = items;
+                    std::vector<std::uint32_t> scratch(count);
+                    // Each item is classified once, by the block it lies in.
+                    std::vector<int> calls(count, 0);
+                    std::size_t middle = 0;
+                    tbb::task_arena(threads).execute([&] {
+                        middle = pair_partition(partitioned.data(), count, block, scratch.data(),
+                                                [&](std::size_t block_index, int item) {
+                                                    const auto i = static_cast<std::size_t>(item);
+                                                    calls[i] +=
+                                                        position_of[i] / block == block_index ? 1 : 100;
+                                                    return goes_left[static_cast<std::size_t>(item)] != 0;
+                                                });
+                    });
+                    EXPECT_EQ(middle, expected_middle) << count << " " << left_share << " " << block;
+                    EXPECT_EQ(partitioned, expected) << count << " " << left_share << " " << block;
+                    EXPECT_EQ(calls, std::vector<int>(count, 1))
+                        << count << " " << left_share << " " << block;
+                }
+            }
+        }
+    }
+}
+
 TEST(Bvh, BuildIsDeterministicWhateverTheThreadCount) {
-    // Large enough for the parallel binning and the parallel subtrees to engage.
+    // Large enough for the parallel binning, partition and subtrees to engage.
     const std::vector<Triangle> triangles = knot_triangles(6000);
+    ASSERT_GT(triangles.size(), 2 * BinnedBuilder::kParallelBinning);
     for (const bool spatial_splits : {false, true}) {
         auto build_with = [&](int threads) {
             tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
