@@ -105,30 +105,10 @@ bool traverse_from(const std::vector<WideBvhNode<W>>& nodes,
                     continue;
                 }
             } else if (hit_mask != 0) {
-                // One or two hit children, the common cases on incoherent rays, without the sort's loops,
-                // whose trip counts the branch predictor cannot learn.
-                const int first_slot = std::countr_zero(hit_mask);
-                const unsigned rest = hit_mask & (hit_mask - 1);
-                if (rest == 0) {
-                    current = {node.child[first_slot], node.prim_count[first_slot]};
-                    continue;
-                }
-                if ((rest & (rest - 1)) == 0) {
-                    const int second_slot = std::countr_zero(rest);
-                    // Equal entries keep slot order, as order_by_entry.
-                    const bool swap = entry[second_slot] < entry[first_slot];
-                    const int near = swap ? second_slot : first_slot, far = swap ? first_slot : second_slot;
-                    stack[stack_size++] = {{node.child[far], node.prim_count[far]}, entry[far]};
-                    current = {node.child[near], node.prim_count[near]};
-                    continue;
-                }
-                std::array<int, W> order;
-                const int hit_count = order_by_entry<W>(hit_mask, entry, order);
-                for (int k = hit_count - 1; k > 0; --k) {
-                    const int slot = order[k];
+                const int nearest = push_farther_children<W>(hit_mask, entry, [&](int slot) {
                     stack[stack_size++] = {{node.child[slot], node.prim_count[slot]}, entry[slot]};
-                }
-                current = {node.child[order[0]], node.prim_count[order[0]]};
+                });
+                current = {node.child[nearest], node.prim_count[nearest]};
                 continue;
             }
         }

@@ -273,33 +273,11 @@ class InstancedScene::Walk {
                 alignas(32) float entry[kTopWidth];
                 const unsigned hit_mask =
                     intersect_children<kTopWidth, kForward>(node, wide_ray, ray.tnear, t_limit, entry);
-                // One or two hit children without the sort's loops, as the wide BVH's walk
-                // (bvh_wide_walk.hpp), in the order order_by_entry gives.
                 if (hit_mask != 0) {
-                    const int first_slot = std::countr_zero(hit_mask);
-                    const unsigned rest = hit_mask & (hit_mask - 1);
-                    if (rest == 0) {
-                        current = {node.child[first_slot], node.prim_count[first_slot], entry[first_slot]};
-                        continue;
-                    }
-                    if ((rest & (rest - 1)) == 0) {
-                        const int second_slot = std::countr_zero(rest);
-                        const bool swap = entry[second_slot] < entry[first_slot];
-                        const int near = swap ? second_slot : first_slot,
-                                  far = swap ? first_slot : second_slot;
-                        stack[static_cast<std::size_t>(stack_size++)] = {node.child[far],
-                                                                         node.prim_count[far], entry[far]};
-                        current = {node.child[near], node.prim_count[near], entry[near]};
-                        continue;
-                    }
-                    std::array<int, kTopWidth> order;
-                    const int hit_count = order_by_entry<kTopWidth>(hit_mask, entry, order);
-                    for (int k = hit_count - 1; k > 0; --k) {
-                        const int slot = order[static_cast<std::size_t>(k)];
+                    const int nearest = push_farther_children<kTopWidth>(hit_mask, entry, [&](int slot) {
                         stack[static_cast<std::size_t>(stack_size++)] = {node.child[slot],
                                                                          node.prim_count[slot], entry[slot]};
-                    }
-                    const int nearest = order[0];
+                    });
                     current = {node.child[nearest], node.prim_count[nearest], entry[nearest]};
                     continue;
                 }

@@ -10,6 +10,7 @@
 #include <bit>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
@@ -119,6 +120,33 @@ void check_structure(const Geometry& geometry) {
         if (leaf == 1) {
             EXPECT_EQ(wide.stats().count("max_refs_per_leaf"),
                       static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));
+        }
+    }
+}
+
+// The walks visit a node's hit children nearest first, equal entries in slot order: the nearest, then the
+// pushed ones as the stack pops them (push_farther_children, whose one- and two-child cases skip the sort).
+// Every mask of 8 children, entries drawn from three values so that ties are common.
+TEST(WideBvh, ChildrenAreVisitedByEntryThenSlot) {
+    std::mt19937 rng(8);
+    std::uniform_int_distribution<int> value(0, 2);
+    for (unsigned mask = 1; mask < 256; ++mask) {
+        for (int draw = 0; draw < 20; ++draw) {
+            float entry[8];
+            for (float& e : entry)
+                e = static_cast<float>(value(rng));
+            std::vector<int> expected;
+            for (int slot = 0; slot < 8; ++slot) {
+                if ((mask >> slot) & 1u) expected.push_back(slot);
+            }
+            std::stable_sort(expected.begin(), expected.end(),
+                             [&](int a, int b) { return entry[a] < entry[b]; });
+            std::vector<int> pushed;
+            const int nearest =
+                push_farther_children<8>(mask, entry, [&](int slot) { pushed.push_back(slot); });
+            std::vector<int> visited{nearest};
+            visited.insert(visited.end(), pushed.rbegin(), pushed.rend());
+            ASSERT_EQ(visited, expected) << "mask " << mask;
         }
     }
 }
