@@ -16,6 +16,8 @@ import os
 import pathlib
 import platform
 import statistics
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -39,6 +41,37 @@ def seconds(call):
     return time.perf_counter() - start, result
 
 
+def one_process_build(engine, mesh, accel):
+    """(first, later): the seconds of add_triangles and a first query of one point in a new Python process
+    that has imported both engines and read the mesh, and the median of 4 more such builds there."""
+    command = [sys.executable, __file__, "--time-builds", engine, "--mesh", str(mesh)]
+    if accel is not None:
+        command += ["--accel", accel]
+    output = subprocess.run(command, check=True, capture_output=True, text=True).stdout
+    first, *later = (float(word) for word in output.split())
+    return first, statistics.median(later)
+
+
+def time_builds(engine, mesh, accel):
+    """--time-builds: prints the seconds of 5 builds of `engine`'s scene over `mesh`, the first the
+    process's."""
+    import open3d as o3d
+    vertices, triangles = lancer.load_mesh(str(mesh))
+    point = vertices[:1] + 1.0
+    for _ in range(5):
+        start = time.perf_counter()
+        if engine == "lancer":
+            scene = lancer.RaycastingScene() if accel is None else lancer.RaycastingScene(accel=accel)
+            scene.add_triangles(vertices, triangles)
+            scene.compute_distance(point)
+        else:
+            scene = o3d.t.geometry.RaycastingScene()
+            scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(triangles))
+            scene.compute_distance(o3d.core.Tensor(point))
+        print(time.perf_counter() - start, flush=True)
+        del scene
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--mesh", action="append", type=pathlib.Path, help="mesh file (repeatable)")
@@ -50,7 +83,12 @@ def main():
     parser.add_argument("--open3d-points", type=int, default=None,
                         help="time Open3D's distance queries on the first N points only (Debian's aborts on "
                              "the dragon's: docs/python.md); Mpoints/s compared")
+    parser.add_argument("--fresh-processes", type=int, default=0,
+                        help="also time the builds in N processes of each engine's own, alternated")
+    parser.add_argument("--time-builds", choices=("lancer", "open3d"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.time_builds:
+        return time_builds(args.time_builds, args.mesh[0], args.accel)
     import open3d as o3d
 
     print(f"python_point_queries: {cpu_name()}, {os.cpu_count()} hardware threads, all used; {args.points} "
@@ -84,6 +122,18 @@ def main():
         ours, theirs = (statistics.median(builds[k]) * 1e3 for k in ("lancer", "open3d"))
         print(f"{mesh.name:<14} {'build + first query':<26} {ours:9.1f} {theirs:9.1f} {theirs / ours:7.2f}",
               flush=True)
+        if args.fresh_processes:
+            # The same, each engine in processes of its own: in one process each engine's builds reuse, or
+            # fault again, the heap the other's last scene left (docs/python.md, "Building").
+            fresh = {"lancer": [], "open3d": []}
+            for round_index in range(args.fresh_processes):
+                order = ("lancer", "open3d") if round_index % 2 == 0 else ("open3d", "lancer")
+                for engine in order:
+                    fresh[engine].append(one_process_build(engine, mesh, args.accel))
+            for label, which in (("first build, own process", 0), ("later builds, own process", 1)):
+                ours, theirs = (statistics.median(times[which] for times in fresh[k]) * 1e3
+                                for k in ("lancer", "open3d"))
+                print(f"{mesh.name:<14} {label:<26} {ours:9.1f} {theirs:9.1f} {theirs / ours:7.2f}", flush=True)
 
         scene, o3d_scene = make_lancer(), make_open3d()
         diagonal = float(np.linalg.norm(hi - lo))

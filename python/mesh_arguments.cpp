@@ -55,7 +55,7 @@ TriangleMesh mesh_argument(const py::object& vertices, const py::object& triangl
     const auto vertex_count = static_cast<std::size_t>(points.shape(0));
     const float* p = points.data();
     TriangleMesh mesh;
-    mesh.positions.reserve(vertex_count);
+    mesh.reserve(vertex_count, static_cast<std::size_t>(indices_array.shape(0)));
     for (std::size_t i = 0; i < vertex_count; ++i) {
         mesh.positions.emplace_back(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
         if (!in_coordinate_domain(mesh.positions.back()))

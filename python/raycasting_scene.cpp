@@ -68,11 +68,14 @@ std::uint32_t RaycastingScene::add_geometry(TriangleMesh mesh, const std::string
     const std::size_t total = first_triangle_.back() + mesh.triangle_count();
     if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         throw std::invalid_argument(triangles_name + ": more triangles than a hit's 32-bit id can number");
-    first_triangle_.push_back(static_cast<std::uint32_t>(total));
-    scene_.meshes.push_back(std::move(mesh));
     queries_.reset();  // first: it reads the World's triangles
     unit_normals_.clear();
-    world_.reset();
+    if (world_) {
+        scene_ = std::move(*world_).take_scene();
+        world_.reset();
+    }
+    scene_.meshes.push_back(std::move(mesh));
+    first_triangle_.push_back(static_cast<std::uint32_t>(total));
     return static_cast<std::uint32_t>(first_triangle_.size() - 2);
 }
 
@@ -85,12 +88,13 @@ py::dict RaycastingScene::update_vertices(const py::object& geometry_id, const p
     {
         py::gil_scoped_release released;
         const std::unique_lock lock = lock_.writing();
-        if (!id.value || *id.value >= scene_.meshes.size()) {
+        const std::vector<TriangleMesh>& meshes = scene().meshes;
+        if (!id.value || *id.value >= meshes.size()) {
             throw py::value_error("geometry_id: " + id.text + ", the scene has " +
-                                  std::to_string(scene_.meshes.size()) + " geometries");
+                                  std::to_string(meshes.size()) + " geometries");
         }
         const auto geometry = static_cast<std::size_t>(*id.value);
-        TriangleMesh& mesh = scene_.meshes[geometry];
+        const TriangleMesh& mesh = meshes[geometry];
         const auto count = static_cast<std::size_t>(points.shape(0));
         if (count != mesh.positions.size()) {
             throw py::value_error("vertices: " + std::to_string(count) + " rows for geometry " +
@@ -105,13 +109,15 @@ py::dict RaycastingScene::update_vertices(const py::object& geometry_id, const p
                 throw py::value_error("vertices: row " + std::to_string(i) +
                                       " lies outside the coordinate domain [-2^60, 2^60]");
         }
-        // The structure follows (a refit for the BVHs) once built; before, the next query builds it.
+        // The structure follows (a refit for the BVHs) once built, moving the world's scene's vertices;
+        // before, the next query builds it.
         if (world_) {
             queries_.reset();  // its own tree is over the triangles about to move
             unit_normals_.clear();
             building([&] { report = world_->update_vertices(geometry, positions); });
+        } else {
+            scene_.meshes[geometry].positions = std::move(positions);
         }
-        mesh.positions = std::move(positions);
     }
     if (!report) return py::dict("method"_a = "deferred", "ms"_a = 0.0, "sah_ratio"_a = 1.0);
     return py::dict("method"_a = report->method == UpdateMethod::Refit ? "refit" : "rebuild",
@@ -129,7 +135,8 @@ std::shared_lock<std::shared_mutex> RaycastingScene::prepared(unsigned needs) {
 void RaycastingScene::prepare(unsigned needs) {
     if (first_triangle_.back() == 0) throw std::invalid_argument("the scene is empty: add_triangles first");
     if (!world_)
-        building([&] { world_ = std::make_unique<World>(scene_, accel_name_, build_options(test_)); });
+        building(
+            [&] { world_ = std::make_unique<World>(std::move(scene_), accel_name_, build_options(test_)); });
     if ((needs & kQueries) && !queries_)
         building([&] {
             queries_ = std::make_unique<GeometryQueries>(world_->accel(), world_->geometry().view(), test_);
@@ -408,7 +415,6 @@ std::unique_ptr<RaycastingScene> RaycastingScene::load_structure(const std::file
     }
     auto scene = std::make_unique<RaycastingScene>(
         "plucker", world->options().triangle_test == TriangleTest::Watertight, 0);
-    scene->scene_ = world->scene();
     scene->first_triangle_.push_back(static_cast<std::uint32_t>(world->geometry().triangle_count()));
     scene->world_ = std::move(world);
     return scene;

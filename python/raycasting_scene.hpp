@@ -88,6 +88,8 @@ class RaycastingScene {
     [[nodiscard]] std::shared_lock<std::shared_mutex> prepared(unsigned needs);
     [[nodiscard]] bool ready(unsigned needs) const;
     void prepare(unsigned needs);
+    // The meshes, wherever they are (scene_ or world_).
+    [[nodiscard]] const Scene& scene() const { return world_ ? world_->scene() : scene_; }
     // The built state, under prepared()'s lock.
     [[nodiscard]] const Accel& committed() const { return world_->accel(); }
     [[nodiscard]] const GeometryQueries& queries() const { return *queries_; }
@@ -113,10 +115,12 @@ class RaycastingScene {
 
     std::string accel_name_;
     TriangleTest test_;
-    int build_threads_;                          // 0: all
-    Scene scene_;                                // a mesh per geometry
+    int build_threads_;  // 0: all
+    // A mesh per geometry, while no structure is built: the build moves it into world_ (a copy of the
+    // dragon's costs more than a tenth of its build), and add_triangles takes it back.
+    Scene scene_;
     std::vector<std::uint32_t> first_triangle_;  // of each geometry, then the total
-    std::unique_ptr<World> world_;               // scene_ flattened and its structure, once built
+    std::unique_ptr<World> world_;               // the scene, flattened, and its structure, once built
     std::unique_ptr<GeometryQueries> queries_;
     std::vector<float> unit_normals_;  // of world_'s triangles once made; empty before
     SceneLock lock_;

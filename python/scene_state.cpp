@@ -139,11 +139,11 @@ py::dict RaycastingScene::pickled() {
     {
         py::gil_scoped_release released;
         const std::shared_lock lock = lock_.reading();
-        if (!scene_.spheres.empty())
+        if (!scene().spheres.empty())
             throw std::invalid_argument(
                 "pickle: this scene, loaded from a .plo file, holds spheres, which "
                 "a RaycastingScene's state (its triangle meshes) cannot hold");
-        meshes = scene_.meshes;
+        meshes = scene().meshes;
     }
     return py::dict("format"_a = kFormat, "version"_a = kVersion, "accel"_a = accel_name_,
                     "watertight"_a = test_ == TriangleTest::Watertight, "nthreads"_a = build_threads_,

@@ -31,10 +31,13 @@ struct MeshVertices {
 
 class World {
   public:
-    // Flattens `scene` and builds structure `accel_name` (make_accel's names) on it. Throws
-    // std::invalid_argument for an unknown name or a coordinate outside the contract's domain, and
-    // std::bad_alloc when the memory limit (lancer/memory_limit.hpp) is passed.
-    World(Scene scene, std::string_view accel_name, const BuildOptions& options);
+    // Flattens `scene` and builds structure `accel_name` (make_accel's names) on it; the world keeps a copy
+    // of the scene, or takes a scene moved in once the build has succeeded (a dragon's copy costs tens of
+    // milliseconds of page faults, docs/python.md, "Building"). Throws std::invalid_argument for an unknown
+    // name or a coordinate outside the contract's domain, and std::bad_alloc when the memory limit
+    // (lancer/memory_limit.hpp) is passed; a scene moved in is then left as it was.
+    World(const Scene& scene, std::string_view accel_name, const BuildOptions& options);
+    World(Scene&& scene, std::string_view accel_name, const BuildOptions& options);
 
     // The scene and octree of a `.plo` file (written by save_structure): its triangles as one mesh in their
     // stored order, its spheres, the default material; no camera, lights or planes. `triangle_test`
@@ -58,6 +61,9 @@ class World {
     }
 
     [[nodiscard]] const Scene& scene() const { return *scene_; }
+    // The scene moved out, for a caller that changes it and builds a new World (a Python scene given more
+    // triangles); the world keeps nothing and is only to be destroyed.
+    [[nodiscard]] Scene take_scene() &&;
     [[nodiscard]] const SceneGeometry& geometry() const { return *geometry_; }
     [[nodiscard]] const Accel& accel() const { return *accel_; }
     [[nodiscard]] const BuildOptions& options() const { return options_; }

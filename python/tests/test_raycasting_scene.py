@@ -528,6 +528,22 @@ def test_updated_vertices_give_the_answers_of_a_scene_built_on_them(spheres):
                               "t_hit"])
 
 
+def test_triangles_added_after_a_build_and_an_update_keep_the_moved_vertices(spheres):
+    """The build moves the scene's meshes into the structure's world; add_triangles takes them back, with the
+    vertices update_vertices moved there."""
+    rays = np.vstack([random_rays(3000, 5), adversarial_rays(*spheres[0])])
+    moved = waved(spheres[0][0], 0.5)
+    for accel in ("bvh8", "bvh8_packet", "kdtree"):
+        scene = scene_of(accel, spheres[0])
+        scene.cast_rays(rays[:1])
+        scene.update_vertices(0, moved)
+        assert scene.add_triangles(*spheres[1]) == 1
+        expected = scene_of("brute", (moved, spheres[0][1]), spheres[1]).cast_rays(rays)
+        answer = scene.cast_rays(rays)
+        for key in ("t_hit", "geometry_ids", "primitive_ids"):
+            assert np.array_equal(answer[key], expected[key]), (accel, key)
+
+
 def test_bad_updates_raise_naming_the_argument_and_change_nothing(spheres):
     scene = scene_of("bvh8", *spheres)
     rays = random_rays(500, 8)

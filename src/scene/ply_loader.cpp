@@ -303,11 +303,9 @@ class PlyReader {
                                element.name + " elements");
             budget -= static_cast<std::size_t>(element.count) * min_bytes;
         }
-        if (vertex_element_) {
-            mesh_.positions.reserve(vertex_count_);
-            if (has_normals_) mesh_.normals.reserve(vertex_count_);
-        }
-        if (face_element_) mesh_.indices.reserve(3 * elements_[*face_element_].count);
+        mesh_.reserve(vertex_element_ ? vertex_count_ : 0,
+                      face_element_ ? elements_[*face_element_].count : 0);
+        if (vertex_element_ && has_normals_) mesh_.normals.reserve(vertex_count_);
     }
 
     // One value of a vertex: positions must be finite; normals too, and a zero one makes all unusable.

@@ -16,19 +16,31 @@
 
 namespace lancer {
 
-World::World(Scene scene, std::string_view accel_name, const BuildOptions& options)
-    : scene_(std::make_unique<Scene>(std::move(scene))),
-      geometry_(std::make_unique<SceneGeometry>(*scene_)),
-      accel_(make_accel(accel_name)),
-      options_(options) {
+World::World(const Scene& scene, std::string_view accel_name, const BuildOptions& options)
+    : World(Scene(scene), accel_name, options) {}
+
+World::World(Scene&& scene, std::string_view accel_name, const BuildOptions& options)
+    : accel_(make_accel(accel_name)), options_(options) {
     // Its structure is one over the scene's meshes: the instances' meshes would be left out unseen.
-    if (!scene_->instances.empty()) {
+    if (!scene.instances.empty()) {
         throw std::invalid_argument("World: the scene places meshes by " +
-                                    std::to_string(scene_->instances.size()) +
+                                    std::to_string(scene.instances.size()) +
                                     " instances, which a World does not trace (lancer::InstancedScene does; "
                                     "load_scene without keep_instances makes each placement a mesh)");
     }
+    // The flattened geometry holds no reference to the scene, so the scene is taken only once the build has
+    // succeeded: a build that throws leaves the caller's scene as it was.
+    geometry_ = std::make_unique<SceneGeometry>(scene);
     accel_->build(geometry_->view(), options_);
+    scene_ = std::make_unique<Scene>(std::move(scene));
+}
+
+Scene World::take_scene() && {
+    Scene scene = std::move(*scene_);
+    scene_.reset();
+    geometry_.reset();
+    accel_.reset();
+    return scene;
 }
 
 namespace {

@@ -88,6 +88,38 @@ TEST_F(WorldTest, RefusesAnUnknownStructure) {
     EXPECT_THROW(World(test_scene(), "no_such_structure", {}), std::invalid_argument);
 }
 
+// The scene moved in is taken only by a build that succeeds, and take_scene() gives back what the world
+// held, its updates included: what a Python scene relies on to keep one copy of its meshes.
+TEST_F(WorldTest, AFailedBuildLeavesTheSceneMovedInAndTakeSceneGivesItBack) {
+    Scene outside = test_scene();
+    outside.meshes[0].positions[3] = Vec3f(0x1p61f, 0.0f, 0.0f);  // beyond the contract's domain
+    const Scene expected = outside;
+    EXPECT_THROW(World(std::move(outside), "bvh8", {}), std::invalid_argument);
+    ASSERT_EQ(outside.meshes.size(), expected.meshes.size());
+    EXPECT_EQ(outside.meshes[0].positions, expected.meshes[0].positions);
+    EXPECT_EQ(outside.meshes[1].indices, expected.meshes[1].indices);
+    EXPECT_EQ(outside.spheres.size(), expected.spheres.size());
+
+    World world(test_scene(), "bvh8", {});
+    std::vector<Vec3f> moved = world.scene().meshes[1].positions;
+    for (Vec3f& p : moved)
+        p += Vec3f(0.25f, 0.0f, 0.0f);
+    world.update_vertices(1, moved);
+    const Scene taken = std::move(world).take_scene();
+    EXPECT_EQ(taken.meshes[1].positions, moved);
+    EXPECT_EQ(taken.meshes[0].positions, test_scene().meshes[0].positions);
+    EXPECT_EQ(taken.materials.size(), 2u);
+}
+
+TEST(TriangleMeshTest, ReserveMakesRoomForTheCountsGiven) {
+    TriangleMesh mesh;
+    mesh.reserve(1000, 3000);
+    EXPECT_GE(mesh.positions.capacity(), 1000u);
+    EXPECT_GE(mesh.indices.capacity(), 9000u);
+    EXPECT_TRUE(mesh.positions.empty());
+    EXPECT_TRUE(mesh.indices.empty());
+}
+
 TEST_F(WorldTest, SavedStructureLoadsBackWithTheSameAnswers) {
     BuildOptions options = build_options(TriangleTest::Watertight);
     set_build_option(options, "plucker.balanced=false");  // a variant the loaded world must report
