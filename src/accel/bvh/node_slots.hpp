@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -51,43 +52,63 @@ class NodeSlots {
     // leaves unused positions between its leaves).
     //
     // Depth first order is slot order: a node's first child and its subtree fill the slots below its
-    // second child's. So the used slots in increasing order are the nodes depth first, and their leaves'
-    // references in that order are the primitives' order. Blocks of slots are compacted in parallel, each
-    // from the counts of nodes and references in the blocks before it: the same arrays whatever the threads.
+    // second child's. So the used slots in increasing order are the nodes depth first, and a used slot's
+    // node index is the number of used slots before it: its rank among them, read from one bit per slot
+    // and the count before each 64 (0.3 MB for the dragon's 1.7 million slots, against 7 MB for an index per
+    // slot). Blocks of slots are compacted in parallel, each from the counts of nodes
+    // and references in the blocks before it: the same arrays whatever the threads.
     template <class PrimAt>
     [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at) const {
         const std::size_t slot_count = used_.size();
         const std::size_t blocks = (slot_count + kCompactBlock - 1) / kCompactBlock;
+        const std::size_t words = (slot_count + 63) / 64;
+        // Bit i of used_bits[w]: whether slot 64 w + i is used; nodes_before_word[w]: the used slots before
+        // slot 64 w.
+        std::vector<std::uint64_t> used_bits(words);
+        std::vector<std::uint32_t> nodes_before_word(words);
         // Per block, the nodes and references of the blocks before it (prefix sums of each block's).
         std::vector<std::size_t> nodes_before(blocks + 1, 0), refs_before(blocks + 1, 0);
         parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
             // From used_ alone: the used slots lie scattered over the slots' array (56 MB for the dragon),
             // which the second pass reads.
             std::size_t nodes = 0, refs = 0;
-            for (std::size_t slot = from; slot < to; ++slot) {
-                const std::uint8_t use = used_[slot];
-                nodes += static_cast<std::size_t>(use != 0);
-                refs += use >= kLeafUse ? use - kLeafUse : 0u;
+            for (std::size_t word = from / 64; word * 64 < to; ++word) {
+                std::uint64_t bits = 0;
+                const std::size_t last = std::min(to, word * 64 + 64);
+                for (std::size_t slot = word * 64; slot < last; ++slot) {
+                    const std::uint8_t use = used_[slot];
+                    bits |= std::uint64_t{use != 0} << (slot - word * 64);
+                    refs += use >= kLeafUse ? use - kLeafUse : 0u;
+                }
+                used_bits[word] = bits;
+                nodes_before_word[word] = static_cast<std::uint32_t>(nodes);  // within the block, for now
+                nodes += static_cast<std::size_t>(std::popcount(bits));
             }
             nodes_before[from / kCompactBlock + 1] = nodes, refs_before[from / kCompactBlock + 1] = refs;
         });
         std::partial_sum(nodes_before.begin(), nodes_before.end(), nodes_before.begin());
         std::partial_sum(refs_before.begin(), refs_before.end(), refs_before.begin());
+        parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
+            for (std::size_t word = from / 64; word * 64 < to; ++word)
+                nodes_before_word[word] += static_cast<std::uint32_t>(nodes_before[from / kCompactBlock]);
+        });
+        const auto node_index = [&](std::size_t slot) {
+            const std::uint64_t below = (std::uint64_t{1} << (slot % 64)) - 1;
+            return nodes_before_word[slot / 64] +
+                   static_cast<std::uint32_t>(std::popcount(used_bits[slot / 64] & below));
+        };
 
         BvhBuildResult result;
         reserve_huge_pages(result.nodes, nodes_before.back());
         result.nodes.resize(nodes_before.back());
         reserve_huge_pages(result.prim_indices, refs_before.back());
         result.prim_indices.resize(refs_before.back());
-        // Each used slot's node index, for the inner nodes' second children.
-        const HugePageBuffer<std::uint32_t> index = uninitialised_huge_pages<std::uint32_t>(slot_count);
         const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
         parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
-            std::size_t node_index = nodes_before[from / kCompactBlock];
+            std::size_t next_node = nodes_before[from / kCompactBlock];
             std::size_t ref_index = refs_before[from / kCompactBlock];
             for (std::size_t slot = from; slot < to; ++slot) {
                 if (used_[slot] == 0) continue;
-                index[slot] = static_cast<std::uint32_t>(node_index);
                 BvhNode node = slots_[slot];
                 node.lo -= margin, node.hi += margin;
                 if (node.is_leaf()) {
@@ -95,15 +116,10 @@ class NodeSlots {
                         result.prim_indices[ref_index + i] = prim_at(node.offset + i);
                     node.offset = static_cast<std::uint32_t>(ref_index);
                     ref_index += node.prim_count;
+                } else {
+                    node.offset = node_index(node.offset);  // the second child's slot, renumbered
                 }
-                result.nodes[node_index++] = node;
-            }
-        });
-        // An inner node's offset is still its second child's slot.
-        parallel::for_each_block(result.nodes.size(), kCompactBlock, [&](std::size_t from, std::size_t to) {
-            for (std::size_t i = from; i < to; ++i) {
-                BvhNode& node = result.nodes[i];
-                if (!node.is_leaf()) node.offset = index[node.offset];
+                result.nodes[next_node++] = node;
             }
         });
         return result;
@@ -112,6 +128,8 @@ class NodeSlots {
   private:
     // Slots per task of compact().
     static constexpr std::size_t kCompactBlock = std::size_t{1} << 16;
+    // A block's words of used_bits are its own: its tasks write them.
+    static_assert(kCompactBlock % 64 == 0);
     // used_ per slot: 0 unused, kInnerUse an inner node, kLeafUse + its reference count a leaf.
     static constexpr std::uint8_t kInnerUse = 1, kLeafUse = 2;
     static_assert(kLeafUse + BvhAccel::kMaxLeafSize <= 255);
