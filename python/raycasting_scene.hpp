@@ -116,8 +116,8 @@ class RaycastingScene {
     std::string accel_name_;
     TriangleTest test_;
     int build_threads_;  // 0: all
-    // A mesh per geometry, while no structure is built: the build moves it into world_ (a copy of the
-    // dragon's costs more than a tenth of its build), and add_triangles takes it back.
+    // A mesh per geometry, while no structure is built: the build moves it into world_ rather than copy it
+    // (docs/python.md, "Building"), and add_triangles takes it back.
     Scene scene_;
     std::vector<std::uint32_t> first_triangle_;  // of each geometry, then the total
     std::unique_ptr<World> world_;               // the scene, flattened, and its structure, once built

@@ -83,8 +83,7 @@ struct TriangleMesh {
 
     [[nodiscard]] std::size_t triangle_count() const { return indices.size() / 3; }
     // Room for `vertex_count` positions and `triangle_count` triangles' indices, asked in transparent huge
-    // pages: a mesh filled from a file or an array then costs a few page faults instead of one per 4 KiB
-    // (the dragon's 16 MB, about 50 ms on the VMs lancer is measured on, docs/python.md, "Building").
+    // pages: filling it then faults once per 2 MiB instead of once per 4 KiB (docs/python.md, "Building").
     void reserve(std::size_t vertex_count, std::size_t triangle_count);
     [[nodiscard]] Triangle triangle(std::size_t i) const {
         return {positions[indices[3 * i]], positions[indices[3 * i + 1]], positions[indices[3 * i + 2]]};

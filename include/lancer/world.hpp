@@ -32,9 +32,9 @@ struct MeshVertices {
 class World {
   public:
     // Flattens `scene` and builds structure `accel_name` (make_accel's names) on it; the world keeps a copy
-    // of the scene, or takes a scene moved in once the build has succeeded (a dragon's copy costs tens of
-    // milliseconds of page faults, docs/python.md, "Building"). Throws std::invalid_argument for an unknown
-    // name or a coordinate outside the contract's domain, and std::bad_alloc when the memory limit
+    // of the scene, or takes a scene moved in once the build has succeeded, which spares a large mesh the
+    // copy's page faults (docs/python.md, "Building"). Throws std::invalid_argument for an unknown name or
+    // a coordinate outside the contract's domain, and std::bad_alloc when the memory limit
     // (lancer/memory_limit.hpp) is passed; a scene moved in is then left as it was.
     World(const Scene& scene, std::string_view accel_name, const BuildOptions& options);
     World(Scene&& scene, std::string_view accel_name, const BuildOptions& options);
