@@ -1,8 +1,8 @@
 // The node test of bvh8_packet's kernel, kept apart from its traversal loop (bvh8_packet_kernel.cpp) as
 // Embree keeps its node intersectors apart from its traversals: the whole packet, as intervals, against 8
-// boxes at once (a node's children or a leaf block's triangles), and then the packet's own rays against one
-// child, a group of rays per instruction. Private to the kernel's source (bvh8_packet_rays.hpp says why the
-// anonymous namespace).
+// boxes at once (interval_cull.hpp's cull, on a node's children or here on a leaf block's triangles), and
+// then the packet's own rays against one child, a group of rays per instruction. Private to the kernel's
+// source (bvh8_packet_rays.hpp says why the anonymous namespace).
 #pragma once
 
 #include <bit>
@@ -10,6 +10,7 @@
 
 #include "accel/bvh/bvh8_packet_rays.hpp"
 #include "accel/bvh/bvh_wide.hpp"
+#include "accel/bvh/interval_cull.hpp"
 #include "accel/simd_float.hpp"
 #include "core/isa_namespace.hpp"
 
@@ -17,53 +18,6 @@
 namespace lancer {
 inline namespace LANCER_ISA_NAMESPACE {
 namespace {
-
-using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per lane
-
-// The boxes (8, one per lane) that some ray of the packet may hit within [tnear_min, tlimit_max]: bit i set,
-// with entry[i] a lower bound of where any ray enters box i. Interval arithmetic on the slab test (Overbeck
-// et al. 2008): every plane distance fl(fl(b - o) * r) is monotone in o and in r, so the corner
-// of the intervals chosen by the signs of b - o and r bounds it over the packet, in the same fp32 operations.
-// The exit's widening (widened_slab_exit) is monotone too. A ray whose own test (box_groups) passes thus
-// always finds its child's bit set. Empty slots (lo = +inf, hi = -inf) enter at +inf and leave at -inf.
-[[nodiscard]] unsigned cull_boxes(const Boxes& bounds, const PacketInterval& packet, float tlimit_max,
-                                  float (&entry)[kWidth]) {
-    using Ops = simd::Avx2;
-    auto t0 = Ops::broadcast(packet.tnear_min), t1 = Ops::broadcast(tlimit_max);
-    const auto zero = Ops::broadcast(0.0f);
-    const auto grow = Ops::broadcast(kSlabExitGrow), shrink = Ops::broadcast(kSlabExitShrink);
-    for (std::size_t axis = 0; axis < 3; ++axis) {
-        const int side = packet.near_side[axis];
-        const auto inv_lo = Ops::broadcast(packet.inv_lo[axis]), inv_hi = Ops::broadcast(packet.inv_hi[axis]);
-        // Smallest entry: the near plane's distance from the farthest origin, times the reciprocal that
-        // makes the product smallest (the largest magnitude for a negative distance).
-        const auto near_distance = Ops::sub(bounds[side][axis], Ops::broadcast(packet.entry_origin[axis]));
-        const auto near_plane =
-            Ops::mul(near_distance, Ops::select_if_greater(zero, near_distance, inv_hi, inv_lo));
-        // Largest exit, widened.
-        const auto far_distance = Ops::sub(bounds[1 - side][axis], Ops::broadcast(packet.exit_origin[axis]));
-        const auto far_unwidened =
-            Ops::mul(far_distance, Ops::select_if_greater(zero, far_distance, inv_lo, inv_hi));
-        const auto far_plane =
-            Ops::mul(far_unwidened, Ops::select_if_greater(far_unwidened, zero, grow, shrink));
-        t0 = Ops::max(near_plane, t0);
-        t1 = Ops::min(far_plane, t1);
-    }
-    Ops::store(entry, t0);
-    return Ops::bits(Ops::less_equal(t0, t1));
-}
-
-// cull_boxes on the 8 children of a node.
-[[nodiscard]] unsigned cull_children(const Node& node, const PacketInterval& packet, float tlimit_max,
-                                     float (&entry)[kWidth]) {
-    using Ops = simd::Avx2;
-    Boxes bounds;
-    for (int side = 0; side < 2; ++side) {
-        for (int axis = 0; axis < 3; ++axis)
-            bounds[side][axis] = Ops::load(node.bounds[side][axis]);
-    }
-    return cull_boxes(bounds, packet, tlimit_max, entry);
-}
 
 // The bounding boxes of a block's 8 triangles grown by the scene's geometric tolerance, for cull_boxes: the
 // triangle tests report hits up to a rounding error outside their triangle, and the grown box still holds

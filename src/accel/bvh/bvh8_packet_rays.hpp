@@ -19,6 +19,7 @@
 
 #include "accel/bvh/bvh8_packet_kernel.hpp"
 #include "accel/bvh/bvh_wide.hpp"
+#include "accel/bvh/interval_cull.hpp"
 #include "accel/bvh/triangle_block.hpp"
 #include "accel/simd_float.hpp"
 #include "core/intersect.hpp"
@@ -63,25 +64,6 @@ struct alignas(64) PacketRays {
     // The closest hit so far (t is tlimit): kNoHit before the first.
     float u[kPacketSize], v[kPacketSize];
     std::int32_t prim[kPacketSize];
-};
-
-// The packet's rays as intervals, for the conservative child test: every ray's origin lies in
-// [origin_lo, origin_hi] and its reciprocal direction in [inv_lo, inv_hi], one sign per axis.
-struct PacketInterval {
-    std::array<float, 3> entry_origin, exit_origin;  // the corner of the origin box each plane distance takes
-    std::array<float, 3> inv_lo, inv_hi;
-    std::array<int, 3> near_side;  // WideBvhNode::kLo or kHi: the face a ray enters by on each axis
-    float tnear_min;
-
-    // The intervals of one axis, its near_side set: the entry is smallest from the origin nearest the far
-    // side, the exit largest from the other.
-    void set_axis(std::size_t axis, float origin_lo, float origin_hi, float reciprocal_lo,
-                  float reciprocal_hi) {
-        const bool negative = near_side[axis] == WideBvhNode<8>::kHi;
-        entry_origin[axis] = negative ? origin_lo : origin_hi;
-        exit_origin[axis] = negative ? origin_hi : origin_lo;
-        inv_lo[axis] = reciprocal_lo, inv_hi[axis] = reciprocal_hi;
-    }
 };
 
 // Rays [first, first + Ops::kWidth) of one of the packet's three-coordinate arrays.

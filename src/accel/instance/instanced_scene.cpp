@@ -236,10 +236,15 @@ struct InstancedScene::State {
             throw std::invalid_argument("InstancedScene: one answer slot per ray expected");
     }
 
+    // A packet of rays walks the top level together when their origins lie within this share of the
+    // scene's largest side (InstancedScene::Walk::load): a camera tile's rays share theirs.
+    static constexpr float kCoherentShare = 1.0f / 256.0f;
+
     template <bool kAnyHit, class Answer>
     void walk_each(std::span<const Ray> traced, std::span<Answer> answers,
                    TraversalCounters* counters) const {
-        Walk(nodes, records).each<kAnyHit>(traced, answers, counters);
+        Walk(nodes, records, max_component(bounds.extent()) * kCoherentShare)
+            .each<kAnyHit>(traced, answers, counters);
     }
 };
 

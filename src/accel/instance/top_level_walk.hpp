@@ -4,6 +4,7 @@
 // the design note.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cmath>
@@ -18,6 +19,7 @@
 
 #include "accel/bvh/bvh.hpp"
 #include "accel/bvh/bvh_wide.hpp"
+#include "accel/bvh/interval_cull.hpp"
 #include "accel/instance/affine.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/accel.hpp"
@@ -127,23 +129,40 @@ class InstancedScene::Walk {
     static constexpr int kTopWidth = top_level::kTopWidth;
 
   public:
-    Walk(const std::vector<TopNode>& nodes, const std::vector<InstanceRecord>& records)
-        : nodes_(nodes), records_(records) {}
+    // `coherent_width`: the widest box of origins that a packet of rays walks the top level together from
+    // (walk_packet).
+    Walk(const std::vector<TopNode>& nodes, const std::vector<InstanceRecord>& records, float coherent_width)
+        : nodes_(nodes), records_(records), coherent_width_(coherent_width) {}
 
     // Each conditioned ray walked once: answers[i] the closest hit (InstanceHit) or whether the ray is
-    // occluded (std::uint8_t, kAnyHit). Invalid rays miss.
+    // occluded (std::uint8_t, kAnyHit). Invalid rays miss. Consecutive rays that start together (a camera
+    // tile) walk the top level as a packet; any other ray walks alone. Either way a ray gets its own walk's
+    // answer.
     template <bool kAnyHit, class Answer>
     void each(std::span<const Ray> traced, std::span<Answer> answers, TraversalCounters* counters) const {
         const auto trace = [&]<bool kCount>() {
             TraversalCounters counts;
-            for (std::size_t i = 0; i < traced.size(); ++i) {
-                InstanceHit best;
-                const bool found =
-                    top_level::is_valid_ray(traced[i]) && walk<kAnyHit, kCount>(traced[i], best, counts);
-                if constexpr (kAnyHit) {
-                    answers[i] = found;
-                } else {
-                    answers[i] = best;
+#if defined(__AVX2__)
+            Packet packet;
+#endif
+            for (std::size_t first = 0; first < traced.size(); first += kPacketRays) {
+                const std::size_t count = std::min<std::size_t>(kPacketRays, traced.size() - first);
+#if defined(__AVX2__)
+                const std::span<const Ray> rays = traced.subspan(first, count);
+                if (count >= kFewestPacketRays && load(rays, packet)) {
+                    walk_packet<kAnyHit, kCount>(rays, packet, answers.subspan(first, count), counts);
+                    continue;
+                }
+#endif
+                for (std::size_t i = first; i < first + count; ++i) {
+                    InstanceHit best;
+                    const bool found =
+                        top_level::is_valid_ray(traced[i]) && walk<kAnyHit, kCount>(traced[i], best, counts);
+                    if constexpr (kAnyHit) {
+                        answers[i] = found;
+                    } else {
+                        answers[i] = best;
+                    }
                 }
             }
             if constexpr (kCount) {
@@ -155,6 +174,190 @@ class InstancedScene::Walk {
     }
 
   private:
+    static constexpr std::size_t kPacketRays = 64;
+    // Fewer rays than this walk alone: the packet's loading and culls pay for several rays.
+    static constexpr std::size_t kFewestPacketRays = 8;
+    using RayMask = std::uint64_t;
+
+#if defined(__AVX2__)
+    // A packet's rays, one array per coordinate so that a group of 8 loads in one instruction, and their
+    // bounds as intervals for the cull. Lanes past the packet's rays, and invalid rays, have tnear = +inf
+    // and limit = -inf, which no box test passes.
+    struct Packet {
+        alignas(32) float origin[3][kPacketRays];
+        alignas(32) float inv_direction[3][kPacketRays];
+        alignas(32) float tnear[kPacketRays];
+        alignas(32) float limit[kPacketRays];  // tfar, or the closest hit so far: the walk's box test limit
+        PacketInterval interval;
+        RayMask valid = 0;
+    };
+
+    // Loads `rays` into `packet`; false when they cannot walk together: two valid rays disagree on a
+    // direction sign, a reciprocal direction is not finite (whose NaN plane distances the cull does not
+    // bound), or the valid rays' origins spread wider than coherent_width_. A ray that breaks the first or
+    // the last rule ends the loading at once: incoherent batches (diffuse bounces) pay a few rays' tests.
+    [[nodiscard]] bool load(std::span<const Ray> rays, Packet& packet) const {
+        std::array<float, 3> origin_lo, origin_hi, inv_lo, inv_hi;
+        origin_lo.fill(kInfinity), inv_lo.fill(kInfinity), origin_hi.fill(-kInfinity),
+            inv_hi.fill(-kInfinity);
+        int signs = -1;  // bit a: the valid rays' direction is negative on axis a
+        float tnear_min = kInfinity;
+        packet.valid = 0;
+        for (std::size_t i = 0; i < kPacketRays; ++i) {
+            if (i >= rays.size() || !top_level::is_valid_ray(rays[i])) {
+                for (std::size_t axis = 0; axis < 3; ++axis)
+                    packet.origin[axis][i] = 0.0f, packet.inv_direction[axis][i] = 1.0f;
+                packet.tnear[i] = kInfinity, packet.limit[i] = -kInfinity;
+                continue;
+            }
+            const Ray& ray = rays[i];
+            const int ray_signs = (std::signbit(ray.direction.x) ? 1 : 0) |
+                                  (std::signbit(ray.direction.y) ? 2 : 0) |
+                                  (std::signbit(ray.direction.z) ? 4 : 0);
+            if (signs < 0) signs = ray_signs;
+            if (ray_signs != signs) return false;
+            const SlabRay slab(ray);
+            for (std::size_t axis = 0; axis < 3; ++axis) {
+                const float inverse = slab.inv_direction[static_cast<int>(axis)];
+                const float origin = slab.origin[static_cast<int>(axis)];
+                origin_lo[axis] = std::min(origin_lo[axis], origin),
+                origin_hi[axis] = std::max(origin_hi[axis], origin);
+                if (!(std::fabs(inverse) < kInfinity) ||
+                    !(origin_hi[axis] - origin_lo[axis] <= coherent_width_))
+                    return false;
+                packet.origin[axis][i] = origin, packet.inv_direction[axis][i] = inverse;
+                inv_lo[axis] = std::min(inv_lo[axis], inverse),
+                inv_hi[axis] = std::max(inv_hi[axis], inverse);
+            }
+            packet.tnear[i] = ray.tnear, packet.limit[i] = ray.tfar;
+            tnear_min = std::min(tnear_min, ray.tnear);
+            packet.valid |= RayMask{1} << i;
+        }
+        if (packet.valid == 0) return false;
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            packet.interval.near_side[axis] = (signs >> axis) & 1 ? TopNode::kHi : TopNode::kLo;
+            packet.interval.set_axis(axis, origin_lo[axis], origin_hi[axis], inv_lo[axis], inv_hi[axis]);
+        }
+        packet.interval.tnear_min = tnear_min;
+        return true;
+    }
+
+    // The packet's `rays` whose own box test meets child `slot` of `node` within [tnear, limit]: walk_from's
+    // test (clip_slab, which its kForward form decides alike for tnear >= 0), 8 rays per instruction.
+    [[nodiscard]] static RayMask rays_meeting(const Packet& packet, const TopNode& node, int slot,
+                                              RayMask rays) {
+        using Ops = simd::Avx2;
+        constexpr int kLanes = Ops::kWidth;
+        constexpr RayMask kGroup = (RayMask{1} << kLanes) - 1;
+        Ops::Float near_bound[3], far_bound[3];
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            const int side = packet.interval.near_side[axis];
+            near_bound[axis] = Ops::broadcast(node.bounds[side][axis][slot]);
+            far_bound[axis] = Ops::broadcast(node.bounds[1 - side][axis][slot]);
+        }
+        RayMask met = 0;
+        for (RayMask rest = rays; rest != 0;) {
+            const int first = std::countr_zero(rest) & -kLanes;
+            rest &= ~(kGroup << first);
+            auto t0 = Ops::load(&packet.tnear[first]), t1 = Ops::load(&packet.limit[first]);
+            for (std::size_t axis = 0; axis < 3; ++axis)
+                clip_slab<Ops>(near_bound[axis], far_bound[axis], Ops::load(&packet.origin[axis][first]),
+                               Ops::load(&packet.inv_direction[axis][first]), t0, t1);
+            met |= static_cast<RayMask>(Ops::bits(Ops::less_equal(t0, t1))) << first;
+        }
+        return met & rays;
+    }
+
+    // The largest box test limit of the `alive` rays: where the cull stops.
+    [[nodiscard]] static float largest_limit(const Packet& packet, RayMask alive) {
+        float largest = -kInfinity;
+        for (RayMask rest = alive; rest != 0; rest &= rest - 1)
+            largest = std::max(largest, packet.limit[std::countr_zero(rest)]);
+        return largest;
+    }
+
+    // The top level walked once for the packet's rays (Overbeck et al.'s interval cull, as bvh8_packet's
+    // camera packets walk bvh8: interval_cull.hpp): the children that some ray may meet are pushed,
+    // farthest first; a popped child is kept for the rays whose own box test meets it within their closest
+    // hit so far, and each of those rays visits an instance child as walk_from does. A ray therefore visits
+    // every instance its own walk would visit before its final hit, and its answer, which does not depend
+    // on the order of its visits (docs/numerical-contract.md, "Instances"), is its own walk's.
+    template <bool kAnyHit, bool kCount, class Answer>
+    void walk_packet(std::span<const Ray> rays, Packet& packet, std::span<Answer> answers,
+                     TraversalCounters& counts) const {
+        struct StackEntry {
+            const TopNode* parent;
+            int slot;
+            float entry;
+            RayMask rays;
+        };
+        std::array<InstanceHit, kPacketRays> best{};
+        RayMask alive = packet.valid;
+        TraversalCounters object_counts;
+        TraversalCounters* object_counters = kCount ? &object_counts : nullptr;
+        std::array<StackEntry, kTopWidth * BvhAccel::kMaxDepth + 1> stack;
+        int stack_size = 0;
+        float limit_max = largest_limit(packet, alive);
+        const TopNode* node = nodes_.empty() ? nullptr : &nodes_[0];
+        RayMask node_rays = alive;
+        while (node != nullptr) {
+            if constexpr (kCount)
+                counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(node_rays));
+            alignas(32) float entry[kTopWidth];
+            std::array<int, kTopWidth> order;
+            const int count = order_by_entry<kTopWidth>(
+                cull_children(*node, packet.interval, limit_max, entry), entry, order);
+            for (int k = count - 1; k >= 0; --k) {
+                const int slot = order[static_cast<std::size_t>(k)];
+                stack[static_cast<std::size_t>(stack_size++)] = {node, slot, entry[slot], node_rays};
+            }
+            node = nullptr;
+            while (node == nullptr && stack_size > 0) {
+                const StackEntry popped = stack[static_cast<std::size_t>(--stack_size)];
+                if (popped.entry > limit_max) continue;
+                const RayMask met = rays_meeting(packet, *popped.parent, popped.slot, popped.rays & alive);
+                if (met == 0) continue;
+                const std::uint32_t child = popped.parent->child[popped.slot];
+                if (popped.parent->prim_count[popped.slot] == 0) {
+                    node = &nodes_[child], node_rays = met;
+                    break;
+                }
+                for (RayMask each = met; each != 0; each &= each - 1) {
+                    const int i = std::countr_zero(each);
+                    if constexpr (kCount) ++counts.nodes_visited;
+                    const Ray& ray = rays[static_cast<std::size_t>(i)];
+                    if constexpr (kAnyHit) {
+                        if (visit<true>(child, ray, best[static_cast<std::size_t>(i)], object_counters)) {
+                            answers[static_cast<std::size_t>(i)] = 1;
+                            alive &= ~(RayMask{1} << i);
+                        }
+                    } else {
+                        InstanceHit& hit = best[static_cast<std::size_t>(i)];
+                        visit<false>(child, ray, hit, object_counters);
+                        packet.limit[i] = hit.hit() ? hit.t : ray.tfar;
+                    }
+                }
+                if constexpr (kAnyHit) {
+                    if (alive == 0) break;
+                } else {
+                    limit_max = largest_limit(packet, alive);
+                }
+            }
+        }
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            if constexpr (kAnyHit) {
+                if (((alive >> i) & 1u) != 0 || ((packet.valid >> i) & 1u) == 0) answers[i] = 0;
+            } else {
+                answers[i] = best[i];
+            }
+        }
+        if constexpr (kCount) {
+            counts.nodes_visited += object_counts.nodes_visited;
+            counts.prims_tested += object_counts.prims_tested;
+        }
+    }
+#endif
+
     template <bool kAnyHit, bool kCount>
     bool walk(const Ray& ray, InstanceHit& best, TraversalCounters& counts) const {
         if (ray.tnear >= 0.0f) return walk_from<kAnyHit, kCount, true>(ray, best, counts);
@@ -302,6 +505,7 @@ class InstancedScene::Walk {
 
     const std::vector<TopNode>& nodes_;
     const std::vector<InstanceRecord>& records_;
+    float coherent_width_;
 };
 
 }  // namespace lancer

@@ -285,6 +285,37 @@ std::vector<Ray> far_view_rays(const Box3f& bounds, int size) {
     return rays;
 }
 
+// Rays from an eye within the scene's reach (not moved by ray conditioning) in 8x8 tiles of consecutive
+// rays, the packets the top level walks together (InstancedScene::Walk::walk_packet), towards a plane
+// through the scene's centre, or half a side below it when the eye is inside the scene (`eye_z`: the eye's
+// height over the centre, in the scene's largest side). `tnear` and `tfar` are each ray's interval (t = 1
+// at the plane); every `invalid_every`-th ray (0: none) gets a NaN direction, so that a packet holds invalid
+// rays among valid ones.
+std::vector<Ray> tiled_view_rays(const Box3f& bounds, int size, float eye_z, float tnear, float tfar,
+                                 int invalid_every) {
+    const Vec3f centre = bounds.center();
+    const float side = max_component(bounds.extent());
+    const Vec3f eye = centre + Vec3f(0.3f, 0.2f, eye_z) * side;
+    const float plane_z = eye_z > 0.5f ? 0.0f : -0.5f;
+    std::vector<Ray> rays;
+    for (int tile_y = 0; tile_y < size; tile_y += 8) {
+        for (int tile_x = 0; tile_x < size; tile_x += 8) {
+            for (int y = tile_y; y < tile_y + 8; ++y) {
+                for (int x = tile_x; x < tile_x + 8; ++x) {
+                    const Vec3f target =
+                        centre + side * Vec3f((float(x) + 0.5f) / float(size) - 0.5f,
+                                              (float(y) + 0.5f) / float(size) - 0.5f, plane_z);
+                    Ray ray{eye, target - eye, tnear, tfar};
+                    if (invalid_every > 0 && rays.size() % static_cast<std::size_t>(invalid_every) == 0)
+                        ray.direction.y = std::numeric_limits<float>::quiet_NaN();
+                    rays.push_back(ray);
+                }
+            }
+        }
+    }
+    return rays;
+}
+
 // Random rays that start behind their origin (tnear < 0), some with a finite tfar.
 std::vector<Ray> backward_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed) {
     std::vector<Ray> rays = testing::random_rays(bounds, count, seed).rays;
@@ -305,7 +336,8 @@ class InstancedBatches : public ::testing::TestWithParam<Case> {};
 // bench tile's; 65; 4,096, intersect_parallel's tasks), whatever a batch's walk shares between its rays
 // (groups of 64 rays walking the top level together were measured: docs/accel/instances.md). The scene has
 // identical instances (ties), the rays every kind the oracle test traces and more: coherent rays from near
-// and from far, rays behind their origins, random and grazing ones, invalid ones among them.
+// and from far (tiles of them walk the top level as packets, with clipped intervals and invalid rays among
+// them), rays behind their origins, random and grazing ones, invalid ones among them.
 TEST_P(InstancedBatches, EveryRayAnswersAsItsOwnWalk) {
     Fixture fixture = random_fixture(41, 30);
     for (std::size_t i = 0; i < 6; ++i) {
@@ -317,10 +349,11 @@ TEST_P(InstancedBatches, EveryRayAnswersAsItsOwnWalk) {
     const Box3f bounds = scene.bounds();
     std::vector<Ray> rays = testing::canonical_view_rays(bounds, 48).rays;
     for (const std::vector<Ray>& set :
-         {far_view_rays(bounds, 48), testing::random_rays(bounds, 1500, 42).rays,
-          testing::axis_parallel_rays(bounds, 300, 43).rays, testing::clipped_rays(bounds, 300, 44).rays,
-          testing::hostile_rays(bounds).rays, inside_and_grazing_rays(fixture, flat, 600, 45).rays,
-          backward_rays(bounds, 300, 46)})
+         {far_view_rays(bounds, 48), tiled_view_rays(bounds, 48, 2.5f, 0.0f, kInfinity, 0),
+          tiled_view_rays(bounds, 48, 2.5f, 0.4f, 2.5f, 0), tiled_view_rays(bounds, 48, 0.0f, -1.0f, 1.0f, 9),
+          testing::random_rays(bounds, 1500, 42).rays, testing::axis_parallel_rays(bounds, 300, 43).rays,
+          testing::clipped_rays(bounds, 300, 44).rays, testing::hostile_rays(bounds).rays,
+          inside_and_grazing_rays(fixture, flat, 600, 45).rays, backward_rays(bounds, 300, 46)})
         rays.insert(rays.end(), set.begin(), set.end());
     std::vector<InstanceHit> alone(rays.size());
     std::vector<std::uint8_t> occluded_alone(rays.size());
