@@ -243,7 +243,7 @@ struct InstancedScene::State {
     template <bool kAnyHit, class Answer>
     void walk_each(std::span<const Ray> traced, std::span<Answer> answers,
                    TraversalCounters* counters) const {
-        Walk(nodes, records, max_component(bounds.extent()) * kCoherentShare)
+        Walk(nodes, records, bounds, max_component(bounds.extent()) * kCoherentShare)
             .each<kAnyHit>(traced, answers, counters);
     }
 };

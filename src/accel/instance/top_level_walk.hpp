@@ -129,10 +129,14 @@ class InstancedScene::Walk {
     static constexpr int kTopWidth = top_level::kTopWidth;
 
   public:
-    // `coherent_width`: the widest box of origins that a packet of rays walks the top level together from
-    // (walk_packet).
-    Walk(const std::vector<TopNode>& nodes, const std::vector<InstanceRecord>& records, float coherent_width)
-        : nodes_(nodes), records_(records), coherent_width_(coherent_width) {}
+    // `bounds`: the scene's box. `coherent_width`: the widest box of origins (or, for occlusion rays, of
+    // ends) from which a packet of rays walks the top level together (walk_packet).
+    Walk(const std::vector<TopNode>& nodes, const std::vector<InstanceRecord>& records, const Box3f& bounds,
+         float coherent_width)
+        : nodes_(nodes),
+          records_(records),
+          coherent_width_(coherent_width),
+          scene_magnitude_(std::max(max_component(abs(bounds.lo)), max_component(abs(bounds.hi)))) {}
 
     // Each conditioned ray walked once: answers[i] the closest hit (InstanceHit) or whether the ray is
     // occluded (std::uint8_t, kAnyHit). Invalid rays miss. Consecutive rays that start together (a camera
@@ -149,7 +153,7 @@ class InstancedScene::Walk {
                 const std::size_t count = std::min<std::size_t>(kPacketRays, traced.size() - first);
 #if defined(__AVX2__)
                 const std::span<const Ray> rays = traced.subspan(first, count);
-                if (count >= kFewestPacketRays && load(rays, packet)) {
+                if (count >= kFewestPacketRays && load<kAnyHit>(rays, packet)) {
                     walk_packet<kAnyHit, kCount>(rays, packet, answers.subspan(first, count), counts);
                     continue;
                 }
@@ -188,20 +192,28 @@ class InstancedScene::Walk {
         alignas(32) float inv_direction[3][kPacketRays];
         alignas(32) float tnear[kPacketRays];
         alignas(32) float limit[kPacketRays];  // tfar, or the closest hit so far: the walk's box test limit
+        std::array<int, 3> near_side;          // the face each ray enters a box by (TopNode::kLo or kHi)
+        // The cull's rays: the packet's own, or (from_ends) the packet seen from its rays' ends, which the
+        // cull takes up to ends_limit.
         PacketInterval interval;
+        bool from_ends = false;
+        float ends_limit = 0.0f;
         RayMask valid = 0;
     };
 
     // Loads `rays` into `packet`; false when they cannot walk together: two valid rays disagree on a
     // direction sign, a reciprocal direction is not finite (whose NaN plane distances the cull does not
-    // bound), or the valid rays' origins spread wider than coherent_width_. A ray that breaks the first or
-    // the last rule ends the loading at once: incoherent batches (diffuse bounces) pay a few rays' tests.
+    // bound), or the valid rays' origins spread wider than coherent_width_. Occlusion rays whose origins
+    // spread but whose ends o + tfar d lie that close together (shadow rays aimed at one point light) walk
+    // together too, culled from their ends (ends_interval). A ray that breaks the rules ends the loading at
+    // once: incoherent batches (diffuse bounces) pay a few rays' tests.
+    template <bool kAnyHit>
     [[nodiscard]] bool load(std::span<const Ray> rays, Packet& packet) const {
-        std::array<float, 3> origin_lo, origin_hi, inv_lo, inv_hi;
-        origin_lo.fill(kInfinity), inv_lo.fill(kInfinity), origin_hi.fill(-kInfinity),
-            inv_hi.fill(-kInfinity);
-        int signs = -1;  // bit a: the valid rays' direction is negative on axis a
-        float tnear_min = kInfinity;
+        Bounds origins, ends, reciprocals;
+        std::array<float, 3> reach{};  // the largest |tfar d| of each axis
+        float tnear_min = kInfinity, length = 0.0f;
+        bool forward_and_finite = true;  // every valid ray has tnear >= 0 and a finite end
+        int signs = -1;                  // bit a: the valid rays' direction is negative on axis a
         packet.valid = 0;
         for (std::size_t i = 0; i < kPacketRays; ++i) {
             if (i >= rays.size() || !top_level::is_valid_ray(rays[i])) {
@@ -218,28 +230,82 @@ class InstancedScene::Walk {
             if (ray_signs != signs) return false;
             const SlabRay slab(ray);
             for (std::size_t axis = 0; axis < 3; ++axis) {
-                const float inverse = slab.inv_direction[static_cast<int>(axis)];
-                const float origin = slab.origin[static_cast<int>(axis)];
-                origin_lo[axis] = std::min(origin_lo[axis], origin),
-                origin_hi[axis] = std::max(origin_hi[axis], origin);
-                if (!(std::fabs(inverse) < kInfinity) ||
-                    !(origin_hi[axis] - origin_lo[axis] <= coherent_width_))
-                    return false;
-                packet.origin[axis][i] = origin, packet.inv_direction[axis][i] = inverse;
-                inv_lo[axis] = std::min(inv_lo[axis], inverse),
-                inv_hi[axis] = std::max(inv_hi[axis], inverse);
+                const auto a = static_cast<int>(axis);
+                if (!(std::fabs(slab.inv_direction[a]) < kInfinity)) return false;
+                packet.origin[axis][i] = slab.origin[a];
+                packet.inv_direction[axis][i] = slab.inv_direction[a];
+                origins.extend(axis, slab.origin[a]);
+                reciprocals.extend(axis, slab.inv_direction[a]);
+                if constexpr (kAnyHit) {
+                    const float along = ray.tfar * ray.direction[a];
+                    ends.extend(axis, ray.origin[a] + along);
+                    reach[axis] = std::max(reach[axis], std::fabs(along));
+                }
             }
+            if constexpr (kAnyHit) {
+                forward_and_finite = forward_and_finite && ray.tnear >= 0.0f && ends.finite();
+                length = std::max(length, ray.tfar - ray.tnear);
+            }
+            const bool ends_together = kAnyHit && forward_and_finite && ends.width() <= coherent_width_;
+            if (origins.width() > coherent_width_ && !ends_together) return false;
             packet.tnear[i] = ray.tnear, packet.limit[i] = ray.tfar;
             tnear_min = std::min(tnear_min, ray.tnear);
             packet.valid |= RayMask{1} << i;
         }
         if (packet.valid == 0) return false;
+        for (std::size_t axis = 0; axis < 3; ++axis)
+            packet.near_side[axis] = (signs >> axis) & 1 ? TopNode::kHi : TopNode::kLo;
+        packet.from_ends = origins.width() > coherent_width_;
+        if (packet.from_ends) {
+            ends_interval(packet, ends, reciprocals, reach, length);
+            return true;
+        }
+        packet.interval.near_side = packet.near_side;
         for (std::size_t axis = 0; axis < 3; ++axis) {
-            packet.interval.near_side[axis] = (signs >> axis) & 1 ? TopNode::kHi : TopNode::kLo;
-            packet.interval.set_axis(axis, origin_lo[axis], origin_hi[axis], inv_lo[axis], inv_hi[axis]);
+            packet.interval.set_axis(axis, origins.lo[axis], origins.hi[axis], reciprocals.lo[axis],
+                                     reciprocals.hi[axis]);
         }
         packet.interval.tnear_min = tnear_min;
         return true;
+    }
+
+    // A box of floats on three axes, grown one coordinate at a time.
+    struct Bounds {
+        std::array<float, 3> lo{kInfinity, kInfinity, kInfinity}, hi{-kInfinity, -kInfinity, -kInfinity};
+
+        void extend(std::size_t axis, float value) {
+            lo[axis] = std::min(lo[axis], value), hi[axis] = std::max(hi[axis], value);
+        }
+        // The largest extent; NaN or infinite (never within a width) when a coordinate is not finite.
+        [[nodiscard]] float width() const { return std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]}); }
+        [[nodiscard]] bool finite() const {
+            return std::fabs(lo[0]) < kInfinity && std::fabs(lo[1]) < kInfinity &&
+                   std::fabs(lo[2]) < kInfinity && std::fabs(hi[0]) < kInfinity &&
+                   std::fabs(hi[1]) < kInfinity && std::fabs(hi[2]) < kInfinity;
+        }
+    };
+
+    // The cull of occlusion rays that end together, from their ends: reversed, each ray starts at its end
+    // o + tfar d and goes along -d, and its interval [tnear, tfar] becomes [0, tfar - tnear], so the packet
+    // is a camera packet at the ends (a point light). The interval holds origins in the box of the ends and
+    // reciprocals -1/d, over [0, the longest tfar - tnear]. The box is grown by 2^-16 of the magnitudes the
+    // roundings scale with (the ends, the reach |tfar d| and the scene's coordinates): far above the ends'
+    // rounding, the distance by which a ray's own forward slab test may pass a box that its exact segment
+    // misses, and the reversed test's rounding, a few 2^-24 of them each. A box some ray's own test passes
+    // is therefore never culled. Each ray's box tests and visits stay forward (rays_meeting, visit).
+    void ends_interval(Packet& packet, const Bounds& ends, const Bounds& reciprocals,
+                       const std::array<float, 3>& reach, float length) const {
+        constexpr float kMargin = 0x1p-16f;
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            const float magnitude =
+                reach[axis] + std::max(std::fabs(ends.lo[axis]), std::fabs(ends.hi[axis])) + scene_magnitude_;
+            const float margin = kMargin * magnitude;
+            packet.interval.near_side[axis] = 1 - packet.near_side[axis];
+            packet.interval.set_axis(axis, ends.lo[axis] - margin, ends.hi[axis] + margin,
+                                     -reciprocals.hi[axis], -reciprocals.lo[axis]);
+        }
+        packet.interval.tnear_min = 0.0f;
+        packet.ends_limit = length * (1.0f + kMargin);
     }
 
     // The packet's `rays` whose own box test meets child `slot` of `node` within [tnear, limit]: walk_from's
@@ -251,7 +317,7 @@ class InstancedScene::Walk {
         constexpr RayMask kGroup = (RayMask{1} << kLanes) - 1;
         Ops::Float near_bound[3], far_bound[3];
         for (std::size_t axis = 0; axis < 3; ++axis) {
-            const int side = packet.interval.near_side[axis];
+            const int side = packet.near_side[axis];
             near_bound[axis] = Ops::broadcast(node.bounds[side][axis][slot]);
             far_bound[axis] = Ops::broadcast(node.bounds[1 - side][axis][slot]);
         }
@@ -297,7 +363,7 @@ class InstancedScene::Walk {
         TraversalCounters* object_counters = kCount ? &object_counts : nullptr;
         std::array<StackEntry, kTopWidth * BvhAccel::kMaxDepth + 1> stack;
         int stack_size = 0;
-        float limit_max = largest_limit(packet, alive);
+        float limit_max = packet.from_ends ? packet.ends_limit : largest_limit(packet, alive);
         const TopNode* node = nodes_.empty() ? nullptr : &nodes_[0];
         RayMask node_rays = alive;
         while (node != nullptr) {
@@ -506,6 +572,7 @@ class InstancedScene::Walk {
     const std::vector<TopNode>& nodes_;
     const std::vector<InstanceRecord>& records_;
     float coherent_width_;
+    float scene_magnitude_;  // the largest coordinate of the scene's box
 };
 
 }  // namespace lancer

@@ -316,6 +316,32 @@ std::vector<Ray> tiled_view_rays(const Box3f& bounds, int size, float eye_z, flo
     return rays;
 }
 
+// Shadow rays towards one point light above the scene, as the shadow view makes them (direction L - o,
+// [0, 1 - 1e-4]), from a grid of points across the scene's middle in 8x8 tiles of consecutive rays: their
+// origins lie far apart and their ends together, so a tile's occlusion rays walk the top level culled from
+// their ends. Every `invalid_every`-th ray (0: none) gets a NaN direction.
+std::vector<Ray> shadow_rays_to_a_light(const Box3f& bounds, int size, int invalid_every) {
+    const Vec3f centre = bounds.center();
+    const float side = max_component(bounds.extent());
+    const Vec3f light = centre + Vec3f(0.5f, 2.0f, 1.5f) * side;
+    std::vector<Ray> rays;
+    for (int tile_y = 0; tile_y < size; tile_y += 8) {
+        for (int tile_x = 0; tile_x < size; tile_x += 8) {
+            for (int y = tile_y; y < tile_y + 8; ++y) {
+                for (int x = tile_x; x < tile_x + 8; ++x) {
+                    const Vec3f origin = centre + side * Vec3f((float(x) + 0.5f) / float(size) - 0.5f, 0.0f,
+                                                               (float(y) + 0.5f) / float(size) - 0.5f);
+                    Ray ray{origin, light - origin, 0.0f, 1.0f - 1e-4f};
+                    if (invalid_every > 0 && rays.size() % static_cast<std::size_t>(invalid_every) == 0)
+                        ray.direction.x = std::numeric_limits<float>::quiet_NaN();
+                    rays.push_back(ray);
+                }
+            }
+        }
+    }
+    return rays;
+}
+
 // Random rays that start behind their origin (tnear < 0), some with a finite tfar.
 std::vector<Ray> backward_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed) {
     std::vector<Ray> rays = testing::random_rays(bounds, count, seed).rays;
@@ -337,7 +363,8 @@ class InstancedBatches : public ::testing::TestWithParam<Case> {};
 // (groups of 64 rays walking the top level together were measured: docs/accel/instances.md). The scene has
 // identical instances (ties), the rays every kind the oracle test traces and more: coherent rays from near
 // and from far (tiles of them walk the top level as packets, with clipped intervals and invalid rays among
-// them), rays behind their origins, random and grazing ones, invalid ones among them.
+// them), shadow rays towards one light (culled from their ends), rays behind their origins, random and
+// grazing ones, invalid ones among them.
 TEST_P(InstancedBatches, EveryRayAnswersAsItsOwnWalk) {
     Fixture fixture = random_fixture(41, 30);
     for (std::size_t i = 0; i < 6; ++i) {
@@ -351,6 +378,7 @@ TEST_P(InstancedBatches, EveryRayAnswersAsItsOwnWalk) {
     for (const std::vector<Ray>& set :
          {far_view_rays(bounds, 48), tiled_view_rays(bounds, 48, 2.5f, 0.0f, kInfinity, 0),
           tiled_view_rays(bounds, 48, 2.5f, 0.4f, 2.5f, 0), tiled_view_rays(bounds, 48, 0.0f, -1.0f, 1.0f, 9),
+          shadow_rays_to_a_light(bounds, 48, 0), shadow_rays_to_a_light(bounds, 48, 7),
           testing::random_rays(bounds, 1500, 42).rays, testing::axis_parallel_rays(bounds, 300, 43).rays,
           testing::clipped_rays(bounds, 300, 44).rays, testing::hostile_rays(bounds).rays,
           inside_and_grazing_rays(fixture, flat, 600, 45).rays, backward_rays(bounds, 300, 46)})
