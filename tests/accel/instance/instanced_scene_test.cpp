@@ -264,48 +264,19 @@ TEST(InstancedScene, EveryStructureServesAsAnObject) {
     EXPECT_GE(structures, 10u);
 }
 
-// Rays from far beyond the scene aimed at it on a grid, 8x8 tiles of them consecutive as the bench's primary
-// rays: coherent rays whose origins the walk moves near each object (each its own way).
-std::vector<Ray> far_view_rays(const Box3f& bounds, int size) {
-    const Vec3f centre = bounds.center();
-    const float side = max_component(bounds.extent());
-    const Vec3f eye = centre + Vec3f(0.3f, 0.2f, 60.0f) * side;
+// Rays on a size x size grid in 8x8 tiles, each tile's 64 rays consecutive, as the bench's primary rays
+// (the packets the top level walks together: InstancedScene::Walk::walk_packet). make(u, v) gives the ray
+// of the grid point (u, v) in (-0.5, 0.5)^2; every `invalid_every`-th ray (0: none) then gets a NaN
+// direction, so that a packet holds invalid rays among valid ones.
+template <class Make>
+std::vector<Ray> tiled_rays(int size, int invalid_every, Make&& make) {
     std::vector<Ray> rays;
     for (int tile_y = 0; tile_y < size; tile_y += 8) {
         for (int tile_x = 0; tile_x < size; tile_x += 8) {
             for (int y = tile_y; y < tile_y + 8; ++y) {
                 for (int x = tile_x; x < tile_x + 8; ++x) {
-                    const Vec3f target = centre + side * Vec3f((float(x) + 0.5f) / float(size) - 0.5f,
-                                                               (float(y) + 0.5f) / float(size) - 0.5f, 0.0f);
-                    rays.push_back({eye, target - eye, 0.0f, kInfinity});
-                }
-            }
-        }
-    }
-    return rays;
-}
-
-// Rays from an eye within the scene's reach (not moved by ray conditioning) in 8x8 tiles of consecutive
-// rays, the packets the top level walks together (InstancedScene::Walk::walk_packet), towards a plane
-// through the scene's centre, or half a side below it when the eye is inside the scene (`eye_z`: the eye's
-// height over the centre, in the scene's largest side). `tnear` and `tfar` are each ray's interval (t = 1
-// at the plane); every `invalid_every`-th ray (0: none) gets a NaN direction, so that a packet holds invalid
-// rays among valid ones.
-std::vector<Ray> tiled_view_rays(const Box3f& bounds, int size, float eye_z, float tnear, float tfar,
-                                 int invalid_every) {
-    const Vec3f centre = bounds.center();
-    const float side = max_component(bounds.extent());
-    const Vec3f eye = centre + Vec3f(0.3f, 0.2f, eye_z) * side;
-    const float plane_z = eye_z > 0.5f ? 0.0f : -0.5f;
-    std::vector<Ray> rays;
-    for (int tile_y = 0; tile_y < size; tile_y += 8) {
-        for (int tile_x = 0; tile_x < size; tile_x += 8) {
-            for (int y = tile_y; y < tile_y + 8; ++y) {
-                for (int x = tile_x; x < tile_x + 8; ++x) {
-                    const Vec3f target =
-                        centre + side * Vec3f((float(x) + 0.5f) / float(size) - 0.5f,
-                                              (float(y) + 0.5f) / float(size) - 0.5f, plane_z);
-                    Ray ray{eye, target - eye, tnear, tfar};
+                    Ray ray =
+                        make((float(x) + 0.5f) / float(size) - 0.5f, (float(y) + 0.5f) / float(size) - 0.5f);
                     if (invalid_every > 0 && rays.size() % static_cast<std::size_t>(invalid_every) == 0)
                         ray.direction.y = std::numeric_limits<float>::quiet_NaN();
                     rays.push_back(ray);
@@ -316,30 +287,42 @@ std::vector<Ray> tiled_view_rays(const Box3f& bounds, int size, float eye_z, flo
     return rays;
 }
 
+// Rays from far beyond the scene aimed at it: coherent rays whose origins the walk moves near each object
+// (each its own way).
+std::vector<Ray> far_view_rays(const Box3f& bounds, int size) {
+    const Vec3f centre = bounds.center();
+    const float side = max_component(bounds.extent());
+    const Vec3f eye = centre + Vec3f(0.3f, 0.2f, 60.0f) * side;
+    return tiled_rays(size, 0, [&](float u, float v) {
+        return Ray{eye, centre + side * Vec3f(u, v, 0.0f) - eye, 0.0f, kInfinity};
+    });
+}
+
+// Rays from an eye within the scene's reach (not moved by ray conditioning) towards a plane through the
+// scene's centre, or half a side below it when the eye is inside the scene (`eye_z`: the eye's height over
+// the centre, in the scene's largest side). `tnear` and `tfar` are each ray's interval (t = 1 at the plane).
+std::vector<Ray> tiled_view_rays(const Box3f& bounds, int size, float eye_z, float tnear, float tfar,
+                                 int invalid_every) {
+    const Vec3f centre = bounds.center();
+    const float side = max_component(bounds.extent());
+    const Vec3f eye = centre + Vec3f(0.3f, 0.2f, eye_z) * side;
+    const float plane_z = eye_z > 0.5f ? 0.0f : -0.5f;
+    return tiled_rays(size, invalid_every, [&](float u, float v) {
+        return Ray{eye, centre + side * Vec3f(u, v, plane_z) - eye, tnear, tfar};
+    });
+}
+
 // Shadow rays towards one point light above the scene, as the shadow view makes them (direction L - o,
-// [0, 1 - 1e-4]), from a grid of points across the scene's middle in 8x8 tiles of consecutive rays: their
-// origins lie far apart and their ends together, so a tile's occlusion rays walk the top level culled from
-// their ends. Every `invalid_every`-th ray (0: none) gets a NaN direction.
+// [0, 1 - 1e-4]), from points across the scene's middle: their origins lie far apart and their ends
+// together, so a tile's occlusion rays walk the top level culled from their ends.
 std::vector<Ray> shadow_rays_to_a_light(const Box3f& bounds, int size, int invalid_every) {
     const Vec3f centre = bounds.center();
     const float side = max_component(bounds.extent());
     const Vec3f light = centre + Vec3f(0.5f, 2.0f, 1.5f) * side;
-    std::vector<Ray> rays;
-    for (int tile_y = 0; tile_y < size; tile_y += 8) {
-        for (int tile_x = 0; tile_x < size; tile_x += 8) {
-            for (int y = tile_y; y < tile_y + 8; ++y) {
-                for (int x = tile_x; x < tile_x + 8; ++x) {
-                    const Vec3f origin = centre + side * Vec3f((float(x) + 0.5f) / float(size) - 0.5f, 0.0f,
-                                                               (float(y) + 0.5f) / float(size) - 0.5f);
-                    Ray ray{origin, light - origin, 0.0f, 1.0f - 1e-4f};
-                    if (invalid_every > 0 && rays.size() % static_cast<std::size_t>(invalid_every) == 0)
-                        ray.direction.x = std::numeric_limits<float>::quiet_NaN();
-                    rays.push_back(ray);
-                }
-            }
-        }
-    }
-    return rays;
+    return tiled_rays(size, invalid_every, [&](float u, float v) {
+        const Vec3f origin = centre + side * Vec3f(u, 0.0f, v);
+        return Ray{origin, light - origin, 0.0f, 1.0f - 1e-4f};
+    });
 }
 
 // Random rays that start behind their origin (tnear < 0), some with a finite tfar.
