@@ -140,8 +140,8 @@ class InstancedScene::Walk {
 
     // Each conditioned ray walked once: answers[i] the closest hit (InstanceHit) or whether the ray is
     // occluded (std::uint8_t, kAnyHit). Invalid rays miss. Consecutive rays that start together (a camera
-    // tile) walk the top level as a packet; any other ray walks alone. Either way a ray gets its own walk's
-    // answer.
+    // tile), or occlusion rays that end together (shadow rays towards one light), walk the top level as a
+    // packet; any other ray walks alone. Either way a ray gets its own walk's answer.
     template <bool kAnyHit, class Answer>
     void each(std::span<const Ray> traced, std::span<Answer> answers, TraversalCounters* counters) const {
         const auto trace = [&]<bool kCount>() {
