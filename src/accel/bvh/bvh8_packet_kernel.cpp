@@ -84,7 +84,8 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
                 if (stack_size == 0) return;
                 const StackEntry popped = stack[--stack_size];
                 if (popped.entry > tlimit_max_) continue;
-                rays = box_groups<Ops>(packet_, interval_, *popped.parent, popped.slot, popped.rays & alive_);
+                rays = box_groups<Ops>(packet_, interval_.near_side, *popped.parent, popped.slot,
+                                       popped.rays & alive_);
                 if (rays == 0) continue;
                 const std::uint32_t prim_count = popped.parent->prim_count[popped.slot];
                 const std::uint32_t child = popped.parent->child[popped.slot];

@@ -1,11 +1,14 @@
-// The interval cull of a packet of rays against 8 boxes at once: bvh8_packet's node and leaf culls
-// (bvh8_packet_node_test.hpp, bvh8_packet_leaf_tests.hpp) and the instances' top level for packets of rays
-// that start together (accel/instance/top_level_walk.hpp). In the instruction set's namespace
-// (core/isa_namespace.hpp): the packet kernel's source is compiled once per instruction set.
+// A packet of rays against a wide node: the interval cull of the whole packet against 8 boxes at once, then
+// each ray's own slab test against one child. bvh8_packet's node and leaf culls (bvh8_packet_kernel.cpp,
+// bvh8_packet_leaf_tests.hpp) and the instances' top level (accel/instance/top_level_walk.hpp) share them.
+// In the instruction set's namespace (core/isa_namespace.hpp): the packet kernel's source is compiled once
+// per instruction set.
 #pragma once
 
 #include <array>
+#include <bit>
 #include <cstddef>
+#include <cstdint>
 
 #include "accel/bvh/bvh_wide.hpp"
 #include "accel/simd_float.hpp"
@@ -81,6 +84,40 @@ using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per l
             bounds[side][axis] = Ops::load(node.bounds[side][axis]);
     }
     return cull_boxes(bounds, packet, tlimit_max, entry);
+}
+
+// The packet's `rays` (bit i: ray i) whose own slab test meets child `slot` of `node` within [tnear,
+// tlimit], a group of Ops::kWidth rays per instruction. `packet` holds the rays one array per coordinate:
+// origin[3][], inv_direction[3][], tnear[] and tlimit[]. Every ray's reciprocal direction is finite and has
+// the packet's sign on each axis (`near_side`), so no plane distance is NaN and the near face is the same
+// for all: the operations are those of the single-ray walk's intersect_children (clip_slab), lane for lane.
+template <class Ops, class PacketArrays>
+[[nodiscard]] inline std::uint64_t box_groups(const PacketArrays& packet, const std::array<int, 3>& near_side,
+                                              const WideBvhNode<8>& node, int slot, std::uint64_t rays) {
+    constexpr int lanes = Ops::kWidth;
+    constexpr std::uint64_t kGroup = (std::uint64_t{1} << lanes) - 1;
+    typename Ops::Float near_bound[3], far_bound[3];
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+        const int side = near_side[axis];
+        near_bound[axis] = Ops::broadcast(node.bounds[side][axis][slot]);
+        far_bound[axis] = Ops::broadcast(node.bounds[1 - side][axis][slot]);
+    }
+    std::uint64_t result = 0;
+    // The groups with rays alone: where triangles are small beside the packet (the dragon), most children
+    // are met by one group's rays.
+    for (std::uint64_t rest = rays; rest != 0;) {
+        const int first = std::countr_zero(rest) & -lanes;
+        const std::uint64_t group = (rest >> first) & kGroup;
+        rest &= ~(kGroup << first);
+        auto t0 = Ops::load(&packet.tnear[first]);
+        auto t1 = Ops::load(&packet.tlimit[first]);
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            clip_slab<Ops>(near_bound[axis], far_bound[axis], Ops::load(&packet.origin[axis][first]),
+                           Ops::load(&packet.inv_direction[axis][first]), t0, t1);
+        }
+        result |= (static_cast<std::uint64_t>(Ops::bits(Ops::less_equal(t0, t1))) & group) << first;
+    }
+    return result;
 }
 
 }  // namespace LANCER_ISA_NAMESPACE

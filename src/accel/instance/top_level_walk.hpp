@@ -186,13 +186,13 @@ class InstancedScene::Walk {
 #if defined(__AVX2__)
     // A packet's rays, one array per coordinate so that a group of 8 loads in one instruction, and their
     // bounds as intervals for the cull. Lanes past the packet's rays, and invalid rays, have tnear = +inf
-    // and limit = -inf, which no box test passes.
+    // and tlimit = -inf, which no box test passes.
     struct Packet {
         alignas(32) float origin[3][kPacketRays];
         alignas(32) float inv_direction[3][kPacketRays];
         alignas(32) float tnear[kPacketRays];
-        alignas(32) float limit[kPacketRays];  // tfar, or the closest hit so far: the walk's box test limit
-        std::array<int, 3> near_side;          // the face each ray enters a box by (TopNode::kLo or kHi)
+        alignas(32) float tlimit[kPacketRays];  // tfar, or the closest hit so far: the walk's box test limit
+        std::array<int, 3> near_side;           // the face each ray enters a box by (TopNode::kLo or kHi)
         // The cull's rays: the packet's own, or (from_ends) the packet seen from its rays' ends, which the
         // cull takes up to ends_limit.
         PacketInterval interval;
@@ -209,8 +209,8 @@ class InstancedScene::Walk {
     // once: incoherent batches (diffuse bounces) pay a few rays' tests.
     template <bool kAnyHit>
     [[nodiscard]] bool load(std::span<const Ray> rays, Packet& packet) const {
-        Bounds origins, ends, reciprocals;
-        std::array<float, 3> reach{};  // the largest |tfar d| of each axis
+        Box3f origins, ends, reciprocals;
+        Vec3f reach;  // the largest |tfar d| on each axis
         float tnear_min = kInfinity, length = 0.0f;
         bool forward_and_finite = true;  // every valid ray has tnear >= 0 and a finite end
         int signs = -1;                  // bit a: the valid rays' direction is negative on axis a
@@ -219,7 +219,7 @@ class InstancedScene::Walk {
             if (i >= rays.size() || !top_level::is_valid_ray(rays[i])) {
                 for (std::size_t axis = 0; axis < 3; ++axis)
                     packet.origin[axis][i] = 0.0f, packet.inv_direction[axis][i] = 1.0f;
-                packet.tnear[i] = kInfinity, packet.limit[i] = -kInfinity;
+                packet.tnear[i] = kInfinity, packet.tlimit[i] = -kInfinity;
                 continue;
             }
             const Ray& ray = rays[i];
@@ -229,61 +229,44 @@ class InstancedScene::Walk {
             if (signs < 0) signs = ray_signs;
             if (ray_signs != signs) return false;
             const SlabRay slab(ray);
+            if (!(max_component(abs(slab.inv_direction)) < kInfinity)) return false;
             for (std::size_t axis = 0; axis < 3; ++axis) {
-                const auto a = static_cast<int>(axis);
-                if (!(std::fabs(slab.inv_direction[a]) < kInfinity)) return false;
-                packet.origin[axis][i] = slab.origin[a];
-                packet.inv_direction[axis][i] = slab.inv_direction[a];
-                origins.extend(axis, slab.origin[a]);
-                reciprocals.extend(axis, slab.inv_direction[a]);
-                if constexpr (kAnyHit) {
-                    const float along = ray.tfar * ray.direction[a];
-                    ends.extend(axis, ray.origin[a] + along);
-                    reach[axis] = std::max(reach[axis], std::fabs(along));
-                }
+                packet.origin[axis][i] = slab.origin[static_cast<int>(axis)];
+                packet.inv_direction[axis][i] = slab.inv_direction[static_cast<int>(axis)];
             }
+            origins.extend(slab.origin), reciprocals.extend(slab.inv_direction);
             if constexpr (kAnyHit) {
-                forward_and_finite = forward_and_finite && ray.tnear >= 0.0f && ends.finite();
+                const Vec3f along = ray.direction * ray.tfar;
+                const Vec3f end = ray.origin + along;
+                forward_and_finite =
+                    forward_and_finite && ray.tnear >= 0.0f && max_component(abs(end)) < kInfinity;
+                ends.extend(end), reach = max(reach, abs(along));
                 length = std::max(length, ray.tfar - ray.tnear);
             }
-            const bool ends_together = kAnyHit && forward_and_finite && ends.width() <= coherent_width_;
-            if (origins.width() > coherent_width_ && !ends_together) return false;
-            packet.tnear[i] = ray.tnear, packet.limit[i] = ray.tfar;
+            const bool ends_together =
+                kAnyHit && forward_and_finite && max_component(ends.extent()) <= coherent_width_;
+            if (max_component(origins.extent()) > coherent_width_ && !ends_together) return false;
+            packet.tnear[i] = ray.tnear, packet.tlimit[i] = ray.tfar;
             tnear_min = std::min(tnear_min, ray.tnear);
             packet.valid |= RayMask{1} << i;
         }
         if (packet.valid == 0) return false;
         for (std::size_t axis = 0; axis < 3; ++axis)
             packet.near_side[axis] = (signs >> axis) & 1 ? TopNode::kHi : TopNode::kLo;
-        packet.from_ends = origins.width() > coherent_width_;
+        packet.from_ends = max_component(origins.extent()) > coherent_width_;
         if (packet.from_ends) {
             ends_interval(packet, ends, reciprocals, reach, length);
             return true;
         }
         packet.interval.near_side = packet.near_side;
         for (std::size_t axis = 0; axis < 3; ++axis) {
-            packet.interval.set_axis(axis, origins.lo[axis], origins.hi[axis], reciprocals.lo[axis],
-                                     reciprocals.hi[axis]);
+            const auto a = static_cast<int>(axis);
+            packet.interval.set_axis(axis, origins.lo[a], origins.hi[a], reciprocals.lo[a],
+                                     reciprocals.hi[a]);
         }
         packet.interval.tnear_min = tnear_min;
         return true;
     }
-
-    // A box of floats on three axes, grown one coordinate at a time.
-    struct Bounds {
-        std::array<float, 3> lo{kInfinity, kInfinity, kInfinity}, hi{-kInfinity, -kInfinity, -kInfinity};
-
-        void extend(std::size_t axis, float value) {
-            lo[axis] = std::min(lo[axis], value), hi[axis] = std::max(hi[axis], value);
-        }
-        // The largest extent; NaN or infinite (never within a width) when a coordinate is not finite.
-        [[nodiscard]] float width() const { return std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]}); }
-        [[nodiscard]] bool finite() const {
-            return std::fabs(lo[0]) < kInfinity && std::fabs(lo[1]) < kInfinity &&
-                   std::fabs(lo[2]) < kInfinity && std::fabs(hi[0]) < kInfinity &&
-                   std::fabs(hi[1]) < kInfinity && std::fabs(hi[2]) < kInfinity;
-        }
-    };
 
     // The cull of occlusion rays that end together, from their ends: reversed, each ray starts at its end
     // o + tfar d and goes along -d, and its interval [tnear, tfar] becomes [0, tfar - tnear], so the packet
@@ -292,53 +275,28 @@ class InstancedScene::Walk {
     // roundings scale with (the ends, the reach |tfar d| and the scene's coordinates): far above the ends'
     // rounding, the distance by which a ray's own forward slab test may pass a box that its exact segment
     // misses, and the reversed test's rounding, a few 2^-24 of them each. A box some ray's own test passes
-    // is therefore never culled. Each ray's box tests and visits stay forward (rays_meeting, visit).
-    void ends_interval(Packet& packet, const Bounds& ends, const Bounds& reciprocals,
-                       const std::array<float, 3>& reach, float length) const {
+    // is therefore never culled. Each ray's box tests and visits stay forward (box_groups, visit).
+    void ends_interval(Packet& packet, const Box3f& ends, const Box3f& reciprocals, const Vec3f& reach,
+                       float length) const {
         constexpr float kMargin = 0x1p-16f;
         for (std::size_t axis = 0; axis < 3; ++axis) {
+            const auto a = static_cast<int>(axis);
             const float magnitude =
-                reach[axis] + std::max(std::fabs(ends.lo[axis]), std::fabs(ends.hi[axis])) + scene_magnitude_;
+                reach[a] + std::max(std::fabs(ends.lo[a]), std::fabs(ends.hi[a])) + scene_magnitude_;
             const float margin = kMargin * magnitude;
             packet.interval.near_side[axis] = 1 - packet.near_side[axis];
-            packet.interval.set_axis(axis, ends.lo[axis] - margin, ends.hi[axis] + margin,
-                                     -reciprocals.hi[axis], -reciprocals.lo[axis]);
+            packet.interval.set_axis(axis, ends.lo[a] - margin, ends.hi[a] + margin, -reciprocals.hi[a],
+                                     -reciprocals.lo[a]);
         }
         packet.interval.tnear_min = 0.0f;
         packet.ends_limit = length * (1.0f + kMargin);
-    }
-
-    // The packet's `rays` whose own box test meets child `slot` of `node` within [tnear, limit]: walk_from's
-    // test (clip_slab, which its kForward form decides alike for tnear >= 0), 8 rays per instruction.
-    [[nodiscard]] static RayMask rays_meeting(const Packet& packet, const TopNode& node, int slot,
-                                              RayMask rays) {
-        using Ops = simd::Avx2;
-        constexpr int kLanes = Ops::kWidth;
-        constexpr RayMask kGroup = (RayMask{1} << kLanes) - 1;
-        Ops::Float near_bound[3], far_bound[3];
-        for (std::size_t axis = 0; axis < 3; ++axis) {
-            const int side = packet.near_side[axis];
-            near_bound[axis] = Ops::broadcast(node.bounds[side][axis][slot]);
-            far_bound[axis] = Ops::broadcast(node.bounds[1 - side][axis][slot]);
-        }
-        RayMask met = 0;
-        for (RayMask rest = rays; rest != 0;) {
-            const int first = std::countr_zero(rest) & -kLanes;
-            rest &= ~(kGroup << first);
-            auto t0 = Ops::load(&packet.tnear[first]), t1 = Ops::load(&packet.limit[first]);
-            for (std::size_t axis = 0; axis < 3; ++axis)
-                clip_slab<Ops>(near_bound[axis], far_bound[axis], Ops::load(&packet.origin[axis][first]),
-                               Ops::load(&packet.inv_direction[axis][first]), t0, t1);
-            met |= static_cast<RayMask>(Ops::bits(Ops::less_equal(t0, t1))) << first;
-        }
-        return met & rays;
     }
 
     // The largest box test limit of the `alive` rays: where the cull stops.
     [[nodiscard]] static float largest_limit(const Packet& packet, RayMask alive) {
         float largest = -kInfinity;
         for (RayMask rest = alive; rest != 0; rest &= rest - 1)
-            largest = std::max(largest, packet.limit[std::countr_zero(rest)]);
+            largest = std::max(largest, packet.tlimit[std::countr_zero(rest)]);
         return largest;
     }
 
@@ -358,6 +316,7 @@ class InstancedScene::Walk {
             RayMask rays;
         };
         std::array<InstanceHit, kPacketRays> best{};
+        if constexpr (kAnyHit) std::fill(answers.begin(), answers.end(), Answer{});
         RayMask alive = packet.valid;
         TraversalCounters object_counts;
         TraversalCounters* object_counters = kCount ? &object_counts : nullptr;
@@ -381,7 +340,9 @@ class InstancedScene::Walk {
             while (node == nullptr && stack_size > 0) {
                 const StackEntry popped = stack[static_cast<std::size_t>(--stack_size)];
                 if (popped.entry > limit_max) continue;
-                const RayMask met = rays_meeting(packet, *popped.parent, popped.slot, popped.rays & alive);
+                // Each ray's own test, walk_from's (its kForward form decides alike for tnear >= 0).
+                const RayMask met = box_groups<simd::Avx2>(packet, packet.near_side, *popped.parent,
+                                                           popped.slot, popped.rays & alive);
                 if (met == 0) continue;
                 const std::uint32_t child = popped.parent->child[popped.slot];
                 if (popped.parent->prim_count[popped.slot] == 0) {
@@ -400,7 +361,7 @@ class InstancedScene::Walk {
                     } else {
                         InstanceHit& hit = best[static_cast<std::size_t>(i)];
                         visit<false>(child, ray, hit, object_counters);
-                        packet.limit[i] = hit.hit() ? hit.t : ray.tfar;
+                        packet.tlimit[i] = hit.hit() ? hit.t : ray.tfar;
                     }
                 }
                 if constexpr (kAnyHit) {
@@ -410,13 +371,7 @@ class InstancedScene::Walk {
                 }
             }
         }
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            if constexpr (kAnyHit) {
-                if (((alive >> i) & 1u) != 0 || ((packet.valid >> i) & 1u) == 0) answers[i] = 0;
-            } else {
-                answers[i] = best[i];
-            }
-        }
+        if constexpr (!kAnyHit) std::copy_n(best.begin(), rays.size(), answers.begin());
         if constexpr (kCount) {
             counts.nodes_visited += object_counts.nodes_visited;
             counts.prims_tested += object_counts.prims_tested;
