@@ -65,6 +65,11 @@ struct BinBox {
     // Box3f::surface_area in the same fp32 operations, (xy + yz) + zx, without leaving the registers.
     [[nodiscard]] float area() const {
         if (empty()) return 0.0f;
+        return filled_area();
+    }
+    // area() of a box known to bound something, without the check: the sweeps' boxes, which each hold a
+    // reference at least, and the bins', whose empty ones are never weighed (their count is zero).
+    [[nodiscard]] float filled_area() const {
         const __m128 e = _mm_sub_ps(hi, lo);
         const __m128 products = _mm_mul_ps(e, _mm_shuffle_ps(e, e, _MM_SHUFFLE(3, 0, 2, 1)));
         const __m128 sum = _mm_add_ss(_mm_add_ss(products, _mm_shuffle_ps(products, products, 1)),
@@ -115,6 +120,9 @@ struct BinBox {
         return bounds.empty();
     }
     [[nodiscard]] float area() const {
+        return bounds.surface_area();
+    }
+    [[nodiscard]] float filled_area() const {
         return bounds.surface_area();
     }
     [[nodiscard]] Box3f box() const {

@@ -45,8 +45,10 @@ struct BinnedBuilder::Bins {
 struct BinnedBuilder::BinMap {
     Vec3f origin, scale;
     int bins;
+    float last_bin;
 
-    BinMap(const Box3f& centroids, int bin_count) : origin(centroids.lo), bins(bin_count) {
+    BinMap(const Box3f& centroids, int bin_count)
+        : origin(centroids.lo), bins(bin_count), last_bin(static_cast<float>(bin_count - 1)) {
         for (int axis = 0; axis < 3; ++axis) {
             const float extent = centroids.hi[axis] - centroids.lo[axis];
             scale[axis] = extent > 0.0f ? static_cast<float>(bin_count) / extent : 0.0f;
@@ -54,7 +56,10 @@ struct BinnedBuilder::BinMap {
     }
     [[nodiscard]] int bin(Vec3f centroid, int axis) const {
         const float scaled = (centroid[axis] - origin[axis]) * scale[axis];
-        return std::clamp(static_cast<int>(scaled), 0, bins - 1);
+        // Clamped before the conversion, in two float instructions, so that no converted value is out of
+        // range. The scale is infinite only for extents below bins * 2^-128; a centroid at the origin then
+        // scales to NaN, which std::max(0, NaN) makes 0.
+        return static_cast<int>(std::min(last_bin, std::max(0.0f, scaled)));
     }
 };
 
@@ -93,24 +98,19 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t primitives) {
 }
 
 // The two-pointer partition by the split's bin, as pair_partition makes it (in parallel over large nodes),
-// which accumulates both sides' boxes and centroid bounds on the way: the children's NodeBounds without
-// another pass over their references.
-std::tuple<std::size_t, BinnedBuilder::NodeBounds, BinnedBuilder::NodeBounds> BinnedBuilder::partition(
-    std::size_t begin, std::size_t end, const BinMap& map, const Split& split) {
-    // Each side's boxes and centroids.
-    struct SideBounds {
-        BinBox left_boxes = BinBox::none(), right_boxes = BinBox::none();
-        BinBox left_centroids = BinBox::none(), right_centroids = BinBox::none();
+// which accumulates both sides' centroid bounds on the way. Their boxes need no pass: each side's is the
+// union of its bins' boxes on the split's axis (ObjectSplit), since partition and binning put every
+// reference on the same side of the split's bin.
+std::tuple<std::size_t, Box3f, Box3f> BinnedBuilder::partition(std::size_t begin, std::size_t end,
+                                                               const BinMap& map, const Split& split) {
+    struct SideCentroids {
+        BinBox left = BinBox::none(), right = BinBox::none();
 
-        bool add(const BuildRef& ref, bool left) {
-            BinBox::extend_either(left_boxes, right_boxes, BinBox::of(ref), left);
-            BinBox::extend_either(left_centroids, right_centroids, BinBox::of_point(ref.centroid), left);
-            return left;
+        bool add(const BuildRef& ref, bool goes_left) {
+            BinBox::extend_either(left, right, BinBox::of_point(ref.centroid), goes_left);
+            return goes_left;
         }
-        void merge(const SideBounds& other) {
-            left_boxes.extend(other.left_boxes), right_boxes.extend(other.right_boxes);
-            left_centroids.extend(other.left_centroids), right_centroids.extend(other.right_centroids);
-        }
+        void merge(const SideCentroids& other) { left.extend(other.left), right.extend(other.right); }
     };
     // The map and the split's bin as locals (the scratch's stores could alias the split's int), and the axis
     // a constant in each of the three loops: the same bins as map.bin, with fewer loads per reference.
@@ -119,7 +119,7 @@ std::tuple<std::size_t, BinnedBuilder::NodeBounds, BinnedBuilder::NodeBounds> Bi
     const std::size_t count = end - begin;
     BuildRef* const refs = refs_.data() + begin;
     std::uint32_t* const scratch = partition_scratch_.get() + begin;
-    SideBounds sides;
+    SideCentroids sides;
     std::size_t middle = 0;
     with_axis(split.axis, [&](auto axis) {
         auto goes_left = [&](const BuildRef& ref) { return local_map.bin(ref.centroid, axis) < split_bin; };
@@ -130,18 +130,16 @@ std::tuple<std::size_t, BinnedBuilder::NodeBounds, BinnedBuilder::NodeBounds> Bi
                 [&](std::size_t /*block*/, const BuildRef& ref) { return sides.add(ref, goes_left(ref)); });
             return;
         }
-        std::vector<SideBounds> per_block((count + kBinningChunk - 1) / kBinningChunk);
+        std::vector<SideCentroids> per_block((count + kBinningChunk - 1) / kBinningChunk);
         middle =
             pair_partition(refs, count, kBinningChunk, scratch, [&](std::size_t block, const BuildRef& ref) {
                 return per_block[block].add(ref, goes_left(ref));
             });
         // Merged in block order: the same bits whatever the threads.
-        for (const SideBounds& block : per_block)
+        for (const SideCentroids& block : per_block)
             sides.merge(block);
     });
-    return {begin + middle,
-            {sides.left_boxes.box(), sides.left_centroids.box()},
-            {sides.right_boxes.box(), sides.right_centroids.box()}};
+    return {begin + middle, sides.left.box(), sides.right.box()};
 }
 
 BinnedBuilder::NodeBounds BinnedBuilder::bounds_of(std::size_t begin, std::size_t end) const {
@@ -167,13 +165,16 @@ void BinnedBuilder::bin(std::size_t begin, std::size_t end, const BinMap& map, c
     std::array<bool, 3> splittable{};
     for (int axis = 0; axis < 3; ++axis)
         splittable[static_cast<std::size_t>(axis)] = centroids.hi[axis] > centroids.lo[axis];
+    // The map as a local, as in partition: the bins' stores cannot alias it, so its fields stay in registers.
+    const BinMap local_map = map;
+    const BuildRef* const refs = refs_.data();
     auto fill = [&](std::size_t from, std::size_t to, Bins& into) {
         for (std::size_t i = from; i < to; ++i) {
-            const BuildRef& ref = refs_[i];
+            const BuildRef& ref = refs[i];
             const BinBox box = BinBox::of(ref);
             for (std::size_t axis = 0; axis < 3; ++axis) {
                 if (!splittable[axis]) continue;
-                const auto b = static_cast<std::size_t>(map.bin(ref.centroid, static_cast<int>(axis)));
+                const auto b = static_cast<std::size_t>(local_map.bin(ref.centroid, static_cast<int>(axis)));
                 into.boxes[axis][b].extend(box);
                 ++into.counts[axis][b];
             }
@@ -210,7 +211,9 @@ BinnedBuilder::ObjectSplit BinnedBuilder::best_split(std::size_t begin, std::siz
         for (int b = map.bins - 1; b > 0; --b) {
             right.extend(boxes[static_cast<std::size_t>(b)]);
             right_count += counts[static_cast<std::size_t>(b)];
-            right_costs[static_cast<std::size_t>(b)] = right.area() * static_cast<float>(right_count);
+            // filled_area: a side without references (an infinite area) is never weighed, as the loop
+            // below skips the splits that leave a side empty.
+            right_costs[static_cast<std::size_t>(b)] = right.filled_area() * static_cast<float>(right_count);
         }
         BinBox left = BinBox::none();
         std::uint32_t left_count = 0;
@@ -218,13 +221,13 @@ BinnedBuilder::ObjectSplit BinnedBuilder::best_split(std::size_t begin, std::siz
             left.extend(boxes[static_cast<std::size_t>(b - 1)]);
             left_count += counts[static_cast<std::size_t>(b - 1)];
             if (left_count == 0 || left_count == end - begin) continue;
-            const float cost =
-                left.area() * static_cast<float>(left_count) + right_costs[static_cast<std::size_t>(b)];
+            const float cost = left.filled_area() * static_cast<float>(left_count) +
+                               right_costs[static_cast<std::size_t>(b)];
             if (cost < best.cost) best = {axis, cost, left_count, b};
         }
     }
     ObjectSplit object{best, {}, {}};
-    if (spatial_splits_ && best.axis >= 0) {
+    if (best.axis >= 0) {
         BinBox left = BinBox::none(), right = BinBox::none();
         for (int b = 0; b < map.bins; ++b)
             (b < best.bin ? left : right).extend(bins.boxes[static_cast<std::size_t>(best.axis)][b]);
@@ -263,7 +266,7 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t slot, const RefRange& ra
     }
     std::optional<Children> children;
     if (spatial_is_better) children = spatial_partition(range, bounds, spatial);
-    if (!children) children = object_partition(range, object.split, map, centroids);
+    if (!children) children = object_partition(range, object, map, centroids);
     const auto [first, second] = slots.set_inner(slot, bounds, children->axis, children->left.capacity());
     if (count > kParallelSubtree) {
         // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
@@ -282,13 +285,16 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t slot, const RefRange& ra
 
 // The object split's children: the binned partition, or an object median when nothing separates the
 // centroids.
-BinnedBuilder::Children BinnedBuilder::object_partition(const RefRange& range, Split split, const BinMap& map,
-                                                        const Box3f& centroids) {
+BinnedBuilder::Children BinnedBuilder::object_partition(const RefRange& range, const ObjectSplit& object,
+                                                        const BinMap& map, const Box3f& centroids) {
     const std::size_t begin = range.begin, end = range.end, count = range.size();
+    Split split = object.split;
     Children children;
     std::size_t middle;
     if (split.axis >= 0) {
-        std::tie(middle, children.left_bounds, children.right_bounds) = partition(begin, end, map, split);
+        std::tie(middle, children.left_bounds.second, children.right_bounds.second) =
+            partition(begin, end, map, split);
+        children.left_bounds.first = object.left_bounds, children.right_bounds.first = object.right_bounds;
     } else {
         split = {max_axis(centroids.extent()), 0.0f, count / 2, 0};
         const int median_axis = split.axis;

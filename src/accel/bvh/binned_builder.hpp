@@ -80,7 +80,8 @@ class BinnedBuilder {
     struct Bins;
     struct BinMap;
 
-    // An object split and its children's boxes, whose overlap decides whether a spatial split is tried.
+    // An object split and its children's boxes: the union of each side's bins, whose overlap decides whether
+    // a spatial split is tried, and which its children take as their bounds.
     struct ObjectSplit {
         Split split;
         Box3f left_bounds, right_bounds;
@@ -108,9 +109,11 @@ class BinnedBuilder {
     void bin(std::size_t begin, std::size_t end, const BinMap& map, const Box3f& centroids, Bins& bins) const;
     [[nodiscard]] ObjectSplit best_split(std::size_t begin, std::size_t end, const BinMap& map,
                                          const Box3f& centroids) const;
-    std::tuple<std::size_t, NodeBounds, NodeBounds> partition(std::size_t begin, std::size_t end,
-                                                              const BinMap& map, const Split& split);
-    Children object_partition(const RefRange& range, Split split, const BinMap& map, const Box3f& centroids);
+    // The left child's end and both children's centroid bounds.
+    std::tuple<std::size_t, Box3f, Box3f> partition(std::size_t begin, std::size_t end, const BinMap& map,
+                                                    const Split& split);
+    Children object_partition(const RefRange& range, const ObjectSplit& object, const BinMap& map,
+                              const Box3f& centroids);
 
     // Spatial splits (spatial_splits.cpp).
     [[nodiscard]] bool worth_a_spatial_split(const RefRange& range, const Box3f& bounds,

@@ -20,7 +20,8 @@ struct SmallSubtree::NodeRefs {
     std::size_t first;
 
     [[nodiscard]] static BinBox empty_box() { return BinBox::none(); }
-    [[nodiscard]] static float area(const BinBox& box) { return box.area(); }
+    // The sweep's boxes each hold a reference at least.
+    [[nodiscard]] static float area(const BinBox& box) { return box.filled_area(); }
     [[nodiscard]] Index* order(int axis) const {
         return subtree.orders_[static_cast<std::size_t>(axis)].data() + first;
     }
