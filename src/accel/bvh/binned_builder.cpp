@@ -17,6 +17,10 @@
 #include "accel/bvh/small_subtree.hpp"
 #include "core/parallel.hpp"
 
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
 namespace lancer {
 
 // Per axis, each bin's box and reference count; the first bins_ entries are used.
@@ -54,12 +58,22 @@ struct BinnedBuilder::BinMap {
             scale[axis] = extent > 0.0f ? static_cast<float>(bin_count) / extent : 0.0f;
         }
     }
-    [[nodiscard]] int bin(Vec3f centroid, int axis) const {
+    // (centroid - origin) * scale on the axis, clamped to the bins before the conversion, so that no
+    // converted value is out of range. The scale is infinite only for extents below bins * 2^-128; a centroid
+    // at the origin then scales to NaN, which the clamp's first comparison makes 0.
+    [[nodiscard]] std::ptrdiff_t bin(Vec3f centroid, int axis) const {
+#if defined(__SSE2__) && defined(__x86_64__)
+        // In scalar SSE: GCC compiles the comparisons below to compares and blends (for their NaN and
+        // signed-zero cases), where maxss and minss give the same.
+        const __m128 scaled = _mm_mul_ss(_mm_sub_ss(_mm_set_ss(centroid[axis]), _mm_set_ss(origin[axis])),
+                                         _mm_set_ss(scale[axis]));
+        const __m128 at_least_0 = _mm_max_ss(scaled, _mm_setzero_ps());
+        return _mm_cvttss_si64(_mm_min_ss(at_least_0, _mm_set_ss(last_bin)));
+#else
         const float scaled = (centroid[axis] - origin[axis]) * scale[axis];
-        // Clamped before the conversion, in two float instructions, so that no converted value is out of
-        // range. The scale is infinite only for extents below bins * 2^-128; a centroid at the origin then
-        // scales to NaN, which std::max(0, NaN) makes 0.
-        return static_cast<int>(std::min(last_bin, std::max(0.0f, scaled)));
+        const float at_least_0 = scaled > 0.0f ? scaled : 0.0f;
+        return static_cast<std::ptrdiff_t>(at_least_0 < last_bin ? at_least_0 : last_bin);
+#endif
     }
 };
 
@@ -115,7 +129,7 @@ std::tuple<std::size_t, Box3f, Box3f> BinnedBuilder::partition(std::size_t begin
     // The map and the split's bin as locals (the scratch's stores could alias the split's int), and the axis
     // a constant in each of the three loops: the same bins as map.bin, with fewer loads per reference.
     const BinMap local_map = map;
-    const int split_bin = split.bin;
+    const std::ptrdiff_t split_bin = split.bin;
     const std::size_t count = end - begin;
     BuildRef* const refs = refs_.data() + begin;
     std::uint32_t* const scratch = partition_scratch_.get() + begin;
@@ -160,11 +174,9 @@ BinnedBuilder::NodeBounds BinnedBuilder::bounds_of(std::size_t begin, std::size_
 
 // Fills `bins` (made empty by the caller). An out parameter, not a returned value: GCC does not elide
 // the copy of a returned Bins (27 KB, every node) from a function with two returns.
-void BinnedBuilder::bin(std::size_t begin, std::size_t end, const BinMap& map, const Box3f& centroids,
-                        Bins& bins) const {
-    std::array<bool, 3> splittable{};
-    for (int axis = 0; axis < 3; ++axis)
-        splittable[static_cast<std::size_t>(axis)] = centroids.hi[axis] > centroids.lo[axis];
+// Every axis is binned, without a branch: an axis whose centroids have no extent (which best_split skips)
+// scales to 0, so its references all fall in bin 0.
+void BinnedBuilder::bin(std::size_t begin, std::size_t end, const BinMap& map, Bins& bins) const {
     // The map as a local, as in partition: the bins' stores cannot alias it, so its fields stay in registers.
     const BinMap local_map = map;
     const BuildRef* const refs = refs_.data();
@@ -173,7 +185,6 @@ void BinnedBuilder::bin(std::size_t begin, std::size_t end, const BinMap& map, c
             const BuildRef& ref = refs[i];
             const BinBox box = BinBox::of(ref);
             for (std::size_t axis = 0; axis < 3; ++axis) {
-                if (!splittable[axis]) continue;
                 const auto b = static_cast<std::size_t>(local_map.bin(ref.centroid, static_cast<int>(axis)));
                 into.boxes[axis][b].extend(box);
                 ++into.counts[axis][b];
@@ -199,7 +210,7 @@ void BinnedBuilder::bin(std::size_t begin, std::size_t end, const BinMap& map, c
 BinnedBuilder::ObjectSplit BinnedBuilder::best_split(std::size_t begin, std::size_t end, const BinMap& map,
                                                      const Box3f& centroids) const {
     Bins bins(map.bins);
-    bin(begin, end, map, centroids, bins);
+    bin(begin, end, map, bins);
     Split best;
     std::array<float, kMaxBins> right_costs;
     for (int axis = 0; axis < 3; ++axis) {

@@ -106,7 +106,7 @@ class BinnedBuilder {
     void build(NodeSlots& slots, std::size_t slot, const RefRange& range, int depth, const NodeBounds& node);
 
     [[nodiscard]] NodeBounds bounds_of(std::size_t begin, std::size_t end) const;
-    void bin(std::size_t begin, std::size_t end, const BinMap& map, const Box3f& centroids, Bins& bins) const;
+    void bin(std::size_t begin, std::size_t end, const BinMap& map, Bins& bins) const;
     [[nodiscard]] ObjectSplit best_split(std::size_t begin, std::size_t end, const BinMap& map,
                                          const Box3f& centroids) const;
     // The left child's end and both children's centroid bounds.
