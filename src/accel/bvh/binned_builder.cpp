@@ -103,7 +103,7 @@ BinnedBuilder::BinnedBuilder(BuildRefs& refs, const Geometry& geometry, const Bv
       whole_leaf_size_(whole_leaf_size),
       bins_(std::clamp(options.bins, 2, kMaxBins)),
       spatial_splits_(options.spatial_splits),
-      partition_scratch_(uninitialised_huge_pages<std::uint32_t>(refs.size())) {}
+      per_position_(uninitialised_huge_pages<std::uint32_t>(refs.size())) {}
 
 void BinnedBuilder::build(NodeSlots& slots, std::size_t primitives) {
     const NodeBounds root = bounds_of(0, primitives);
@@ -132,7 +132,7 @@ std::tuple<std::size_t, Box3f, Box3f> BinnedBuilder::partition(std::size_t begin
     const std::ptrdiff_t split_bin = split.bin;
     const std::size_t count = end - begin;
     BuildRef* const refs = refs_.data() + begin;
-    std::uint32_t* const scratch = partition_scratch_.get() + begin;
+    std::uint32_t* const scratch = per_position_.get() + begin;
     SideCentroids sides;
     std::size_t middle = 0;
     with_axis(split.axis, [&](auto axis) {
@@ -252,7 +252,7 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t slot, const RefRange& ra
     const auto& [bounds, centroids] = node;
     const std::size_t count = range.size();
     if (count <= whole_leaf_size_) {
-        slots.set_leaf(slot, bounds, range.begin, count);
+        set_leaf(slots, slot, bounds, range);
         return;
     }
     if (count <= kExactSplitBelow) {
@@ -260,6 +260,9 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t slot, const RefRange& ra
         // chopped binning would cost the most per reference, for the least gain (docs/accel/bvh.md,
         // "Spatial splits": half the bunny's build time, for at most 0.5% of the SAH cost).
         SmallSubtree(refs_, max_leaf_, whole_leaf_size_, slots, range).build(slot, range, depth, bounds);
+        // The subtree's leaves lie in its range's positions, its free ones included (its children share
+        // them): all are recorded, those of no leaf never read.
+        record_leaf_primitives(range.begin, range.capacity_end);
         return;
     }
     const BinMap map(centroids, bins_);
@@ -272,7 +275,7 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t slot, const RefRange& ra
     const bool spatial_is_better = spatial.split.cost < object.split.cost;
     if (stays_leaf(count, bounds.surface_area(), spatial_is_better ? spatial.split : object.split,
                    max_leaf_)) {
-        slots.set_leaf(slot, bounds, range.begin, count);
+        set_leaf(slots, slot, bounds, range);
         return;
     }
     std::optional<Children> children;
@@ -292,6 +295,16 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t slot, const RefRange& ra
     }
     build(slots, first, children->left, depth + 1, children->left_bounds);
     build(slots, second, children->right, depth + 1, children->right_bounds);
+}
+
+void BinnedBuilder::set_leaf(NodeSlots& slots, std::size_t slot, const Box3f& bounds, const RefRange& range) {
+    slots.set_leaf(slot, bounds, range.begin, range.size());
+    record_leaf_primitives(range.begin, range.end);
+}
+
+void BinnedBuilder::record_leaf_primitives(std::size_t begin, std::size_t end) {
+    for (std::size_t position = begin; position < end; ++position)
+        per_position_[position] = refs_[position].prim;
 }
 
 // The object split's children: the binned partition, or an object median when nothing separates the
@@ -335,7 +348,7 @@ BvhBuildResult build_binned_sah(BuildRefs& refs, std::size_t primitives, const G
     NodeSlots slots(refs.size());
     BinnedBuilder builder(refs, geometry, options, whole_leaf_size);
     builder.build(slots, primitives);
-    return slots.compact([&](std::size_t i) { return refs[i].prim; });
+    return slots.compact([&](std::size_t i) { return builder.leaf_primitive(i); });
 }
 
 }  // namespace lancer

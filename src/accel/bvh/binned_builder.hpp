@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <tuple>
 #include <utility>
@@ -62,6 +63,9 @@ class BinnedBuilder {
 
     void build(NodeSlots& slots, std::size_t primitives);
 
+    // After build: the primitive of the reference at `position`, which a leaf holds.
+    [[nodiscard]] std::uint32_t leaf_primitive(std::size_t position) const { return per_position_[position]; }
+
     // Nodes of more references bin them in parallel.
     static constexpr std::size_t kParallelBinning = 65536;
     // References per task of the parallel binning.
@@ -105,6 +109,9 @@ class BinnedBuilder {
     // The node over refs_[range.begin, range.end), whose reference boxes and centroids `node` bounds.
     void build(NodeSlots& slots, std::size_t slot, const RefRange& range, int depth, const NodeBounds& node);
 
+    // A leaf over refs_[range.begin, range.end), its primitives recorded for leaf_primitive.
+    void set_leaf(NodeSlots& slots, std::size_t slot, const Box3f& bounds, const RefRange& range);
+    void record_leaf_primitives(std::size_t begin, std::size_t end);
     [[nodiscard]] NodeBounds bounds_of(std::size_t begin, std::size_t end) const;
     void bin(std::size_t begin, std::size_t end, const BinMap& map, Bins& bins) const;
     [[nodiscard]] ObjectSplit best_split(std::size_t begin, std::size_t end, const BinMap& map,
@@ -129,8 +136,10 @@ class BinnedBuilder {
     int bins_;
     bool spatial_splits_;
     float min_overlap_area_ = 0.0f;
-    // pair_partition's scratch, one entry per reference position: a node's partition uses its own range.
-    HugePageBuffer<std::uint32_t> partition_scratch_;
+    // One entry per reference position: pair_partition's scratch while the position's node is split (a
+    // node's partition uses its own range), then, once a leaf holds the position, its reference's primitive,
+    // which compact() reads instead of the 40-byte references (the positions of no leaf are never read).
+    HugePageBuffer<std::uint32_t> per_position_;
 };
 
 }  // namespace lancer
