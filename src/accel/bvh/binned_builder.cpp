@@ -281,7 +281,7 @@ void BinnedBuilder::build(NodeSlots& slots, std::size_t slot, const RefRange& ra
     std::optional<Children> children;
     if (spatial_is_better) children = spatial_partition(range, bounds, spatial);
     if (!children) children = object_partition(range, object, map, centroids);
-    const auto [first, second] = slots.set_inner(slot, bounds, children->axis, children->left.capacity());
+    const auto [first, second] = slots.set_inner(slot, bounds, children->axis);
     if (count > kParallelSubtree) {
         // Init-captures: clang before 16 cannot capture structured bindings (the fuzz build uses clang).
         parallel::invoke(

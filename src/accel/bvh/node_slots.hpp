@@ -2,143 +2,94 @@
 // that does not depend on the thread count (docs/accel/parallel-build.md).
 #pragma once
 
-#include <algorithm>
-#include <bit>
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
-#include <numeric>
 #include <utility>
 #include <vector>
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
 #include "core/huge_pages.hpp"
-#include "core/parallel.hpp"
 
 namespace lancer {
 
-// Node slots: a subtree that may hold up to n references has at most 2n - 1 nodes, so a node in slot i
-// whose first child may hold n_first references puts that child in slot i + 1 and its second in slot
-// i + 2 n_first. Without spatial splits n is the subtree's reference count; with them, its capacity
-// (RefRange, binned_builder.hpp). Subtrees built in parallel write disjoint slots, and compact() renumbers
-// the used slots depth first: the layout does not depend on which task finished first.
+// Node slots: slot 0 is the root, and an inner node's two children take the next free pair of slots, handed
+// out by an atomic counter as subtrees build in parallel. The slots are therefore dense (a tree of n nodes
+// touches n slots), in an order that depends on the threads' timing; compact() writes the nodes depth
+// first from the root, which does not. A tree over n references has at most 2n - 1 nodes.
 class NodeSlots {
   public:
-    explicit NodeSlots(std::size_t capacity)
-        : slots_(uninitialised_huge_pages<BvhNode>(2 * capacity - 1)), used_(2 * capacity - 1, 0) {}
+    explicit NodeSlots(std::size_t capacity) : slots_(uninitialised_huge_pages<BvhNode>(2 * capacity - 1)) {}
 
     void set_leaf(std::size_t slot, const Box3f& bounds, std::size_t first, std::size_t count) {
         BvhNode& node = *std::construct_at(&slots_[slot]);
         node.lo = bounds.lo, node.hi = bounds.hi;
         node.offset = static_cast<std::uint32_t>(first);
         node.prim_count = static_cast<std::uint16_t>(count);
-        used_[slot] = static_cast<std::uint8_t>(kLeafUse + count);
+        references_.fetch_add(count, std::memory_order_relaxed);
     }
     // Returns the slots of the two children.
-    std::pair<std::size_t, std::size_t> set_inner(std::size_t slot, const Box3f& bounds, int axis,
-                                                  std::size_t first_child_capacity) {
+    std::pair<std::size_t, std::size_t> set_inner(std::size_t slot, const Box3f& bounds, int axis) {
+        const std::size_t first = next_.fetch_add(2, std::memory_order_relaxed);
         BvhNode& node = *std::construct_at(&slots_[slot]);
         node.lo = bounds.lo, node.hi = bounds.hi;
         node.axis = static_cast<std::uint8_t>(axis);
-        node.offset = static_cast<std::uint32_t>(slot + 2 * first_child_capacity);
-        used_[slot] = kInnerUse;
-        return {slot + 1, node.offset};
+        node.offset = static_cast<std::uint32_t>(first);  // the first child's slot, until compact()
+        return {first, first + 1};
     }
 
     // The nodes depth first, each box grown by the scene's geometric tolerance (docs/numerical-contract.md,
     // "Boxes"), and the leaves' primitives in the same order: `prim_at(i)` is the primitive of the reference
     // at position i, which the leaves' offsets index until they are renumbered here (a spatial split build
-    // leaves unused positions between its leaves).
-    //
-    // Depth first order is slot order: a node's first child and its subtree fill the slots below its
-    // second child's. So the used slots in increasing order are the nodes depth first, and a used slot's
-    // node index is the number of used slots before it: its rank among them, read from one bit per slot
-    // and the count before each 64 (0.3 MB for the dragon's 1.7 million slots, against 7 MB for an index per
-    // slot). Blocks of slots are compacted in parallel, each from the counts of nodes
-    // and references in the blocks before it: the same arrays whatever the threads.
+    // leaves unused positions between its leaves). Every slot handed out holds a node, so the tree has
+    // next_ nodes; an inner node's offset becomes its second child's index once the first child's subtree
+    // is written.
     template <class PrimAt>
     [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at) const {
-        const std::size_t slot_count = used_.size();
-        const std::size_t blocks = (slot_count + kCompactBlock - 1) / kCompactBlock;
-        const std::size_t words = (slot_count + 63) / 64;
-        // Bit i of used_bits[w]: whether slot 64 w + i is used; nodes_before_word[w]: the used slots before
-        // slot 64 w.
-        std::vector<std::uint64_t> used_bits(words);
-        std::vector<std::uint32_t> nodes_before_word(words);
-        // Per block, the nodes and references of the blocks before it (prefix sums of each block's).
-        std::vector<std::size_t> nodes_before(blocks + 1, 0), refs_before(blocks + 1, 0);
-        parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
-            // From used_ alone: the used slots lie scattered over the slots' array (56 MB for the dragon),
-            // which the second pass reads.
-            std::size_t nodes = 0, refs = 0;
-            for (std::size_t word = from / 64; word * 64 < to; ++word) {
-                std::uint64_t bits = 0;
-                const std::size_t last = std::min(to, word * 64 + 64);
-                for (std::size_t slot = word * 64; slot < last; ++slot) {
-                    const std::uint8_t use = used_[slot];
-                    bits |= std::uint64_t{use != 0} << (slot - word * 64);
-                    refs += use >= kLeafUse ? use - kLeafUse : 0u;
-                }
-                used_bits[word] = bits;
-                nodes_before_word[word] = static_cast<std::uint32_t>(nodes);  // within the block, for now
-                nodes += static_cast<std::size_t>(std::popcount(bits));
-            }
-            nodes_before[from / kCompactBlock + 1] = nodes, refs_before[from / kCompactBlock + 1] = refs;
-        });
-        std::partial_sum(nodes_before.begin(), nodes_before.end(), nodes_before.begin());
-        std::partial_sum(refs_before.begin(), refs_before.end(), refs_before.begin());
-        parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
-            for (std::size_t word = from / 64; word * 64 < to; ++word)
-                nodes_before_word[word] += static_cast<std::uint32_t>(nodes_before[from / kCompactBlock]);
-        });
-        const auto node_index = [&](std::size_t slot) {
-            const std::uint64_t below = (std::uint64_t{1} << (slot % 64)) - 1;
-            return nodes_before_word[slot / 64] +
-                   static_cast<std::uint32_t>(std::popcount(used_bits[slot / 64] & below));
-        };
-
+        const std::size_t node_count = next_.load(std::memory_order_relaxed);
         BvhBuildResult result;
-        reserve_huge_pages(result.nodes, nodes_before.back());
-        result.nodes.resize(nodes_before.back());
-        reserve_huge_pages(result.prim_indices, refs_before.back());
-        result.prim_indices.resize(refs_before.back());
+        reserve_huge_pages(result.nodes, node_count);
+        result.nodes.resize(node_count);
+        reserve_huge_pages(result.prim_indices, references_.load(std::memory_order_relaxed));
         const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
-        parallel::for_each_block(slot_count, kCompactBlock, [&](std::size_t from, std::size_t to) {
-            std::size_t next_node = nodes_before[from / kCompactBlock];
-            std::size_t ref_index = refs_before[from / kCompactBlock];
-            for (std::size_t slot = from; slot < to; ++slot) {
-                if (used_[slot] == 0) continue;
-                BvhNode node = slots_[slot];
-                node.lo -= margin, node.hi += margin;
-                if (node.is_leaf()) {
-                    for (std::uint32_t i = 0; i < node.prim_count; ++i)
-                        result.prim_indices[ref_index + i] = prim_at(node.offset + i);
-                    node.offset = static_cast<std::uint32_t>(ref_index);
-                    ref_index += node.prim_count;
-                } else {
-                    node.offset = node_index(node.offset);  // the second child's slot, renumbered
-                }
-                result.nodes[next_node++] = node;
+        // Pending subtrees: a slot, and the written inner node whose offset its index becomes (the second
+        // children), or none.
+        struct Pending {
+            std::size_t slot;
+            std::size_t parent;
+        };
+        constexpr std::size_t kNone = ~std::size_t{0};
+        std::vector<Pending> stack{{0, kNone}};
+        std::size_t written = 0;
+        while (!stack.empty()) {
+            const Pending pending = stack.back();
+            stack.pop_back();
+            if (pending.parent != kNone)
+                result.nodes[pending.parent].offset = static_cast<std::uint32_t>(written);
+            BvhNode node = slots_[pending.slot];
+            node.lo -= margin, node.hi += margin;
+            if (node.is_leaf()) {
+                const std::size_t first = result.prim_indices.size();
+                for (std::uint32_t i = 0; i < node.prim_count; ++i)
+                    result.prim_indices.push_back(prim_at(node.offset + i));
+                node.offset = static_cast<std::uint32_t>(first);
+            } else {
+                stack.push_back({node.offset + std::size_t{1}, written});
+                stack.push_back({node.offset, kNone});
             }
-        });
+            result.nodes[written++] = node;
+        }
         return result;
     }
 
   private:
-    // Slots per task of compact().
-    static constexpr std::size_t kCompactBlock = std::size_t{1} << 16;
-    // A block's words of used_bits are its own: its tasks write them.
-    static_assert(kCompactBlock % 64 == 0);
-    // used_ per slot: 0 unused, kInnerUse an inner node, kLeafUse + its reference count a leaf.
-    static constexpr std::uint8_t kInnerUse = 1, kLeafUse = 2;
-    static_assert(kLeafUse + BvhAccel::kMaxLeafSize <= 255);
-
-    // The slots are allocated, not initialised (2n - 1 of them, about twice the nodes a tree uses): a node is
-    // constructed in its slot when set, and compact() reads only the nodes reached from the root. In whole
-    // huge pages, as compact()'s node indices: both are made and dropped on every build.
+    // The slots are allocated, not initialised (2n - 1 of them): a node is constructed in its slot when set,
+    // and only the slots handed out are touched, in whole huge pages.
     HugePageBuffer<BvhNode> slots_;
-    std::vector<std::uint8_t> used_;
+    std::atomic<std::size_t> next_{1};
+    std::atomic<std::size_t> references_{0};
 };
 
 }  // namespace lancer

@@ -94,7 +94,7 @@ void SmallSubtree::build(std::size_t slot, const RefRange& range, int depth, con
     partition_sweep_orders(node, count, split, on_left.data(), right_scratch.data());
     const std::size_t left_count = split.left_count, right_count = count - left_count;
     const auto [left, right] = share_free_positions(range, left_count, right_count);
-    const auto [first_slot, second_slot] = slots_.set_inner(slot, bounds, split.axis, left.capacity());
+    const auto [first_slot, second_slot] = slots_.set_inner(slot, bounds, split.axis);
     build(first_slot, left, depth + 1, left_bounds, first, split.axis);
     build(second_slot, right, depth + 1, right_bounds, first + left_count, split.axis);
 }

@@ -64,7 +64,7 @@ class SweepBuilder {
         if (median) {
             sweep.left_bounds = bounds_of(begin, middle), sweep.right_bounds = bounds_of(middle, end);
         }
-        const auto [first, second] = slots.set_inner(slot, bounds, split.axis, split.left_count);
+        const auto [first, second] = slots.set_inner(slot, bounds, split.axis);
         build(slots, first, begin, middle, depth + 1, sweep.left_bounds);
         build(slots, second, middle, end, depth + 1, sweep.right_bounds);
     }
