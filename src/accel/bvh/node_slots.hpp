@@ -12,6 +12,7 @@
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
 #include "core/huge_pages.hpp"
+#include "core/parallel.hpp"
 
 namespace lancer {
 
@@ -44,47 +45,122 @@ class NodeSlots {
     // "Boxes"), and the leaves' primitives in the same order: `prim_at(i)` is the primitive of the reference
     // at position i, which the leaves' offsets index until they are renumbered here (a spatial split build
     // leaves unused positions between its leaves). Every slot handed out holds a node, so the tree has
-    // next_ nodes; an inner node's offset becomes its second child's index once the first child's subtree
-    // is written.
+    // next_ nodes. The subtrees below depth kSplitDepth are counted, then written, in parallel, each where
+    // the counts of those before it (depth first) place it; the nodes above them are written in between.
     template <class PrimAt>
     [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at) const {
-        const std::size_t node_count = next_.load(std::memory_order_relaxed);
         BvhBuildResult result;
-        reserve_huge_pages(result.nodes, node_count);
-        result.nodes.resize(node_count);
+        reserve_huge_pages(result.nodes, next_.load(std::memory_order_relaxed));
+        result.nodes.resize(next_.load(std::memory_order_relaxed));
         reserve_huge_pages(result.prim_indices, references_.load(std::memory_order_relaxed));
+        result.prim_indices.resize(references_.load(std::memory_order_relaxed));
         const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
-        // Pending subtrees: a slot, and the written inner node whose offset its index becomes (the second
-        // children), or none.
-        struct Pending {
-            std::size_t slot;
-            std::size_t parent;
-        };
-        constexpr std::size_t kNone = ~std::size_t{0};
-        std::vector<Pending> stack{{0, kNone}};
-        std::size_t written = 0;
-        while (!stack.empty()) {
-            const Pending pending = stack.back();
-            stack.pop_back();
-            if (pending.parent != kNone)
-                result.nodes[pending.parent].offset = static_cast<std::uint32_t>(written);
-            BvhNode node = slots_[pending.slot];
-            node.lo -= margin, node.hi += margin;
-            if (node.is_leaf()) {
-                const std::size_t first = result.prim_indices.size();
-                for (std::uint32_t i = 0; i < node.prim_count; ++i)
-                    result.prim_indices.push_back(prim_at(node.offset + i));
-                node.offset = static_cast<std::uint32_t>(first);
-            } else {
-                stack.push_back({node.offset + std::size_t{1}, written});
-                stack.push_back({node.offset, kNone});
-            }
-            result.nodes[written++] = node;
-        }
+        std::vector<Subtree> subtrees;
+        collect_subtrees(0, 0, subtrees);
+        parallel::for_each_index(0, subtrees.size(), [&](std::size_t i) { count(subtrees[i]); });
+        Placement placement;
+        place_top(0, 0, margin, subtrees, placement, result);
+        parallel::for_each_index(0, subtrees.size(),
+                                 [&](std::size_t i) { write(subtrees[i], margin, prim_at, result); });
         return result;
     }
 
   private:
+    // Depth below which compact() splits the tree into subtrees: up to 2^6, for the threads to share.
+    static constexpr int kSplitDepth = 6;
+    static constexpr std::size_t kNoParent = ~std::size_t{0};
+
+    // A subtree compact() writes whole: its root's slot, its nodes and leaf references, and where they go.
+    struct Subtree {
+        std::size_t slot;
+        std::size_t nodes = 0, refs = 0;
+        std::size_t first_node = 0, first_ref = 0;
+    };
+
+    // Where compact() writes next: a node, a leaf reference, and the next subtree in depth-first order.
+    struct Placement {
+        std::size_t node = 0, ref = 0, subtree = 0;
+    };
+
+    // The subtree under `slot`, at `depth`, is split at kSplitDepth: its nodes there and its leaves above
+    // are the subtrees, depth first.
+    [[nodiscard]] static bool is_subtree(const BvhNode& node, int depth) {
+        return depth == kSplitDepth || node.is_leaf();
+    }
+    void collect_subtrees(std::size_t slot, int depth, std::vector<Subtree>& subtrees) const {
+        const BvhNode& node = slots_[slot];
+        if (is_subtree(node, depth)) {
+            subtrees.push_back({slot});
+            return;
+        }
+        collect_subtrees(node.offset, depth + 1, subtrees);
+        collect_subtrees(node.offset + std::size_t{1}, depth + 1, subtrees);
+    }
+    // The nodes above the subtrees, depth first as collect_subtrees walks them, each subtree given its
+    // place from the counts of those before it; an inner node's offset is its second child's index.
+    void place_top(std::size_t slot, int depth, const Vec3f& margin, std::vector<Subtree>& subtrees,
+                   Placement& at, BvhBuildResult& result) const {
+        const BvhNode& node = slots_[slot];
+        if (is_subtree(node, depth)) {
+            Subtree& placed = subtrees[at.subtree++];
+            placed.first_node = at.node, placed.first_ref = at.ref;
+            at.node += placed.nodes, at.ref += placed.refs;
+            return;
+        }
+        const std::size_t index = at.node++;
+        BvhNode& written = result.nodes[index];
+        written = node;
+        written.lo -= margin, written.hi += margin;
+        place_top(node.offset, depth + 1, margin, subtrees, at, result);
+        written.offset = static_cast<std::uint32_t>(at.node);
+        place_top(node.offset + std::size_t{1}, depth + 1, margin, subtrees, at, result);
+    }
+
+    void count(Subtree& subtree) const {
+        std::vector<std::size_t> stack{subtree.slot};
+        while (!stack.empty()) {
+            const BvhNode& node = slots_[stack.back()];
+            stack.pop_back();
+            ++subtree.nodes;
+            if (node.is_leaf()) {
+                subtree.refs += node.prim_count;
+            } else {
+                stack.push_back(node.offset + std::size_t{1});
+                stack.push_back(node.offset);
+            }
+        }
+    }
+
+    // The subtree depth first from its first_node and first_ref: an inner node's offset becomes its second
+    // child's index once the first child's subtree is written.
+    template <class PrimAt>
+    void write(const Subtree& subtree, const Vec3f& margin, PrimAt& prim_at, BvhBuildResult& result) const {
+        struct Pending {
+            std::size_t slot;
+            std::size_t parent;  // the written inner node whose second child this is, or kNoParent
+        };
+        std::vector<Pending> stack{{subtree.slot, kNoParent}};
+        std::size_t next_node = subtree.first_node, next_ref = subtree.first_ref;
+        while (!stack.empty()) {
+            const Pending pending = stack.back();
+            stack.pop_back();
+            if (pending.parent != kNoParent)
+                result.nodes[pending.parent].offset = static_cast<std::uint32_t>(next_node);
+            BvhNode node = slots_[pending.slot];
+            node.lo -= margin, node.hi += margin;
+            if (node.is_leaf()) {
+                for (std::uint32_t i = 0; i < node.prim_count; ++i)
+                    result.prim_indices[next_ref + i] = prim_at(node.offset + i);
+                node.offset = static_cast<std::uint32_t>(next_ref);
+                next_ref += node.prim_count;
+            } else {
+                stack.push_back({node.offset + std::size_t{1}, next_node});
+                stack.push_back({node.offset, kNoParent});
+            }
+            result.nodes[next_node++] = node;
+        }
+    }
+
     // The slots are allocated, not initialised (2n - 1 of them): a node is constructed in its slot when set,
     // and only the slots handed out are touched, in whole huge pages.
     HugePageBuffer<BvhNode> slots_;
