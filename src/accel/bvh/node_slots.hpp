@@ -82,8 +82,8 @@ class NodeSlots {
         std::size_t node = 0, ref = 0, subtree = 0;
     };
 
-    // The subtree under `slot`, at `depth`, is split at kSplitDepth: its nodes there and its leaves above
-    // are the subtrees, depth first.
+    // Whether a node at `depth` roots a subtree that compact() writes whole: the nodes at kSplitDepth, and
+    // the leaves above it. collect_subtrees lists those roots depth first.
     [[nodiscard]] static bool is_subtree(const BvhNode& node, int depth) {
         return depth == kSplitDepth || node.is_leaf();
     }
