@@ -29,7 +29,6 @@ class NodeSlots {
         node.lo = bounds.lo, node.hi = bounds.hi;
         node.offset = static_cast<std::uint32_t>(first);
         node.prim_count = static_cast<std::uint16_t>(count);
-        references_.fetch_add(count, std::memory_order_relaxed);
     }
     // Returns the slots of the two children.
     std::pair<std::size_t, std::size_t> set_inner(std::size_t slot, const Box3f& bounds, int axis) {
@@ -52,12 +51,16 @@ class NodeSlots {
         BvhBuildResult result;
         reserve_huge_pages(result.nodes, next_.load(std::memory_order_relaxed));
         result.nodes.resize(next_.load(std::memory_order_relaxed));
-        reserve_huge_pages(result.prim_indices, references_.load(std::memory_order_relaxed));
-        result.prim_indices.resize(references_.load(std::memory_order_relaxed));
         const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
         std::vector<Subtree> subtrees;
         collect_subtrees(0, 0, subtrees);
         parallel::for_each_index(0, subtrees.size(), [&](std::size_t i) { count(subtrees[i]); });
+        // Every leaf lies in a subtree.
+        std::size_t references = 0;
+        for (const Subtree& subtree : subtrees)
+            references += subtree.refs;
+        reserve_huge_pages(result.prim_indices, references);
+        result.prim_indices.resize(references);
         Placement placement;
         place_top(0, 0, margin, subtrees, placement, result);
         parallel::for_each_index(0, subtrees.size(),
@@ -165,7 +168,6 @@ class NodeSlots {
     // and only the slots handed out are touched, in whole huge pages.
     HugePageBuffer<BvhNode> slots_;
     std::atomic<std::size_t> next_{1};
-    std::atomic<std::size_t> references_{0};
 };
 
 }  // namespace lancer
