@@ -223,7 +223,7 @@ BENCHMARK(BM_PluckerLeafStep)->Name("step/plucker_leaf_to_leaf");
 // on random (inner node, ray) pairs.
 void BM_BvhInnerStep(benchmark::State& state) {
     const Walks& scene = walks();
-    const std::vector<BvhNode>& nodes = scene.bvh.nodes();
+    const HugePageVector<BvhNode>& nodes = scene.bvh.nodes();
     std::vector<std::uint32_t> inner;
     for (std::uint32_t n = 0; n < nodes.size(); ++n) {
         if (!nodes[n].is_leaf()) inner.push_back(n);

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "lancer/box.hpp"
+#include "lancer/huge_pages.hpp"
 #include "lancer/transform.hpp"
 #include "lancer/vec.hpp"
 
@@ -189,7 +190,7 @@ class SceneGeometry {
     // Writes mesh `mesh_index`'s triangles at their position and takes their box.
     void flatten(std::size_t mesh_index, const TriangleMesh& mesh);
 
-    std::vector<Triangle> triangles_;
+    HugePageVector<Triangle> triangles_;
     std::vector<Sphere> spheres_;
     std::vector<std::size_t> mesh_first_triangle_;  // prefix offsets, one per mesh plus the total
     std::vector<Box3f> mesh_bounds_;                // the box of each mesh's triangles

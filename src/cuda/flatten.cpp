@@ -21,8 +21,8 @@ void set_child_box(AilaLaineNode& node, int child, const Box3f& box) {
 FlatBvh flatten_bvh(const BvhAccel& bvh, const Geometry& geometry) {
     if (!geometry.spheres.empty())
         throw std::invalid_argument("cuda: the GPU kernels trace triangles only; the scene has spheres");
-    const std::vector<BvhNode>& nodes = bvh.nodes();
-    const std::vector<std::uint32_t>& prim_indices = bvh.prim_indices();
+    const HugePageVector<BvhNode>& nodes = bvh.nodes();
+    const auto& prim_indices = bvh.prim_indices();
     if (prim_indices.size() >= kMaxTriangleReferences)
         throw std::invalid_argument("cuda: more than 2^25 triangle references for the GPU BVH");
     FlatBvh flat;

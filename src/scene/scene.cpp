@@ -8,8 +8,8 @@
 #include <type_traits>
 
 #include "core/checked_points.hpp"
-#include "core/huge_pages.hpp"
 #include "core/parallel.hpp"
+#include "lancer/huge_pages.hpp"
 #include "lancer/scene.hpp"
 
 namespace lancer {
@@ -159,8 +159,8 @@ void TriangleMesh::reserve(std::size_t vertex_count, std::size_t triangle_count)
 }
 
 SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
-    // The dragon's 31 MB: 7,600 page faults in 4 KiB pages (docs/accel/parallel-build.md, "Page faults").
-    reserve_huge_pages(triangles_, scene.triangle_count());
+    // In huge pages: the dragon's 31 MB made 7,600 page faults in 4 KiB pages (docs/accel/parallel-build.md,
+    // "Page faults").
     triangles_.resize(scene.triangle_count());
     mesh_first_triangle_.reserve(scene.meshes.size() + 1);
     mesh_bounds_.resize(scene.meshes.size());

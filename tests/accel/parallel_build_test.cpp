@@ -158,8 +158,8 @@ TEST(ParallelBuildArrays, GridCoarsenedPastItsBudgetIsTheSame) {
 }
 
 // The arrays themselves, where the classes show them: plain data, compared byte for byte.
-template <class T>
-void expect_same_bytes(const std::vector<T>& one, const std::vector<T>& many) {
+template <class T, class Allocator>
+void expect_same_bytes(const std::vector<T, Allocator>& one, const std::vector<T, Allocator>& many) {
     ASSERT_EQ(one.size(), many.size());
     EXPECT_EQ(std::memcmp(one.data(), many.data(), one.size() * sizeof(T)), 0);
 }

@@ -240,8 +240,8 @@ TEST(Update, TheSahWatchRebuildsPastItsThreshold) {
     }
 }
 
-template <class T>
-std::vector<unsigned char> bytes_of(const std::vector<T>& array) {
+template <class T, class Allocator>
+std::vector<unsigned char> bytes_of(const std::vector<T, Allocator>& array) {
     const auto* first = reinterpret_cast<const unsigned char*>(array.data());
     return {first, first + array.size() * sizeof(T)};
 }

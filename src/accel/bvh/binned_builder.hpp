@@ -11,7 +11,7 @@
 
 #include "accel/bvh/build_common.hpp"
 #include "accel/bvh/node_slots.hpp"
-#include "core/huge_pages.hpp"
+#include "lancer/huge_pages.hpp"
 
 namespace lancer {
 

@@ -9,8 +9,8 @@
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build_common.hpp"
-#include "core/huge_pages.hpp"
 #include "core/parallel.hpp"
+#include "lancer/huge_pages.hpp"
 
 namespace lancer {
 namespace {
@@ -65,7 +65,7 @@ BvhBuildResult build_bvh_over_boxes(std::span<const Box3f> boxes, std::span<cons
     return build_binned_sah(refs, refs.size(), Geometry{}, without_splits, 0);
 }
 
-double bvh_sah_cost(const std::vector<BvhNode>& nodes) {
+double bvh_sah_cost(const HugePageVector<BvhNode>& nodes) {
     if (nodes.empty()) return 0.0;
     const double root_area = nodes[0].bounds().surface_area();
     double weighted_area = 0.0;

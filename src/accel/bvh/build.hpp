@@ -11,8 +11,8 @@
 namespace lancer {
 
 struct BvhBuildResult {
-    std::vector<BvhNode> nodes;
-    std::vector<std::uint32_t> prim_indices;
+    HugePageVector<BvhNode> nodes;
+    HugePageVector<std::uint32_t> prim_indices;
 };
 
 // The unit costs of the SAH (MacDonald & Booth 1990) the builders minimise and the costs below report.
@@ -38,6 +38,6 @@ inline constexpr float kSahPrimitiveCost = 1.0f;
 // SAH cost of a built hierarchy, normalised by the root's area, with unit node and primitive costs:
 // sum over inner nodes of A(node) / A(root) + sum over leaves of A(leaf) / A(root) * primitives; a tree
 // whose root has no area costs its primitive references.
-[[nodiscard]] double bvh_sah_cost(const std::vector<BvhNode>& nodes);
+[[nodiscard]] double bvh_sah_cost(const HugePageVector<BvhNode>& nodes);
 
 }  // namespace lancer

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "accel/bvh/build.hpp"
-#include "core/huge_pages.hpp"
+#include "lancer/huge_pages.hpp"
 
 namespace lancer {
 

@@ -41,7 +41,7 @@ struct StackEntry {
 // node both children's boxes are tested; the nearer child is visited first and the farther one pushed with
 // its entry distance, so that a popped node is skipped when the closest hit so far lies before it.
 template <bool kAnyHit, bool kCount, class TriangleTestT>
-bool traverse(const std::vector<BvhNode>& nodes, const std::vector<std::uint32_t>& prim_indices,
+bool traverse(const HugePageVector<BvhNode>& nodes, const HugePageVector<std::uint32_t>& prim_indices,
               const Geometry& geometry, const PreparedRay<TriangleTestT>& prepared, Hit& best,
               TraversalCounters& counters) {
     if (nodes.empty()) return false;

@@ -10,6 +10,7 @@
 
 #include "accel/options.hpp"
 #include "accel/single_ray.hpp"
+#include "lancer/huge_pages.hpp"
 
 namespace lancer {
 
@@ -59,8 +60,8 @@ class BvhAccel final : public SingleRayAccel<BvhAccel> {
     [[nodiscard]] UpdateMethod update_method() const override;
 
     // The built hierarchy, for tests and for the structures derived from it (wide BVH, GPU).
-    [[nodiscard]] const std::vector<BvhNode>& nodes() const { return nodes_; }
-    [[nodiscard]] const std::vector<std::uint32_t>& prim_indices() const { return prim_indices_; }
+    [[nodiscard]] const HugePageVector<BvhNode>& nodes() const { return nodes_; }
+    [[nodiscard]] const HugePageVector<std::uint32_t>& prim_indices() const { return prim_indices_; }
 
     // Leaves never exceed this many primitives, and inner nodes never this depth (the traversal stack size).
     static constexpr int kMaxLeafSize = 64;
@@ -76,10 +77,11 @@ class BvhAccel final : public SingleRayAccel<BvhAccel> {
     template <bool kAnyHit, bool kCount, class TriangleTestT>
     bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;
 
-    std::vector<BvhNode> nodes_;
-    std::vector<std::uint32_t> prim_indices_;  // leaf ranges point here; entries are global primitive indices
-    double built_sah_cost_ = 0.0;              // the SAH cost as last built
-    double sah_ratio_ = 1.0;                   // the present SAH cost over built_sah_cost_
+    HugePageVector<BvhNode> nodes_;
+    // Leaf ranges point here; entries are global primitive indices.
+    HugePageVector<std::uint32_t> prim_indices_;
+    double built_sah_cost_ = 0.0;  // the SAH cost as last built
+    double sah_ratio_ = 1.0;       // the present SAH cost over built_sah_cost_
 };
 
 extern template class SingleRayAccel<BvhAccel>;

@@ -155,7 +155,7 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
         }
     }
 
-    const std::vector<Node>& nodes_;
+    const HugePageVector<Node>& nodes_;
 };
 
 // Cuts the batch into packets of consecutive rays. A packet whose rays go together (the same direction signs,

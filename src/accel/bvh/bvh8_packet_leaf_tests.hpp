@@ -411,7 +411,7 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
     }
 
   protected:
-    const std::vector<Block>& blocks_;
+    const HugePageVector<Block>& blocks_;
     const Geometry& geometry_;
 
   private:

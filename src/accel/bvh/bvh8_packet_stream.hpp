@@ -249,8 +249,8 @@ class RayStream {
         }
     }
 
-    const std::vector<Node>& nodes_;
-    const std::vector<Block>& blocks_;
+    const HugePageVector<Node>& nodes_;
+    const HugePageVector<Block>& blocks_;
     const Geometry& geometry_;
     alignas(32) float origin_[3][kCapacity];
     alignas(32) float inv_direction_[3][kCapacity];

@@ -132,8 +132,8 @@ class BvhPacketTraversal {
     // `answers` starts as misses; on return answers[i] is ray i's closest hit (Hit) or occlusion (uint8).
     template <bool kAnyHit, bool kCount, class Answer>
     void trace(std::span<Answer> answers, TraversalCounters& counts) {
-        const std::vector<BvhNode>& nodes = bvh_.nodes();
-        const std::vector<std::uint32_t>& prim_indices = bvh_.prim_indices();
+        const HugePageVector<BvhNode>& nodes = bvh_.nodes();
+        const HugePageVector<std::uint32_t>& prim_indices = bvh_.prim_indices();
         LaneMask alive = valid_;
         if (nodes.empty() || alive == 0) return;
         std::array<PacketStackEntry, BvhAccel::kMaxDepth + 1> stack;

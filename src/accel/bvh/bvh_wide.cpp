@@ -9,8 +9,8 @@
 #include "accel/bvh/collapse.hpp"
 #include "accel/bvh/refit.hpp"
 #include "accel/primitive_intersect.hpp"
-#include "core/huge_pages.hpp"
 #include "core/parallel.hpp"
+#include "lancer/huge_pages.hpp"
 
 namespace lancer {
 namespace {
@@ -26,7 +26,8 @@ struct SubtreeRange {
 };
 
 // Children follow their parent in the depth-first array, so one backward pass sees them first.
-HugePageVector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, std::uint32_t merge_limit) {
+HugePageVector<SubtreeRange> subtree_ranges(const HugePageVector<BvhNode>& binary,
+                                            std::uint32_t merge_limit) {
     HugePageVector<SubtreeRange> ranges(binary.size());
     for (std::size_t i = binary.size(); i-- > 0;) {
         const BvhNode& node = binary[i];
@@ -43,7 +44,7 @@ HugePageVector<SubtreeRange> subtree_ranges(const std::vector<BvhNode>& binary, 
 }
 
 struct CollapseInput {
-    const std::vector<BvhNode>& binary;
+    const HugePageVector<BvhNode>& binary;
     const HugePageVector<SubtreeRange>& ranges;
 };
 
@@ -60,9 +61,9 @@ struct LeafBlocks {
 // leaf's blocks are numbered from `blocks_used` on, in this depth-first order, and listed in `leaves`.
 template <int W>
 std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
-                       std::vector<WideBvhNode<W>>& wide, HugePageVector<LeafBlocks>& leaves,
+                       HugePageVector<WideBvhNode<W>>& wide, HugePageVector<LeafBlocks>& leaves,
                        std::uint32_t& blocks_used) {
-    const std::vector<BvhNode>& binary = input.binary;
+    const HugePageVector<BvhNode>& binary = input.binary;
     std::array<std::uint32_t, W> children{};
     const int child_count = collapse_children<W>(
         binary, binary_root, [&](std::uint32_t i) { return input.ranges[i].as_leaf; }, children);
@@ -104,12 +105,12 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
         // tree, and each wide leaf at one that is: storage for that many is never moved.
         const auto roots = static_cast<std::size_t>(std::count_if(
             ranges.begin(), ranges.end(), [](const SubtreeRange& range) { return !range.as_leaf; }));
-        reserve_huge_pages(nodes_, std::max<std::size_t>(roots, 1));
+        nodes_.reserve(std::max<std::size_t>(roots, 1));
         HugePageVector<LeafBlocks> leaves;
         leaves.reserve(ranges.size() - roots);
         std::uint32_t blocks_used = 0;
         collapse<W>({binary.nodes, ranges}, 0, nodes_, leaves, blocks_used);
-        reserve_huge_pages(blocks_, blocks_used);
+        blocks_.reserve(blocks_used);
         blocks_.resize(blocks_used);
         // The leaves' blocks, disjoint and numbered already: the same bytes whatever the thread count.
         parallel::for_each_chunk(0, leaves.size(), 1024, [&](std::size_t from, std::size_t to) {
@@ -120,7 +121,7 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
             }
         });
     }
-    built_sah_cost_ = wide_bvh_sah_cost(nodes_);
+    built_sah_cost_ = wide_bvh_sah_cost<W>(nodes_);
     sah_ratio_ = 1.0;
 }
 
@@ -179,7 +180,7 @@ AccelStats WideBvhAccel<W>::stats() const {
         }
     }
     shape.nodes = nodes_.size() + shape.leaves;
-    stats.figures = bvh_figures(shape, depth_sum, wide_bvh_sah_cost(nodes_), sah_ratio_);
+    stats.figures = bvh_figures(shape, depth_sum, wide_bvh_sah_cost<W>(nodes_), sah_ratio_);
     return stats;
 }
 

@@ -215,8 +215,8 @@ class WideBvhAccel final : public SingleRayAccel<WideBvhAccel<W>> {
     [[nodiscard]] UpdateMethod update_method() const override;
 
     // The built hierarchy, for tests. The root is node 0 whenever the geometry is not empty.
-    [[nodiscard]] const std::vector<WideBvhNode<W>>& nodes() const { return nodes_; }
-    [[nodiscard]] const std::vector<Block>& blocks() const { return blocks_; }
+    [[nodiscard]] const HugePageVector<WideBvhNode<W>>& nodes() const { return nodes_; }
+    [[nodiscard]] const HugePageVector<Block>& blocks() const { return blocks_; }
 
   private:
     friend SingleRayAccel<WideBvhAccel<W>>;
@@ -231,8 +231,8 @@ class WideBvhAccel final : public SingleRayAccel<WideBvhAccel<W>> {
     template <bool kAnyHit, bool kCount, class TriangleTestT>
     bool trace(const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counts) const;
 
-    std::vector<WideBvhNode<W>> nodes_;
-    std::vector<Block> blocks_;
+    HugePageVector<WideBvhNode<W>> nodes_;
+    HugePageVector<Block> blocks_;
     double built_sah_cost_ = 0.0;  // the SAH cost as last built
     double sah_ratio_ = 1.0;       // the present SAH cost over built_sah_cost_
 };

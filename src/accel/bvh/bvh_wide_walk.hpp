@@ -32,9 +32,10 @@ struct StackEntry {
 // bvh8_packet's packets and streams request every child they push (docs/accel/packets.md, "Large meshes:
 // prefetching the pushed children"; docs/accel/stream.md).
 template <int W>
-[[gnu::always_inline]] inline void prefetch_child(const std::vector<WideBvhNode<W>>& nodes,
-                                                  const std::vector<typename WideBvhAccel<W>::Block>& blocks,
-                                                  std::uint32_t child, std::uint32_t prim_count) {
+[[gnu::always_inline]] inline void prefetch_child(
+    const HugePageVector<WideBvhNode<W>>& nodes,
+    const HugePageVector<typename WideBvhAccel<W>::Block>& blocks, std::uint32_t child,
+    std::uint32_t prim_count) {
     constexpr std::size_t kLine = 64;
     if (prim_count == 0) {
         const auto* bytes = reinterpret_cast<const char*>(&nodes[child]);
@@ -60,8 +61,8 @@ constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
 // The walk starts at `start`, the root or the subtree where a packet hands the ray over (bvh8_packet's
 // interval cull), with `best` the closest hit found before it.
 template <int W, bool kAnyHit, bool kCount, bool kForward, class TriangleTestT>
-bool traverse_from(const std::vector<WideBvhNode<W>>& nodes,
-                   const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
+bool traverse_from(const HugePageVector<WideBvhNode<W>>& nodes,
+                   const HugePageVector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
                    const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters,
                    ChildRef start = {0, 0}) {
     constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
@@ -124,8 +125,8 @@ bool traverse_from(const std::vector<WideBvhNode<W>>& nodes,
 
 // The walk, with the box test's cheaper exit widening for the rays that start at tnear >= 0 (all but a few).
 template <int W, bool kAnyHit, bool kCount, class TriangleTestT>
-bool traverse(const std::vector<WideBvhNode<W>>& nodes,
-              const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
+bool traverse(const HugePageVector<WideBvhNode<W>>& nodes,
+              const HugePageVector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
               const PreparedRay<TriangleTestT>& prepared, Hit& best, TraversalCounters& counters,
               ChildRef start = {0, 0}) {
     if (prepared.ray.tnear >= 0.0f)
@@ -139,8 +140,8 @@ bool traverse(const std::vector<WideBvhNode<W>>& nodes,
 // kernel (the scalar kernel's bits) and its scalar lanes and spheres by the scalar test. A tree with spatial
 // splits reports a primitive once per leaf that holds it.
 template <int W, class TriangleTestT, class OnHit>
-void all_hits(const std::vector<WideBvhNode<W>>& nodes,
-              const std::vector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
+void all_hits(const HugePageVector<WideBvhNode<W>>& nodes,
+              const HugePageVector<typename WideBvhAccel<W>::Block>& blocks, const Geometry& geometry,
               const PreparedRay<TriangleTestT>& prepared, OnHit&& on_hit) {
     constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
     if (nodes.empty()) return;

@@ -18,7 +18,7 @@ namespace lancer {
 // is most likely to enter; the first of equal areas) until it has W children or only leaves are left.
 // `is_leaf(i)`: whether binary node i stays whole as a wide leaf.
 template <int W, class IsLeaf>
-int collapse_children(const std::vector<BvhNode>& binary, std::uint32_t binary_root, IsLeaf&& is_leaf,
+int collapse_children(const HugePageVector<BvhNode>& binary, std::uint32_t binary_root, IsLeaf&& is_leaf,
                       std::array<std::uint32_t, W>& children) {
     int count = 0;
     if (is_leaf(binary_root)) {

@@ -11,8 +11,8 @@
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
-#include "core/huge_pages.hpp"
 #include "core/parallel.hpp"
+#include "lancer/huge_pages.hpp"
 
 namespace lancer {
 
@@ -49,7 +49,6 @@ class NodeSlots {
     template <class PrimAt>
     [[nodiscard]] BvhBuildResult compact(PrimAt&& prim_at) const {
         BvhBuildResult result;
-        reserve_huge_pages(result.nodes, next_.load(std::memory_order_relaxed));
         result.nodes.resize(next_.load(std::memory_order_relaxed));
         const Vec3f margin(geometric_tolerance(slots_[0].bounds()));
         std::vector<Subtree> subtrees;
@@ -59,7 +58,6 @@ class NodeSlots {
         std::size_t references = 0;
         for (const Subtree& subtree : subtrees)
             references += subtree.refs;
-        reserve_huge_pages(result.prim_indices, references);
         result.prim_indices.resize(references);
         Placement placement;
         place_top(0, 0, margin, subtrees, placement, result);

@@ -60,8 +60,8 @@ namespace {
 template <class TriangleTestT, class OnHit>
 void binary_hits(const BvhAccel& bvh, const Geometry& geometry, const PreparedRay<TriangleTestT>& prepared,
                  OnHit&& on_hit) {
-    const std::vector<BvhNode>& nodes = bvh.nodes();
-    const std::vector<std::uint32_t>& prim_indices = bvh.prim_indices();
+    const HugePageVector<BvhNode>& nodes = bvh.nodes();
+    const auto& prim_indices = bvh.prim_indices();
     const Ray& ray = prepared.ray;
     const SlabRay slab(ray);
     std::array<std::uint32_t, BvhAccel::kMaxDepth + 2> stack;
@@ -88,8 +88,8 @@ void binary_hits(const BvhAccel& bvh, const Geometry& geometry, const PreparedRa
 // The binary tree's nearest point: nodes by the distance to their box, the nearer child first, a node no
 // nearer than the best point found skipped.
 NearestPoint binary_nearest(const BvhAccel& bvh, nearest::Search& search) {
-    const std::vector<BvhNode>& nodes = bvh.nodes();
-    const std::vector<std::uint32_t>& prim_indices = bvh.prim_indices();
+    const HugePageVector<BvhNode>& nodes = bvh.nodes();
+    const auto& prim_indices = bvh.prim_indices();
     // The squared distance from p to the box, 0 inside.
     const auto box_distance2 = [&](const Box3f& box) {
         double sum = 0.0;

@@ -62,7 +62,7 @@ template <class Leaves>
 struct BinaryRefit {
     Leaves leaves;
     std::span<const std::uint32_t> prim_indices;
-    std::vector<BvhNode>& nodes;
+    HugePageVector<BvhNode>& nodes;
     Vec3f margin;
 
     // The subtree of node `index`, which ends before node `end` (depth first: a node, its first subtree, its
@@ -176,8 +176,8 @@ Box3f rewrite_block<8>(const Geometry& geometry, TriangleBlock<8>& block) {
 template <int W>
 struct WideRefit {
     const Geometry& geometry;
-    std::vector<WideBvhNode<W>>& nodes;
-    std::vector<TriangleBlock<W>>& blocks;
+    HugePageVector<WideBvhNode<W>>& nodes;
+    HugePageVector<TriangleBlock<W>>& blocks;
     Vec3f margin;
 
     // Nodes of these first levels refit their children as tasks: W at the root, W^2 below it, enough to
@@ -251,7 +251,7 @@ float refit_margin(const Geometry& geometry, const Box3f& hit_bounds) {
 }
 
 double refit_bvh(const Geometry& geometry, std::span<const std::uint32_t> prim_indices,
-                 std::vector<BvhNode>& nodes, float margin) {
+                 HugePageVector<BvhNode>& nodes, float margin) {
     if (nodes.empty()) return 0.0;
     return normalised_cost(
         BinaryRefit<GeometryLeaves>{{geometry}, prim_indices, nodes, Vec3f(margin)}.subtree(
@@ -259,7 +259,7 @@ double refit_bvh(const Geometry& geometry, std::span<const std::uint32_t> prim_i
 }
 
 double refit_bvh_over_boxes(std::span<const Box3f> boxes, std::span<const std::uint32_t> prim_indices,
-                            std::vector<BvhNode>& nodes) {
+                            HugePageVector<BvhNode>& nodes) {
     if (nodes.empty()) return 0.0;
     // The builder's margin: the tolerance of the root's tight box (NodeSlots::compact).
     Box3f root;
@@ -271,14 +271,14 @@ double refit_bvh_over_boxes(std::span<const Box3f> boxes, std::span<const std::u
 }
 
 template <int W>
-double refit_wide_bvh(const Geometry& geometry, std::vector<WideBvhNode<W>>& nodes,
-                      std::vector<TriangleBlock<W>>& blocks, float margin) {
+double refit_wide_bvh(const Geometry& geometry, HugePageVector<WideBvhNode<W>>& nodes,
+                      HugePageVector<TriangleBlock<W>>& blocks, float margin) {
     if (nodes.empty()) return 0.0;
     return normalised_cost(WideRefit<W>{geometry, nodes, blocks, Vec3f(margin)}.node(0, 0));
 }
 
 template <int W>
-double wide_bvh_sah_cost(const std::vector<WideBvhNode<W>>& nodes) {
+double wide_bvh_sah_cost(std::span<const WideBvhNode<W>> nodes) {
     if (nodes.empty()) return 0.0;
     double weighted_area = 0.0;
     std::size_t references = 0;
@@ -300,11 +300,11 @@ double wide_bvh_sah_cost(const std::vector<WideBvhNode<W>>& nodes) {
     return root_area > 0.0 ? weighted_area / root_area : static_cast<double>(references);
 }
 
-template double refit_wide_bvh<4>(const Geometry&, std::vector<WideBvhNode<4>>&,
-                                  std::vector<TriangleBlock<4>>&, float);
-template double refit_wide_bvh<8>(const Geometry&, std::vector<WideBvhNode<8>>&,
-                                  std::vector<TriangleBlock<8>>&, float);
-template double wide_bvh_sah_cost<4>(const std::vector<WideBvhNode<4>>&);
-template double wide_bvh_sah_cost<8>(const std::vector<WideBvhNode<8>>&);
+template double refit_wide_bvh<4>(const Geometry&, HugePageVector<WideBvhNode<4>>&,
+                                  HugePageVector<TriangleBlock<4>>&, float);
+template double refit_wide_bvh<8>(const Geometry&, HugePageVector<WideBvhNode<8>>&,
+                                  HugePageVector<TriangleBlock<8>>&, float);
+template double wide_bvh_sah_cost<4>(std::span<const WideBvhNode<4>>);
+template double wide_bvh_sah_cost<8>(std::span<const WideBvhNode<8>>);
 
 }  // namespace lancer

@@ -23,18 +23,18 @@ namespace lancer {
 // Recomputes the boxes of `nodes`, a depth-first layout of build_bvh over `prim_indices`, from `geometry`'s
 // primitives, each grown by `margin`. Returns the SAH cost of the refitted tree as bvh_sah_cost defines it.
 double refit_bvh(const Geometry& geometry, std::span<const std::uint32_t> prim_indices,
-                 std::vector<BvhNode>& nodes, float margin);
+                 HugePageVector<BvhNode>& nodes, float margin);
 
 // The same for a tree of build_bvh_over_boxes whose references `prim_indices` now have the boxes
 // boxes[id], grown by the tolerance of their union as the build grows them.
 double refit_bvh_over_boxes(std::span<const Box3f> boxes, std::span<const std::uint32_t> prim_indices,
-                            std::vector<BvhNode>& nodes);
+                            HugePageVector<BvhNode>& nodes);
 
 // The same for a wide BVH: rewrites the triangles of its leaf blocks from `geometry` and recomputes its child
 // boxes. Returns the SAH cost as WideBvhAccel::stats() defines it.
 template <int W>
-double refit_wide_bvh(const Geometry& geometry, std::vector<WideBvhNode<W>>& nodes,
-                      std::vector<TriangleBlock<W>>& blocks, float margin);
+double refit_wide_bvh(const Geometry& geometry, HugePageVector<WideBvhNode<W>>& nodes,
+                      HugePageVector<TriangleBlock<W>>& blocks, float margin);
 
 // The ratio an update reports: a refitted tree's SAH cost over its cost as built, 1 for a tree without cost
 // (an empty one).
@@ -63,6 +63,6 @@ double refit_wide_bvh(const Geometry& geometry, std::vector<WideBvhNode<W>>& nod
 // The SAH cost of a wide BVH: the sum over nodes of the area of the node's box, and over leaves of their
 // area times their primitives, over the root's area (the primitive count where the root has no area).
 template <int W>
-double wide_bvh_sah_cost(const std::vector<WideBvhNode<W>>& nodes);
+double wide_bvh_sah_cost(std::span<const WideBvhNode<W>> nodes);
 
 }  // namespace lancer

@@ -166,7 +166,7 @@ struct InstancedScene::State {
         const BvhBuildResult built = build_bvh_over_boxes(leaf_boxes, ids, options);
         nodes.clear();
         if (!built.nodes.empty()) static_cast<void>(collapse(built, 0));
-        built_sah_cost = wide_bvh_sah_cost(nodes);
+        built_sah_cost = wide_bvh_sah_cost<top_level::kTopWidth>(nodes);
         sah_ratio = 1.0;
     }
 
@@ -224,7 +224,7 @@ struct InstancedScene::State {
             if (alive[id] != 0) leaves.extend(leaf_boxes[id]);
         }
         static_cast<void>(refit(0, geometric_tolerance(leaves)));
-        return wide_bvh_sah_cost(nodes);
+        return wide_bvh_sah_cost<top_level::kTopWidth>(nodes);
     }
 
     void check_committed(std::size_t ray_count, std::size_t answer_count) const {

@@ -73,7 +73,7 @@ std::vector<Vec3f> points_of(const Geometry& geometry, std::uint32_t prim) {
 // points of points_of each lie in one of them).
 void expect_valid_hierarchy(const BvhAccel& bvh, const Geometry& geometry, int max_leaf_size,
                             bool spatial_splits = false) {
-    const std::vector<BvhNode>& nodes = bvh.nodes();
+    const HugePageVector<BvhNode>& nodes = bvh.nodes();
     std::vector<std::vector<std::uint32_t>> leaves_of(geometry.size());
     for (std::size_t i = 0; i < nodes.size(); ++i) {
         const BvhNode& node = nodes[i];
@@ -164,7 +164,7 @@ TEST(Bvh, SweepBuilderAgreesWithBruteForce) {
 
 // The root's split cost A(L) N(L) + A(R) N(R), from the built children (boxes shrunk back by the margin).
 float root_split_cost(const BvhAccel& bvh) {
-    const std::vector<BvhNode>& nodes = bvh.nodes();
+    const HugePageVector<BvhNode>& nodes = bvh.nodes();
     auto leaf_count = [&](std::uint32_t root) {
         std::size_t count = 0;
         std::vector<std::uint32_t> pending = {root};

@@ -68,7 +68,7 @@ void expect_valid_leaf(const WideBvhAccel<W>& bvh, const Geometry& geometry, std
 
 template <int W>
 void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geometry, int max_leaf_size) {
-    const std::vector<WideBvhNode<W>>& nodes = bvh.nodes();
+    const HugePageVector<WideBvhNode<W>>& nodes = bvh.nodes();
     std::vector<int> seen(geometry.size(), 0);
     for (std::size_t i = 0; i < nodes.size(); ++i) {
         const WideBvhNode<W>& node = nodes[i];

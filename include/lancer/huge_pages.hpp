@@ -1,4 +1,5 @@
-// Transparent huge pages for the builds' large arrays. A first touch of a 4 KiB page costs a page fault,
+// Transparent huge pages for large arrays: the builds' temporaries, the structures' nodes and leaves, the
+// scene's flattened triangles. A first touch of a 4 KiB page costs a page fault,
 // and on the VMs lancer is measured on one fault costs about 13 us: touching 200 MB took 670 ms, as long as
 // building the dragon's binary BVH, and 20 ms in 2 MiB pages (docs/accel/parallel-build.md, "Page
 // faults"). Embree's allocator asks for huge pages the same way (madvise on Linux).
@@ -26,39 +27,37 @@ void reserve_huge_pages(std::vector<T, Allocator>& v, std::size_t count) {
     advise_huge_pages(v.data(), v.capacity() * sizeof(T));
 }
 
-// For a build's temporaries, which are made and dropped on every build. Storage of 32 MiB or more, which
-// glibc maps afresh on every allocation (its largest mmap threshold), starts on a 2 MiB boundary and ends on
-// one, advised into huge pages: every page of it is then a huge page. A plain allocation starts anywhere,
-// and its first and last partial 2 MiB stay in 4 KiB pages, faulted again on every build (the dragon's
-// references and node slots, docs/accel/parallel-build.md, "Page faults"). Smaller storage comes from the
-// heap, advised as reserve_huge_pages does: a later build gets it back already faulted, which a fresh
-// aligned mapping would not (the bunny's builds made 3-14 faults from the heap, 41-442 from mappings).
+// Storage of `bytes` that starts on a 2 MiB boundary and is advised into huge pages to the end of its last
+// one, at the price of less than one huge page past `bytes`. Freed by deallocate_huge_pages with the same
+// `bytes`.
+[[nodiscard]] void* allocate_huge_pages(std::size_t bytes);
+void deallocate_huge_pages(void* memory, std::size_t bytes) noexcept;
+
+// Storage of two huge pages or more is allocate_huge_pages': every page of it is then a huge page. A plain
+// allocation starts anywhere, and its first and last partial 2 MiB stay in 4 KiB pages, each faulted on its
+// first touch. Smaller storage is std::allocator's, which glibc takes from its heap once a first such array
+// was freed: a later build finds its pages already faulted. An aligned request of one to two huge pages
+// lost that: glibc mapped it afresh on every build (the bunny's later builds in Python 10.7 -> 25 ms,
+// docs/accel/parallel-build.md, "Page faults").
 template <class T>
 struct HugePageAllocator {
     using value_type = T;
-    static constexpr std::size_t kMappedBytes = std::size_t{32} << 20;
+    static constexpr std::size_t kMinBytes = 2 * kHugePageBytes;
 
     HugePageAllocator() = default;
     template <class U>
     HugePageAllocator(const HugePageAllocator<U>& /*other*/) {}  // NOLINT(google-explicit-constructor)
 
-    [[nodiscard]] static bool mapped(std::size_t count) { return count * sizeof(T) >= kMappedBytes; }
-    [[nodiscard]] static std::size_t rounded_bytes(std::size_t count) {
-        return (count * sizeof(T) + kHugePageBytes - 1) / kHugePageBytes * kHugePageBytes;
+    [[nodiscard]] static constexpr bool in_huge_pages(std::size_t count) {
+        return count * sizeof(T) >= kMinBytes;
     }
     [[nodiscard]] T* allocate(std::size_t count) {
-        if (!mapped(count)) {
-            T* memory = std::allocator<T>().allocate(count);
-            advise_huge_pages(memory, count * sizeof(T));
-            return memory;
-        }
-        void* memory = ::operator new (rounded_bytes(count), std::align_val_t{kHugePageBytes});
-        advise_huge_pages(memory, rounded_bytes(count));
-        return static_cast<T*>(memory);
+        if (!in_huge_pages(count)) return std::allocator<T>().allocate(count);
+        return static_cast<T*>(allocate_huge_pages(count * sizeof(T)));
     }
     void deallocate(T* memory, std::size_t count) {
-        if (!mapped(count)) return std::allocator<T>().deallocate(memory, count);
-        ::operator delete (memory, rounded_bytes(count), std::align_val_t{kHugePageBytes});
+        if (!in_huge_pages(count)) return std::allocator<T>().deallocate(memory, count);
+        deallocate_huge_pages(memory, count * sizeof(T));
     }
     friend bool operator==(const HugePageAllocator& /*a*/, const HugePageAllocator& /*b*/) { return true; }
 };
