@@ -35,10 +35,9 @@ void deallocate_huge_pages(void* memory, std::size_t bytes) noexcept;
 
 // Storage of two huge pages or more is allocate_huge_pages': every page of it is then a huge page. A plain
 // allocation starts anywhere, and its first and last partial 2 MiB stay in 4 KiB pages, each faulted on its
-// first touch. Smaller storage is std::allocator's, which glibc takes from its heap once a first such array
-// was freed: a later build finds its pages already faulted. An aligned request of one to two huge pages
-// lost that: glibc mapped it afresh on every build (the bunny's later builds in Python 10.7 -> 25 ms,
-// docs/accel/parallel-build.md, "Page faults").
+// first touch. Smaller storage is std::allocator's: glibc hands it back to a later build from its heap,
+// already faulted, where it maps an aligned request (the size plus 2 MiB) of one to two huge pages afresh
+// every time (docs/accel/parallel-build.md, "The structures' own arrays in huge pages").
 template <class T>
 struct HugePageAllocator {
     using value_type = T;
