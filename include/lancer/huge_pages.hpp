@@ -1,8 +1,7 @@
 // Transparent huge pages for large arrays: the builds' temporaries, the structures' nodes and leaves, the
-// scene's flattened triangles. A first touch of a 4 KiB page costs a page fault,
-// and on the VMs lancer is measured on one fault costs about 13 us: touching 200 MB took 670 ms, as long as
-// building the dragon's binary BVH, and 20 ms in 2 MiB pages (docs/accel/parallel-build.md, "Page
-// faults"). Embree's allocator asks for huge pages the same way (madvise on Linux).
+// scene's flattened triangles. A first touch of a 4 KiB page costs a page fault, and on the VMs lancer is
+// measured on one fault costs about 13 us (docs/accel/parallel-build.md, "Page faults"). Embree's allocator
+// asks for huge pages the same way (madvise on Linux).
 #pragma once
 
 #include <cstddef>
@@ -19,8 +18,8 @@ inline constexpr std::size_t kHugePageBytes = std::size_t{2} << 20;
 // transparent huge pages off). Memory already touched keeps its pages.
 void advise_huge_pages(const void* data, std::size_t bytes);
 
-// v.reserve(count), the new storage advised into huge pages before anything touches it: for arrays that a
-// build fills once (references, nodes, blocks).
+// v.reserve(count), the new storage advised into huge pages before anything touches it: for the large
+// arrays whose public type is a plain std::vector (a TriangleMesh's positions and indices).
 template <class T, class Allocator>
 void reserve_huge_pages(std::vector<T, Allocator>& v, std::size_t count) {
     v.reserve(count);
