@@ -14,8 +14,8 @@ namespace lancer {
 inline constexpr std::size_t kHugePageBytes = std::size_t{2} << 20;
 
 // Asks the kernel to back the whole 2 MiB pages inside [data, data + bytes) with huge pages when they are
-// first touched; does nothing for small ranges or where the system has no such request (not Linux, or
-// transparent huge pages off). Memory already touched keeps its pages.
+// first touched; does nothing for a range that holds no whole huge page, or where the system has no such
+// request (not Linux, or transparent huge pages off). Memory already touched keeps its pages.
 void advise_huge_pages(const void* data, std::size_t bytes);
 
 // v.reserve(count), the new storage advised into huge pages before anything touches it: for the large

@@ -159,8 +159,7 @@ void TriangleMesh::reserve(std::size_t vertex_count, std::size_t triangle_count)
 }
 
 SceneGeometry::SceneGeometry(const Scene& scene) : spheres_(scene.spheres) {
-    // In huge pages: the dragon's 31 MB made 7,600 page faults in 4 KiB pages (docs/accel/parallel-build.md,
-    // "Page faults").
+    // In huge pages once large (HugePageVector; docs/accel/parallel-build.md, "Page faults").
     triangles_.resize(scene.triangle_count());
     mesh_first_triangle_.reserve(scene.meshes.size() + 1);
     mesh_bounds_.resize(scene.meshes.size());

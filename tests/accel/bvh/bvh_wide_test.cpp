@@ -8,14 +8,17 @@
 
 #include <algorithm>
 #include <bit>
+#include <cstdint>
 #include <limits>
 #include <random>
+#include <type_traits>
 #include <vector>
 
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
+#include "lancer/huge_pages.hpp"
 #include "support/ray_sets.hpp"
 #include "support/test_scenes.hpp"
 
@@ -563,6 +566,25 @@ TEST(TriangleBlock, MollerTrumboreBlockEqualsScalarTest) {
 
 TEST(TriangleBlock, WatertightBlockEqualsScalarTest) {
     check_block_kernels<Watertight>(21);
+}
+
+// The arrays a structure keeps, and the scene's flattened triangles, start on a huge page once they are
+// large enough for HugePageAllocator to align them (include/lancer/huge_pages.hpp): each is checked to be
+// that large first, so that a plain std::vector, whose heap storage never starts on one, fails.
+TEST(WideBvh, LargeArraysStartOnHugePages) {
+    Scene scene;
+    scene.meshes.push_back(make_icosphere(7));  // 327,680 triangles
+    const SceneGeometry geometry(scene);
+    Bvh8Accel bvh8;
+    bvh8.build(geometry.view(), BuildOptions{});
+    const auto expect_on_a_huge_page = [](const auto& array, const char* name) {
+        using Element = std::remove_cvref_t<decltype(array[0])>;
+        ASSERT_TRUE(HugePageAllocator<Element>::in_huge_pages(array.size())) << name;
+        EXPECT_EQ(reinterpret_cast<std::uintptr_t>(array.data()) % kHugePageBytes, 0u) << name;
+    };
+    expect_on_a_huge_page(geometry.view().triangles, "triangles");
+    expect_on_a_huge_page(bvh8.nodes(), "wide nodes");
+    expect_on_a_huge_page(bvh8.blocks(), "triangle blocks");
 }
 
 }  // namespace
