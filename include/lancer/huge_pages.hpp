@@ -26,8 +26,14 @@ void reserve_huge_pages(std::vector<T, Allocator>& v, std::size_t count) {
     advise_huge_pages(v.data(), v.capacity() * sizeof(T));
 }
 
-// Storage of `bytes` that starts on a 2 MiB boundary and is advised into huge pages to the end of its last
-// one, at the price of less than one huge page past `bytes`. Freed by deallocate_huge_pages with the same
+// Writes one byte of every 4 KiB page of [data, data + bytes), the pages spread over the build's threads: a
+// vector's constructor or resize() writes its elements on the calling thread alone, and would take every
+// first-touch fault of a large array there (docs/accel/parallel-build.md, "Faults taken in parallel"). The
+// bytes' values are left unspecified: for storage whose elements are yet to be constructed.
+void touch_pages(void* data, std::size_t bytes);
+
+// Storage of `bytes` that starts on a 2 MiB boundary, advised into huge pages to the end of its last one and
+// touched, at the price of less than one huge page past `bytes`. Freed by deallocate_huge_pages with the same
 // `bytes`.
 [[nodiscard]] void* allocate_huge_pages(std::size_t bytes);
 void deallocate_huge_pages(void* memory, std::size_t bytes) noexcept;
@@ -36,11 +42,13 @@ void deallocate_huge_pages(void* memory, std::size_t bytes) noexcept;
 // allocation starts anywhere, and its first and last partial 2 MiB stay in 4 KiB pages, each faulted on its
 // first touch. Smaller storage is std::allocator's: glibc hands it back to a later build from its heap,
 // already faulted, where it maps an aligned request (the size plus 2 MiB) of one to two huge pages afresh
-// every time (docs/accel/parallel-build.md, "The structures' own arrays in huge pages").
+// every time (docs/accel/parallel-build.md, "The structures' own arrays in huge pages"). Of that, storage of
+// kTouchedBytes or more is touched in parallel too.
 template <class T>
 struct HugePageAllocator {
     using value_type = T;
     static constexpr std::size_t kMinBytes = 2 * kHugePageBytes;
+    static constexpr std::size_t kTouchedBytes = std::size_t{1} << 20;
 
     HugePageAllocator() = default;
     template <class U>
@@ -50,8 +58,10 @@ struct HugePageAllocator {
         return count * sizeof(T) >= kMinBytes;
     }
     [[nodiscard]] T* allocate(std::size_t count) {
-        if (!in_huge_pages(count)) return std::allocator<T>().allocate(count);
-        return static_cast<T*>(allocate_huge_pages(count * sizeof(T)));
+        if (in_huge_pages(count)) return static_cast<T*>(allocate_huge_pages(count * sizeof(T)));
+        T* memory = std::allocator<T>().allocate(count);
+        if (count * sizeof(T) >= kTouchedBytes) touch_pages(memory, count * sizeof(T));
+        return memory;
     }
     void deallocate(T* memory, std::size_t count) {
         if (!in_huge_pages(count)) return std::allocator<T>().deallocate(memory, count);
