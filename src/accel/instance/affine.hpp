@@ -5,6 +5,9 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#if defined(__AVX2__)
+#include <immintrin.h>
+#endif
 
 #include "core/ray_conditioning.hpp"
 #include "lancer/instances.hpp"
@@ -18,6 +21,29 @@ struct ObjectRay {
     double shift = 0.0;
 };
 
+#if defined(__AVX2__)
+// Four doubles, one ray's coordinate each, with double's + - * lane by lane: the map below run for four rays
+// at once, each lane by the one-ray map's operations (the build does not contract them into FMAs).
+struct DoubleLanes {
+    __m256d lanes;
+
+    explicit DoubleLanes(double x) : lanes(_mm256_set1_pd(x)) {}
+    explicit DoubleLanes(__m256d x) : lanes(x) {}
+    friend DoubleLanes operator+(DoubleLanes a, DoubleLanes b) {
+        return DoubleLanes(_mm256_add_pd(a.lanes, b.lanes));
+    }
+    friend DoubleLanes operator-(DoubleLanes a, DoubleLanes b) {
+        return DoubleLanes(_mm256_sub_pd(a.lanes, b.lanes));
+    }
+    friend DoubleLanes operator*(DoubleLanes a, DoubleLanes b) {
+        return DoubleLanes(_mm256_mul_pd(a.lanes, b.lanes));
+    }
+    friend DoubleLanes operator/(DoubleLanes a, DoubleLanes b) {
+        return DoubleLanes(_mm256_div_pd(a.lanes, b.lanes));
+    }
+};
+#endif
+
 // 96 bytes: p' = inverse (p - translation) for a point, inverse d for a direction.
 struct InverseAffine {
     double inverse[3][3];
@@ -25,6 +51,44 @@ struct InverseAffine {
     // ||A||inf ||A^-1||inf, the max-norm condition number of the transform's linear part.
     double condition = 1.0;
     double norm = 1.0;  // ||A||inf
+
+    // p' and d' of a world origin and direction, each row's three products summed left to right. Real is
+    // double for one ray, or DoubleLanes for four: one source, so that every lane holds the one-ray map's
+    // bits. So do the far-origin move's steps below.
+    template <class Real>
+    void map(const Real (&origin)[3], const Real (&direction)[3], Real (&local_origin)[3],
+             Real (&local_direction)[3]) const {
+        const Real moved[3] = {origin[0] - Real(translation[0]), origin[1] - Real(translation[1]),
+                               origin[2] - Real(translation[2])};
+        for (int r = 0; r < 3; ++r) {
+            const Real row[3] = {Real(inverse[r][0]), Real(inverse[r][1]), Real(inverse[r][2])};
+            local_origin[r] = row[0] * moved[0] + row[1] * moved[1] + row[2] * moved[2];
+            local_direction[r] = row[0] * direction[0] + row[1] * direction[1] + row[2] * direction[2];
+        }
+    }
+
+    // A far origin moved along its line to the point nearest `centre`: the shift s returned, the origin
+    // moved by s d.
+    template <class Real>
+    static Real move_towards(const Real (&centre)[3], Real (&local_origin)[3],
+                             const Real (&local_direction)[3]) {
+        Real to_centre(0.0), length_squared(0.0);
+        for (int r = 0; r < 3; ++r) {
+            to_centre = to_centre + (centre[r] - local_origin[r]) * local_direction[r];
+            length_squared = length_squared + local_direction[r] * local_direction[r];
+        }
+        const Real shift = to_centre / length_squared;
+        for (int r = 0; r < 3; ++r)
+            local_origin[r] = local_origin[r] + shift * local_direction[r];
+        return shift;
+    }
+
+    // The world interval moved with the origin (t' = t - shift), rounded outwards.
+    static void move_interval(const Ray& world, double shift, Ray& local) {
+        local.tnear =
+            max_of_numbers(round_down(double(world.tnear) - shift), -std::numeric_limits<float>::max());
+        local.tfar = round_up(double(world.tfar) - shift);
+    }
 
     // The world ray in the object's frame, and the shift of its parameter (t = t' + shift). An affine map
     // keeps a line's parameter when the direction is mapped with it, so the interval is the world's. Each
@@ -34,17 +98,10 @@ struct InverseAffine {
     // (docs/numerical- contract.md, "Far origins"), and the interval with it, rounded outwards: done here, in
     // the double the map already works in, the object's own conditioning finds nothing to do.
     [[nodiscard]] ObjectRay to_object(const Ray& world, const Vec3f& object_centre, float far_limit) const {
-        const double origin[3] = {double(world.origin.x) - translation[0],
-                                  double(world.origin.y) - translation[1],
-                                  double(world.origin.z) - translation[2]};
+        const double origin[3] = {world.origin.x, world.origin.y, world.origin.z};
         const double direction[3] = {world.direction.x, world.direction.y, world.direction.z};
         double local_origin[3], local_direction[3];
-        for (int r = 0; r < 3; ++r) {
-            local_origin[r] =
-                inverse[r][0] * origin[0] + inverse[r][1] * origin[1] + inverse[r][2] * origin[2];
-            local_direction[r] =
-                inverse[r][0] * direction[0] + inverse[r][1] * direction[1] + inverse[r][2] * direction[2];
-        }
+        map(origin, direction, local_origin, local_direction);
         ObjectRay local;
         local.ray.tnear = world.tnear;
         local.ray.tfar = world.tfar;
@@ -52,17 +109,9 @@ struct InverseAffine {
         for (int r = 0; r < 3; ++r)
             distance = max_of_numbers(distance, std::fabs(local_origin[r] - double(object_centre[r])));
         if (distance > double(far_limit)) {
-            double to_centre = 0.0, length_squared = 0.0;
-            for (int r = 0; r < 3; ++r) {
-                to_centre += (double(object_centre[r]) - local_origin[r]) * local_direction[r];
-                length_squared += local_direction[r] * local_direction[r];
-            }
-            local.shift = to_centre / length_squared;
-            for (int r = 0; r < 3; ++r)
-                local_origin[r] += local.shift * local_direction[r];
-            local.ray.tnear = max_of_numbers(round_down(double(world.tnear) - local.shift),
-                                             -std::numeric_limits<float>::max());
-            local.ray.tfar = round_up(double(world.tfar) - local.shift);
+            const double centre[3] = {object_centre.x, object_centre.y, object_centre.z};
+            local.shift = move_towards(centre, local_origin, local_direction);
+            move_interval(world, local.shift, local.ray);
         }
         for (int r = 0; r < 3; ++r) {
             local.ray.origin[r] = static_cast<float>(local_origin[r]);

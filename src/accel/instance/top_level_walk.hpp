@@ -292,6 +292,109 @@ class InstancedScene::Walk {
         packet.ends_limit = length * (1.0f + kMargin);
     }
 
+    // The rays of a packet that meet an instance child, in lanes, mapped into its object's frame together
+    // (map_together).
+    struct MappedRays {
+        alignas(32) float origin[3][kPacketRays];
+        alignas(32) float direction[3][kPacketRays];
+        alignas(32) double shift[kPacketRays];  // a far lane's (ObjectRay::shift)
+        float tfar[kPacketRays];                // the ray's tfar, clipped by its closest hit so far (clipped)
+        std::uint8_t ray[kPacketRays];          // the lane's ray in the packet
+        RayMask mapped = 0;                     // the lanes whose object ray is to_object's
+        RayMask far = 0;                        // of those, the ones whose origin was moved (far)
+
+        // Lane `lane`'s object ray (a mapped one), from its world ray `world` (tfar clipped).
+        [[nodiscard]] ObjectRay object_ray(int lane, const Ray& world) const {
+            const auto l = static_cast<std::size_t>(lane);
+            ObjectRay local{{{origin[0][l], origin[1][l], origin[2][l]},
+                             {direction[0][l], direction[1][l], direction[2][l]},
+                             world.tnear,
+                             world.tfar}};
+            if ((far >> lane) & 1) {
+                local.shift = shift[l];
+                InverseAffine::move_interval(world, local.shift, local.ray);
+            }
+            return local;
+        }
+    };
+
+    // The `met` rays mapped into instance `id`'s frame four to a register of doubles: to_object's latency
+    // chain (the map's products, the distance to the object, a far origin's move) run once for four rays
+    // instead of once a ray (docs/accel/instances.md, "A packet's rays mapped together"). The lanes run
+    // InverseAffine's own steps, so a mapped lane's object ray is to_object's bit for bit; a lane with a NaN
+    // along the way, where to_object's far test depends on where the NaN is, is left unmapped, to visit.
+    // Returns the number of lanes, in the order of the rays.
+    template <bool kAnyHit>
+    int map_together(std::uint32_t id, std::span<const Ray> rays, RayMask met,
+                     const std::array<InstanceHit, kPacketRays>& best, MappedRays& mapped) const {
+        constexpr int kLanes = 4;
+        const InstanceRecord& record = records_[id];
+        // origin x, y, z, then direction x, y, z; rows of a whole number of 16-byte groups.
+        alignas(16) float world[6][kPacketRays + kLanes];
+        int count = 0;
+        for (RayMask each = met; each != 0; each &= each - 1, ++count) {
+            const int i = std::countr_zero(each);
+            const Ray& ray = rays[static_cast<std::size_t>(i)];
+            const auto lane = static_cast<std::size_t>(count);
+            mapped.ray[lane] = static_cast<std::uint8_t>(i);
+            for (int axis = 0; axis < 3; ++axis) {
+                world[axis][lane] = ray.origin[axis];
+                world[3 + axis][lane] = ray.direction[axis];
+            }
+            mapped.tfar[lane] = kAnyHit ? ray.tfar : clipped(ray, best[static_cast<std::size_t>(i)]);
+        }
+        for (int lane = count; lane % kLanes != 0; ++lane)  // a whole last register: copies of the first ray
+            for (auto& row : world)
+                row[lane] = row[0];
+        const DoubleLanes centre[3] = {DoubleLanes(double(record.object_centre.x)),
+                                       DoubleLanes(double(record.object_centre.y)),
+                                       DoubleLanes(double(record.object_centre.z))};
+        const __m256d far_limit = _mm256_set1_pd(double(record.far_limit));
+        const __m256d sign_bit = _mm256_set1_pd(-0.0);
+        mapped.mapped = 0, mapped.far = 0;
+        for (int first = 0; first < count; first += kLanes) {
+            const auto at = static_cast<std::size_t>(first);
+            const auto lanes_of = [&](int row) {
+                return DoubleLanes(_mm256_cvtps_pd(_mm_load_ps(&world[row][at])));
+            };
+            const DoubleLanes origin[3] = {lanes_of(0), lanes_of(1), lanes_of(2)};
+            const DoubleLanes direction[3] = {lanes_of(3), lanes_of(4), lanes_of(5)};
+            DoubleLanes local_origin[3] = {origin[0], origin[1], origin[2]};
+            DoubleLanes local_direction[3] = {direction[0], direction[1], direction[2]};
+            record.to_object.map(origin, direction, local_origin, local_direction);
+            // to_object's far test, |p' - centre| > far_limit on some axis, and the lanes with a NaN.
+            __m256d far = _mm256_setzero_pd(), unordered = _mm256_setzero_pd();
+            for (int axis = 0; axis < 3; ++axis) {
+                const __m256d offset = _mm256_andnot_pd(sign_bit, (local_origin[axis] - centre[axis]).lanes);
+                far = _mm256_or_pd(far, _mm256_cmp_pd(offset, far_limit, _CMP_GT_OQ));
+                unordered =
+                    _mm256_or_pd(unordered, _mm256_cmp_pd(offset, local_direction[axis].lanes, _CMP_UNORD_Q));
+            }
+            const int far_lanes = _mm256_movemask_pd(far);
+            if (far_lanes != 0) {
+                DoubleLanes moved[3] = {local_origin[0], local_origin[1], local_origin[2]};
+                const DoubleLanes shift = InverseAffine::move_towards(centre, moved, local_direction);
+                _mm256_store_pd(&mapped.shift[at], shift.lanes);
+                for (int axis = 0; axis < 3; ++axis) {
+                    local_origin[axis] =
+                        DoubleLanes(_mm256_blendv_pd(local_origin[axis].lanes, moved[axis].lanes, far));
+                    unordered = _mm256_or_pd(
+                        unordered,
+                        _mm256_cmp_pd(local_origin[axis].lanes, local_origin[axis].lanes, _CMP_UNORD_Q));
+                }
+            }
+            for (int axis = 0; axis < 3; ++axis) {
+                _mm_store_ps(&mapped.origin[axis][at], _mm256_cvtpd_ps(local_origin[axis].lanes));
+                _mm_store_ps(&mapped.direction[axis][at], _mm256_cvtpd_ps(local_direction[axis].lanes));
+            }
+            const int ordered_lanes = ~_mm256_movemask_pd(unordered) & 0xf;
+            mapped.mapped |= static_cast<RayMask>(ordered_lanes) << first;
+            mapped.far |= static_cast<RayMask>(far_lanes & ordered_lanes) << first;
+        }
+        if (count < static_cast<int>(kPacketRays)) mapped.mapped &= (RayMask{1} << count) - 1;
+        return count;
+    }
+
     // The largest box test limit of the `alive` rays: where the cull stops.
     [[nodiscard]] static float largest_limit(const Packet& packet, RayMask alive) {
         float largest = -kInfinity;
@@ -322,6 +425,7 @@ class InstancedScene::Walk {
         TraversalCounters* object_counters = kCount ? &object_counts : nullptr;
         std::array<StackEntry, kTopWidth * BvhAccel::kMaxDepth + 1> stack;
         int stack_size = 0;
+        MappedRays mapped;
         float limit_max = packet.from_ends ? packet.ends_limit : largest_limit(packet, alive);
         const TopNode* node = nodes_.empty() ? nullptr : &nodes_[0];
         RayMask node_rays = alive;
@@ -349,18 +453,27 @@ class InstancedScene::Walk {
                     node = &nodes_[child], node_rays = met;
                     break;
                 }
-                for (RayMask each = met; each != 0; each &= each - 1) {
-                    const int i = std::countr_zero(each);
+                const int mapped_count = map_together<kAnyHit>(child, rays, met, best, mapped);
+                for (int lane = 0; lane < mapped_count; ++lane) {
+                    const int i = mapped.ray[lane];
                     if constexpr (kCount) ++counts.nodes_visited;
                     const Ray& ray = rays[static_cast<std::size_t>(i)];
+                    InstanceHit& hit = best[static_cast<std::size_t>(i)];
+                    bool found = false;
+                    if ((mapped.mapped >> lane) & 1) {
+                        Ray world = ray;
+                        world.tfar = mapped.tfar[lane];
+                        found = visit_mapped<kAnyHit>(child, records_[child], world,
+                                                      mapped.object_ray(lane, world), hit, object_counters);
+                    } else {
+                        found = visit<kAnyHit>(child, ray, hit, object_counters);
+                    }
                     if constexpr (kAnyHit) {
-                        if (visit<true>(child, ray, best[static_cast<std::size_t>(i)], object_counters)) {
+                        if (found) {
                             answers[static_cast<std::size_t>(i)] = 1;
                             alive &= ~(RayMask{1} << i);
                         }
                     } else {
-                        InstanceHit& hit = best[static_cast<std::size_t>(i)];
-                        visit<false>(child, ray, hit, object_counters);
                         packet.tlimit[i] = hit.hit() ? hit.t : ray.tfar;
                     }
                 }
@@ -413,6 +526,13 @@ class InstancedScene::Walk {
         Ray world = ray;
         if constexpr (!kAnyHit) world.tfar = clipped(ray, best);
         const ObjectRay local = record.to_object.to_object(world, record.object_centre, record.far_limit);
+        return visit_mapped<kAnyHit>(id, record, world, local, best, object_counters);
+    }
+
+    // The rest of a visit, once `world` (the ray, its tfar clipped) is mapped into the object's frame.
+    template <bool kAnyHit>
+    bool visit_mapped(std::uint32_t id, const InstanceRecord& record, const Ray& world,
+                      const ObjectRay& local, InstanceHit& best, TraversalCounters* object_counters) const {
         // Accel's public calls condition their rays first. to_object has moved a far origin near the object
         // already, so a ray with an ordinary direction, into an object seen at its own scale, goes straight
         // to the structure's walk: its one-ray walk where it has one (SingleRayWalk: the batch call's body
