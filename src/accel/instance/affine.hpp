@@ -22,8 +22,9 @@ struct ObjectRay {
 };
 
 #if defined(__AVX2__)
-// Four doubles, one ray's coordinate each, with double's + - * lane by lane: the map below run for four rays
-// at once, each lane by the one-ray map's operations (the build does not contract them into FMAs).
+// Four doubles, one ray's coordinate each, with double's + - * / lane by lane: InverseAffine's steps below
+// run for four rays at once, each lane by the one-ray steps' operations (the build does not contract them
+// into FMAs).
 struct DoubleLanes {
     __m256d lanes;
 
