@@ -80,6 +80,32 @@ struct alignas(16) ObjectBox {
 #endif
 }
 
+#if defined(__AVX2__)
+// crosses for 8 rays at once, one per lane of 8-float rows (origin[axis], direction[axis], tnear, tfar,
+// 32-byte aligned): bit k is ray k's answer. The same products, NaN rule and exit widening on the same
+// floats; the largest entry and the smallest exit do not depend on the order in which they are taken
+// (InstancedScene.ObjectBoxCullInLanesAnswersAsCrosses).
+[[nodiscard]] inline int crosses_lanes(const float* const (&origin)[3], const float* const (&direction)[3],
+                                       const float* tnear, const float* tfar, const ObjectBox& box) {
+    __m256 entry = _mm256_load_ps(tnear), exit = _mm256_load_ps(tfar);
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+        const __m256 from = _mm256_load_ps(origin[axis]);
+        const __m256 inverse = _mm256_div_ps(_mm256_set1_ps(1.0f), _mm256_load_ps(direction[axis]));
+        const __m256 to_lo = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(box.lo[axis]), from), inverse);
+        const __m256 to_hi = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(box.hi[axis]), from), inverse);
+        const __m256 unbounded = _mm256_cmp_ps(to_lo, to_hi, _CMP_UNORD_Q);
+        const __m256 axis_exit = _mm256_max_ps(to_lo, to_hi);
+        const __m256 widened = _mm256_mul_ps(
+            axis_exit, _mm256_blendv_ps(_mm256_set1_ps(kSlabExitShrink), _mm256_set1_ps(kSlabExitGrow),
+                                        _mm256_cmp_ps(axis_exit, _mm256_setzero_ps(), _CMP_GT_OQ)));
+        entry = _mm256_max_ps(
+            entry, _mm256_blendv_ps(_mm256_min_ps(to_lo, to_hi), _mm256_set1_ps(-kInfinity), unbounded));
+        exit = _mm256_min_ps(exit, _mm256_blendv_ps(widened, _mm256_set1_ps(kInfinity), unbounded));
+    }
+    return _mm256_movemask_ps(_mm256_cmp_ps(entry, exit, _CMP_LE_OQ));
+}
+#endif
+
 // is_valid (lancer/ray.hpp) on the ray's 8 floats at once: origin, direction and tnear finite, a nonzero
 // direction component, tfar not NaN and tnear <= tfar. The same answer (checked by
 // InstancedScene.RayValidityAnswersAsIsValid) in a few vector instructions instead of is_valid's scalar tests
@@ -297,24 +323,23 @@ class InstancedScene::Walk {
     struct MappedRays {
         alignas(32) float origin[3][kPacketRays];
         alignas(32) float direction[3][kPacketRays];
+        alignas(32) float tnear[kPacketRays];  // the interval in the object's frame
+        alignas(32) float tfar[kPacketRays];
         alignas(32) double shift[kPacketRays];  // a far lane's (ObjectRay::shift)
-        float tfar[kPacketRays];                // the ray's tfar, clipped by its closest hit so far (clipped)
+        float world_tfar[kPacketRays];          // the ray's tfar, clipped by its closest hit so far (clipped)
         std::uint8_t ray[kPacketRays];          // the lane's ray in the packet
         RayMask mapped = 0;                     // the lanes whose object ray is to_object's
         RayMask far = 0;                        // of those, the ones whose origin was moved (far)
+        RayMask culled = 0;                     // of those, the ones whose visit ends at the object box cull
 
-        // Lane `lane`'s object ray (a mapped one), from its world ray `world` (tfar clipped).
-        [[nodiscard]] ObjectRay object_ray(int lane, const Ray& world) const {
+        // Lane `lane`'s object ray (a mapped one).
+        [[nodiscard]] ObjectRay object_ray(int lane) const {
             const auto l = static_cast<std::size_t>(lane);
-            ObjectRay local{{{origin[0][l], origin[1][l], origin[2][l]},
-                             {direction[0][l], direction[1][l], direction[2][l]},
-                             world.tnear,
-                             world.tfar}};
-            if ((far >> lane) & 1) {
-                local.shift = shift[l];
-                InverseAffine::move_interval(world, local.shift, local.ray);
-            }
-            return local;
+            return {{{origin[0][l], origin[1][l], origin[2][l]},
+                     {direction[0][l], direction[1][l], direction[2][l]},
+                     tnear[l],
+                     tfar[l]},
+                    (far >> lane) & 1 ? shift[l] : 0.0};
         }
     };
 
@@ -330,7 +355,7 @@ class InstancedScene::Walk {
         constexpr int kLanes = 4;
         const InstanceRecord& record = records_[id];
         // origin x, y, z, then direction x, y, z; rows of a whole number of 16-byte groups.
-        alignas(16) float world[6][kPacketRays + kLanes];
+        alignas(16) float gathered[6][kPacketRays + kLanes];
         int count = 0;
         for (RayMask each = met; each != 0; each &= each - 1, ++count) {
             const int i = std::countr_zero(each);
@@ -338,13 +363,13 @@ class InstancedScene::Walk {
             const auto lane = static_cast<std::size_t>(count);
             mapped.ray[lane] = static_cast<std::uint8_t>(i);
             for (int axis = 0; axis < 3; ++axis) {
-                world[axis][lane] = ray.origin[axis];
-                world[3 + axis][lane] = ray.direction[axis];
+                gathered[axis][lane] = ray.origin[axis];
+                gathered[3 + axis][lane] = ray.direction[axis];
             }
-            mapped.tfar[lane] = kAnyHit ? ray.tfar : clipped(ray, best[static_cast<std::size_t>(i)]);
+            mapped.world_tfar[lane] = kAnyHit ? ray.tfar : clipped(ray, best[static_cast<std::size_t>(i)]);
         }
         for (int lane = count; lane % kLanes != 0; ++lane)  // a whole last register: copies of the first ray
-            for (auto& row : world)
+            for (auto& row : gathered)
                 row[lane] = row[0];
         const DoubleLanes centre[3] = {DoubleLanes(double(record.object_centre.x)),
                                        DoubleLanes(double(record.object_centre.y)),
@@ -355,7 +380,7 @@ class InstancedScene::Walk {
         for (int first = 0; first < count; first += kLanes) {
             const auto at = static_cast<std::size_t>(first);
             const auto lanes_of = [&](int row) {
-                return DoubleLanes(_mm256_cvtps_pd(_mm_load_ps(&world[row][at])));
+                return DoubleLanes(_mm256_cvtps_pd(_mm_load_ps(&gathered[row][at])));
             };
             const DoubleLanes origin[3] = {lanes_of(0), lanes_of(1), lanes_of(2)};
             const DoubleLanes direction[3] = {lanes_of(3), lanes_of(4), lanes_of(5)};
@@ -392,7 +417,48 @@ class InstancedScene::Walk {
             mapped.far |= static_cast<RayMask>(far_lanes & ordered_lanes) << first;
         }
         if (count < static_cast<int>(kPacketRays)) mapped.mapped &= (RayMask{1} << count) - 1;
+        for (int lane = 0; lane < count; ++lane) {
+            const auto l = static_cast<std::size_t>(lane);
+            Ray world = rays[mapped.ray[l]], local;
+            world.tfar = mapped.world_tfar[l];
+            local.tnear = world.tnear, local.tfar = world.tfar;
+            if ((mapped.far >> lane) & 1) InverseAffine::move_interval(world, mapped.shift[l], local);
+            mapped.tnear[l] = local.tnear, mapped.tfar[l] = local.tfar;
+        }
+        mapped.culled = record.traced->scale_exponent() == 0 ? missing_the_box(record, count, mapped) : 0;
         return count;
+    }
+
+    // The mapped lanes whose visit ends at visit_mapped's object box cull, 8 to a register: those is_ordinary
+    // lets through as they are (its comparisons on the same floats) and that miss the box (crosses_lanes).
+    static RayMask missing_the_box(const InstanceRecord& record, int count, const MappedRays& mapped) {
+        const __m256 sign_bit = _mm256_set1_ps(-0.0f);
+        RayMask culled = 0;
+        for (int first = 0; first < count; first += 8) {
+            const auto at = static_cast<std::size_t>(first);
+            const float* const origin[3] = {&mapped.origin[0][at], &mapped.origin[1][at],
+                                            &mapped.origin[2][at]};
+            const float* const direction[3] = {&mapped.direction[0][at], &mapped.direction[1][at],
+                                               &mapped.direction[2][at]};
+            __m256 largest_direction = _mm256_setzero_ps(), largest_offset = _mm256_setzero_ps();
+            for (std::size_t axis = 0; axis < 3; ++axis) {
+                const __m256 offset =
+                    _mm256_sub_ps(_mm256_load_ps(origin[axis]),
+                                  _mm256_set1_ps(record.object_centre[static_cast<int>(axis)]));
+                largest_direction = _mm256_max_ps(
+                    largest_direction, _mm256_andnot_ps(sign_bit, _mm256_load_ps(direction[axis])));
+                largest_offset = _mm256_max_ps(largest_offset, _mm256_andnot_ps(sign_bit, offset));
+            }
+            const __m256 as_is = _mm256_and_ps(
+                _mm256_and_ps(
+                    _mm256_cmp_ps(largest_direction, _mm256_set1_ps(kDirectionLowest), _CMP_GE_OQ),
+                    _mm256_cmp_ps(largest_direction, _mm256_set1_ps(kDirectionHighest), _CMP_LE_OQ)),
+                _mm256_cmp_ps(largest_offset, _mm256_set1_ps(record.far_limit), _CMP_LE_OQ));
+            const int crossing = top_level::crosses_lanes(origin, direction, &mapped.tnear[at],
+                                                          &mapped.tfar[at], record.object_box);
+            culled |= static_cast<RayMask>(_mm256_movemask_ps(as_is) & ~crossing) << first;
+        }
+        return culled & mapped.mapped;
     }
 
     // The largest box test limit of the `alive` rays: where the cull stops.
@@ -460,11 +526,12 @@ class InstancedScene::Walk {
                     const Ray& ray = rays[static_cast<std::size_t>(i)];
                     InstanceHit& hit = best[static_cast<std::size_t>(i)];
                     bool found = false;
+                    if ((mapped.culled >> lane) & 1) continue;
                     if ((mapped.mapped >> lane) & 1) {
                         Ray world = ray;
-                        world.tfar = mapped.tfar[lane];
-                        found = visit_mapped<kAnyHit>(child, records_[child], world,
-                                                      mapped.object_ray(lane, world), hit, object_counters);
+                        world.tfar = mapped.world_tfar[lane];
+                        found = visit_mapped<kAnyHit>(child, records_[child], world, mapped.object_ray(lane),
+                                                      hit, object_counters);
                     } else {
                         found = visit<kAnyHit>(child, ray, hit, object_counters);
                     }

@@ -602,6 +602,63 @@ TEST(InstancedScene, LaneMapAnswersAsTheOneRayMap) {
 }
 #endif
 
+#if defined(__AVX2__)
+// The packet walk's object box cull in lanes (top_level::crosses_lanes) answers as crosses, ray by ray: 8
+// rays a box, among them axis-parallel ones (zero directions of both signs) starting on the box's planes,
+// rays aimed at its corners, negative tnear and finite tfar.
+TEST(InstancedScene, ObjectBoxCullInLanesAnswersAsCrosses) {
+    std::mt19937 rng(67);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::uniform_int_distribution<int> pick(0, 7);
+    std::size_t crossed = 0, missed = 0, differ = 0;
+    for (int group = 0; group < 25000; ++group) {
+        Box3f box;
+        box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
+        box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
+        if (pick(rng) == 0) box.hi.y = box.lo.y;  // flat
+        const top_level::ObjectBox object_box(box);
+        alignas(32) float origin[3][8], direction[3][8], tnear[8], tfar[8];
+        Ray rays[8];
+        for (int lane = 0; lane < 8; ++lane) {
+            Ray ray{Vec3f(unit(rng), unit(rng), unit(rng)) * 8.0f,
+                    {unit(rng), unit(rng), unit(rng)},
+                    0.0f,
+                    kInfinity};
+            for (int axis = 0; axis < 3; ++axis) {
+                const int choice = pick(rng);
+                if (choice == 0) ray.direction[axis] = 0.0f;
+                if (choice == 1) ray.direction[axis] = -0.0f;
+                if (choice <= 1 && pick(rng) < 4)
+                    ray.origin[axis] = pick(rng) < 4 ? box.lo[axis] : box.hi[axis];
+            }
+            if (pick(rng) < 2) {  // aimed at a corner, where the exit widening decides
+                const Vec3f corner(pick(rng) < 4 ? box.lo.x : box.hi.x, pick(rng) < 4 ? box.lo.y : box.hi.y,
+                                   pick(rng) < 4 ? box.lo.z : box.hi.z);
+                ray.direction = corner - ray.origin;
+            }
+            if (!is_valid(ray)) ray.direction = {1.0f, 0.0f, 0.0f};
+            if (pick(rng) < 3) ray.tnear = -8.0f * std::fabs(unit(rng));
+            if (pick(rng) < 3) ray.tfar = ray.tnear + 8.0f * std::fabs(unit(rng));
+            rays[lane] = ray;
+            for (int axis = 0; axis < 3; ++axis)
+                origin[axis][lane] = ray.origin[axis], direction[axis][lane] = ray.direction[axis];
+            tnear[lane] = ray.tnear, tfar[lane] = ray.tfar;
+        }
+        const float* const origins[3] = {origin[0], origin[1], origin[2]};
+        const float* const directions[3] = {direction[0], direction[1], direction[2]};
+        const int answers = top_level::crosses_lanes(origins, directions, tnear, tfar, object_box);
+        for (int lane = 0; lane < 8; ++lane) {
+            const bool expected = top_level::crosses(rays[lane], object_box);
+            (expected ? crossed : missed) += 1;
+            differ += (((answers >> lane) & 1) != 0) != expected ? 1 : 0;
+        }
+    }
+    EXPECT_EQ(differ, 0u);
+    EXPECT_GT(crossed, 5000u);
+    EXPECT_GT(missed, 20000u);
+}
+#endif
+
 // The walk's validity test of a world ray (top_level::is_valid_ray, AVX2) answers as is_valid: on the
 // hostile rays (NaN, infinite, zero directions, tnear > tfar) and on rays whose floats are drawn among
 // zeros of both signs, subnormals, FLT_MAX, infinities, NaNs and ordinary numbers.
