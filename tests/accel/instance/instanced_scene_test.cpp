@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <random>
 #include <span>
 #include <stdexcept>
@@ -476,37 +477,55 @@ TEST(InstancedScene, OneRayWalksAnswerAsTheBatchCalls) {
     }
 }
 
-// The cull before an instance visit (top_level::crosses, SSE) answers as the scalar slab test it stands for
-// (intersect_box) on every ray: random boxes, flat ones among them, and rays from inside and outside, with
-// zero direction components (infinite reciprocals; an origin in a face's plane makes a NaN plane), tnear < 0
-// and finite tfar.
-TEST(InstancedScene, ObjectBoxCullAnswersAsTheSlabTest) {
-    std::mt19937 rng(61);
+// The object box cull tests' boxes: in [-4, 4]^3, one in eight flat.
+Box3f random_cull_box(std::mt19937& rng) {
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
     std::uniform_int_distribution<int> pick(0, 7);
+    Box3f box;
+    box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
+    box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
+    if (pick(rng) == 0) box.hi.y = box.lo.y;
+    return box;
+}
+
+// Their rays about `box`: from inside and outside, with zero direction components of both signs (infinite
+// reciprocals; an origin in a face's plane makes a NaN plane), some aimed at a corner (where the exit
+// widening decides), tnear < 0 and finite tfar; nullopt for a draw that is not valid.
+std::optional<Ray> random_cull_ray(const Box3f& box, std::mt19937& rng) {
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::uniform_int_distribution<int> pick(0, 7);
+    Ray ray{
+        Vec3f(unit(rng), unit(rng), unit(rng)) * 8.0f, {unit(rng), unit(rng), unit(rng)}, 0.0f, kInfinity};
+    for (int axis = 0; axis < 3; ++axis) {
+        const int choice = pick(rng);
+        if (choice == 0) ray.direction[axis] = 0.0f;
+        if (choice == 1) ray.direction[axis] = -0.0f;
+        if (choice <= 1 && pick(rng) < 4) ray.origin[axis] = pick(rng) < 4 ? box.lo[axis] : box.hi[axis];
+    }
+    if (pick(rng) < 2) {
+        const Vec3f corner(pick(rng) < 4 ? box.lo.x : box.hi.x, pick(rng) < 4 ? box.lo.y : box.hi.y,
+                           pick(rng) < 4 ? box.lo.z : box.hi.z);
+        ray.direction = corner - ray.origin;
+    }
+    if (!is_valid(ray)) return std::nullopt;
+    if (pick(rng) < 3) ray.tnear = -8.0f * std::fabs(unit(rng));
+    if (pick(rng) < 3) ray.tfar = ray.tnear + 8.0f * std::fabs(unit(rng));
+    return ray;
+}
+
+// The cull before an instance visit (top_level::crosses, SSE) answers as the scalar slab test it stands for
+// (intersect_box) on every ray.
+TEST(InstancedScene, ObjectBoxCullAnswersAsTheSlabTest) {
+    std::mt19937 rng(61);
     std::size_t crossed = 0, missed = 0, differ = 0;
     for (int i = 0; i < 200000; ++i) {
-        Box3f box;
-        box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
-        box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
-        if (pick(rng) == 0) box.hi.y = box.lo.y;  // flat
-        Ray ray{Vec3f(unit(rng), unit(rng), unit(rng)) * 8.0f,
-                {unit(rng), unit(rng), unit(rng)},
-                0.0f,
-                kInfinity};
-        for (int axis = 0; axis < 3; ++axis) {
-            const int choice = pick(rng);
-            if (choice == 0) ray.direction[axis] = 0.0f;
-            if (choice == 1) ray.direction[axis] = -0.0f;
-            if (choice <= 1 && pick(rng) < 4) ray.origin[axis] = pick(rng) < 4 ? box.lo[axis] : box.hi[axis];
-        }
-        if (!is_valid(ray)) continue;
-        if (pick(rng) < 3) ray.tnear = -8.0f * std::fabs(unit(rng));
-        if (pick(rng) < 3) ray.tfar = ray.tnear + 8.0f * std::fabs(unit(rng));
+        const Box3f box = random_cull_box(rng);
+        const std::optional<Ray> ray = random_cull_ray(box, rng);
+        if (!ray) continue;
         float t_entry = 0.0f, t_exit = 0.0f;
-        const bool expected = intersect_box(SlabRay(ray), box, ray.tnear, ray.tfar, t_entry, t_exit);
+        const bool expected = intersect_box(SlabRay(*ray), box, ray->tnear, ray->tfar, t_entry, t_exit);
         (expected ? crossed : missed) += 1;
-        differ += top_level::crosses(ray, top_level::ObjectBox(box)) != expected ? 1 : 0;
+        differ += top_level::crosses(*ray, top_level::ObjectBox(box)) != expected ? 1 : 0;
     }
     EXPECT_EQ(differ, 0u);
     EXPECT_GT(crossed, 5000u);
@@ -605,44 +624,23 @@ TEST(InstancedScene, LaneMapAnswersAsTheOneRayMap) {
 #if defined(__AVX2__)
 // The packet walk's object box cull in lanes (top_level::crosses_lanes) answers as crosses, ray by ray: 8
 // rays a box, among them axis-parallel ones (zero directions of both signs) starting on the box's planes,
-// rays aimed at its corners, negative tnear and finite tfar.
+// rays aimed at its corners, negative tnear and finite tfar (random_cull_ray).
 TEST(InstancedScene, ObjectBoxCullInLanesAnswersAsCrosses) {
     std::mt19937 rng(67);
-    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
-    std::uniform_int_distribution<int> pick(0, 7);
     std::size_t crossed = 0, missed = 0, differ = 0;
     for (int group = 0; group < 25000; ++group) {
-        Box3f box;
-        box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
-        box.extend(Vec3f(unit(rng), unit(rng), unit(rng)) * 4.0f);
-        if (pick(rng) == 0) box.hi.y = box.lo.y;  // flat
+        const Box3f box = random_cull_box(rng);
         const top_level::ObjectBox object_box(box);
         alignas(32) float origin[3][8], direction[3][8], tnear[8], tfar[8];
         Ray rays[8];
         for (int lane = 0; lane < 8; ++lane) {
-            Ray ray{Vec3f(unit(rng), unit(rng), unit(rng)) * 8.0f,
-                    {unit(rng), unit(rng), unit(rng)},
-                    0.0f,
-                    kInfinity};
-            for (int axis = 0; axis < 3; ++axis) {
-                const int choice = pick(rng);
-                if (choice == 0) ray.direction[axis] = 0.0f;
-                if (choice == 1) ray.direction[axis] = -0.0f;
-                if (choice <= 1 && pick(rng) < 4)
-                    ray.origin[axis] = pick(rng) < 4 ? box.lo[axis] : box.hi[axis];
-            }
-            if (pick(rng) < 2) {  // aimed at a corner, where the exit widening decides
-                const Vec3f corner(pick(rng) < 4 ? box.lo.x : box.hi.x, pick(rng) < 4 ? box.lo.y : box.hi.y,
-                                   pick(rng) < 4 ? box.lo.z : box.hi.z);
-                ray.direction = corner - ray.origin;
-            }
-            if (!is_valid(ray)) ray.direction = {1.0f, 0.0f, 0.0f};
-            if (pick(rng) < 3) ray.tnear = -8.0f * std::fabs(unit(rng));
-            if (pick(rng) < 3) ray.tfar = ray.tnear + 8.0f * std::fabs(unit(rng));
-            rays[lane] = ray;
+            std::optional<Ray> ray;
+            while (!ray)
+                ray = random_cull_ray(box, rng);
+            rays[lane] = *ray;
             for (int axis = 0; axis < 3; ++axis)
-                origin[axis][lane] = ray.origin[axis], direction[axis][lane] = ray.direction[axis];
-            tnear[lane] = ray.tnear, tfar[lane] = ray.tfar;
+                origin[axis][lane] = ray->origin[axis], direction[axis][lane] = ray->direction[axis];
+            tnear[lane] = ray->tnear, tfar[lane] = ray->tfar;
         }
         const float* const origins[3] = {origin[0], origin[1], origin[2]};
         const float* const directions[3] = {direction[0], direction[1], direction[2]};
