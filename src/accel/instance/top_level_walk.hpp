@@ -331,6 +331,7 @@ class InstancedScene::Walk {
         RayMask mapped = 0;                     // the lanes whose object ray is to_object's
         RayMask far = 0;                        // of those, the ones whose origin was moved (far)
         RayMask culled = 0;                     // of those, the ones whose visit ends at the object box cull
+        RayMask crossing = 0;                   // and the ones that pass it as they are
 
         // Lane `lane`'s object ray (a mapped one).
         [[nodiscard]] ObjectRay object_ray(int lane) const {
@@ -425,15 +426,16 @@ class InstancedScene::Walk {
             if ((mapped.far >> lane) & 1) InverseAffine::move_interval(world, mapped.shift[l], local);
             mapped.tnear[l] = local.tnear, mapped.tfar[l] = local.tfar;
         }
-        mapped.culled = record.traced->scale_exponent() == 0 ? missing_the_box(record, count, mapped) : 0;
+        mapped.culled = mapped.crossing = 0;
+        if (record.traced->scale_exponent() == 0) cull_in_lanes(record, count, mapped);
         return count;
     }
 
-    // The mapped lanes whose visit ends at visit_mapped's object box cull, 8 to a register: those is_ordinary
-    // lets through as they are (its comparisons on the same floats) and that miss the box (crosses_lanes).
-    static RayMask missing_the_box(const InstanceRecord& record, int count, const MappedRays& mapped) {
+    // visit_mapped's object box cull on the mapped lanes, 8 to a register, for an object at its own scale:
+    // the lanes is_ordinary lets through as they are (its comparisons on the same floats) that miss the box
+    // (crosses_lanes) go to `culled`, those that cross it to `crossing`.
+    static void cull_in_lanes(const InstanceRecord& record, int count, MappedRays& mapped) {
         const __m256 sign_bit = _mm256_set1_ps(-0.0f);
-        RayMask culled = 0;
         for (int first = 0; first < count; first += 8) {
             const auto at = static_cast<std::size_t>(first);
             const float* const origin[3] = {&mapped.origin[0][at], &mapped.origin[1][at],
@@ -456,9 +458,11 @@ class InstancedScene::Walk {
                 _mm256_cmp_ps(largest_offset, _mm256_set1_ps(record.far_limit), _CMP_LE_OQ));
             const int crossing = top_level::crosses_lanes(origin, direction, &mapped.tnear[at],
                                                           &mapped.tfar[at], record.object_box);
-            culled |= static_cast<RayMask>(_mm256_movemask_ps(as_is) & ~crossing) << first;
+            const int ordinary = _mm256_movemask_ps(as_is);
+            mapped.culled |= static_cast<RayMask>(ordinary & ~crossing) << first;
+            mapped.crossing |= static_cast<RayMask>(ordinary & crossing) << first;
         }
-        return culled & mapped.mapped;
+        mapped.culled &= mapped.mapped, mapped.crossing &= mapped.mapped;
     }
 
     // The largest box test limit of the `alive` rays: where the cull stops.
@@ -530,8 +534,12 @@ class InstancedScene::Walk {
                     if ((mapped.mapped >> lane) & 1) {
                         Ray world = ray;
                         world.tfar = mapped.world_tfar[lane];
-                        found = visit_mapped<kAnyHit>(child, records_[child], world, mapped.object_ray(lane),
-                                                      hit, object_counters);
+                        const ObjectRay local = mapped.object_ray(lane);
+                        found = (mapped.crossing >> lane) & 1
+                                    ? visit_mapped<kAnyHit, true>(child, records_[child], world, local, hit,
+                                                                  object_counters)
+                                    : visit_mapped<kAnyHit>(child, records_[child], world, local, hit,
+                                                            object_counters);
                     } else {
                         found = visit<kAnyHit>(child, ray, hit, object_counters);
                     }
@@ -597,7 +605,8 @@ class InstancedScene::Walk {
     }
 
     // The rest of a visit, once `world` (the ray, its tfar clipped) is mapped into the object's frame.
-    template <bool kAnyHit>
+    // kCrossing: the object ray is known to go as it is and to cross the object's box (cull_in_lanes).
+    template <bool kAnyHit, bool kCrossing = false>
     bool visit_mapped(std::uint32_t id, const InstanceRecord& record, const Ray& world,
                       const ObjectRay& local, InstanceHit& best, TraversalCounters* object_counters) const {
         // Accel's public calls condition their rays first. to_object has moved a far origin near the object
@@ -608,12 +617,13 @@ class InstancedScene::Walk {
         // double of its finite components is finite and rounds to floats that is_ordinary bounds (a finite,
         // nonzero direction; an origin within far_limit of the object), and the interval, moved by a finite
         // shift and rounded outwards, keeps tnear <= tfar, tnear >= -FLT_MAX.
-        const bool as_is = record.traced->scale_exponent() == 0 && is_ordinary(local.ray, record);
+        const bool as_is =
+            kCrossing || (record.traced->scale_exponent() == 0 && is_ordinary(local.ray, record));
         // An object ray that misses the object's box misses every hit the object holds (the box the top
         // level places, docs/numerical-contract.md, "Instances"): the visit ends before the object's walk
         // sets the ray up. The top level's box is the object's box mapped to the world, axis-aligned around a
         // rotated one, so many visits end here (docs/accel/instances.md, "The visit's overhead, cut").
-        if (as_is && !top_level::crosses(local.ray, record.object_box)) return false;
+        if (!kCrossing && as_is && !top_level::crosses(local.ray, record.object_box)) return false;
         if constexpr (kAnyHit) {
             if (as_is && record.walk.any != nullptr)
                 return record.walk.any(*record.traced, local.ray, object_counters);
