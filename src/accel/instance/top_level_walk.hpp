@@ -527,10 +527,11 @@ class InstancedScene::Walk {
                 for (int lane = 0; lane < mapped_count; ++lane) {
                     const int i = mapped.ray[lane];
                     if constexpr (kCount) ++counts.nodes_visited;
+                    // A culled visit finds nothing: the ray's answer and box test limit stay as they are.
+                    if ((mapped.culled >> lane) & 1) continue;
                     const Ray& ray = rays[static_cast<std::size_t>(i)];
                     InstanceHit& hit = best[static_cast<std::size_t>(i)];
                     bool found = false;
-                    if ((mapped.culled >> lane) & 1) continue;
                     if ((mapped.mapped >> lane) & 1) {
                         Ray world = ray;
                         world.tfar = mapped.world_tfar[lane];
