@@ -84,11 +84,10 @@ struct InverseAffine {
         return shift;
     }
 
-    // The world interval moved with the origin (t' = t - shift), rounded outwards.
-    static void move_interval(const Ray& world, double shift, Ray& local) {
-        local.tnear =
-            max_of_numbers(round_down(double(world.tnear) - shift), -std::numeric_limits<float>::max());
-        local.tfar = round_up(double(world.tfar) - shift);
+    // The world interval [world_tnear, world_tfar] moved with the origin (t' = t - shift), rounded outwards.
+    static void move_interval(float world_tnear, float world_tfar, double shift, float& tnear, float& tfar) {
+        tnear = max_of_numbers(round_down(double(world_tnear) - shift), -std::numeric_limits<float>::max());
+        tfar = round_up(double(world_tfar) - shift);
     }
 
     // The world ray in the object's frame, and the shift of its parameter (t = t' + shift). An affine map
@@ -112,7 +111,7 @@ struct InverseAffine {
         if (distance > double(far_limit)) {
             const double centre[3] = {object_centre.x, object_centre.y, object_centre.z};
             local.shift = move_towards(centre, local_origin, local_direction);
-            move_interval(world, local.shift, local.ray);
+            move_interval(world.tnear, world.tfar, local.shift, local.ray.tnear, local.ray.tfar);
         }
         for (int r = 0; r < 3; ++r) {
             local.ray.origin[r] = static_cast<float>(local_origin[r]);

@@ -1,7 +1,7 @@
-// The two-level scene's records and its walk (InstancedScene, lancer/instances.hpp): what the walk reads of
-// objects and instances, and the top level walked front to back with each instance's object traced in its
-// frame. The scene's building, refit and interface are in instanced_scene.cpp. docs/accel/instances.md has
-// the design note.
+// The two-level scene's walk (InstancedScene, lancer/instances.hpp): the top level walked front to back,
+// alone or by packets, with each instance's object traced in its frame. What it reads of objects and
+// instances is in records.hpp, a packet's rays mapped into an object's frame together in mapped_rays.hpp, the
+// scene's building, refit and interface in instanced_scene.cpp. docs/accel/instances.md has the design note.
 #pragma once
 
 #include <algorithm>
@@ -21,129 +21,11 @@
 #include "accel/bvh/bvh_wide.hpp"
 #include "accel/bvh/interval_cull.hpp"
 #include "accel/instance/affine.hpp"
+#include "accel/instance/mapped_rays.hpp"
+#include "accel/instance/records.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/instances.hpp"
-
-namespace lancer::top_level {
-
-struct ObjectRecord {
-    std::shared_ptr<const Accel> structure;
-    // What the walk traces: the structure, or the single-ray structure a packet structure holds.
-    const Accel* traced = nullptr;
-    SingleRayWalk walk;  // traced's one-ray walk, where it has one
-    // The triangles the scene flattened, when it built the object itself.
-    std::shared_ptr<const std::vector<Triangle>> triangles;
-    std::size_t primitives = 0;
-};
-
-// An object's box as the cull before an instance visit (crosses) reads it: the three axes in SSE lanes, the
-// fourth 0.
-struct alignas(16) ObjectBox {
-    float lo[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-    float hi[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-
-    ObjectBox() = default;
-    explicit ObjectBox(const Box3f& box)
-        : lo{box.lo.x, box.lo.y, box.lo.z, 0.0f}, hi{box.hi.x, box.hi.y, box.hi.z, 0.0f} {}
-    [[nodiscard]] Box3f box() const { return {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}; }
-};
-
-// Whether `ray` crosses `box` within [tnear, tfar]: intersect_box's slab test (core/intersect.hpp), its
-// products, NaN rule (a NaN plane leaves the slab unbounded) and exit widening, on the three axes at once;
-// the same answer, since the largest entry and the smallest exit do not depend on the order in which they
-// are taken (InstancedScene.ObjectBoxCullAnswersAsTheSlabTest).
-[[nodiscard]] inline bool crosses(const Ray& ray, const ObjectBox& box) {
-#if defined(__SSE4_1__)
-    const __m128 origin = _mm_loadu_ps(&ray.origin.x);        // x, y, z and direction.x
-    const __m128 direction = _mm_loadu_ps(&ray.direction.x);  // x, y, z and tnear
-    const __m128 inverse = _mm_div_ps(_mm_set1_ps(1.0f), direction);
-    const __m128 to_lo = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(box.lo), origin), inverse);
-    const __m128 to_hi = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(box.hi), origin), inverse);
-    // The fourth lane, and an axis with a NaN plane, unbounded.
-    const __m128 unbounded =
-        _mm_or_ps(_mm_cmpunord_ps(to_lo, to_hi), _mm_castsi128_ps(_mm_setr_epi32(0, 0, 0, -1)));
-    const __m128 exit = _mm_max_ps(to_lo, to_hi);
-    const __m128 widened =
-        _mm_mul_ps(exit, _mm_blendv_ps(_mm_set1_ps(kSlabExitShrink), _mm_set1_ps(kSlabExitGrow),
-                                       _mm_cmpgt_ps(exit, _mm_setzero_ps())));
-    __m128 t0 = _mm_blendv_ps(_mm_min_ps(to_lo, to_hi), _mm_set1_ps(-kInfinity), unbounded);
-    __m128 t1 = _mm_blendv_ps(widened, _mm_set1_ps(kInfinity), unbounded);
-    t0 = _mm_max_ps(t0, _mm_movehl_ps(t0, t0));
-    t1 = _mm_min_ps(t1, _mm_movehl_ps(t1, t1));
-    t0 = _mm_max_ss(_mm_max_ss(t0, _mm_shuffle_ps(t0, t0, 1)), _mm_set_ss(ray.tnear));
-    t1 = _mm_min_ss(_mm_min_ss(t1, _mm_shuffle_ps(t1, t1, 1)), _mm_set_ss(ray.tfar));
-    return _mm_comile_ss(t0, t1) != 0;
-#else
-    float t_entry = 0.0f, t_exit = 0.0f;
-    return intersect_box(SlabRay(ray), box.box(), ray.tnear, ray.tfar, t_entry, t_exit);
-#endif
-}
-
-#if defined(__AVX2__)
-// crosses for 8 rays at once, one per lane of 8-float rows (origin[axis], direction[axis], tnear, tfar,
-// 32-byte aligned): bit k is ray k's answer. The same products, NaN rule and exit widening on the same
-// floats; the largest entry and the smallest exit do not depend on the order in which they are taken
-// (InstancedScene.ObjectBoxCullInLanesAnswersAsCrosses).
-[[nodiscard]] inline int crosses_lanes(const float* const (&origin)[3], const float* const (&direction)[3],
-                                       const float* tnear, const float* tfar, const ObjectBox& box) {
-    __m256 entry = _mm256_load_ps(tnear), exit = _mm256_load_ps(tfar);
-    for (std::size_t axis = 0; axis < 3; ++axis) {
-        const __m256 from = _mm256_load_ps(origin[axis]);
-        const __m256 inverse = _mm256_div_ps(_mm256_set1_ps(1.0f), _mm256_load_ps(direction[axis]));
-        const __m256 to_lo = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(box.lo[axis]), from), inverse);
-        const __m256 to_hi = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(box.hi[axis]), from), inverse);
-        const __m256 unbounded = _mm256_cmp_ps(to_lo, to_hi, _CMP_UNORD_Q);
-        const __m256 axis_exit = _mm256_max_ps(to_lo, to_hi);
-        const __m256 widened = _mm256_mul_ps(
-            axis_exit, _mm256_blendv_ps(_mm256_set1_ps(kSlabExitShrink), _mm256_set1_ps(kSlabExitGrow),
-                                        _mm256_cmp_ps(axis_exit, _mm256_setzero_ps(), _CMP_GT_OQ)));
-        entry = _mm256_max_ps(
-            entry, _mm256_blendv_ps(_mm256_min_ps(to_lo, to_hi), _mm256_set1_ps(-kInfinity), unbounded));
-        exit = _mm256_min_ps(exit, _mm256_blendv_ps(widened, _mm256_set1_ps(kInfinity), unbounded));
-    }
-    return _mm256_movemask_ps(_mm256_cmp_ps(entry, exit, _CMP_LE_OQ));
-}
-#endif
-
-// is_valid (lancer/ray.hpp) on the ray's 8 floats at once: origin, direction and tnear finite, a nonzero
-// direction component, tfar not NaN and tnear <= tfar. The same answer (checked by
-// InstancedScene.RayValidityAnswersAsIsValid) in a few vector instructions instead of is_valid's scalar tests
-// of each component (docs/accel/instances.md, "The visit's overhead, cut").
-[[nodiscard]] inline bool is_valid_ray(const Ray& ray) {
-#if defined(__AVX2__)
-    static_assert(sizeof(Ray) == 8 * sizeof(float));
-    const __m256 lanes = _mm256_loadu_ps(&ray.origin.x);  // origin, direction, tnear, tfar
-    const __m256 magnitude = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), lanes);
-    const int finite = _mm256_movemask_ps(
-        _mm256_cmp_ps(magnitude, _mm256_set1_ps(std::numeric_limits<float>::max()), _CMP_LE_OQ));
-    const int nonzero = _mm256_movemask_ps(_mm256_cmp_ps(lanes, _mm256_setzero_ps(), _CMP_NEQ_UQ));
-    return (finite & 0x7f) == 0x7f && (nonzero & 0x38) != 0 && ray.tfar == ray.tfar && ray.tnear <= ray.tfar;
-#else
-    return is_valid(ray);
-#endif
-}
-
-// What the walk reads of an instance: 192 bytes.
-struct InstanceRecord {
-    InverseAffine to_object;
-    const Accel* traced = nullptr;
-    std::uint32_t object = 0;
-    // Ray conditioning's far-origin frame of the object's box (FarOriginFrame): its centre, and the distance
-    // beyond which an origin is far.
-    Vec3f object_centre;
-    float far_limit = kInfinity;
-    SingleRayWalk walk;  // the object's (ObjectRecord::walk)
-    // The object's box grown by its geometric tolerance: the box the top level maps to the world.
-    ObjectBox object_box;
-};
-static_assert(sizeof(InstanceRecord) == 192);
-
-// The top level's nodes: the wide BVH's (accel/bvh/bvh_wide.hpp), 8 children tested at once.
-constexpr int kTopWidth = 8;
-using TopNode = WideBvhNode<kTopWidth>;
-
-}  // namespace lancer::top_level
 
 namespace lancer {
 
@@ -204,10 +86,10 @@ class InstancedScene::Walk {
     }
 
   private:
-    static constexpr std::size_t kPacketRays = 64;
+    static constexpr std::size_t kPacketRays = top_level::kPacketRays;
     // Fewer rays than this walk alone: the packet's loading and culls pay for several rays.
     static constexpr std::size_t kFewestPacketRays = 8;
-    using RayMask = std::uint64_t;
+    using RayMask = top_level::RayMask;
 
 #if defined(__AVX2__)
     // A packet's rays, one array per coordinate so that a group of 8 loads in one instruction, and their
@@ -318,153 +200,6 @@ class InstancedScene::Walk {
         packet.ends_limit = length * (1.0f + kMargin);
     }
 
-    // The rays of a packet that meet an instance child, in lanes, mapped into its object's frame together
-    // (map_together).
-    struct MappedRays {
-        alignas(32) float origin[3][kPacketRays];
-        alignas(32) float direction[3][kPacketRays];
-        alignas(32) float tnear[kPacketRays];  // the interval in the object's frame
-        alignas(32) float tfar[kPacketRays];
-        alignas(32) double shift[kPacketRays];  // a far lane's (ObjectRay::shift)
-        float world_tfar[kPacketRays];          // the ray's tfar, clipped by its closest hit so far (clipped)
-        std::uint8_t ray[kPacketRays];          // the lane's ray in the packet
-        RayMask mapped = 0;                     // the lanes whose object ray is to_object's
-        RayMask far = 0;                        // of those, the ones whose origin was moved (far)
-        RayMask culled = 0;                     // of those, the ones whose visit ends at the object box cull
-        RayMask crossing = 0;                   // and the ones that pass it as they are
-
-        // Lane `lane`'s object ray (a mapped one).
-        [[nodiscard]] ObjectRay object_ray(int lane) const {
-            const auto l = static_cast<std::size_t>(lane);
-            return {{{origin[0][l], origin[1][l], origin[2][l]},
-                     {direction[0][l], direction[1][l], direction[2][l]},
-                     tnear[l],
-                     tfar[l]},
-                    (far >> lane) & 1 ? shift[l] : 0.0};
-        }
-    };
-
-    // The `met` rays mapped into instance `id`'s frame four to a register of doubles: to_object's latency
-    // chain (the map's products, the distance to the object, a far origin's move) run once for four rays
-    // instead of once a ray (docs/accel/instances.md, "A packet's rays mapped together"). The lanes run
-    // InverseAffine's own steps, so a mapped lane's object ray is to_object's bit for bit; a lane with a NaN
-    // along the way, where to_object's far test depends on where the NaN is, is left unmapped, to visit.
-    // Returns the number of lanes, in the order of the rays.
-    template <bool kAnyHit>
-    int map_together(std::uint32_t id, std::span<const Ray> rays, RayMask met,
-                     const std::array<InstanceHit, kPacketRays>& best, MappedRays& mapped) const {
-        constexpr int kLanes = 4;
-        const InstanceRecord& record = records_[id];
-        // origin x, y, z, then direction x, y, z; rows of a whole number of 16-byte groups.
-        alignas(16) float gathered[6][kPacketRays + kLanes];
-        int count = 0;
-        for (RayMask each = met; each != 0; each &= each - 1, ++count) {
-            const int i = std::countr_zero(each);
-            const Ray& ray = rays[static_cast<std::size_t>(i)];
-            const auto lane = static_cast<std::size_t>(count);
-            mapped.ray[lane] = static_cast<std::uint8_t>(i);
-            for (int axis = 0; axis < 3; ++axis) {
-                gathered[axis][lane] = ray.origin[axis];
-                gathered[3 + axis][lane] = ray.direction[axis];
-            }
-            mapped.world_tfar[lane] = kAnyHit ? ray.tfar : clipped(ray, best[static_cast<std::size_t>(i)]);
-        }
-        for (int lane = count; lane % kLanes != 0; ++lane)  // a whole last register: copies of the first ray
-            for (auto& row : gathered)
-                row[lane] = row[0];
-        const DoubleLanes centre[3] = {DoubleLanes(double(record.object_centre.x)),
-                                       DoubleLanes(double(record.object_centre.y)),
-                                       DoubleLanes(double(record.object_centre.z))};
-        const __m256d far_limit = _mm256_set1_pd(double(record.far_limit));
-        const __m256d sign_bit = _mm256_set1_pd(-0.0);
-        mapped.mapped = 0, mapped.far = 0;
-        for (int first = 0; first < count; first += kLanes) {
-            const auto at = static_cast<std::size_t>(first);
-            const auto lanes_of = [&](int row) {
-                return DoubleLanes(_mm256_cvtps_pd(_mm_load_ps(&gathered[row][at])));
-            };
-            const DoubleLanes origin[3] = {lanes_of(0), lanes_of(1), lanes_of(2)};
-            const DoubleLanes direction[3] = {lanes_of(3), lanes_of(4), lanes_of(5)};
-            DoubleLanes local_origin[3] = {origin[0], origin[1], origin[2]};
-            DoubleLanes local_direction[3] = {direction[0], direction[1], direction[2]};
-            record.to_object.map(origin, direction, local_origin, local_direction);
-            // to_object's far test, |p' - centre| > far_limit on some axis, and the lanes with a NaN.
-            __m256d far = _mm256_setzero_pd(), unordered = _mm256_setzero_pd();
-            for (int axis = 0; axis < 3; ++axis) {
-                const __m256d offset = _mm256_andnot_pd(sign_bit, (local_origin[axis] - centre[axis]).lanes);
-                far = _mm256_or_pd(far, _mm256_cmp_pd(offset, far_limit, _CMP_GT_OQ));
-                unordered =
-                    _mm256_or_pd(unordered, _mm256_cmp_pd(offset, local_direction[axis].lanes, _CMP_UNORD_Q));
-            }
-            const int far_lanes = _mm256_movemask_pd(far);
-            if (far_lanes != 0) {
-                DoubleLanes moved[3] = {local_origin[0], local_origin[1], local_origin[2]};
-                const DoubleLanes shift = InverseAffine::move_towards(centre, moved, local_direction);
-                _mm256_store_pd(&mapped.shift[at], shift.lanes);
-                for (int axis = 0; axis < 3; ++axis) {
-                    local_origin[axis] =
-                        DoubleLanes(_mm256_blendv_pd(local_origin[axis].lanes, moved[axis].lanes, far));
-                    unordered = _mm256_or_pd(
-                        unordered,
-                        _mm256_cmp_pd(local_origin[axis].lanes, local_origin[axis].lanes, _CMP_UNORD_Q));
-                }
-            }
-            for (int axis = 0; axis < 3; ++axis) {
-                _mm_store_ps(&mapped.origin[axis][at], _mm256_cvtpd_ps(local_origin[axis].lanes));
-                _mm_store_ps(&mapped.direction[axis][at], _mm256_cvtpd_ps(local_direction[axis].lanes));
-            }
-            const int ordered_lanes = ~_mm256_movemask_pd(unordered) & 0xf;
-            mapped.mapped |= static_cast<RayMask>(ordered_lanes) << first;
-            mapped.far |= static_cast<RayMask>(far_lanes & ordered_lanes) << first;
-        }
-        if (count < static_cast<int>(kPacketRays)) mapped.mapped &= (RayMask{1} << count) - 1;
-        for (int lane = 0; lane < count; ++lane) {
-            const auto l = static_cast<std::size_t>(lane);
-            Ray world = rays[mapped.ray[l]], local;
-            world.tfar = mapped.world_tfar[l];
-            local.tnear = world.tnear, local.tfar = world.tfar;
-            if ((mapped.far >> lane) & 1) InverseAffine::move_interval(world, mapped.shift[l], local);
-            mapped.tnear[l] = local.tnear, mapped.tfar[l] = local.tfar;
-        }
-        mapped.culled = mapped.crossing = 0;
-        if (record.traced->scale_exponent() == 0) cull_in_lanes(record, count, mapped);
-        return count;
-    }
-
-    // visit_mapped's object box cull on the mapped lanes, 8 to a register, for an object at its own scale:
-    // the lanes is_ordinary lets through as they are (its comparisons on the same floats) that miss the box
-    // (crosses_lanes) go to `culled`, those that cross it to `crossing`.
-    static void cull_in_lanes(const InstanceRecord& record, int count, MappedRays& mapped) {
-        const __m256 sign_bit = _mm256_set1_ps(-0.0f);
-        for (int first = 0; first < count; first += 8) {
-            const auto at = static_cast<std::size_t>(first);
-            const float* const origin[3] = {&mapped.origin[0][at], &mapped.origin[1][at],
-                                            &mapped.origin[2][at]};
-            const float* const direction[3] = {&mapped.direction[0][at], &mapped.direction[1][at],
-                                               &mapped.direction[2][at]};
-            __m256 largest_direction = _mm256_setzero_ps(), largest_offset = _mm256_setzero_ps();
-            for (std::size_t axis = 0; axis < 3; ++axis) {
-                const __m256 offset =
-                    _mm256_sub_ps(_mm256_load_ps(origin[axis]),
-                                  _mm256_set1_ps(record.object_centre[static_cast<int>(axis)]));
-                largest_direction = _mm256_max_ps(
-                    largest_direction, _mm256_andnot_ps(sign_bit, _mm256_load_ps(direction[axis])));
-                largest_offset = _mm256_max_ps(largest_offset, _mm256_andnot_ps(sign_bit, offset));
-            }
-            const __m256 as_is = _mm256_and_ps(
-                _mm256_and_ps(
-                    _mm256_cmp_ps(largest_direction, _mm256_set1_ps(kDirectionLowest), _CMP_GE_OQ),
-                    _mm256_cmp_ps(largest_direction, _mm256_set1_ps(kDirectionHighest), _CMP_LE_OQ)),
-                _mm256_cmp_ps(largest_offset, _mm256_set1_ps(record.far_limit), _CMP_LE_OQ));
-            const int crossing = top_level::crosses_lanes(origin, direction, &mapped.tnear[at],
-                                                          &mapped.tfar[at], record.object_box);
-            const int ordinary = _mm256_movemask_ps(as_is);
-            mapped.culled |= static_cast<RayMask>(ordinary & ~crossing) << first;
-            mapped.crossing |= static_cast<RayMask>(ordinary & crossing) << first;
-        }
-        mapped.culled &= mapped.mapped, mapped.crossing &= mapped.mapped;
-    }
-
     // The largest box test limit of the `alive` rays: where the cull stops.
     [[nodiscard]] static float largest_limit(const Packet& packet, RayMask alive) {
         float largest = -kInfinity;
@@ -495,7 +230,7 @@ class InstancedScene::Walk {
         TraversalCounters* object_counters = kCount ? &object_counts : nullptr;
         std::array<StackEntry, kTopWidth * BvhAccel::kMaxDepth + 1> stack;
         int stack_size = 0;
-        MappedRays mapped;
+        top_level::MappedRays mapped;
         float limit_max = packet.from_ends ? packet.ends_limit : largest_limit(packet, alive);
         const TopNode* node = nodes_.empty() ? nullptr : &nodes_[0];
         RayMask node_rays = alive;
@@ -523,7 +258,13 @@ class InstancedScene::Walk {
                     node = &nodes_[child], node_rays = met;
                     break;
                 }
-                const int mapped_count = map_together<kAnyHit>(child, rays, met, best, mapped);
+                const int mapped_count = top_level::map_together(
+                    records_[child], rays, met,
+                    [&](int i) {
+                        const Ray& ray = rays[static_cast<std::size_t>(i)];
+                        return kAnyHit ? ray.tfar : clipped(ray, best[static_cast<std::size_t>(i)]);
+                    },
+                    mapped);
                 for (int lane = 0; lane < mapped_count; ++lane) {
                     const int i = mapped.ray[lane];
                     if constexpr (kCount) ++counts.nodes_visited;
@@ -574,14 +315,6 @@ class InstancedScene::Walk {
         return walk_from<kAnyHit, kCount, false>(ray, best, counts);
     }
 
-    // Whether ray conditioning would leave an object ray as it is (may_need_conditioning against the
-    // object's box): a direction in the ordinary range and an origin that is not far.
-    [[nodiscard]] static bool is_ordinary(const Ray& ray, const InstanceRecord& record) {
-        const float largest = max_component(abs(ray.direction));
-        return largest >= kDirectionLowest && largest <= kDirectionHighest &&
-               max_component(abs(ray.origin - record.object_centre)) <= record.far_limit;
-    }
-
     // The end of the interval an instance visit traces: the ray's tfar, or once it has a hit, the float
     // after that hit's t (closed). A hit mapped back from a moved origin (ObjectRay::shift) may lie beyond
     // the mapped end of [tnear, best t] and still round to best t: with best t itself as the end, an
@@ -619,7 +352,7 @@ class InstancedScene::Walk {
         // nonzero direction; an origin within far_limit of the object), and the interval, moved by a finite
         // shift and rounded outwards, keeps tnear <= tfar, tnear >= -FLT_MAX.
         const bool as_is =
-            kCrossing || (record.traced->scale_exponent() == 0 && is_ordinary(local.ray, record));
+            kCrossing || (record.traced->scale_exponent() == 0 && top_level::is_ordinary(local.ray, record));
         // An object ray that misses the object's box misses every hit the object holds (the box the top
         // level places, docs/numerical-contract.md, "Instances"): the visit ends before the object's walk
         // sets the ray up. The top level's box is the object's box mapped to the world, axis-aligned around a

@@ -20,7 +20,9 @@
 #include <utility>
 #include <vector>
 
-#include "accel/instance/top_level_walk.hpp"
+#include "accel/instance/affine.hpp"
+#include "accel/instance/mapped_rays.hpp"
+#include "accel/instance/records.hpp"
 #include "core/intersect.hpp"
 #include "instanced_fixture.hpp"
 #include "lancer/accel.hpp"
@@ -622,38 +624,50 @@ TEST(InstancedScene, LaneMapAnswersAsTheOneRayMap) {
 #endif
 
 #if defined(__AVX2__)
-// The packet walk's object box cull in lanes (top_level::crosses_lanes) answers as crosses, ray by ray: 8
-// rays a box, among them axis-parallel ones (zero directions of both signs) starting on the box's planes,
-// rays aimed at its corners, negative tnear and finite tfar (random_cull_ray).
-TEST(InstancedScene, ObjectBoxCullInLanesAnswersAsCrosses) {
+// The packet walk's object box cull in lanes (top_level::cull_in_lanes, over crosses_lanes) answers as the
+// one-ray visit's, is_ordinary then crosses, lane by lane: 64 rays a box (random_cull_ray), some of their
+// directions scaled out of the ordinary range and some origins moved far.
+TEST(InstancedScene, ObjectBoxCullInLanesAnswersAsTheVisit) {
     std::mt19937 rng(67);
-    std::size_t crossed = 0, missed = 0, differ = 0;
-    for (int group = 0; group < 25000; ++group) {
+    std::uniform_int_distribution<int> pick(0, 15);
+    std::size_t crossing = 0, culled = 0, unordinary = 0, differ = 0;
+    for (int group = 0; group < 4000; ++group) {
         const Box3f box = random_cull_box(rng);
-        const top_level::ObjectBox object_box(box);
-        alignas(32) float origin[3][8], direction[3][8], tnear[8], tfar[8];
-        Ray rays[8];
-        for (int lane = 0; lane < 8; ++lane) {
+        top_level::InstanceRecord record;
+        record.object_box = top_level::ObjectBox(box);
+        record.object_centre = box.center();
+        record.far_limit = 4.0f * std::max(max_component(box.extent()), 1.0f);
+        top_level::MappedRays mapped;
+        Ray rays[top_level::kPacketRays];
+        for (std::size_t lane = 0; lane < top_level::kPacketRays; ++lane) {
             std::optional<Ray> ray;
             while (!ray)
                 ray = random_cull_ray(box, rng);
+            const int choice = pick(rng);
+            if (choice == 0) ray->direction = ray->direction * 0x1p-40f;
+            if (choice == 1) ray->direction = ray->direction * 0x1p40f;
+            if (choice == 2) ray->origin = ray->origin + Vec3f(0.0f, 5.0f * record.far_limit, 0.0f);
             rays[lane] = *ray;
             for (int axis = 0; axis < 3; ++axis)
-                origin[axis][lane] = ray->origin[axis], direction[axis][lane] = ray->direction[axis];
-            tnear[lane] = ray->tnear, tfar[lane] = ray->tfar;
+                mapped.origin[axis][lane] = ray->origin[axis],
+                mapped.direction[axis][lane] = ray->direction[axis];
+            mapped.tnear[lane] = ray->tnear, mapped.tfar[lane] = ray->tfar;
         }
-        const float* const origins[3] = {origin[0], origin[1], origin[2]};
-        const float* const directions[3] = {direction[0], direction[1], direction[2]};
-        const int answers = top_level::crosses_lanes(origins, directions, tnear, tfar, object_box);
-        for (int lane = 0; lane < 8; ++lane) {
-            const bool expected = top_level::crosses(rays[lane], object_box);
-            (expected ? crossed : missed) += 1;
-            differ += (((answers >> lane) & 1) != 0) != expected ? 1 : 0;
+        mapped.mapped = ~top_level::RayMask{0};
+        top_level::cull_in_lanes(record, static_cast<int>(top_level::kPacketRays), mapped);
+        for (std::size_t lane = 0; lane < top_level::kPacketRays; ++lane) {
+            const bool ordinary = top_level::is_ordinary(rays[lane], record);
+            const bool crosses = ordinary && top_level::crosses(rays[lane], record.object_box);
+            unordinary += ordinary ? 0 : 1;
+            (crosses ? crossing : culled) += ordinary ? 1 : 0;
+            differ += ((mapped.culled >> lane) & 1) != (ordinary && !crosses) ? 1 : 0;
+            differ += ((mapped.crossing >> lane) & 1) != (ordinary && crosses) ? 1 : 0;
         }
     }
     EXPECT_EQ(differ, 0u);
-    EXPECT_GT(crossed, 5000u);
-    EXPECT_GT(missed, 20000u);
+    EXPECT_GT(crossing, 20000u);
+    EXPECT_GT(culled, 80000u);
+    EXPECT_GT(unordinary, 30000u);
 }
 #endif
 
