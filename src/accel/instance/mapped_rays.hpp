@@ -23,7 +23,7 @@ namespace lancer::top_level {
 // crosses for 8 rays at once, one per lane of 8-float rows (origin[axis], direction[axis], tnear, tfar,
 // 32-byte aligned): bit k is ray k's answer. The same products, NaN rule and exit widening on the same
 // floats; the largest entry and the smallest exit do not depend on the order in which they are taken
-// (InstancedScene.ObjectBoxCullInLanesAnswersAsCrosses).
+// (InstancedScene.ObjectBoxCullInLanesAnswersAsTheVisit, through cull_in_lanes).
 [[nodiscard]] inline int crosses_lanes(const float* const (&origin)[3], const float* const (&direction)[3],
                                        const float* tnear, const float* tfar, const ObjectBox& box) {
     __m256 entry = _mm256_load_ps(tnear), exit = _mm256_load_ps(tfar);
