@@ -24,6 +24,20 @@
 namespace lancer::testing {
 namespace {
 
+// The floats the tests draw among beside ordinary numbers: zeros of both signs, subnormals, FLT_MAX,
+// infinities and NaN.
+constexpr float kSpecialFloats[] = {0.0f,
+                                    -0.0f,
+                                    1.0f,
+                                    -2.5f,
+                                    std::numeric_limits<float>::denorm_min(),
+                                    -std::numeric_limits<float>::denorm_min(),
+                                    std::numeric_limits<float>::max(),
+                                    -std::numeric_limits<float>::max(),
+                                    kInfinity,
+                                    -kInfinity,
+                                    std::numeric_limits<float>::quiet_NaN()};
+
 // The object box cull tests' boxes: in [-4, 4]^3, one in eight flat.
 Box3f random_cull_box(std::mt19937& rng) {
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
@@ -85,20 +99,13 @@ TEST(InstancedScene, ObjectBoxCullAnswersAsTheSlabTest) {
 // transforms, from the mild to the condition number's limit, and origins, directions and centres drawn among
 // ordinary numbers, zeros of both signs, subnormals, FLT_MAX, infinities and NaN.
 TEST(InstancedScene, LaneMapAnswersAsTheOneRayMap) {
-    const float values[] = {0.0f,
-                            -0.0f,
-                            std::numeric_limits<float>::denorm_min(),
-                            std::numeric_limits<float>::max(),
-                            -std::numeric_limits<float>::max(),
-                            kInfinity,
-                            std::numeric_limits<float>::quiet_NaN()};
     std::mt19937 rng(73);
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
     std::uniform_real_distribution<float> exponent(-30.0f, 30.0f);
-    std::uniform_int_distribution<std::size_t> pick(0, std::size(values) - 1);
+    std::uniform_int_distribution<std::size_t> pick(0, std::size(kSpecialFloats) - 1);
     std::uniform_int_distribution<int> ordinary(0, 5);
     const auto coordinate = [&] {
-        return ordinary(rng) != 0 ? unit(rng) * std::exp2(exponent(rng)) : values[pick(rng)];
+        return ordinary(rng) != 0 ? unit(rng) * std::exp2(exponent(rng)) : kSpecialFloats[pick(rng)];
     };
     // A NaN's payload depends on which operand the compiler puts first; the walk leaves NaN lanes to the
     // one-ray visit, so only their being NaN must agree.
@@ -221,24 +228,13 @@ TEST(InstancedScene, ObjectBoxCullInLanesAnswersAsTheVisit) {
 // zeros of both signs, subnormals, FLT_MAX, infinities, NaNs and ordinary numbers.
 TEST(InstancedScene, RayValidityAnswersAsIsValid) {
     std::vector<Ray> rays = testing::hostile_rays(Box3f{{-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}}).rays;
-    const float values[] = {0.0f,
-                            -0.0f,
-                            1.0f,
-                            -2.5f,
-                            std::numeric_limits<float>::denorm_min(),
-                            -std::numeric_limits<float>::denorm_min(),
-                            std::numeric_limits<float>::max(),
-                            -std::numeric_limits<float>::max(),
-                            kInfinity,
-                            -kInfinity,
-                            std::numeric_limits<float>::quiet_NaN()};
     std::mt19937 rng(71);
-    std::uniform_int_distribution<std::size_t> pick(0, std::size(values) - 1);
+    std::uniform_int_distribution<std::size_t> pick(0, std::size(kSpecialFloats) - 1);
     std::uniform_int_distribution<int> ordinary(0, 3);
     for (int i = 0; i < 200000; ++i) {
         float lanes[8];
         for (float& lane : lanes)
-            lane = ordinary(rng) != 0 ? 1.0f + float(ordinary(rng)) : values[pick(rng)];
+            lane = ordinary(rng) != 0 ? 1.0f + float(ordinary(rng)) : kSpecialFloats[pick(rng)];
         rays.push_back(std::bit_cast<Ray>(lanes));
     }
     std::size_t valid = 0, differ = 0;
