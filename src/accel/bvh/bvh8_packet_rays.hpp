@@ -240,7 +240,7 @@ class LoadedPacket {
     template <class Fields>
     [[nodiscard]] bool load_groups(Fields&& fields_of) {
         const Float infinity = Ops::broadcast(kInfinity), minus_infinity = Ops::broadcast(-kInfinity);
-        const Float zero = Ops::broadcast(0.0f), one = Ops::broadcast(1.0f);
+        const Float one = Ops::broadcast(1.0f);
         Float origin_lo[3], origin_hi[3], inv_lo[3], inv_hi[3];
         for (int axis = 0; axis < 3; ++axis) {
             origin_lo[axis] = inv_lo[axis] = infinity;
@@ -257,16 +257,7 @@ class LoadedPacket {
             const Float origin[3] = {fields[0], fields[1], fields[2]};
             const Float direction[3] = {fields[3], fields[4], fields[5]};
             const Float tnear = fields[6], tfar = fields[7];
-            // is_valid: NaN compares false, so `|x| < inf` is isfinite and `tfar == tfar` is !isnan.
-            auto valid = Ops::mask_and(Ops::less(Ops::abs(tnear), infinity),
-                                       Ops::mask_and(Ops::equal(tfar, tfar), Ops::less_equal(tnear, tfar)));
-            auto nonzero = Ops::greater(Ops::abs(direction[0]), zero);
-            for (int axis = 0; axis < 3; ++axis) {
-                valid = Ops::mask_and(valid, Ops::mask_and(Ops::less(Ops::abs(origin[axis]), infinity),
-                                                           Ops::less(Ops::abs(direction[axis]), infinity)));
-                if (axis > 0) nonzero = Ops::mask_or(nonzero, Ops::greater(Ops::abs(direction[axis]), zero));
-            }
-            valid = Ops::mask_and(valid, nonzero);
+            const auto valid = valid_ray_lanes<Ops>(fields);
             const unsigned valid_lanes = Ops::bits(valid);
             valid_ |= static_cast<LaneMask>(valid_lanes) << first;
             for (int axis = 0; axis < 3; ++axis) {

@@ -38,6 +38,24 @@ struct PacketInterval {
     }
 };
 
+// is_valid (lancer/ray.hpp) lane by lane on a group of rays' transposed fields (ox oy oz dx dy dz tnear tfar,
+// Ops::load_fields8): finite origin, direction and tnear, a nonzero direction component, tfar not NaN and
+// tnear <= tfar. NaN compares false, so `|x| < inf` is isfinite and `tfar == tfar` is !isnan.
+template <class Ops>
+[[nodiscard]] inline typename Ops::Mask valid_ray_lanes(const typename Ops::Float (&fields)[8]) {
+    const auto infinity = Ops::broadcast(kInfinity), zero = Ops::broadcast(0.0f);
+    const auto tnear = fields[6], tfar = fields[7];
+    auto valid = Ops::mask_and(Ops::less(Ops::abs(tnear), infinity),
+                               Ops::mask_and(Ops::equal(tfar, tfar), Ops::less_equal(tnear, tfar)));
+    auto nonzero = Ops::greater(Ops::abs(fields[3]), zero);
+    for (int axis = 0; axis < 3; ++axis) {
+        valid = Ops::mask_and(valid, Ops::mask_and(Ops::less(Ops::abs(fields[axis]), infinity),
+                                                   Ops::less(Ops::abs(fields[3 + axis]), infinity)));
+        if (axis > 0) nonzero = Ops::mask_or(nonzero, Ops::greater(Ops::abs(fields[3 + axis]), zero));
+    }
+    return Ops::mask_and(valid, nonzero);
+}
+
 using Boxes = simd::Avx2::Float[2][3];  // [kLo | kHi][axis]: 8 boxes, one per lane
 
 // The boxes (8, one per lane) that some ray of the packet may hit within [tnear_min, tlimit_max]: bit i set,

@@ -45,6 +45,41 @@ struct DoubleLanes {
 };
 #endif
 
+#if defined(__AVX2__)
+// next_float_up (core/ray_conditioning.hpp) on four floats: the next float up, +inf kept, the least denormal
+// after a zero of either sign.
+[[nodiscard]] inline __m128 next_float_up_lanes(__m128 value) {
+    const __m128i bits = _mm_castps_si128(value);
+    const __m128 stepped = _mm_blendv_ps(_mm_castsi128_ps(_mm_sub_epi32(bits, _mm_set1_epi32(1))),
+                                         _mm_castsi128_ps(_mm_add_epi32(bits, _mm_set1_epi32(1))),
+                                         _mm_cmpgt_ps(value, _mm_setzero_ps()));
+    const __m128 off_zero = _mm_blendv_ps(stepped, _mm_set1_ps(std::numeric_limits<float>::denorm_min()),
+                                          _mm_cmpeq_ps(value, _mm_setzero_ps()));
+    return _mm_blendv_ps(off_zero, value, _mm_cmpeq_ps(value, _mm_set1_ps(kInfinity)));
+}
+
+// A mask of four doubles' lanes as a mask of four floats' lanes.
+[[nodiscard]] inline __m128 narrow_mask(__m256d mask) {
+    return _mm256_castps256_ps128(
+        _mm256_permutevar8x32_ps(_mm256_castpd_ps(mask), _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7)));
+}
+
+// round_down and round_up on four doubles, each lane by their rule, with masks where they branch: a walk that
+// moves the intervals of many rays rounds about half of them each way, so branches would be mispredicted
+// half the time (docs/accel/instances.md, "The far lanes' intervals").
+[[nodiscard]] inline __m128 round_down_lanes(__m256d value) {
+    const __m128 rounded = _mm256_cvtpd_ps(value);
+    const __m128 above = narrow_mask(_mm256_cmp_pd(_mm256_cvtps_pd(rounded), value, _CMP_GT_OQ));
+    const __m128 sign = _mm_set1_ps(-0.0f);  // next_float_down(x) = -next_float_up(-x)
+    return _mm_blendv_ps(rounded, _mm_xor_ps(next_float_up_lanes(_mm_xor_ps(rounded, sign)), sign), above);
+}
+[[nodiscard]] inline __m128 round_up_lanes(__m256d value) {
+    const __m128 rounded = _mm256_cvtpd_ps(value);
+    const __m128 below = narrow_mask(_mm256_cmp_pd(_mm256_cvtps_pd(rounded), value, _CMP_LT_OQ));
+    return _mm_blendv_ps(rounded, next_float_up_lanes(rounded), below);
+}
+#endif
+
 // 96 bytes: p' = inverse (p - translation) for a point, inverse d for a direction.
 struct InverseAffine {
     double inverse[3][3];
@@ -89,6 +124,16 @@ struct InverseAffine {
         tnear = max_of_numbers(round_down(double(world_tnear) - shift), -std::numeric_limits<float>::max());
         tfar = round_up(double(world_tfar) - shift);
     }
+#if defined(__AVX2__)
+    // The same for four rays, lane by lane. MAXPS is max_of_numbers (the second operand unless the first is
+    // greater), and the roundings are round_down's and round_up's (round_down_lanes).
+    static void move_interval(__m128 world_tnear, __m128 world_tfar, DoubleLanes shift, __m128& tnear,
+                              __m128& tfar) {
+        tnear = _mm_max_ps(round_down_lanes(_mm256_sub_pd(_mm256_cvtps_pd(world_tnear), shift.lanes)),
+                           _mm_set1_ps(-std::numeric_limits<float>::max()));
+        tfar = round_up_lanes(_mm256_sub_pd(_mm256_cvtps_pd(world_tfar), shift.lanes));
+    }
+#endif
 
     // The world ray in the object's frame, and the shift of its parameter (t = t' + shift). An affine map
     // keeps a line's parameter when the direction is mapped with it, so the interval is the world's. Each

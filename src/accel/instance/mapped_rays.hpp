@@ -51,13 +51,13 @@ struct MappedRays {
     alignas(32) float direction[3][kPacketRays];
     alignas(32) float tnear[kPacketRays];  // the interval in the object's frame
     alignas(32) float tfar[kPacketRays];
-    alignas(32) double shift[kPacketRays];  // a far lane's (ObjectRay::shift)
-    float world_tfar[kPacketRays];          // the world ray's tfar, clipped by its closest hit so far
-    std::uint8_t ray[kPacketRays];          // the lane's ray in the packet
-    RayMask mapped = 0;                     // the lanes whose object ray is to_object's
-    RayMask far = 0;                        // of those, the ones whose origin was moved (far)
-    RayMask culled = 0;                     // of those, the ones whose visit ends at the object box cull
-    RayMask crossing = 0;                   // and the ones that pass it as they are
+    alignas(32) double shift[kPacketRays];      // a far lane's (ObjectRay::shift)
+    alignas(32) float world_tfar[kPacketRays];  // the world ray's tfar, clipped by its closest hit so far
+    std::uint8_t ray[kPacketRays];              // the lane's ray in the packet
+    RayMask mapped = 0;                         // the lanes whose object ray is to_object's
+    RayMask far = 0;                            // of those, the ones whose origin was moved (far)
+    RayMask culled = 0;                         // of those, the ones whose visit ends at the object box cull
+    RayMask crossing = 0;                       // and the ones that pass it as they are
 
     // Lane `lane`'s object ray (a mapped one).
     [[nodiscard]] ObjectRay object_ray(int lane) const {
@@ -126,9 +126,12 @@ int map_together(const InstanceRecord& record, std::span<const Ray> rays, RayMas
         mapped.tnear[lane] = ray.tnear;
         mapped.tfar[lane] = mapped.world_tfar[lane] = world_tfar(i);
     }
-    for (int lane = count; lane % kLanes != 0; ++lane)  // a whole last register: copies of the first ray
+    for (int lane = count; lane % kLanes != 0; ++lane) {  // a whole last register: copies of the first ray
         for (auto& row : gathered)
             row[lane] = row[0];
+        const auto l = static_cast<std::size_t>(lane);
+        mapped.tnear[l] = mapped.tnear[0], mapped.tfar[l] = mapped.world_tfar[l] = mapped.world_tfar[0];
+    }
     const DoubleLanes centre[3] = {DoubleLanes(double(record.object_centre.x)),
                                    DoubleLanes(double(record.object_centre.y)),
                                    DoubleLanes(double(record.object_centre.z))};
@@ -158,6 +161,15 @@ int map_together(const InstanceRecord& record, std::span<const Ray> rays, RayMas
             DoubleLanes moved[3] = {local_origin[0], local_origin[1], local_origin[2]};
             const DoubleLanes shift = InverseAffine::move_towards(centre, moved, local_direction);
             _mm256_store_pd(&mapped.shift[at], shift.lanes);
+            // A far lane's interval moves with its origin; a near lane's is the world's.
+            const __m128 world_tnear = _mm_load_ps(&mapped.tnear[at]);
+            __m128 moved_tnear, moved_tfar;
+            InverseAffine::move_interval(world_tnear, _mm_load_ps(&mapped.world_tfar[at]), shift, moved_tnear,
+                                         moved_tfar);
+            const __m128 far_floats = narrow_mask(far);
+            _mm_store_ps(&mapped.tnear[at], _mm_blendv_ps(world_tnear, moved_tnear, far_floats));
+            _mm_store_ps(&mapped.tfar[at],
+                         _mm_blendv_ps(_mm_load_ps(&mapped.tfar[at]), moved_tfar, far_floats));
             for (int axis = 0; axis < 3; ++axis) {
                 local_origin[axis] =
                     DoubleLanes(_mm256_blendv_pd(local_origin[axis].lanes, moved[axis].lanes, far));
@@ -175,12 +187,6 @@ int map_together(const InstanceRecord& record, std::span<const Ray> rays, RayMas
     }
     if (count < static_cast<int>(kPacketRays)) mapped.mapped &= (RayMask{1} << count) - 1;
     mapped.far &= mapped.mapped;
-    // A far lane's interval moves with its origin (to_object's move_interval); a near lane's is the world's.
-    for (RayMask each = mapped.far; each != 0; each &= each - 1) {
-        const auto lane = static_cast<std::size_t>(std::countr_zero(each));
-        InverseAffine::move_interval(mapped.tnear[lane], mapped.world_tfar[lane], mapped.shift[lane],
-                                     mapped.tnear[lane], mapped.tfar[lane]);
-    }
     if (record.traced->scale_exponent() == 0) cull_in_lanes(record, count, mapped);
     return count;
 }

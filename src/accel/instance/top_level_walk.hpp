@@ -23,6 +23,7 @@
 #include "accel/instance/affine.hpp"
 #include "accel/instance/mapped_rays.hpp"
 #include "accel/instance/records.hpp"
+#include "accel/simd_float.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/instances.hpp"
@@ -113,57 +114,99 @@ class InstancedScene::Walk {
     // direction sign, a reciprocal direction is not finite (whose NaN plane distances the cull does not
     // bound), or the valid rays' origins spread wider than coherent_width_. Occlusion rays whose origins
     // spread but whose ends o + tfar d lie that close together (shadow rays aimed at one point light) walk
-    // together too, culled from their ends (ends_interval). A ray that breaks the rules ends the loading at
-    // once: incoherent batches (diffuse bounces) pay a few rays' tests.
+    // together too, culled from their ends (ends_interval). Eight rays at a time, their fields transposed
+    // into lanes: is_valid_ray, SlabRay and the ends lane by lane, in the same fp32 operations. A group that
+    // breaks the rules ends the loading at once: incoherent batches (diffuse bounces) pay a group's tests.
     template <bool kAnyHit>
     [[nodiscard]] bool load(std::span<const Ray> rays, Packet& packet) const {
-        Box3f origins, ends, reciprocals;
-        Vec3f reach;  // the largest |tfar d| on each axis
-        float tnear_min = kInfinity, length = 0.0f;
-        bool forward_and_finite = true;  // every valid ray has tnear >= 0 and a finite end
-        int signs = -1;                  // bit a: the valid rays' direction is negative on axis a
+        using Ops = simd::Avx2;
+        using Float = Ops::Float;
+        constexpr int kLanes = Ops::kWidth;
+        const Float infinity = Ops::broadcast(kInfinity), minus_infinity = Ops::broadcast(-kInfinity);
+        const Float zero = Ops::broadcast(0.0f), one = Ops::broadcast(1.0f);
+        Float origin_lo[3], origin_hi[3], inv_lo[3], inv_hi[3], end_lo[3], end_hi[3], reach[3];
+        for (int axis = 0; axis < 3; ++axis) {
+            origin_lo[axis] = inv_lo[axis] = end_lo[axis] = infinity;
+            origin_hi[axis] = inv_hi[axis] = end_hi[axis] = minus_infinity;
+            reach[axis] = zero;
+        }
+        Float tnear_min = infinity, length = zero;
+        Float forward_and_finite = Ops::equal(zero, zero);  // every valid ray: tnear >= 0, a finite end
+        std::array<RayMask, 3> negative{};
         packet.valid = 0;
-        for (std::size_t i = 0; i < kPacketRays; ++i) {
-            if (i >= rays.size() || !top_level::is_valid_ray(rays[i])) {
-                for (std::size_t axis = 0; axis < 3; ++axis)
-                    packet.origin[axis][i] = 0.0f, packet.inv_direction[axis][i] = 1.0f;
-                packet.tnear[i] = kInfinity, packet.tlimit[i] = -kInfinity;
-                continue;
+        alignas(32) Ray padded[kLanes];
+        for (std::size_t first = 0; first < kPacketRays; first += kLanes) {
+            // A partial group is padded with rays of zero direction, which are invalid.
+            const Ray* source = rays.data() + first;
+            if (first + kLanes > rays.size()) {
+                for (std::size_t k = 0; k < kLanes; ++k)
+                    padded[k] = first + k < rays.size() ? rays[first + k] : Ray{{}, {}, 0.0f, 0.0f};
+                source = padded;
             }
-            const Ray& ray = rays[i];
-            const int ray_signs = (std::signbit(ray.direction.x) ? 1 : 0) |
-                                  (std::signbit(ray.direction.y) ? 2 : 0) |
-                                  (std::signbit(ray.direction.z) ? 4 : 0);
-            if (signs < 0) signs = ray_signs;
-            if (ray_signs != signs) return false;
-            const SlabRay slab(ray);
-            if (!(max_component(abs(slab.inv_direction)) < kInfinity)) return false;
+            Float fields[8];
+            static_assert(sizeof(Ray) == 8 * sizeof(float));
+            Ops::load_fields8(&source->origin.x, fields);
+            const Float origin[3] = {fields[0], fields[1], fields[2]};
+            const Float direction[3] = {fields[3], fields[4], fields[5]};
+            const Float tnear = fields[6], tfar = fields[7];
+            const Float valid = valid_ray_lanes<Ops>(fields);  // is_valid_ray's answer
+            const unsigned valid_lanes = Ops::bits(valid);
+            packet.valid |= static_cast<RayMask>(valid_lanes) << first;
             for (std::size_t axis = 0; axis < 3; ++axis) {
-                packet.origin[axis][i] = slab.origin[static_cast<int>(axis)];
-                packet.inv_direction[axis][i] = slab.inv_direction[static_cast<int>(axis)];
+                const Float inv_direction = Ops::div(one, direction[axis]);  // SlabRay
+                if ((Ops::bits(Ops::less(Ops::abs(inv_direction), infinity)) & valid_lanes) != valid_lanes)
+                    return false;
+                negative[axis] |= static_cast<RayMask>(Ops::sign_bits(direction[axis]) & valid_lanes)
+                                  << first;
+                // Every valid ray so far has the sign of the first: its bit set in all or none of them.
+                if (negative[axis] != 0 && negative[axis] != packet.valid) return false;
+                origin_lo[axis] = Ops::min(Ops::select(valid, origin[axis], infinity), origin_lo[axis]);
+                origin_hi[axis] = Ops::max(Ops::select(valid, origin[axis], minus_infinity), origin_hi[axis]);
+                inv_lo[axis] = Ops::min(Ops::select(valid, inv_direction, infinity), inv_lo[axis]);
+                inv_hi[axis] = Ops::max(Ops::select(valid, inv_direction, minus_infinity), inv_hi[axis]);
+                Ops::store(&packet.origin[axis][first], Ops::select(valid, origin[axis], zero));
+                Ops::store(&packet.inv_direction[axis][first], Ops::select(valid, inv_direction, one));
+                if constexpr (kAnyHit) {
+                    const Float along = Ops::mul(direction[axis], tfar);
+                    const Float end = Ops::add(origin[axis], along);
+                    forward_and_finite = Ops::mask_and(
+                        forward_and_finite,
+                        Ops::select(valid, Ops::less(Ops::abs(end), infinity), forward_and_finite));
+                    end_lo[axis] = Ops::min(Ops::select(valid, end, infinity), end_lo[axis]);
+                    end_hi[axis] = Ops::max(Ops::select(valid, end, minus_infinity), end_hi[axis]);
+                    reach[axis] = Ops::max(Ops::select(valid, Ops::abs(along), zero), reach[axis]);
+                }
             }
-            origins.extend(slab.origin), reciprocals.extend(slab.inv_direction);
             if constexpr (kAnyHit) {
-                const Vec3f along = ray.direction * ray.tfar;
-                const Vec3f end = ray.origin + along;
                 forward_and_finite =
-                    forward_and_finite && ray.tnear >= 0.0f && max_component(abs(end)) < kInfinity;
-                ends.extend(end), reach = max(reach, abs(along));
-                length = std::max(length, ray.tfar - ray.tnear);
+                    Ops::mask_and(forward_and_finite,
+                                  Ops::select(valid, Ops::greater_equal(tnear, zero), forward_and_finite));
+                length = Ops::max(Ops::select(valid, Ops::sub(tfar, tnear), zero), length);
             }
-            const bool ends_together =
-                kAnyHit && forward_and_finite && max_component(ends.extent()) <= coherent_width_;
-            if (max_component(origins.extent()) > coherent_width_ && !ends_together) return false;
-            packet.tnear[i] = ray.tnear, packet.tlimit[i] = ray.tfar;
-            tnear_min = std::min(tnear_min, ray.tnear);
-            packet.valid |= RayMask{1} << i;
+            const Float lane_tnear = Ops::select(valid, tnear, infinity);
+            tnear_min = Ops::min(lane_tnear, tnear_min);
+            Ops::store(&packet.tnear[first], lane_tnear);
+            Ops::store(&packet.tlimit[first], Ops::select(valid, tfar, minus_infinity));
         }
         if (packet.valid == 0) return false;
-        for (std::size_t axis = 0; axis < 3; ++axis)
-            packet.near_side[axis] = (signs >> axis) & 1 ? TopNode::kHi : TopNode::kLo;
+        Box3f origins, ends, reciprocals;
+        Vec3f reached;
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+            const auto a = static_cast<int>(axis);
+            origins.lo[a] = Ops::reduce_min(origin_lo[axis]),
+            origins.hi[a] = Ops::reduce_max(origin_hi[axis]);
+            reciprocals.lo[a] = Ops::reduce_min(inv_lo[axis]),
+            reciprocals.hi[a] = Ops::reduce_max(inv_hi[axis]);
+            ends.lo[a] = Ops::reduce_min(end_lo[axis]), ends.hi[a] = Ops::reduce_max(end_hi[axis]);
+            reached[a] = Ops::reduce_max(reach[axis]);
+            packet.near_side[axis] = negative[axis] != 0 ? TopNode::kHi : TopNode::kLo;
+        }
         packet.from_ends = max_component(origins.extent()) > coherent_width_;
         if (packet.from_ends) {
-            ends_interval(packet, ends, reciprocals, reach, length);
+            const bool ends_together = kAnyHit && Ops::bits(forward_and_finite) == (1u << kLanes) - 1 &&
+                                       max_component(ends.extent()) <= coherent_width_;
+            if (!ends_together) return false;
+            ends_interval(packet, ends, reciprocals, reached, Ops::reduce_max(length));
             return true;
         }
         packet.interval.near_side = packet.near_side;
@@ -172,7 +215,7 @@ class InstancedScene::Walk {
             packet.interval.set_axis(axis, origins.lo[a], origins.hi[a], reciprocals.lo[a],
                                      reciprocals.hi[a]);
         }
-        packet.interval.tnear_min = tnear_min;
+        packet.interval.tnear_min = Ops::reduce_min(tnear_min);
         return true;
     }
 
@@ -200,12 +243,14 @@ class InstancedScene::Walk {
         packet.ends_limit = length * (1.0f + kMargin);
     }
 
-    // The largest box test limit of the `alive` rays: where the cull stops.
-    [[nodiscard]] static float largest_limit(const Packet& packet, RayMask alive) {
-        float largest = -kInfinity;
-        for (RayMask rest = alive; rest != 0; rest &= rest - 1)
-            largest = std::max(largest, packet.tlimit[std::countr_zero(rest)]);
-        return largest;
+    // The largest box test limit of the packet's rays, where the cull stops: a lane left out (invalid, or
+    // past the packet's rays) has -inf, which never wins; the walk asks while every valid ray is alive.
+    [[nodiscard]] static float largest_limit(const Packet& packet) {
+        using Ops = simd::Avx2;
+        Ops::Float largest = Ops::load(packet.tlimit);
+        for (std::size_t first = Ops::kWidth; first < kPacketRays; first += Ops::kWidth)
+            largest = Ops::max(Ops::load(&packet.tlimit[first]), largest);
+        return Ops::reduce_max(largest);
     }
 
     // The top level walked once for the packet's rays (Overbeck et al.'s interval cull, as bvh8_packet's
@@ -231,7 +276,7 @@ class InstancedScene::Walk {
         std::array<StackEntry, kTopWidth * BvhAccel::kMaxDepth + 1> stack;
         int stack_size = 0;
         top_level::MappedRays mapped;
-        float limit_max = packet.from_ends ? packet.ends_limit : largest_limit(packet, alive);
+        float limit_max = packet.from_ends ? packet.ends_limit : largest_limit(packet);
         const TopNode* node = nodes_.empty() ? nullptr : &nodes_[0];
         RayMask node_rays = alive;
         while (node != nullptr) {
@@ -297,7 +342,7 @@ class InstancedScene::Walk {
                 if constexpr (kAnyHit) {
                     if (alive == 0) break;
                 } else {
-                    limit_max = largest_limit(packet, alive);
+                    limit_max = largest_limit(packet);
                 }
             }
         }

@@ -38,6 +38,23 @@ constexpr float kSpecialFloats[] = {0.0f,
                                     -kInfinity,
                                     std::numeric_limits<float>::quiet_NaN()};
 
+// Floats drawn one in `one_in` among kSpecialFloats, the others ordinary numbers of either sign and of
+// magnitude up to 2^`largest_exponent` (and down to its reciprocal).
+class SpecialOrOrdinary {
+  public:
+    SpecialOrOrdinary(float largest_exponent, int one_in)
+        : exponent_(-largest_exponent, largest_exponent), ordinary_(0, one_in - 1) {}
+    float operator()(std::mt19937& rng) {
+        return ordinary_(rng) != 0 ? unit_(rng) * std::exp2(exponent_(rng)) : kSpecialFloats[pick_(rng)];
+    }
+
+  private:
+    std::uniform_real_distribution<float> unit_{-1.0f, 1.0f};
+    std::uniform_real_distribution<float> exponent_;
+    std::uniform_int_distribution<int> ordinary_;
+    std::uniform_int_distribution<std::size_t> pick_{0, std::size(kSpecialFloats) - 1};
+};
+
 // The object box cull tests' boxes: in [-4, 4]^3, one in eight flat.
 Box3f random_cull_box(std::mt19937& rng) {
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
@@ -102,11 +119,8 @@ TEST(InstancedScene, LaneMapAnswersAsTheOneRayMap) {
     std::mt19937 rng(73);
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
     std::uniform_real_distribution<float> exponent(-30.0f, 30.0f);
-    std::uniform_int_distribution<std::size_t> pick(0, std::size(kSpecialFloats) - 1);
-    std::uniform_int_distribution<int> ordinary(0, 5);
-    const auto coordinate = [&] {
-        return ordinary(rng) != 0 ? unit(rng) * std::exp2(exponent(rng)) : kSpecialFloats[pick(rng)];
-    };
+    SpecialOrOrdinary draw(30.0f, 6);
+    const auto coordinate = [&] { return draw(rng); };
     // A NaN's payload depends on which operand the compiler puts first; the walk leaves NaN lanes to the
     // one-ray visit, so only their being NaN must agree.
     const auto same_bits = [](double a, double b) {
@@ -172,6 +186,57 @@ TEST(InstancedScene, LaneMapAnswersAsTheOneRayMap) {
     EXPECT_GT(transforms, 1000u);
     EXPECT_GT(lanes, 16000u);
     EXPECT_GT(finite_moves, lanes / 4);
+}
+
+// A far lane's interval, moved in lanes (InverseAffine::move_interval on four rays, round_down_lanes and
+// round_up_lanes), has the one-ray move's bits: on world intervals drawn among the special floats and
+// ordinary numbers of every exponent, moved by shifts of any size, by shifts that leave the result a float
+// (no rounding step), and by shifts that round it past the float range.
+TEST(InstancedScene, LaneIntervalMoveAnswersAsTheOneRayMove) {
+    std::mt19937 rng(79);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+    std::uniform_real_distribution<double> exponent(-140.0, 140.0);
+    std::uniform_int_distribution<int> kind(0, 7);
+    SpecialOrOrdinary draw(90.0f, 8);
+    const auto world_t = [&] { return draw(rng); };
+    std::size_t lanes = 0, stepped = 0, differ = 0;
+    for (int group = 0; group < 250000; ++group) {
+        alignas(16) float tnear[4], tfar[4];
+        alignas(32) double shift[4];
+        for (int lane = 0; lane < 4; ++lane) {
+            tnear[lane] = world_t(), tfar[lane] = world_t();
+            const int shift_kind = kind(rng);
+            if (shift_kind == 0) {
+                shift[lane] = double(tnear[lane]) - double(world_t());  // a float left, when finite
+            } else if (shift_kind == 1) {
+                shift[lane] = double(tfar[lane]) - 0x1p129;  // tfar moved beyond FLT_MAX
+            } else {
+                shift[lane] = unit(rng) * std::exp2(exponent(rng));
+            }
+            if (!std::isfinite(shift[lane])) shift[lane] = 1.0;  // the walk moves by finite shifts only
+        }
+        __m128 moved_tnear, moved_tfar;
+        InverseAffine::move_interval(_mm_load_ps(tnear), _mm_load_ps(tfar),
+                                     DoubleLanes(_mm256_load_pd(shift)), moved_tnear, moved_tfar);
+        alignas(16) float lane_tnear[4], lane_tfar[4];
+        _mm_store_ps(lane_tnear, moved_tnear), _mm_store_ps(lane_tfar, moved_tfar);
+        for (int lane = 0; lane < 4; ++lane) {
+            float expected_tnear = 0.0f, expected_tfar = 0.0f;
+            InverseAffine::move_interval(tnear[lane], tfar[lane], shift[lane], expected_tnear, expected_tfar);
+            const auto same = [](float a, float b) {
+                return std::bit_cast<std::uint32_t>(a) == std::bit_cast<std::uint32_t>(b) ||
+                       (std::isnan(a) && std::isnan(b));
+            };
+            differ += same(lane_tnear[lane], expected_tnear) ? 0 : 1;
+            differ += same(lane_tfar[lane], expected_tfar) ? 0 : 1;
+            // A lane whose difference is not a float takes a rounding step one way or the other.
+            stepped += double(expected_tfar) != double(tfar[lane]) - shift[lane] ? 1 : 0;
+            ++lanes;
+        }
+    }
+    EXPECT_EQ(differ, 0u);
+    EXPECT_EQ(lanes, 1000000u);
+    EXPECT_GT(stepped, lanes / 2);
 }
 #endif
 
