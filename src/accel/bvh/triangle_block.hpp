@@ -265,8 +265,13 @@ struct WatertightLanes {
         const Float slack = Ops::max(
             Ops::mul(Ops::mul(Ops::add(planar, depth), planar), Ops::broadcast(Watertight::kEdgeSlack)),
             Ops::broadcast(std::numeric_limits<float>::min()));
-        const unsigned uncertain =
+        unsigned uncertain =
             Ops::bits(Ops::less_equal(Ops::min(Ops::min(Ops::abs(w0), Ops::abs(w1)), Ops::abs(w2)), slack));
+        // Of those, a lane with two certain edge functions of opposite signs is a miss, which the scalar
+        // kernel decides before any exact sign: it stays here. Small triangles seen from afar make many
+        // uncertain lanes, nearly all of them such misses (docs/accel/stream.md, "Uncertain lanes that are
+        // misses").
+        if (uncertain != 0) uncertain &= ~certain_misses(w0, w1, w2, slack);
         // Edge functions of both signs: a miss. Where all three are certain (the lanes not handed to the
         // scalar kernel), that is a sign bit that differs between them, read from w0 ^ w1 | w0 ^ w2 (three
         // operations where the compares took eleven). Three certain edge functions of one sign, the only
@@ -292,6 +297,22 @@ struct WatertightLanes {
              ~rejected);
         return {t, Ops::mul(w1, inv_det), Ops::mul(w2, inv_det),
                 Ops::bits(t_accepted) & ~rejected & ~scalar_lanes, scalar_lanes};
+    }
+
+  private:
+    // The lanes where two edge functions are certain (beyond `slack`) and of opposite signs: misses by
+    // Watertight::intersect's first test.
+    [[nodiscard]] static unsigned certain_misses(Float w0, Float w1, Float w2, Float slack) {
+        const Float zero = Ops::broadcast(0.0f);
+        const auto certain0 = Ops::greater(Ops::abs(w0), slack), certain1 = Ops::greater(Ops::abs(w1), slack),
+                   certain2 = Ops::greater(Ops::abs(w2), slack);
+        const auto positive = Ops::mask_or(Ops::mask_or(Ops::mask_and(certain0, Ops::greater(w0, zero)),
+                                                        Ops::mask_and(certain1, Ops::greater(w1, zero))),
+                                           Ops::mask_and(certain2, Ops::greater(w2, zero)));
+        const auto negative = Ops::mask_or(Ops::mask_or(Ops::mask_and(certain0, Ops::less(w0, zero)),
+                                                        Ops::mask_and(certain1, Ops::less(w1, zero))),
+                                           Ops::mask_and(certain2, Ops::less(w2, zero)));
+        return Ops::bits(Ops::mask_and(positive, negative));
     }
 };
 
