@@ -269,7 +269,7 @@ struct WatertightLanes {
             Ops::bits(Ops::less_equal(Ops::min(Ops::min(Ops::abs(w0), Ops::abs(w1)), Ops::abs(w2)), slack));
         // Of those, a lane with two certain edge functions of opposite signs is a miss, which the scalar
         // kernel decides before any exact sign: it stays here. Small triangles seen from afar make many
-        // uncertain lanes, nearly all of them such misses (docs/accel/stream.md, "Uncertain lanes that are
+        // uncertain lanes, most of them such misses (docs/accel/bvh_wide.md, "Uncertain lanes that are
         // misses").
         if (uncertain != 0) uncertain &= ~certain_misses(w0, w1, w2, slack);
         // Edge functions of both signs: a miss. Where all three are certain (the lanes not handed to the
