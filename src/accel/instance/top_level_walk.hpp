@@ -193,11 +193,12 @@ class InstancedScene::Walk {
         Vec3f reached;
         for (std::size_t axis = 0; axis < 3; ++axis) {
             const auto a = static_cast<int>(axis);
-            origins.lo[a] = Ops::reduce_min(origin_lo[axis]),
+            origins.lo[a] = Ops::reduce_min(origin_lo[axis]);
             origins.hi[a] = Ops::reduce_max(origin_hi[axis]);
-            reciprocals.lo[a] = Ops::reduce_min(inv_lo[axis]),
+            reciprocals.lo[a] = Ops::reduce_min(inv_lo[axis]);
             reciprocals.hi[a] = Ops::reduce_max(inv_hi[axis]);
-            ends.lo[a] = Ops::reduce_min(end_lo[axis]), ends.hi[a] = Ops::reduce_max(end_hi[axis]);
+            ends.lo[a] = Ops::reduce_min(end_lo[axis]);
+            ends.hi[a] = Ops::reduce_max(end_hi[axis]);
             reached[a] = Ops::reduce_max(reach[axis]);
             packet.near_side[axis] = negative[axis] != 0 ? TopNode::kHi : TopNode::kLo;
         }
