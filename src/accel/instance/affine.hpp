@@ -66,7 +66,7 @@ struct DoubleLanes {
 
 // round_down and round_up on four doubles, each lane by their rule, with masks where they branch: a walk that
 // moves the intervals of many rays rounds about half of them each way, so branches would be mispredicted
-// half the time (docs/accel/instances.md, "The far lanes' intervals").
+// half the time (docs/accel/instances.md, "Kept: the far lanes' intervals without branches").
 [[nodiscard]] inline __m128 round_down_lanes(__m256d value) {
     const __m128 rounded = _mm256_cvtpd_ps(value);
     const __m128 above = narrow_mask(_mm256_cmp_pd(_mm256_cvtps_pd(rounded), value, _CMP_GT_OQ));
