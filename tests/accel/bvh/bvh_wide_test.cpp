@@ -552,7 +552,7 @@ void check_block_kernels(std::uint32_t seed) {
     check_block_kernel<TriangleTestT, 8>(seed + 1, counts);
     // Not a degenerate sample: many lanes hit, many closest hits change, and both tests hand many lanes to
     // their double fallback: the watertight test its zero and denormal edge functions (grid triangles,
-    // repeated vertices; 34,520 with these seeds), Moller-Trumbore its grazing lanes and those within its
+    // repeated vertices; 34,989 with these seeds), Moller-Trumbore its grazing lanes and those within its
     // error bound of an edge (9,054; 47 grazing ones before fuzz finding 23).
     EXPECT_GT(counts.lane_hits, 6000u);
     EXPECT_GT(counts.closest_hits, 5000u);
@@ -566,6 +566,31 @@ TEST(TriangleBlock, MollerTrumboreBlockEqualsScalarTest) {
 
 TEST(TriangleBlock, WatertightBlockEqualsScalarTest) {
     check_block_kernels<Watertight>(21);
+}
+
+// A lane whose ray lies on one edge's line (that edge function exactly 0, so uncertain) while the other two
+// edge functions are certain and of opposite signs is a miss the vector kernel decides itself, as the
+// scalar kernel's first test would, instead of handing it to the scalar kernel (docs/accel/bvh_wide.md,
+// "Uncertain lanes that are misses"). A lane on an edge's line between two certain edge functions of one
+// sign still goes to the scalar kernel, which decides the exact sign.
+TEST(TriangleBlock, WatertightKernelKeepsCertainMisses) {
+    const std::vector<Triangle> triangles = {
+        {{1.0f, 0.0f, 0.0f}, {2.0f, 0.0f, 0.0f}, {1.5f, 1.0f, 0.0f}},    // the ray on v0 v1's line, beside it
+        {{-1.0f, 0.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}}};  // the ray on the edge v0 v1 itself
+    const Geometry geometry{triangles, {}};
+    const Ray ray{{0.0f, 0.0f, -10.0f}, {0.0f, 0.0f, 1.0f}, 0.0f, kInfinity};
+    const PreparedRay<Watertight> prepared(ray);
+    std::vector<TriangleBlock<8>> blocks;
+    const std::uint32_t prims[] = {0, 1};
+    append_leaf_blocks(geometry, std::span<const std::uint32_t>(prims), blocks);
+    ASSERT_EQ(blocks.size(), 1u);
+    const BlockRay<Watertight, 8> block_ray(prepared, geometry);
+    BlockHits<8> hits;
+    block_ray.kernel.test(blocks[0], ray.tnear, ray.tfar, hits);
+    EXPECT_EQ(hits.scalar_lanes, 0b10u);  // the first lane decided here, the second by the scalar kernel
+    EXPECT_EQ(hits.hit_lanes & 1u, 0u);
+    TriangleHit scalar;
+    EXPECT_FALSE(Watertight::intersect(prepared.triangle_data, triangles[0], ray.tnear, ray.tfar, scalar));
 }
 
 // The arrays a structure keeps, and the scene's flattened triangles, start on a huge page once they are
