@@ -50,7 +50,8 @@ template <int W>
         __builtin_prefetch(bytes + at);
 }
 
-// Each wide level pushes at most W - 1 children, and the wide tree is no deeper than the binary one.
+// Each wide level pushes at most W - 1 children, and the wide tree is no deeper than the binary one; the one
+// more entry holds push_farther_children's uncounted write at a node that pushes nothing.
 template <int W>
 constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
 
@@ -106,8 +107,9 @@ bool traverse_from(const HugePageVector<WideBvhNode<W>>& nodes,
                     continue;
                 }
             } else if (hit_mask != 0) {
-                const int nearest = push_farther_children<W>(hit_mask, entry, [&](int slot) {
-                    stack[stack_size++] = {{node.child[slot], node.prim_count[slot]}, entry[slot]};
+                const int nearest = push_farther_children<W>(hit_mask, entry, [&](int slot, bool counted) {
+                    stack[stack_size] = {{node.child[slot], node.prim_count[slot]}, entry[slot]};
+                    stack_size += counted ? 1 : 0;
                 });
                 current = {node.child[nearest], node.prim_count[nearest]};
                 continue;

@@ -455,7 +455,8 @@ class InstancedScene::Walk {
         };
         if (nodes_.empty()) return false;
         const WideRay wide_ray{SlabRay(ray)};
-        // Each level pushes at most 7 children, and the wide tree is no deeper than the binary one.
+        // Each level pushes at most 7 children, and the wide tree is no deeper than the binary one; the one
+        // more entry holds push_farther_children's uncounted write.
         std::array<StackEntry, (kTopWidth - 1) * BvhAccel::kMaxDepth + 1> stack;
         int stack_size = 0;
         StackEntry current{0, 0, 0.0f};
@@ -476,10 +477,12 @@ class InstancedScene::Walk {
                 const unsigned hit_mask =
                     intersect_children<kTopWidth, kForward>(node, wide_ray, ray.tnear, t_limit, entry);
                 if (hit_mask != 0) {
-                    const int nearest = push_farther_children<kTopWidth>(hit_mask, entry, [&](int slot) {
-                        stack[static_cast<std::size_t>(stack_size++)] = {node.child[slot],
-                                                                         node.prim_count[slot], entry[slot]};
-                    });
+                    const int nearest =
+                        push_farther_children<kTopWidth>(hit_mask, entry, [&](int slot, bool counted) {
+                            stack[static_cast<std::size_t>(stack_size)] = {
+                                node.child[slot], node.prim_count[slot], entry[slot]};
+                            stack_size += counted ? 1 : 0;
+                        });
                     current = {node.child[nearest], node.prim_count[nearest], entry[nearest]};
                     continue;
                 }

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
 #include <random>
 #include <vector>
@@ -141,12 +142,20 @@ TEST(WideBvh, ChildrenAreVisitedByEntryThenSlot) {
             }
             std::stable_sort(expected.begin(), expected.end(),
                              [&](int a, int b) { return entry[a] < entry[b]; });
+            // A write left uncounted must be one the stack drops: the walk's next push overwrites it.
             std::vector<int> pushed;
-            const int nearest =
-                push_farther_children<8>(mask, entry, [&](int slot) { pushed.push_back(slot); });
+            int uncounted = 0;
+            const int nearest = push_farther_children<8>(mask, entry, [&](int slot, bool counted) {
+                if (counted) {
+                    pushed.push_back(slot);
+                } else {
+                    ++uncounted;
+                }
+            });
             std::vector<int> visited{nearest};
             visited.insert(visited.end(), pushed.rbegin(), pushed.rend());
             ASSERT_EQ(visited, expected) << "mask " << mask;
+            ASSERT_LE(uncounted, std::popcount(mask) == 1 ? 1 : 0) << "mask " << mask;
         }
     }
 }
