@@ -181,11 +181,10 @@ template <int W>
 
 // The hit children of a node in the walk's order: each child but the nearest pushed, farthest first, and
 // the nearest's slot returned (equal entries in slot order, as order_by_entry). `mask` is not empty.
-// push(slot, counted) writes the child at the stack's top and grows the stack only when `counted`: one or
-// two children, nine in ten on incoherent rays, then go without a branch on which of the two it is, which
-// incoherent rays split about 70 / 30 (docs/accel/bvh_wide.md, "One or two hit children without a
-// branch"). Three or more take the insertion sort. The wide BVH's walk and the instances' top level both
-// visit children so.
+// push(slot, counted) writes the child at the stack's top and grows the stack only when `counted`. One or
+// two children, nine nodes in ten on incoherent rays and about 70 / 30 between the two, then go without a
+// branch on which it is (docs/accel/bvh_wide.md, "One or two hit children without a branch"). Three or more
+// take the insertion sort. The wide BVH's walk and the instances' top level both visit children so.
 template <int W, class Push>
 [[gnu::always_inline]] inline int push_farther_children(unsigned mask, const float (&entry)[W], Push&& push) {
     const int first_slot = std::countr_zero(mask);
