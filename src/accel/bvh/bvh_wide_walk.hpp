@@ -50,8 +50,8 @@ template <int W>
         __builtin_prefetch(bytes + at);
 }
 
-// Each wide level pushes at most W - 1 children, and the wide tree is no deeper than the binary one; the one
-// more entry holds push_farther_children's uncounted write at a node that pushes nothing.
+// Each wide level pushes at most W - 1 children, and the wide tree is no deeper than the binary one.
+// push_farther_children's uncounted write lands where the node's first push would: within the same bound.
 template <int W>
 constexpr int kStackSize = (W - 1) * BvhAccel::kMaxDepth + 1;
 

@@ -455,8 +455,8 @@ class InstancedScene::Walk {
         };
         if (nodes_.empty()) return false;
         const WideRay wide_ray{SlabRay(ray)};
-        // Each level pushes at most 7 children, and the wide tree is no deeper than the binary one; the one
-        // more entry holds push_farther_children's uncounted write.
+        // Each level pushes at most 7 children, and the wide tree is no deeper than the binary one;
+        // push_farther_children's uncounted write lands where the node's first push would.
         std::array<StackEntry, (kTopWidth - 1) * BvhAccel::kMaxDepth + 1> stack;
         int stack_size = 0;
         StackEntry current{0, 0, 0.0f};
