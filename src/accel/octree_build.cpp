@@ -249,12 +249,21 @@ class OctreeBuilder {
 
 }  // namespace
 
+int deepest_separating_level(const OctreeCube& cube, float tolerance, int max_depth) {
+    int level = 0;
+    while (level < max_depth &&
+           cube.size * inverse_power_of_two(level + 1) >= kSmallestCellInTolerances * tolerance)
+        ++level;
+    return level;
+}
+
 Octree build_octree(const Geometry& geometry, const OctreeOptions& options) {
     Octree octree;
     const Box3f bounds = geometry.bounds();
     octree.cube = octree_root_cube(bounds);
     octree.tolerance = geometric_tolerance(bounds);
-    octree.max_depth = std::clamp(options.max_depth, 0, kOctreeMaxLevel);
+    octree.max_depth = deepest_separating_level(octree.cube, octree.tolerance,
+                                                std::clamp(options.max_depth, 0, kOctreeMaxLevel));
     const auto leaf_size = static_cast<std::size_t>(std::max(options.leaf_size, 0));
     if (geometry.size() >= std::numeric_limits<std::uint32_t>::max())
         throw std::length_error("octree: primitive indices must fit 32 bits");

@@ -35,6 +35,14 @@ struct OctreeOptions {
 // level-16 cell is still 2^8 float ulps of a coordinate as large as the root, so its faces stay distinct.
 inline constexpr int kOctreeMaxLevel = 16;
 inline constexpr std::uint32_t kOctreeNoChild = 0xFFFFFFFFu;
+// The narrowest cell the build makes, in the scene's geometric tolerance (Octree::tolerance). A cell
+// references every primitive that touches its box grown by the tolerance (Octree::reference_box), so a cell
+// only a few tolerances wide references those of a region several times its width, and splitting it copies
+// references rather than separating them. The tolerance is 2^-20 of the largest coordinate plus 2^-19 of the
+// scene's side, so this binds only on scenes far from the origin for their size: before kOctreeMaxLevel
+// where the largest coordinate exceeds twice the side, before the default depth 10 where it exceeds 254
+// sides (docs/accel/octree.md, "Build").
+inline constexpr float kSmallestCellInTolerances = 4.0f;
 
 // 20 bytes; the build's output, kept whole by structures that need positions (the Plücker octree's
 // balance and links) and converted to the 8-byte OctreeNode (octree.hpp) for Revelles' traversal.
@@ -89,7 +97,8 @@ struct Octree {
     [[nodiscard]] Box3f reference_box(const Box3f& cell_box) const { return cell_box.grown(tolerance); }
 };
 
-// Top-down, depth first: a cell is split while level < max_depth (clamped to [0, kOctreeMaxLevel]) and it
+// Top-down, depth first: a cell is split while level < max_depth (clamped to [0, kOctreeMaxLevel], then by
+// deepest_separating_level) and it
 // holds more than leaf_size references; a child references every primitive that primitive_overlaps_box
 // says may touch its closed box grown by the scene's geometric tolerance (docs/numerical-contract.md,
 // "Boxes": a hit the kernel reports a hair outside the cell it lies in is still found there). A split is
@@ -97,6 +106,10 @@ struct Octree {
 // increasing order. With oneTBB, subtrees of more than 4,096 references build in parallel and are spliced
 // in child order: the same arrays whatever the thread count (docs/accel/parallel-build.md).
 [[nodiscard]] Octree build_octree(const Geometry& geometry, const OctreeOptions& options);
+
+// The depth limit build_octree uses: `max_depth`, or less where cells of that level would be narrower than
+// kSmallestCellInTolerances tolerances.
+[[nodiscard]] int deepest_separating_level(const OctreeCube& cube, float tolerance, int max_depth);
 
 // The references each of the 8 children of `cell` would receive (child order above), in increasing order.
 // build_octree splits with it; tests use it to check the stopping rule.

@@ -187,6 +187,30 @@ TEST(OctreeBuild, CoincidentTrianglesDoNotExplode) {
     EXPECT_GE(full_leaves, 1);
 }
 
+TEST(OctreeBuild, CellsFarFromTheOriginStayWiderThanTheTolerance) {
+    // A sphere of radius 50 a million units out: the tolerance is about 1 (2^-20 of 1e6), and level-10
+    // cells of its 100-wide root would be a tenth of that.
+    TestScene far;
+    make_icosphere(3, {1e6f, -1e6f, 1e6f}, 50.0f).append_triangles(far.triangles);
+    const Octree octree = build_octree(far.geometry(), octree_options(10, 8));
+    ASSERT_GT(octree.tolerance, 0.5f);
+    EXPECT_EQ(octree.max_depth, deepest_separating_level(octree.cube, octree.tolerance, 10));
+    EXPECT_LT(octree.max_depth, 10);
+    for (const OctreeCell& cell : octree.cells) {
+        const Box3f box = octree.cell_box(cell);
+        ASSERT_GE(box.extent().x, kSmallestCellInTolerances * octree.tolerance) << int(cell.level);
+    }
+    // The level is the deepest of such cells: one level further they would be narrower.
+    EXPECT_LT(octree.cube.size * inverse_power_of_two(octree.max_depth + 1),
+              kSmallestCellInTolerances * octree.tolerance);
+    // Each triangle is referenced by a few cells, not by the thousands that a depth of 10 gave.
+    EXPECT_LT(octree.references.size(), 20u * far.triangles.size());
+    // The same scene at the origin: the tolerance is tiny and the options alone decide.
+    TestScene near;
+    make_icosphere(3, {0, 0, 0}, 50.0f).append_triangles(near.triangles);
+    EXPECT_EQ(build_octree(near.geometry(), octree_options(10, 8)).max_depth, 10);
+}
+
 TEST(OctreeBuild, DegenerateScenes) {
     const Octree empty = build_octree({}, {});
     ASSERT_EQ(empty.cells.size(), 1u);
