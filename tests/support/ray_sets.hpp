@@ -30,8 +30,9 @@ RaySet clipped_rays(const Box3f& bounds, std::size_t count, std::uint32_t seed);
 // The primary rays of shared/bench/VIEWS.md's canonical view, size x size, row by row.
 RaySet canonical_view_rays(const Box3f& bounds, int size = 1024);
 // Under AddressSanitizer + UBSan (LANCER_SANITIZED, docs/robustness.md) the Stanford tests trace every
-// kSanitizedStride-th ray of their sets, and the oracle, determinism, update and Plücker leaf-order tests
-// generate kSanitizedShare times fewer rays per generated set (the hostile set stays whole), so that the
+// kSanitizedStride-th ray of their sets, and the oracle, determinism, update, Plücker (leaf order and
+// variants) and Embree tests generate kSanitizedShare times fewer rays per generated set (the hostile set
+// stays whole), so that the
 // sanitized suite stays within CI's time; 1 otherwise.
 #ifdef LANCER_SANITIZED
 inline constexpr std::size_t kSanitizedStride = 16;

@@ -509,11 +509,12 @@ TEST_P(PluckerVariant, AgreesWithBruteForce) {
             const TestScene& scene = scenes()[scene_index];
             const Geometry geometry = scene.geometry();
             const Box3f bounds = geometry.bounds();
+            constexpr std::size_t share = testing::kSanitizedShare;
             const std::vector<testing::RaySet> sets = {
-                testing::random_rays(bounds, 2000, 41),
-                testing::vertex_and_edge_rays(scene.triangles, 1500, 42),
-                testing::axis_parallel_rays(bounds, 1500, 43), testing::clipped_rays(bounds, 1000, 44),
-                testing::hostile_rays(bounds)};
+                testing::random_rays(bounds, 2000 / share, 41),
+                testing::vertex_and_edge_rays(scene.triangles, 1500 / share, 42),
+                testing::axis_parallel_rays(bounds, 1500 / share, 43),
+                testing::clipped_rays(bounds, 1000 / share, 44), testing::hostile_rays(bounds)};
             for (const int max_depth : {0, 9}) {
                 PluckerAccel accel;
                 accel.build(geometry, plucker_options(max_depth, 3, balanced, stored_boxes, morton, test));
