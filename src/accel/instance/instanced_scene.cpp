@@ -1,10 +1,12 @@
 // The two-level scene: objects built once, instances placing them, a binary SAH BVH over the instances' world
 // boxes whose walk moves the ray into each instance's frame and traces the object's structure with the
 // closest hit so far as tfar. docs/accel/instances.md has the design note.
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -39,21 +41,96 @@ constexpr double kRayReachSides = 9.0;
 // Rays per task of intersect_parallel and occluded_parallel, as for the structures (lancer/accel.hpp).
 constexpr std::size_t kRayChunk = 4096;
 
-// The world box of `object_box` under `transform`: its corners mapped in double, rounded outwards.
-Box3f world_box(const Box3f& object_box, const Transform& transform) {
+// The box of `points` under `transform`: mapped in double, rounded outwards. The points and the checked
+// transform are finite, so std::min and std::max, which inline where std::fmin and std::fmax call libm.
+Box3f world_box(std::span<const Vec3d> points, const Transform& transform) {
     double lo[3] = {kInfinity, kInfinity, kInfinity}, hi[3] = {-kInfinity, -kInfinity, -kInfinity};
-    for (int corner = 0; corner < 8; ++corner) {
-        const double p[3] = {corner & 1 ? object_box.hi.x : object_box.lo.x,
-                             corner & 2 ? object_box.hi.y : object_box.lo.y,
-                             corner & 4 ? object_box.hi.z : object_box.lo.z};
+    for (const Vec3d& p : points) {
         for (int r = 0; r < 3; ++r) {
-            const double mapped = double(transform.m[r][0]) * p[0] + double(transform.m[r][1]) * p[1] +
-                                  double(transform.m[r][2]) * p[2] + double(transform.m[r][3]);
-            lo[r] = std::fmin(lo[r], mapped), hi[r] = std::fmax(hi[r], mapped);
+            const double mapped = double(transform.m[r][0]) * p.x + double(transform.m[r][1]) * p.y +
+                                  double(transform.m[r][2]) * p.z + double(transform.m[r][3]);
+            lo[r] = std::min(lo[r], mapped), hi[r] = std::max(hi[r], mapped);
         }
     }
     return {{round_down(lo[0]), round_down(lo[1]), round_down(lo[2])},
             {round_up(hi[0]), round_up(hi[1]), round_up(hi[2])}};
+}
+
+std::array<Vec3d, 8> corners(const Box3f& box) {
+    auto corner = [&](int bits) {
+        return Vec3d(bits & 1 ? box.hi.x : box.lo.x, bits & 2 ? box.hi.y : box.lo.y,
+                     bits & 4 ? box.hi.z : box.lo.z);
+    };
+    return {corner(0), corner(1), corner(2), corner(3), corner(4), corner(5), corner(6), corner(7)};
+}
+
+// The corners of the 26-sided polytope around `geometry` (the slabs of Kay & Kajiya along the 3 axes, the 6
+// face diagonals and the 4 body diagonals: a 26-DOP), each slab grown by `tolerance` per coordinate, as the
+// object's box is. Under a random rotation the box of these points has about 60% of the area of the box of
+// the object box's corners (docs/accel/instances.md, "Instance boxes"), so fewer rays visit an instance only
+// to miss its object. Empty when the polytope has no volume; the caller then keeps the box's corners.
+std::vector<Vec3d> bounding_polytope(const Geometry& geometry, const Box3f& bounds, double tolerance) {
+    static constexpr int kDirections = 13;
+    static constexpr int kDirection[kDirections][3] = {
+        {1, 0, 0}, {0, 1, 0},  {0, 0, 1}, {1, 1, 0},  {1, -1, 0}, {1, 0, 1},  {1, 0, -1},
+        {0, 1, 1}, {0, 1, -1}, {1, 1, 1}, {1, 1, -1}, {1, -1, 1}, {1, -1, -1}};
+    // Plane k: normal[k] . x <= offset[k]; planes k and k + 13 are the two sides of slab k.
+    std::vector<Vec3d> normal;
+    for (int side : {1, -1}) {
+        for (const auto& direction : kDirection) {
+            normal.emplace_back(side * direction[0], side * direction[1], side * direction[2]);
+        }
+    }
+    std::array<double, 2 * kDirections> offset;
+    offset.fill(-kInfinity);
+    auto extend = [&](const Vec3f& point, double radius) {
+        const Vec3d p(point);
+        for (int k = 0; k < kDirections; ++k) {
+            const double along = dot(normal[k], p), reach = radius * std::sqrt(dot(normal[k], normal[k]));
+            offset[k] = std::fmax(offset[k], along + reach);
+            offset[k + kDirections] = std::fmax(offset[k + kDirections], reach - along);
+        }
+    };
+    for (const Triangle& triangle : geometry.triangles) {
+        for (const Vec3f* vertex : {&triangle.v0, &triangle.v1, &triangle.v2})
+            extend(*vertex, 0.0);
+    }
+    for (const Sphere& sphere : geometry.spheres)
+        extend(sphere.center, sphere.radius);
+    // The hits the object reports lie within `tolerance` of its primitives on each coordinate, so within
+    // tolerance |n|_1 of each plane. The slack, far above the rounding of the offsets and of the corners
+    // solved below (double) and far below the tolerance (float), keeps those corners outside the hull.
+    const double slack = 0x1p-36 * (max_component(max(abs(bounds.lo), abs(bounds.hi))) + tolerance);
+    for (int k = 0; k < 2 * kDirections; ++k) {
+        const Vec3d& n = normal[k];
+        offset[k] += tolerance * (std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z)) + slack;
+        if (!std::isfinite(offset[k])) return {};
+    }
+    // Every point where three planes meet and that no plane excludes (a few dozen of 2,600 triples).
+    std::vector<Vec3d> points;
+    for (int a = 0; a < 2 * kDirections; ++a) {
+        for (int b = a + 1; b < 2 * kDirections; ++b) {
+            for (int c = b + 1; c < 2 * kDirections; ++c) {
+                const Vec3d bc = cross(normal[b], normal[c]), ca = cross(normal[c], normal[a]),
+                            ab = cross(normal[a], normal[b]);
+                const double determinant = dot(normal[a], bc);
+                if (std::fabs(determinant) < 0.5) continue;  // integer normals: 0 or at least 1
+                const Vec3d point = (1.0 / determinant) * (offset[a] * bc + offset[b] * ca + offset[c] * ab);
+                bool inside = true;
+                for (int k = 0; k < 2 * kDirections && inside; ++k)
+                    inside = dot(normal[k], point) <= offset[k] + slack;
+                // A corner where more than three planes meet comes from each of their triples: kept once,
+                // since every instance update maps each point.
+                auto same = [&](const Vec3d& kept) {
+                    return std::fabs(kept.x - point.x) <= slack && std::fabs(kept.y - point.y) <= slack &&
+                           std::fabs(kept.z - point.z) <= slack;
+                };
+                if (inside && std::none_of(points.begin(), points.end(), same)) points.push_back(point);
+            }
+        }
+    }
+    if (points.size() < 4) return {};
+    return points;
 }
 
 double elapsed_ms(std::chrono::steady_clock::time_point start) {
@@ -111,8 +188,10 @@ struct InstancedScene::State {
             throw std::invalid_argument("InstancedScene: instance " + std::to_string(instance) +
                                         "'s transform " + problem);
         }
-        // The object's box as its structure treats it: grown by its geometric tolerance.
-        const Box3f box = world_box(grown, transform);
+        // The object's box as its structure treats it, grown by its geometric tolerance, and within it the
+        // box of the object's hull points.
+        const Box3f box = intersection(world_box(corners(grown), transform),
+                                       world_box(objects[object].hull_points, transform));
         if (!in_coordinate_domain(box.lo) || !in_coordinate_domain(box.hi)) {
             throw std::invalid_argument("InstancedScene: instance " + std::to_string(instance) +
                                         "'s transform takes its object outside the coordinate domain [-2^60, "
@@ -267,6 +346,14 @@ std::uint32_t InstancedScene::add_object(std::shared_ptr<const Accel> structure)
     object.traced = single_ray != nullptr ? single_ray : structure.get();
     object.walk = object.traced->single_ray_walk();
     object.primitives = structure->stats().primitives;
+    const Box3f& object_bounds = object.traced->bounds();
+    object.hull_points =
+        bounding_polytope(structure->built_geometry(), object_bounds, geometric_tolerance(object_bounds));
+    if (object.hull_points.empty()) {
+        const std::array<Vec3d, 8> box_corners =
+            corners(object_bounds.grown(geometric_tolerance(object_bounds)));
+        object.hull_points.assign(box_corners.begin(), box_corners.end());
+    }
     object.structure = std::move(structure);
     state_->objects.push_back(std::move(object));
     return static_cast<std::uint32_t>(state_->objects.size() - 1);

@@ -17,6 +17,7 @@
 #include "core/intersect.hpp"
 #include "core/ray_conditioning.hpp"
 #include "lancer/accel.hpp"
+#include "lancer/vec3d.hpp"
 
 namespace lancer::top_level {
 
@@ -28,6 +29,10 @@ struct ObjectRecord {
     // The triangles the scene flattened, when it built the object itself.
     std::shared_ptr<const std::vector<Triangle>> triangles;
     std::size_t primitives = 0;
+    // Points whose convex hull holds the object's primitives grown by its geometric tolerance: the corners
+    // of a 26-sided polytope around them (bounding_polytope, instanced_scene.cpp), or of its grown box. An
+    // instance's world box is the box of these points mapped.
+    std::vector<Vec3d> hull_points;
 };
 
 // An object's box as the cull before an instance visit (crosses) reads it: the three axes in SSE lanes, the
