@@ -66,10 +66,12 @@ std::array<Vec3d, 8> corners(const Box3f& box) {
 
 // The corners of the 26-sided polytope around `geometry` (the slabs of Kay & Kajiya along the 3 axes, the 6
 // face diagonals and the 4 body diagonals: a 26-DOP), each slab grown by `tolerance` per coordinate, as the
-// object's box is. Under a random rotation the box of these points has about 60% of the area of the box of
-// the object box's corners (docs/accel/instances.md, "Instance boxes"), so fewer rays visit an instance only
-// to miss its object. Empty when the polytope has no volume; the caller then keeps the box's corners.
-std::vector<Vec3d> bounding_polytope(const Geometry& geometry, const Box3f& bounds, double tolerance) {
+// object's box is; a structure holds `geometry` scaled by 2^scale_exponent. Under a random rotation the box
+// of these points has about 60% of the area of the box of the object box's corners (docs/accel/instances.md,
+// "Instance boxes"), so fewer rays visit an instance only to miss its object. Empty when the polytope has no
+// volume; the caller then keeps the box's corners.
+std::vector<Vec3d> bounding_polytope(const Geometry& geometry, int scale_exponent, const Box3f& bounds,
+                                     double tolerance) {
     static constexpr int kDirections = 13;
     static constexpr int kDirection[kDirections][3] = {
         {1, 0, 0}, {0, 1, 0},  {0, 0, 1}, {1, 1, 0},  {1, -1, 0}, {1, 0, 1},  {1, 0, -1},
@@ -83,12 +85,16 @@ std::vector<Vec3d> bounding_polytope(const Geometry& geometry, const Box3f& boun
     }
     std::array<double, 2 * kDirections> offset;
     offset.fill(-kInfinity);
+    // A structure may hold its geometry scaled by 2^scale_exponent (Accel::built_geometry); instances place
+    // it unscaled. Powers of two scale exactly.
+    const double unscale = std::ldexp(1.0, -scale_exponent);
     auto extend = [&](const Vec3f& point, double radius) {
-        const Vec3d p(point);
+        const Vec3d p = unscale * Vec3d(point);
+        radius *= unscale;
         for (int k = 0; k < kDirections; ++k) {
             const double along = dot(normal[k], p), reach = radius * std::sqrt(dot(normal[k], normal[k]));
-            offset[k] = std::fmax(offset[k], along + reach);
-            offset[k + kDirections] = std::fmax(offset[k + kDirections], reach - along);
+            offset[k] = std::max(offset[k], along + reach);
+            offset[k + kDirections] = std::max(offset[k + kDirections], reach - along);
         }
     };
     for (const Triangle& triangle : geometry.triangles) {
@@ -347,8 +353,8 @@ std::uint32_t InstancedScene::add_object(std::shared_ptr<const Accel> structure)
     object.walk = object.traced->single_ray_walk();
     object.primitives = structure->stats().primitives;
     const Box3f& object_bounds = object.traced->bounds();
-    object.hull_points =
-        bounding_polytope(structure->built_geometry(), object_bounds, geometric_tolerance(object_bounds));
+    object.hull_points = bounding_polytope(structure->built_geometry(), structure->scale_exponent(),
+                                           object_bounds, geometric_tolerance(object_bounds));
     if (object.hull_points.empty()) {
         const std::array<Vec3d, 8> box_corners =
             corners(object_bounds.grown(geometric_tolerance(object_bounds)));

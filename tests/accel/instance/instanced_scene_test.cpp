@@ -155,39 +155,46 @@ TEST(InstancedScene, SkippedIdsAreRemovedOnes) {
 
 // An instance's world box is the box of its object's 26-sided polytope mapped, not of its object box's
 // corners: a sphere turned by 45 degrees keeps about its own box (its box's corners would widen it by
-// sqrt(2)), and every vertex of the turned sphere, and every hit, stays inside it.
+// sqrt(2) or more), and every vertex of the turned sphere, and every hit, stays inside it. The same for a
+// sphere of radius 2^22, which its structure holds scaled by a power of two (Accel::built_geometry), placed
+// at radius 1.
 TEST(InstancedScene, AnInstanceBoxFollowsItsObjectsShapeUnderRotation) {
-    const TriangleMesh sphere = make_icosphere(3, {0, 0, 0}, 1.0f);
     const Transform turn =
         Transform::translation({5.0f, -3.0f, 2.0f}) * Transform::rotation({1.0f, 1.0f, 0.0f}, 0.785398f);
-    InstancedScene scene;
-    scene.add_instance(scene.add_object(sphere, "bvh8", build_options(TriangleTest::Watertight)), turn);
-    scene.commit();
-    const Box3f& box = scene.bounds();
-    for (int axis = 0; axis < 3; ++axis)
-        EXPECT_LT(box.extent()[axis], 2.0f * 1.15f) << axis;  // the corners' box: 3 to 3.4 wide here
-    for (const Vec3f& vertex : sphere.positions) {
-        const Vec3f moved = turn.point(vertex);
-        for (int axis = 0; axis < 3; ++axis) {
-            ASSERT_LE(box.lo[axis], moved[axis]);
-            ASSERT_GE(box.hi[axis], moved[axis]);
+    for (const float radius : {1.0f, 0x1p22f}) {
+        const TriangleMesh sphere = make_icosphere(3, {0, 0, 0}, radius);
+        const Transform place = turn * Transform::scaling(Vec3f(1.0f / radius));
+        InstancedScene scene;
+        const std::uint32_t object =
+            scene.add_object(sphere, "bvh8", build_options(TriangleTest::Watertight));
+        scene.add_instance(object, place);
+        scene.commit();
+        const Box3f& box = scene.bounds();
+        for (int axis = 0; axis < 3; ++axis)  // the corners' box: 3 to 3.4 wide here
+            EXPECT_LT(box.extent()[axis], 2.0f * 1.15f) << "radius " << radius << ", axis " << axis;
+        for (const Vec3f& vertex : sphere.positions) {
+            const Vec3f moved = place.point(vertex);
+            for (int axis = 0; axis < 3; ++axis) {
+                ASSERT_LE(box.lo[axis], moved[axis]) << radius;
+                ASSERT_GE(box.hi[axis], moved[axis]) << radius;
+            }
         }
+        // Rays from outside the box towards the centre, and from the centre towards each vertex (a leak
+        // would be a miss): every one hits the sphere.
+        const Vec3f centre = place.point({0.0f, 0.0f, 0.0f});
+        std::mt19937 rng(5);
+        std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+        std::vector<Ray> rays;
+        for (const Vec3f& vertex : sphere.positions) {
+            const Vec3f outside = centre + 3.0f * normalize(Vec3f(unit(rng), unit(rng), unit(rng)));
+            rays.push_back({outside, centre - outside, 0.0f, kInfinity});
+            rays.push_back({centre, place.point(vertex) - centre, 0.0f, kInfinity});
+        }
+        std::vector<InstanceHit> hits(rays.size());
+        scene.intersect(rays, hits);
+        for (std::size_t i = 0; i < rays.size(); ++i)
+            ASSERT_TRUE(hits[i].hit()) << "radius " << radius << ": ray " << i << " misses";
     }
-    // Rays from outside the box towards the centre, and from the centre towards each vertex (a leak would
-    // be a miss): every one hits the sphere.
-    const Vec3f centre = turn.point({0.0f, 0.0f, 0.0f});
-    std::mt19937 rng(5);
-    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
-    std::vector<Ray> rays;
-    for (const Vec3f& vertex : sphere.positions) {
-        const Vec3f outside = centre + 3.0f * normalize(Vec3f(unit(rng), unit(rng), unit(rng)));
-        rays.push_back({outside, centre - outside, 0.0f, kInfinity});
-        rays.push_back({centre, turn.point(vertex) - centre, 0.0f, kInfinity});
-    }
-    std::vector<InstanceHit> hits(rays.size());
-    scene.intersect(rays, hits);
-    for (std::size_t i = 0; i < rays.size(); ++i)
-        ASSERT_TRUE(hits[i].hit()) << "ray " << i << " misses";
 }
 
 // The SAH watch of the refit (docs/accel/refit.md) decides for the top level: a small step refits, a
