@@ -41,8 +41,9 @@ constexpr double kRayReachSides = 9.0;
 // Rays per task of intersect_parallel and occluded_parallel, as for the structures (lancer/accel.hpp).
 constexpr std::size_t kRayChunk = 4096;
 
-// The box of `points` under `transform`: mapped in double, rounded outwards. The points and the checked
-// transform are finite, so std::min and std::max, which inline where std::fmin and std::fmax call libm.
+// The box of `points` under `transform`: mapped in double, rounded outwards. The points and the transform
+// (place() refuses a NaN or infinite entry first) are finite, so std::min and std::max serve: they inline,
+// where std::fmin and std::fmax are calls into libm, and every instance update maps each point.
 Box3f world_box(std::span<const Vec3d> points, const Transform& transform) {
     double lo[3] = {kInfinity, kInfinity, kInfinity}, hi[3] = {-kInfinity, -kInfinity, -kInfinity};
     for (const Vec3d& p : points) {
