@@ -98,13 +98,13 @@ struct Octree {
 };
 
 // Top-down, depth first: a cell is split while level < max_depth (clamped to [0, kOctreeMaxLevel], then by
-// deepest_separating_level) and it
-// holds more than leaf_size references; a child references every primitive that primitive_overlaps_box
-// says may touch its closed box grown by the scene's geometric tolerance (docs/numerical-contract.md,
-// "Boxes": a hit the kernel reports a hair outside the cell it lies in is still found there). A split is
-// also refused when it separates nothing (split_separates_nothing). Deterministic: references stay in
-// increasing order. With oneTBB, subtrees of more than 4,096 references build in parallel and are spliced
-// in child order: the same arrays whatever the thread count (docs/accel/parallel-build.md).
+// deepest_separating_level) and it holds more than leaf_size references; a child references every
+// primitive that primitive_overlaps_box says may touch its closed box grown by the scene's geometric
+// tolerance (docs/numerical-contract.md, "Boxes": a hit the kernel reports a hair outside the cell it lies
+// in is still found there). A split is also refused when it separates nothing (split_separates_nothing).
+// Deterministic: references stay in increasing order. With oneTBB, subtrees of more than 4,096 references
+// build in parallel and are spliced in child order: the same arrays whatever the thread count
+// (docs/accel/parallel-build.md).
 [[nodiscard]] Octree build_octree(const Geometry& geometry, const OctreeOptions& options);
 
 // The depth limit build_octree uses: `max_depth`, or less where cells of that level would be narrower than
