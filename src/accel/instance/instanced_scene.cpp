@@ -17,6 +17,7 @@
 #include "accel/bvh/collapse.hpp"
 #include "accel/bvh/refit.hpp"
 #include "accel/instance/affine.hpp"
+#include "accel/instance/bounding_polytope.hpp"
 #include "accel/instance/top_level_walk.hpp"
 #include "accel/tree_shape.hpp"
 #include "core/intersect.hpp"
@@ -65,81 +66,6 @@ std::array<Vec3d, 8> corners(const Box3f& box) {
     return {corner(0), corner(1), corner(2), corner(3), corner(4), corner(5), corner(6), corner(7)};
 }
 
-// The corners of the 26-sided polytope around `geometry` (the slabs of Kay & Kajiya along the 3 axes, the 6
-// face diagonals and the 4 body diagonals: a 26-DOP), each slab grown by `tolerance` per coordinate, as the
-// object's box is; a structure holds `geometry` scaled by 2^scale_exponent. Under a random rotation the box
-// of these points has about 60% of the area of the box of the object box's corners (docs/accel/instances.md,
-// "Instance boxes"), so fewer rays visit an instance only to miss its object. Empty when the polytope has no
-// volume; the caller then keeps the box's corners.
-std::vector<Vec3d> bounding_polytope(const Geometry& geometry, int scale_exponent, const Box3f& bounds,
-                                     double tolerance) {
-    static constexpr int kDirections = 13;
-    static constexpr int kDirection[kDirections][3] = {
-        {1, 0, 0}, {0, 1, 0},  {0, 0, 1}, {1, 1, 0},  {1, -1, 0}, {1, 0, 1},  {1, 0, -1},
-        {0, 1, 1}, {0, 1, -1}, {1, 1, 1}, {1, 1, -1}, {1, -1, 1}, {1, -1, -1}};
-    // Plane k: normal[k] . x <= offset[k]; planes k and k + 13 are the two sides of slab k.
-    std::vector<Vec3d> normal;
-    for (int side : {1, -1}) {
-        for (const auto& direction : kDirection) {
-            normal.emplace_back(side * direction[0], side * direction[1], side * direction[2]);
-        }
-    }
-    std::array<double, 2 * kDirections> offset;
-    offset.fill(-kInfinity);
-    // A structure may hold its geometry scaled by 2^scale_exponent (Accel::built_geometry); instances place
-    // it unscaled. Powers of two scale exactly.
-    const double unscale = std::ldexp(1.0, -scale_exponent);
-    auto extend = [&](const Vec3f& point, double radius) {
-        const Vec3d p = unscale * Vec3d(point);
-        radius *= unscale;
-        for (int k = 0; k < kDirections; ++k) {
-            const double along = dot(normal[k], p), reach = radius * std::sqrt(dot(normal[k], normal[k]));
-            offset[k] = std::max(offset[k], along + reach);
-            offset[k + kDirections] = std::max(offset[k + kDirections], reach - along);
-        }
-    };
-    for (const Triangle& triangle : geometry.triangles) {
-        for (const Vec3f* vertex : {&triangle.v0, &triangle.v1, &triangle.v2})
-            extend(*vertex, 0.0);
-    }
-    for (const Sphere& sphere : geometry.spheres)
-        extend(sphere.center, sphere.radius);
-    // The hits the object reports lie within `tolerance` of its primitives on each coordinate, so within
-    // tolerance |n|_1 of each plane. The slack, far above the rounding of the offsets and of the corners
-    // solved below (double) and far below the tolerance (float), keeps those corners outside the hull.
-    const double slack = 0x1p-36 * (max_component(max(abs(bounds.lo), abs(bounds.hi))) + tolerance);
-    for (int k = 0; k < 2 * kDirections; ++k) {
-        const Vec3d& n = normal[k];
-        offset[k] += tolerance * (std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z)) + slack;
-        if (!std::isfinite(offset[k])) return {};
-    }
-    // Every point where three planes meet and that no plane excludes (a few dozen of 2,600 triples).
-    std::vector<Vec3d> points;
-    for (int a = 0; a < 2 * kDirections; ++a) {
-        for (int b = a + 1; b < 2 * kDirections; ++b) {
-            for (int c = b + 1; c < 2 * kDirections; ++c) {
-                const Vec3d bc = cross(normal[b], normal[c]), ca = cross(normal[c], normal[a]),
-                            ab = cross(normal[a], normal[b]);
-                const double determinant = dot(normal[a], bc);
-                if (std::fabs(determinant) < 0.5) continue;  // integer normals: 0 or at least 1
-                const Vec3d point = (1.0 / determinant) * (offset[a] * bc + offset[b] * ca + offset[c] * ab);
-                bool inside = true;
-                for (int k = 0; k < 2 * kDirections && inside; ++k)
-                    inside = dot(normal[k], point) <= offset[k] + slack;
-                // A corner where more than three planes meet comes from each of their triples: kept once,
-                // since every instance update maps each point.
-                auto same = [&](const Vec3d& kept) {
-                    return std::fabs(kept.x - point.x) <= slack && std::fabs(kept.y - point.y) <= slack &&
-                           std::fabs(kept.z - point.z) <= slack;
-                };
-                if (inside && std::none_of(points.begin(), points.end(), same)) points.push_back(point);
-            }
-        }
-    }
-    if (points.size() < 4) return {};
-    return points;
-}
-
 double elapsed_ms(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
@@ -153,8 +79,9 @@ struct InstancedScene::State {
     std::vector<InstanceRecord> records;
     std::vector<Transform> transforms;
     std::vector<std::uint8_t> alive;
-    std::vector<Box3f> object_boxes;  // the object's box mapped to the world, before the rounding margin
-    std::vector<Box3f> leaf_boxes;    // what the top level holds: object_boxes grown by the ray's rounding
+    std::vector<Box3f>
+        object_boxes;  // the object's hull points mapped to the world, before the rounding margin
+    std::vector<Box3f> leaf_boxes;  // what the top level holds: object_boxes grown by the ray's rounding
     std::size_t live = 0;
     std::size_t instanced_primitives = 0;
 
@@ -195,10 +122,9 @@ struct InstancedScene::State {
             throw std::invalid_argument("InstancedScene: instance " + std::to_string(instance) +
                                         "'s transform " + problem);
         }
-        // The object's box as its structure treats it, grown by its geometric tolerance, and within it the
-        // box of the object's hull points.
-        const Box3f box = intersection(world_box(corners(grown), transform),
-                                       world_box(objects[object].hull_points, transform));
+        // The box of the object's hull points: within the box of its grown box's corners (up to the
+        // polytope's slack), the polytope's axis slabs being that box's faces.
+        const Box3f box = world_box(objects[object].hull_points, transform);
         if (!in_coordinate_domain(box.lo) || !in_coordinate_domain(box.hi)) {
             throw std::invalid_argument("InstancedScene: instance " + std::to_string(instance) +
                                         "'s transform takes its object outside the coordinate domain [-2^60, "
@@ -207,7 +133,7 @@ struct InstancedScene::State {
         return {record, box};
     }
 
-    // The leaves' boxes and the scene's box from the instances' object boxes.
+    // The leaves' boxes and the scene's box from the instances' mapped hull points (object_boxes).
     void grow_leaf_boxes() {
         bounds = parallel::reduce(
             0, alive.size(), 16384, Box3f{},
@@ -354,8 +280,9 @@ std::uint32_t InstancedScene::add_object(std::shared_ptr<const Accel> structure)
     object.walk = object.traced->single_ray_walk();
     object.primitives = structure->stats().primitives;
     const Box3f& object_bounds = object.traced->bounds();
-    object.hull_points = bounding_polytope(structure->built_geometry(), structure->scale_exponent(),
-                                           object_bounds, geometric_tolerance(object_bounds));
+    object.hull_points =
+        top_level::bounding_polytope(structure->built_geometry(), structure->scale_exponent(), object_bounds,
+                                     geometric_tolerance(object_bounds));
     if (object.hull_points.empty()) {
         const std::array<Vec3d, 8> box_corners =
             corners(object_bounds.grown(geometric_tolerance(object_bounds)));

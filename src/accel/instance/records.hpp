@@ -30,7 +30,7 @@ struct ObjectRecord {
     std::shared_ptr<const std::vector<Triangle>> triangles;
     std::size_t primitives = 0;
     // Points whose convex hull holds the object's primitives grown by its geometric tolerance: the corners
-    // of a 26-sided polytope around them (bounding_polytope, instanced_scene.cpp), or of its grown box. An
+    // of a 26-sided polytope around them (accel/instance/bounding_polytope.hpp), or of its grown box. An
     // instance's world box is the box of these points mapped.
     std::vector<Vec3d> hull_points;
 };
