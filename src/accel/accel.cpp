@@ -195,7 +195,7 @@ std::size_t AccelStats::count(std::string_view key) const {
 void intersect_parallel(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, int threads) {
     check_batch(rays.size(), hits.size());
     parallel::with_threads(threads, [&] {
-        parallel::for_each_chunk(0, rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
+        parallel::for_each_block(rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
             accel.intersect(rays.subspan(from, to - from), hits.subspan(from, to - from));
         });
     });
@@ -205,7 +205,7 @@ void occluded_parallel(const Accel& accel, std::span<const Ray> rays, std::span<
                        int threads) {
     check_batch(rays.size(), occluded.size());
     parallel::with_threads(threads, [&] {
-        parallel::for_each_chunk(0, rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
+        parallel::for_each_block(rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
             accel.occluded(rays.subspan(from, to - from), occluded.subspan(from, to - from));
         });
     });

@@ -469,7 +469,7 @@ void intersect_parallel(const InstancedScene& scene, std::span<const Ray> rays, 
     if (rays.size() != hits.size())
         throw std::invalid_argument("InstancedScene: one answer slot per ray expected");
     parallel::with_threads(threads, [&] {
-        parallel::for_each_chunk(0, rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
+        parallel::for_each_block(rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
             scene.intersect(rays.subspan(from, to - from), hits.subspan(from, to - from));
         });
     });
@@ -481,7 +481,7 @@ void occluded_parallel(const InstancedScene& scene, std::span<const Ray> rays,
         throw std::invalid_argument("InstancedScene: one answer slot per ray expected");
     }
     parallel::with_threads(threads, [&] {
-        parallel::for_each_chunk(0, rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
+        parallel::for_each_block(rays.size(), kRayChunk, [&](std::size_t from, std::size_t to) {
             scene.occluded(rays.subspan(from, to - from), occluded.subspan(from, to - from));
         });
     });
