@@ -16,7 +16,11 @@
 namespace lancer::top_level {
 
 // The slabs' directions: every vector of components in {-1, 0, 1} whose first non-zero component is 1 (the
-// 3 axes, the 6 face diagonals and the 4 body diagonals), and then their opposites.
+// 3 axes, the 6 face diagonals and the 4 body diagonals): half of the 3^3 - 1 non-zero ones.
+inline constexpr int kSlabDirections = (3 * 3 * 3 - 1) / 2;
+inline constexpr int kPolytopePlanes = 2 * kSlabDirections;  // each slab's two planes
+
+// The planes' outward normals: the slabs' directions, then their opposites in the same order.
 inline std::vector<Vec3d> polytope_normals() {
     std::vector<Vec3d> normals;
     for (int x = 1; x >= -1; --x) {
@@ -27,7 +31,7 @@ inline std::vector<Vec3d> polytope_normals() {
             }
         }
     }
-    for (int k = 0; k < 13; ++k)
+    for (int k = 0; k < kSlabDirections; ++k)
         normals.push_back(-1.0 * normals[static_cast<std::size_t>(k)]);
     return normals;
 }
@@ -40,18 +44,18 @@ inline std::vector<Vec3d> polytope_normals() {
 inline std::vector<Vec3d> bounding_polytope(const Geometry& geometry, int scale_exponent, const Box3f& bounds,
                                             double tolerance) {
     const std::vector<Vec3d> normal = polytope_normals();
-    std::array<double, 26> length{}, offset{};  // plane k: normal[k] . x <= offset[k]
-    for (int k = 0; k < 26; ++k) {
+    std::array<double, kPolytopePlanes> length{}, offset{};  // plane k: normal[k] . x <= offset[k]
+    for (int k = 0; k < kPolytopePlanes; ++k) {
         length[k] = std::sqrt(dot(normal[k], normal[k]));
         offset[k] = -kInfinity;
     }
     const double unscale = std::ldexp(1.0, -scale_exponent);  // a power of two: exact
     auto extend = [&](const Vec3f& point, double radius) {
         const Vec3d p = unscale * Vec3d(point);
-        for (int k = 0; k < 13; ++k) {
+        for (int k = 0; k < kSlabDirections; ++k) {
             const double along = dot(normal[k], p), reach = unscale * radius * length[k];
             offset[k] = std::max(offset[k], along + reach);
-            offset[k + 13] = std::max(offset[k + 13], reach - along);
+            offset[k + kSlabDirections] = std::max(offset[k + kSlabDirections], reach - along);
         }
     };
     for (const Triangle& triangle : geometry.triangles) {
@@ -64,7 +68,7 @@ inline std::vector<Vec3d> bounding_polytope(const Geometry& geometry, int scale_
     // The slack, far above the rounding of the offsets and of the corners solved below (double) and far
     // below the tolerance (float), keeps the corners outside the grown primitives.
     const double slack = 0x1p-36 * (max_component(max(abs(bounds.lo), abs(bounds.hi))) + tolerance);
-    for (int k = 0; k < 26; ++k) {
+    for (int k = 0; k < kPolytopePlanes; ++k) {
         const Vec3d& n = normal[k];
         offset[k] += tolerance * (std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z)) + slack;
     }
@@ -77,7 +81,7 @@ inline std::vector<Vec3d> bounding_polytope(const Geometry& geometry, int scale_
         const double determinant = dot(normal[a], bc);
         if (std::fabs(determinant) < 0.5) return;  // integer normals: 0 or at least 1 in magnitude
         const Vec3d point = (1.0 / determinant) * (offset[a] * bc + offset[b] * ca + offset[c] * ab);
-        for (int k = 0; k < 26; ++k) {
+        for (int k = 0; k < kPolytopePlanes; ++k) {
             if (dot(normal[k], point) > offset[k] + slack) return;
         }
         auto same = [&](const Vec3d& kept) {
@@ -86,9 +90,9 @@ inline std::vector<Vec3d> bounding_polytope(const Geometry& geometry, int scale_
         };
         if (std::none_of(corners.begin(), corners.end(), same)) corners.push_back(point);
     };
-    for (int a = 0; a < 26; ++a) {
-        for (int b = a + 1; b < 26; ++b) {
-            for (int c = b + 1; c < 26; ++c)
+    for (int a = 0; a < kPolytopePlanes; ++a) {
+        for (int b = a + 1; b < kPolytopePlanes; ++b) {
+            for (int c = b + 1; c < kPolytopePlanes; ++c)
                 add_corner(a, b, c);
         }
     }

@@ -79,9 +79,10 @@ struct InstancedScene::State {
     std::vector<InstanceRecord> records;
     std::vector<Transform> transforms;
     std::vector<std::uint8_t> alive;
-    std::vector<Box3f>
-        object_boxes;  // the object's hull points mapped to the world, before the rounding margin
-    std::vector<Box3f> leaf_boxes;  // what the top level holds: object_boxes grown by the ray's rounding
+    // The object's hull points mapped to the world, before the rounding margin.
+    std::vector<Box3f> object_boxes;
+    // What the top level holds: object_boxes grown by the ray's rounding.
+    std::vector<Box3f> leaf_boxes;
     std::size_t live = 0;
     std::size_t instanced_primitives = 0;
 
@@ -280,12 +281,11 @@ std::uint32_t InstancedScene::add_object(std::shared_ptr<const Accel> structure)
     object.walk = object.traced->single_ray_walk();
     object.primitives = structure->stats().primitives;
     const Box3f& object_bounds = object.traced->bounds();
-    object.hull_points =
-        top_level::bounding_polytope(structure->built_geometry(), structure->scale_exponent(), object_bounds,
-                                     geometric_tolerance(object_bounds));
+    const float tolerance = geometric_tolerance(object_bounds);
+    object.hull_points = top_level::bounding_polytope(structure->built_geometry(),
+                                                      structure->scale_exponent(), object_bounds, tolerance);
     if (object.hull_points.empty()) {
-        const std::array<Vec3d, 8> box_corners =
-            corners(object_bounds.grown(geometric_tolerance(object_bounds)));
+        const std::array<Vec3d, 8> box_corners = corners(object_bounds.grown(tolerance));
         object.hull_points.assign(box_corners.begin(), box_corners.end());
     }
     object.structure = std::move(structure);

@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <array>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -19,7 +18,6 @@
 #include <utility>
 #include <vector>
 
-#include "accel/instance/bounding_polytope.hpp"
 #include "instanced_fixture.hpp"
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
@@ -153,52 +151,6 @@ TEST(InstancedScene, SkippedIdsAreRemovedOnes) {
 
     EXPECT_EQ(skipped.skip_instance_id(), 12u);
     EXPECT_EQ(skipped.add_instance(0, Transform{}), 13u);
-}
-
-// What makes an instance's box hold every hit under any rotation: along every direction u the polytope's
-// corners reach at least as far as the primitives grown by the tolerance, max u.p >= max u.x + tolerance
-// |u|_1. A knot and spheres, held at scale 2^-3 as a structure would hold them; random directions and the
-// slabs'.
-TEST(BoundingPolytope, ReachesAsFarAsTheGrownPrimitivesAlongEveryDirection) {
-    std::vector<Triangle> triangles = make_torus_knot(40, 8).triangles();
-    std::vector<Sphere> spheres = {{{0.3f, -2.0f, 1.0f}, 0.7f, 0}, {{-1.5f, 0.2f, 0.4f}, 0.0f, 0}};
-    Box3f bounds;
-    for (const Triangle& t : triangles)
-        bounds.extend(t.bounds());
-    for (const Sphere& sphere : spheres)
-        bounds.extend(sphere.bounds());
-    const double tolerance = 0.01;
-    std::vector<Triangle> held = triangles;
-    std::vector<Sphere> held_spheres = spheres;
-    for (Triangle& t : held)
-        t = {t.v0 * 0.125f, t.v1 * 0.125f, t.v2 * 0.125f};
-    for (Sphere& sphere : held_spheres)
-        sphere = {sphere.center * 0.125f, sphere.radius * 0.125f, 0};
-    const std::vector<Vec3d> corners =
-        top_level::bounding_polytope({held, held_spheres}, -3, bounds, tolerance);
-    ASSERT_GE(corners.size(), 4u);
-    EXPECT_LE(corners.size(), 96u);  // every update maps each of them
-    std::vector<Vec3d> directions = top_level::polytope_normals();
-    ASSERT_EQ(directions.size(), 26u);
-    std::mt19937 rng(9);
-    std::normal_distribution<double> normal(0.0, 1.0);
-    for (int i = 0; i < 2000; ++i)
-        directions.emplace_back(normal(rng), normal(rng), normal(rng));
-    for (const Vec3d& u : directions) {
-        double primitives = -kInfinity, reached = -kInfinity;
-        for (const Triangle& t : triangles) {
-            for (const Vec3f* v : {&t.v0, &t.v1, &t.v2})
-                primitives = std::max(primitives, dot(u, Vec3d(*v)));
-        }
-        for (const Sphere& sphere : spheres)
-            primitives =
-                std::max(primitives, dot(u, Vec3d(sphere.center)) + sphere.radius * std::sqrt(dot(u, u)));
-        for (const Vec3d& p : corners)
-            reached = std::max(reached, dot(u, p));
-        ASSERT_GE(reached, primitives + tolerance * (std::fabs(u.x) + std::fabs(u.y) + std::fabs(u.z)))
-            << u.x << " " << u.y << " " << u.z;
-    }
-    EXPECT_TRUE(top_level::bounding_polytope({}, 0, bounds, tolerance).empty());
 }
 
 // An instance's world box is the box of its object's 26-sided polytope mapped, not of its object box's
