@@ -8,7 +8,8 @@
 #     build-gpu/apps/lancer/lancer_baseline for before/after runs in one call;
 #   - DIR/data: the Stanford meshes of ../shared/data/meshes, xz-compressed (7 MB instead of 22);
 #   - DIR/run_checks.sh: run there, from the repository root: unpacks, runs the GPU tests, the CLI's
-#     byte-for-byte test and `lancer bench --device cuda` with both triangle tests, logs to $OUT (or /tmp).
+#     byte-for-byte test and `lancer bench --device cuda` on the three views with both triangle tests, logs to
+#     $OUT (or /tmp).
 # The tool carries at most 64 MiB: packed, the whole is about 20 MB. DIR (default .gpu) must be ignored by git
 # (.git/info/exclude), so that nothing here is committed; carry it alone. Exits 2 on bad input.
 set -euo pipefail
@@ -70,7 +71,8 @@ build-gpu/tests/cuda/cuda_port_tests >"\$out/port_tests.log" 2>&1; tail -1 "\$ou
 build-gpu/tests/cuda/cuda_gpu_tests >"\$out/gpu_tests.log" 2>&1; tail -3 "\$out/gpu_tests.log"
 build-gpu/tests/apps/cli_tests --gtest_filter='*Cuda*' 2>&1 | tail -1
 for test in "" --moller-trumbore; do
-    build-gpu/apps/lancer/lancer bench --device cuda --frames 20 \$test 2>&1 | tee -a "\$out/bench.log"
+    build-gpu/apps/lancer/lancer bench --device cuda --view primary,diffuse,shadow --frames 20 \$test 2>&1 |
+        tee -a "\$out/bench.log"
 done
 EOF
 chmod +x "$bundle/run_checks.sh"

@@ -206,7 +206,8 @@ void run(const BenchOptions& options) {
         const std::vector<std::string> requested =
             options.accel_list == "all" ? std::vector<std::string>{"all"} : accels;
         run_cuda_bench(options.device, gpu_meshes,
-                       {requested, options.size, options.frames, !options.moller_trumbore, options.settings});
+                       {requested, parse_views(options.view_list), options.size, options.frames,
+                        !options.moller_trumbore, options.settings});
         return;
     }
 

@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "bench_report.hpp"
 #include "common.hpp"
 #include "lancer/cuda.hpp"
 #include "lancer/render.hpp"
@@ -33,14 +34,16 @@ struct DeviceChoice {
                                                            TriangleTest triangle_test, const Accel& accel,
                                                            const Geometry& geometry);
 
-// `lancer bench --device cuda`: every kernel of each structure (plucker, bvh) on each mesh's canonical
-// view, validated against the CPU structure, timed by CUDA events (the kernel alone).
+// `lancer bench --device cuda`: every kernel of each structure (plucker, bvh) on each mesh's views (the
+// canonical view, and the diffuse and shadow views made from it), validated against the CPU structure,
+// timed by CUDA events (the kernel alone).
 struct CudaBenchMesh {
     std::string name;
     const Scene* scene;
 };
 struct CudaBenchOptions {
     std::vector<std::string> accels;  // "all" expands to plucker, bvh
+    std::vector<BenchView> views;
     int size = 1024;
     int frames = 5;
     bool watertight = true;

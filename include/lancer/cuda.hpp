@@ -41,7 +41,10 @@ class CudaError : public std::runtime_error {
 [[nodiscard]] bool cuda_available(std::string* why = nullptr);
 
 struct CudaTrace {
-    std::vector<Hit> hits;   // one per ray; a frame's row by row
+    std::vector<Hit> hits;  // closest hits, one per ray; a frame's row by row
+    // Occlusion queries: one byte per ray, 1 when something lies in [tnear, tfar] (Accel::occluded's
+    // answer); `hits` is then empty.
+    std::vector<std::uint8_t> occluded;
     double kernel_ms = 0.0;  // the kernel alone (CUDA events), transfers excluded
     // trace_frame(camera, true) only: per ray, the inner nodes and leaves (bvh) or the leaves (plucker)
     // visited, TraversalCounters::nodes_visited's meaning (the heatmap).
@@ -64,11 +67,19 @@ class CudaTracer {
     [[nodiscard]] CudaTrace trace_frame(const Camera& camera, bool count_steps = false);
     // Closest hits of a batch of rays. Rays are conditioned first, as Accel::intersect does.
     [[nodiscard]] CudaTrace trace(std::span<const Ray> rays);
+    // Occlusion of a batch (CudaTrace::occluded), the kernels stopping at a ray's first hit.
+    [[nodiscard]] CudaTrace occluded(std::span<const Ray> rays);
+
+    // A batch kept on the device, so that it is traced many times from device memory, as VIEWS.md times
+    // the secondary views: upload_rays conditions and copies `rays` once; trace_uploaded answers them
+    // (closest hits, or with any_hit their occlusion), timing the kernel alone. Throws std::logic_error
+    // before any upload.
+    void upload_rays(std::span<const Ray> rays);
+    [[nodiscard]] CudaTrace trace_uploaded(bool any_hit);
+
     [[nodiscard]] std::string device_name() const;
 
   private:
-    CudaTrace trace_rays(std::span<const Ray> rays, bool count_steps);
-
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

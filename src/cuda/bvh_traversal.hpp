@@ -46,8 +46,9 @@ struct CountSteps {
 };
 
 // kSpeculative false: while-while (the vote is not used). Returns the closest hit (ties to the smaller
-// primitive index, as every CPU structure), a miss for an invalid ray.
-template <bool kSpeculative, class TriangleTestT, class Vote, class Steps = NoSteps>
+// primitive index, as every CPU structure), a miss for an invalid ray. kAnyHit (occlusion) returns at the
+// first hit in [tnear, tfar], as Aila & Laine's shadow rays do: not necessarily the closest.
+template <bool kSpeculative, class TriangleTestT, bool kAnyHit = false, class Vote, class Steps = NoSteps>
 LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote& vote, Steps&& steps = {}) {
     Hit best;
     if (!is_valid(ray) || bvh.node_count == 0) return best;
@@ -95,8 +96,10 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
         // The postponed leaf, then the one the inner loop stopped at, if any.
         while (postponed < 0) {
             steps.step();
-            intersect_leaf<TriangleTestT>(bvh.triangles + leaf_first(postponed), leaf_count(postponed),
-                                          triangle_ray, ray, best);
+            if (intersect_leaf<TriangleTestT, kAnyHit>(bvh.triangles + leaf_first(postponed),
+                                                       leaf_count(postponed), triangle_ray, ray, best) &&
+                kAnyHit)
+                return best;
             if constexpr (kSpeculative) {
                 postponed = node;
                 if (node < 0) node = stack.pop();

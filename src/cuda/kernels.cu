@@ -53,47 +53,53 @@ struct BatchRays {
 };
 
 // Layout: the walk's WalkLayout (the octree's variant); the BVH kernels ignore it.
-template <CudaKernel kKernel, class TriangleTestT, class Layout, class Steps>
+template <CudaKernel kKernel, class TriangleTestT, bool kAnyHit, class Layout, class Steps>
 __device__ Hit trace_one(const LaunchScene& scene, const Ray& ray, Steps& steps) {
     if constexpr (kKernel == CudaKernel::Plucker) {
-        return trace_plucker<TriangleTestT, Layout>(scene.plucker, c_tables, ray, steps);
+        return trace_plucker<TriangleTestT, Layout, kAnyHit>(scene.plucker, c_tables, ray, steps);
     } else if constexpr (kKernel == CudaKernel::WhileWhile) {
-        return trace_bvh<false, TriangleTestT>(scene.bvh, ray, WarpVote{}, steps);
+        return trace_bvh<false, TriangleTestT, kAnyHit>(scene.bvh, ray, WarpVote{}, steps);
     } else {
-        return trace_bvh<true, TriangleTestT>(scene.bvh, ray, WarpVote{}, steps);
+        return trace_bvh<true, TriangleTestT, kAnyHit>(scene.bvh, ray, WarpVote{}, steps);
     }
 }
 
-// Stores a ray's answer, and its step count when the kernel counts (the heatmap).
-template <CudaKernel kKernel, class TriangleTestT, bool kCount, class Layout = SeedLayout>
-__device__ void trace_and_store(const LaunchScene& scene, const Ray& ray, std::uint32_t slot, Hit* hits,
-                                std::uint32_t* steps) {
-    if constexpr (kCount) {
+// What a kernel computes and stores for a ray: its closest hit, with its step count too (the heatmap), or
+// one occlusion byte.
+enum class Query { ClosestHit, ClosestHitCounted, AnyHit };
+
+template <CudaKernel kKernel, class TriangleTestT, Query kQuery, class Layout = SeedLayout>
+__device__ void trace_and_store(const LaunchScene& scene, const Ray& ray, std::uint32_t slot,
+                                const LaunchAnswers& answers) {
+    if constexpr (kQuery == Query::ClosestHitCounted) {
         CountSteps counted;
-        hits[slot] = trace_one<kKernel, TriangleTestT, Layout>(scene, ray, counted);
-        steps[slot] = counted.steps;
+        answers.hits[slot] = trace_one<kKernel, TriangleTestT, false, Layout>(scene, ray, counted);
+        answers.steps[slot] = counted.steps;
+    } else if constexpr (kQuery == Query::AnyHit) {
+        NoSteps none;
+        answers.occluded[slot] = trace_one<kKernel, TriangleTestT, true, Layout>(scene, ray, none).prim >= 0;
     } else {
         NoSteps none;
-        hits[slot] = trace_one<kKernel, TriangleTestT, Layout>(scene, ray, none);
+        answers.hits[slot] = trace_one<kKernel, TriangleTestT, false, Layout>(scene, ray, none);
     }
 }
 
 // One thread per ray.
-template <CudaKernel kKernel, class TriangleTestT, bool kCount, class Source, class Layout = SeedLayout>
+template <CudaKernel kKernel, class TriangleTestT, Query kQuery, class Source, class Layout = SeedLayout>
 __global__ void __launch_bounds__(kBlockSize)
-    trace_kernel(LaunchScene scene, Source source, Hit* hits, std::uint32_t* steps) {
+    trace_kernel(LaunchScene scene, Source source, LaunchAnswers answers) {
     const std::uint32_t index = blockIdx.x * blockDim.x + threadIdx.x;
     Ray ray;
     std::uint32_t slot;
     if (source.get(index, ray, slot))
-        trace_and_store<kKernel, TriangleTestT, kCount, Layout>(scene, ray, slot, hits, steps);
+        trace_and_store<kKernel, TriangleTestT, kQuery, Layout>(scene, ray, slot, answers);
 }
 
 // Persistent threads: as many warps as fit on the GPU at once; lane 0 takes the next 32 ray indices and
 // hands them to the warp, until none are left.
-template <class TriangleTestT, bool kCount, class Source>
+template <class TriangleTestT, Query kQuery, class Source>
 __global__ void __launch_bounds__(kBlockSize)
-    persistent_kernel(LaunchScene scene, Source source, std::uint32_t count, Hit* hits, std::uint32_t* steps,
+    persistent_kernel(LaunchScene scene, Source source, std::uint32_t count, LaunchAnswers answers,
                       std::uint32_t* next_ray) {
     const unsigned lane = threadIdx.x % kWarpSize;
     while (true) {
@@ -104,48 +110,48 @@ __global__ void __launch_bounds__(kBlockSize)
         Ray ray;
         std::uint32_t slot;
         if (source.get(base + lane, ray, slot))
-            trace_and_store<CudaKernel::SpeculativeWhileWhile, TriangleTestT, kCount>(scene, ray, slot, hits,
-                                                                                      steps);
+            trace_and_store<CudaKernel::SpeculativeWhileWhile, TriangleTestT, kQuery>(scene, ray, slot,
+                                                                                      answers);
     }
 }
 
 // The walk compiled for the octree's layout.
-template <class TriangleTestT, bool kCount, class Source>
-void launch_walk(unsigned blocks, const LaunchScene& scene, const Source& source, Hit* hits,
-                 std::uint32_t* steps) {
+template <class TriangleTestT, Query kQuery, class Source>
+void launch_walk(unsigned blocks, const LaunchScene& scene, const Source& source,
+                 const LaunchAnswers& answers) {
     const plucker::PluckerView& octree = scene.plucker;
     if (octree.balanced && octree.stored_boxes)
-        trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, WalkLayout<true, true>>
-            <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+        trace_kernel<CudaKernel::Plucker, TriangleTestT, kQuery, Source, WalkLayout<true, true>>
+            <<<blocks, kBlockSize>>>(scene, source, answers);
     else if (octree.balanced)
-        trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, WalkLayout<true, false>>
-            <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+        trace_kernel<CudaKernel::Plucker, TriangleTestT, kQuery, Source, WalkLayout<true, false>>
+            <<<blocks, kBlockSize>>>(scene, source, answers);
     else if (octree.stored_boxes)
-        trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, WalkLayout<false, true>>
-            <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+        trace_kernel<CudaKernel::Plucker, TriangleTestT, kQuery, Source, WalkLayout<false, true>>
+            <<<blocks, kBlockSize>>>(scene, source, answers);
     else
-        trace_kernel<CudaKernel::Plucker, TriangleTestT, kCount, Source, WalkLayout<false, false>>
-            <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+        trace_kernel<CudaKernel::Plucker, TriangleTestT, kQuery, Source, WalkLayout<false, false>>
+            <<<blocks, kBlockSize>>>(scene, source, answers);
 }
 
-template <class TriangleTestT, bool kCount, class Source>
-void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count, Hit* hits,
-            std::uint32_t* steps, std::uint32_t* next_ray) {
+template <class TriangleTestT, Query kQuery, class Source>
+void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count,
+            const LaunchAnswers& answers, std::uint32_t* next_ray) {
     const unsigned blocks = (count + kBlockSize - 1) / kBlockSize;
     switch (kernel) {
         case CudaKernel::Plucker:
-            launch_walk<TriangleTestT, kCount>(blocks, scene, source, hits, steps);
+            launch_walk<TriangleTestT, kQuery>(blocks, scene, source, answers);
             break;
         case CudaKernel::WhileWhile:
-            trace_kernel<CudaKernel::WhileWhile, TriangleTestT, kCount>
-                <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+            trace_kernel<CudaKernel::WhileWhile, TriangleTestT, kQuery>
+                <<<blocks, kBlockSize>>>(scene, source, answers);
             break;
         case CudaKernel::SpeculativeWhileWhile:
-            trace_kernel<CudaKernel::SpeculativeWhileWhile, TriangleTestT, kCount>
-                <<<blocks, kBlockSize>>>(scene, source, hits, steps);
+            trace_kernel<CudaKernel::SpeculativeWhileWhile, TriangleTestT, kQuery>
+                <<<blocks, kBlockSize>>>(scene, source, answers);
             break;
         case CudaKernel::Persistent: {
-            const auto persistent = persistent_kernel<TriangleTestT, kCount, Source>;
+            const auto persistent = persistent_kernel<TriangleTestT, kQuery, Source>;
             int device = 0, multiprocessors = 0, blocks_per_multiprocessor = 0;
             check_cuda(cudaGetDevice(&device), "cudaGetDevice");
             check_cuda(cudaDeviceGetAttribute(&multiprocessors, cudaDevAttrMultiProcessorCount, device),
@@ -156,21 +162,22 @@ void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, s
             check_cuda(cudaMemset(next_ray, 0, sizeof(std::uint32_t)), "cudaMemset");
             const auto resident = static_cast<unsigned>(multiprocessors * blocks_per_multiprocessor);
             const unsigned persistent_blocks = resident < blocks ? resident : blocks;
-            persistent<<<persistent_blocks, kBlockSize>>>(scene, source, count, hits, steps, next_ray);
+            persistent<<<persistent_blocks, kBlockSize>>>(scene, source, count, answers, next_ray);
             break;
         }
     }
     check_cuda(cudaGetLastError(), "kernel launch");
 }
 
-// Counting kernels only for frames (the heatmap): batches never count.
-template <bool kCount, class Source>
+// The query's kernels for the scene's triangle test. Only frames count steps (the heatmap), and only
+// batches answer any-hit queries (the shadow view, the renderer's shadow rays).
+template <Query kQuery, class Source>
 void launch_test(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count,
-                 Hit* hits, std::uint32_t* steps, std::uint32_t* next_ray) {
+                 const LaunchAnswers& answers, std::uint32_t* next_ray) {
     if (scene.watertight)
-        launch<Watertight, kCount>(kernel, scene, source, count, hits, steps, next_ray);
+        launch<Watertight, kQuery>(kernel, scene, source, count, answers, next_ray);
     else
-        launch<MollerTrumbore, kCount>(kernel, scene, source, count, hits, steps, next_ray);
+        launch<MollerTrumbore, kQuery>(kernel, scene, source, count, answers, next_ray);
 }
 
 }  // namespace
@@ -179,20 +186,23 @@ void upload_plucker_tables(const plucker::PluckerTables& tables) {
     check_cuda(cudaMemcpyToSymbol(c_tables, &tables, sizeof(plucker::PluckerTables)), "cudaMemcpyToSymbol");
 }
 
-float launch_trace(CudaKernel kernel, const LaunchScene& scene, const LaunchRays& rays, Hit* hits,
-                   std::uint32_t* steps, std::uint32_t* next_ray) {
+float launch_trace(CudaKernel kernel, const LaunchScene& scene, const LaunchRays& rays,
+                   const LaunchAnswers& answers, std::uint32_t* next_ray) {
     cudaEvent_t start, stop;
     check_cuda(cudaEventCreate(&start), "cudaEventCreate");
     check_cuda(cudaEventCreate(&stop), "cudaEventCreate");
     check_cuda(cudaEventRecord(start), "cudaEventRecord");
     const std::uint32_t frame_rays = frame_ray_count(rays.camera);
-    if (rays.rays != nullptr)
-        launch_test<false>(kernel, scene, BatchRays{rays.rays, rays.count}, rays.count, hits, nullptr,
-                           next_ray);
-    else if (steps != nullptr)
-        launch_test<true>(kernel, scene, CameraRays{rays.camera}, frame_rays, hits, steps, next_ray);
+    const BatchRays batch{rays.rays, rays.count};
+    const CameraRays frame{rays.camera};
+    if (rays.rays != nullptr && answers.occluded != nullptr)
+        launch_test<Query::AnyHit>(kernel, scene, batch, rays.count, answers, next_ray);
+    else if (rays.rays != nullptr)
+        launch_test<Query::ClosestHit>(kernel, scene, batch, rays.count, answers, next_ray);
+    else if (answers.steps != nullptr)
+        launch_test<Query::ClosestHitCounted>(kernel, scene, frame, frame_rays, answers, next_ray);
     else
-        launch_test<false>(kernel, scene, CameraRays{rays.camera}, frame_rays, hits, nullptr, next_ray);
+        launch_test<Query::ClosestHit>(kernel, scene, frame, frame_rays, answers, next_ray);
     check_cuda(cudaEventRecord(stop), "cudaEventRecord");
     check_cuda(cudaEventSynchronize(stop), "cudaEventSynchronize (the kernel)");
     float ms = 0.0f;

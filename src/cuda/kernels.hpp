@@ -25,11 +25,19 @@ struct LaunchRays {
 // Copies Portalez & Duguet's tables to constant memory (once per process is enough; idempotent).
 void upload_plucker_tables(const plucker::PluckerTables& tables);
 
-// Runs `kernel` over the rays, hits[slot] for each (a frame's slot: y * width + x), and returns the
-// kernel's milliseconds (CUDA events). A frame with `steps` not null also writes each ray's step count
-// there (NoSteps / CountSteps). `next_ray` is one device word, the persistent threads' counter.
-// Throws CudaError when a CUDA call fails.
+// Where a launch writes, device pointers indexed by slot (a batch's ray index, or a frame's y * width + x):
+// the closest hits, with occluded null; or, for an any-hit query of a batch, one occlusion byte per ray (1:
+// something lies in [tnear, tfar]), with hits null. A frame with `steps` not null also writes each ray's
+// step count there (CountSteps).
+struct LaunchAnswers {
+    Hit* hits = nullptr;
+    std::uint8_t* occluded = nullptr;
+    std::uint32_t* steps = nullptr;
+};
+
+// Runs `kernel` over the rays and returns the kernel's milliseconds (CUDA events). `next_ray` is one device
+// word, the persistent threads' counter. Throws CudaError when a CUDA call fails.
 [[nodiscard]] float launch_trace(CudaKernel kernel, const LaunchScene& scene, const LaunchRays& rays,
-                                 Hit* hits, std::uint32_t* steps, std::uint32_t* next_ray);
+                                 const LaunchAnswers& answers, std::uint32_t* next_ray);
 
 }  // namespace lancer::gpu

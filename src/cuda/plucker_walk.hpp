@@ -20,8 +20,9 @@ struct WalkLayout {
 };
 using SeedLayout = WalkLayout<true, true>;  // the default: 2:1 balanced, stored boxes
 
-// The closest hit of one ray (ties to the smaller primitive index), a miss for an invalid ray.
-template <class TriangleTestT, class Layout, class Steps = NoSteps>
+// The closest hit of one ray (ties to the smaller primitive index), a miss for an invalid ray. kAnyHit
+// (occlusion) ends the walk at the first leaf with a hit in [tnear, tfar].
+template <class TriangleTestT, class Layout, bool kAnyHit = false, class Steps = NoSteps>
 LANCER_HOST_DEVICE Hit trace_plucker(const plucker::PluckerView& octree, const plucker::PluckerTables& tables,
                                      const Ray& ray, Steps&& steps = {}) {
     Hit best;
@@ -30,9 +31,12 @@ LANCER_HOST_DEVICE Hit trace_plucker(const plucker::PluckerView& octree, const p
     plucker::walk<Layout::kBalanced, Layout::kStoredBoxes>(
         octree, tables, ray,
         [&](const std::uint32_t* leaf, float) {
-            intersect_leaf<TriangleTestT>(octree.primitives + read_only(leaf + plucker::kTriangleOffset),
-                                          read_only(leaf + plucker::kTriangleCount), triangle_ray, ray, best);
-            return best.prim >= 0 ? best.t : ray.tfar;
+            const bool hit = intersect_leaf<TriangleTestT, kAnyHit>(
+                octree.primitives + read_only(leaf + plucker::kTriangleOffset),
+                read_only(leaf + plucker::kTriangleCount), triangle_ray, ray, best);
+            // Below tnear ends the walk (walk()'s contract).
+            if (kAnyHit && hit) return -kInfinity;
+            return hit ? best.t : ray.tfar;
         },
         steps);
     return best;

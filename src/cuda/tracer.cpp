@@ -76,24 +76,47 @@ struct CudaTracer::Impl {
     int scale_exponent = 0;
     gpu::LaunchScene scene;
     DeviceBuffer nodes, triangles, cells, primitives, boxes, texels, locate;  // the structure, uploaded once
-    DeviceBuffer rays, hits, steps, next_ray;                                 // per call, grown as needed
+    DeviceBuffer rays, hits, occluded, steps, next_ray;                       // per call, grown as needed
+    // The uploaded batch: its size, and what maps its conditioned hits back (restore_hits): the rays as
+    // the caller gave them, kept only when conditioning changed some.
+    std::size_t uploaded_count = 0;
+    bool uploaded = false;
+    ConditionedRays conditioned;
+    std::vector<Ray> original_rays;
 
-    CudaTrace run(const gpu::LaunchRays& launch, std::size_t hit_count, bool count_steps) {
-        hits.reserve(hit_count * sizeof(Hit));
-        if (count_steps) steps.reserve(hit_count * sizeof(std::uint32_t));
-        next_ray.reserve(sizeof(std::uint32_t));
+    // A frame (count_steps: with each ray's steps), or the uploaded batch's closest hits or occlusion.
+    CudaTrace run(const gpu::LaunchRays& launch, std::size_t ray_count, bool any_hit, bool count_steps) {
         CudaTrace result;
-        result.kernel_ms = gpu::launch_trace(kernel, scene, launch, hits.as<Hit>(),
-                                             count_steps ? steps.as<std::uint32_t>() : nullptr,
-                                             next_ray.as<std::uint32_t>());
-        result.hits.resize(hit_count);
-        gpu::check_cuda(
-            cudaMemcpy(result.hits.data(), hits.as<Hit>(), hit_count * sizeof(Hit), cudaMemcpyDeviceToHost),
-            "cudaMemcpy (hits)");
+        if (ray_count == 0) return result;  // a grid of no blocks is a launch error
+        gpu::LaunchAnswers answers;
+        if (any_hit) {
+            occluded.reserve(ray_count);
+            answers.occluded = occluded.as<std::uint8_t>();
+        } else {
+            hits.reserve(ray_count * sizeof(Hit));
+            answers.hits = hits.as<Hit>();
+        }
         if (count_steps) {
-            result.steps.resize(hit_count);
-            gpu::check_cuda(cudaMemcpy(result.steps.data(), steps.as<std::uint32_t>(),
-                                       hit_count * sizeof(std::uint32_t), cudaMemcpyDeviceToHost),
+            steps.reserve(ray_count * sizeof(std::uint32_t));
+            answers.steps = steps.as<std::uint32_t>();
+        }
+        next_ray.reserve(sizeof(std::uint32_t));
+        result.kernel_ms = gpu::launch_trace(kernel, scene, launch, answers, next_ray.as<std::uint32_t>());
+        if (any_hit) {
+            result.occluded.resize(ray_count);
+            gpu::check_cuda(
+                cudaMemcpy(result.occluded.data(), answers.occluded, ray_count, cudaMemcpyDeviceToHost),
+                "cudaMemcpy (occlusion)");
+        } else {
+            result.hits.resize(ray_count);
+            gpu::check_cuda(
+                cudaMemcpy(result.hits.data(), answers.hits, ray_count * sizeof(Hit), cudaMemcpyDeviceToHost),
+                "cudaMemcpy (hits)");
+        }
+        if (count_steps) {
+            result.steps.resize(ray_count);
+            gpu::check_cuda(cudaMemcpy(result.steps.data(), answers.steps, ray_count * sizeof(std::uint32_t),
+                                       cudaMemcpyDeviceToHost),
                             "cudaMemcpy (steps)");
         }
         return result;
@@ -141,34 +164,51 @@ CudaTrace CudaTracer::trace_frame(const Camera& camera, bool count_steps) {
         static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);
     // A camera far from the scene, or any camera of a scene the structure sees scaled: its rays are made here
     // and conditioned like the CPU's (Accel::intersect; src/core/ray_conditioning.hpp), so that both answer
-    // them alike. Camera directions are ordinary.
+    // them alike. Camera directions are ordinary. The heatmap's steps come only from the in-kernel camera.
     if (impl_->scale_exponent != 0 || FarOriginFrame(impl_->bounds).is_far(camera.eye)) {
-        return trace_rays(PinholeCamera(camera).pixel_centre_rays(0, 0, camera.width, camera.height),
-                          count_steps);
+        upload_rays(PinholeCamera(camera).pixel_centre_rays(0, 0, camera.width, camera.height));
+        return trace_uploaded(false);
     }
     gpu::LaunchRays launch;
     launch.camera = PinholeCamera(camera).frame();
-    return impl_->run(launch, ray_count, count_steps);
+    return impl_->run(launch, ray_count, false, count_steps);
 }
 
 CudaTrace CudaTracer::trace(std::span<const Ray> rays) {
-    return trace_rays(rays, false);
+    upload_rays(rays);
+    return trace_uploaded(false);
 }
 
-CudaTrace CudaTracer::trace_rays(std::span<const Ray> rays, bool count_steps) {
+CudaTrace CudaTracer::occluded(std::span<const Ray> rays) {
+    upload_rays(rays);
+    return trace_uploaded(true);
+}
+
+void CudaTracer::upload_rays(std::span<const Ray> rays) {
     if (rays.size() >= (1u << 31)) throw std::invalid_argument("cuda: at most 2^31 rays per batch");
-    const ConditionedRays conditioned = condition_rays(rays, impl_->bounds, impl_->scale_exponent);
-    const std::span<const Ray> traced =
-        conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
+    impl_->uploaded = false;
+    impl_->conditioned = condition_rays(rays, impl_->bounds, impl_->scale_exponent);
+    const bool changed = !impl_->conditioned.rays.empty();
+    impl_->original_rays.clear();
+    if (changed) impl_->original_rays.assign(rays.begin(), rays.end());
+    const std::span<const Ray> traced = changed ? std::span<const Ray>(impl_->conditioned.rays) : rays;
     impl_->rays.reserve(rays.size() * sizeof(Ray));
     gpu::check_cuda(
         cudaMemcpy(impl_->rays.as<Ray>(), traced.data(), traced.size() * sizeof(Ray), cudaMemcpyHostToDevice),
         "cudaMemcpy (rays)");
+    impl_->uploaded_count = rays.size();
+    impl_->uploaded = true;
+}
+
+CudaTrace CudaTracer::trace_uploaded(bool any_hit) {
+    if (!impl_->uploaded) throw std::logic_error("cuda: trace_uploaded before upload_rays");
     gpu::LaunchRays launch;
     launch.rays = impl_->rays.as<Ray>();
-    launch.count = static_cast<std::uint32_t>(rays.size());
-    CudaTrace result = impl_->run(launch, rays.size(), count_steps);
-    restore_hits(conditioned, rays, result.hits);
+    launch.count = static_cast<std::uint32_t>(impl_->uploaded_count);
+    CudaTrace result = impl_->run(launch, impl_->uploaded_count, any_hit, false);
+    // Occlusion maps nothing back: conditioning keeps each ray's interval (scaled_interval).
+    if (!any_hit && !impl_->original_rays.empty())
+        restore_hits(impl_->conditioned, impl_->original_rays, result.hits);
     return result;
 }
 

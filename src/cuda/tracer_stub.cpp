@@ -24,6 +24,15 @@ CudaTrace CudaTracer::trace_frame(const Camera&, bool) {
 CudaTrace CudaTracer::trace(std::span<const Ray>) {
     throw CudaError(kWithoutCuda);
 }
+CudaTrace CudaTracer::occluded(std::span<const Ray>) {
+    throw CudaError(kWithoutCuda);
+}
+void CudaTracer::upload_rays(std::span<const Ray>) {
+    throw CudaError(kWithoutCuda);
+}
+CudaTrace CudaTracer::trace_uploaded(bool) {
+    throw CudaError(kWithoutCuda);
+}
 std::string CudaTracer::device_name() const {
     throw CudaError(kWithoutCuda);
 }

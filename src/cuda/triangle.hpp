@@ -12,9 +12,10 @@ namespace lancer::gpu {
 
 // A leaf's `count` triangle records from `records` (TriangleRef or PluckerPrimitive: a triangle and its
 // global index), each tested within [tnear, the closest hit so far]; the closest wins, ties to the smaller
-// index (closer() of lancer/ray.hpp).
-template <class TriangleTestT, class Record>
-LANCER_HOST_DEVICE void intersect_leaf(const Record* records, std::uint32_t count,
+// index (closer() of lancer/ray.hpp). kAnyHit (occlusion) stops at the first hit, which then need not be
+// the closest. Returns whether `best` holds a hit.
+template <class TriangleTestT, bool kAnyHit = false, class Record>
+LANCER_HOST_DEVICE bool intersect_leaf(const Record* records, std::uint32_t count,
                                        const typename TriangleTestT::RayData& triangle_ray, const Ray& ray,
                                        Hit& best) {
     for (std::uint32_t r = 0; r < count; ++r) {
@@ -23,9 +24,12 @@ LANCER_HOST_DEVICE void intersect_leaf(const Record* records, std::uint32_t coun
         TriangleHit candidate;
         const auto prim = static_cast<std::int32_t>(record.prim);
         if (TriangleTestT::intersect(triangle_ray, record.triangle, ray.tnear, tfar, candidate) &&
-            closer(candidate.t, prim, best))
+            closer(candidate.t, prim, best)) {
             best = {candidate.t, prim, candidate.u, candidate.v};
+            if constexpr (kAnyHit) return true;
+        }
     }
+    return best.prim >= 0;
 }
 
 }  // namespace lancer::gpu

@@ -46,7 +46,41 @@ std::size_t bit_identical(std::span<const Hit> expected, std::span<const Hit> ac
     return same;
 }
 
-// Every kernel, both triangle tests, a batch of rays and a frame of the canonical camera.
+// The any-hit kernels against Accel::occluded, byte for byte: the batch as it is, then each ray ending just
+// before or exactly at its closest hit (a shadow ray's interval), alternately, so that the interval's end
+// decides. The batch is uploaded once and traced twice, as the benchmark traces it.
+void expect_occlusion_agrees(const Accel& accel, CudaTracer& tracer, std::span<const Ray> batch,
+                             const std::string& name) {
+    const std::vector<Hit> closest = testing::trace_in_parallel(accel, batch);
+    std::vector<Ray> shortened(batch.begin(), batch.end());
+    for (std::size_t i = 0; i < shortened.size(); ++i) {
+        if (closest[i].hit())
+            shortened[i].tfar = i % 2 == 0 ? closest[i].t : std::nextafter(closest[i].t, 0.0f);
+    }
+    for (const std::span<const Ray> rays : {batch, std::span<const Ray>(shortened)}) {
+        std::vector<std::uint8_t> expected(rays.size());
+        accel.occluded(rays, expected);
+        tracer.upload_rays(rays);
+        for (int repeat = 0; repeat < 2; ++repeat) {
+            const CudaTrace traced = tracer.trace_uploaded(true);
+            ASSERT_EQ(traced.occluded.size(), rays.size());
+            EXPECT_TRUE(traced.hits.empty());
+            std::size_t differ = 0, occluded = 0;
+            for (std::size_t i = 0; i < rays.size(); ++i) {
+                differ += expected[i] != traced.occluded[i] ? 1 : 0;
+                occluded += expected[i];
+            }
+            std::printf("%s, occlusion%s: %zu of %zu occluded, %zu differ, kernel %.3f ms\n", name.c_str(),
+                        rays.data() == batch.data() ? "" : " (intervals ending at the hit)", occluded,
+                        rays.size(), differ, traced.kernel_ms);
+            EXPECT_EQ(differ, 0u) << name;
+            EXPECT_GT(occluded, 0u) << name;
+        }
+    }
+}
+
+// Every kernel, both triangle tests, a batch of rays and a frame of the canonical camera; the batch's
+// occlusion too.
 void expect_kernels_agree(const Geometry& geometry, std::span<const Ray> batch, const Camera& camera,
                           const std::string& scene_name) {
     const testing::RaySet frame = testing::canonical_view_rays(geometry.bounds(), camera.width);
@@ -77,6 +111,7 @@ void expect_kernels_agree(const Geometry& geometry, std::span<const Ray> batch, 
                     << scene_name << ", " << name << ": " << agreement.summary();
                 EXPECT_GT(agreement.hits, 0u);
             }
+            expect_occlusion_agrees(*accel, tracer, batch, scene_name + ", " + name);
         }
     }
 }

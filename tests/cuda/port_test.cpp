@@ -118,6 +118,27 @@ std::vector<Hit> trace_each(std::span<const Ray> rays, const Box3f& scene_bounds
     return hits;
 }
 
+// Occlusion: the rays conditioned as CudaTracer conditions them, each answered by `trace` (an any-hit
+// traversal: occluded when it returns a hit); nothing is mapped back.
+template <class Trace>
+std::vector<std::uint8_t> occlusion_each(std::span<const Ray> rays, const Box3f& scene_bounds,
+                                         Trace&& trace) {
+    const ConditionedRays conditioned = condition_rays(rays, scene_bounds);
+    const std::span<const Ray> traced =
+        conditioned.rays.empty() ? rays : std::span<const Ray>(conditioned.rays);
+    std::vector<std::uint8_t> occluded(rays.size());
+    for (std::size_t i = 0; i < rays.size(); ++i)
+        occluded[i] = trace(traced[i]).hit() ? 1 : 0;
+    return occluded;
+}
+
+std::size_t count_differences(std::span<const std::uint8_t> expected, std::span<const std::uint8_t> actual) {
+    std::size_t differences = 0;
+    for (std::size_t i = 0; i < expected.size(); ++i)
+        differences += expected[i] != actual[i] ? 1 : 0;
+    return differences;
+}
+
 // The walk compiled for Layout against the CPU walk of the same octree.
 template <class TriangleTestT, class Layout>
 void expect_walk_agrees(const PluckerAccel& octree, const plucker::PluckerTables& tables,
@@ -131,9 +152,17 @@ void expect_walk_agrees(const PluckerAccel& octree, const plucker::PluckerTables
         return gpu::trace_plucker<TriangleTestT, Layout>(view, tables, ray);
     });
     std::string first;
+    const std::string layout_name = std::string(Layout::kBalanced ? "2:1" : "unconstrained") + ", " +
+                                    (Layout::kStoredBoxes ? "stored" : "computed") + " boxes";
     EXPECT_EQ(count_differences(expected, walk, first), 0u)
-        << where << "plucker walk (" << (Layout::kBalanced ? "2:1" : "unconstrained") << ", "
-        << (Layout::kStoredBoxes ? "stored" : "computed") << " boxes), " << first;
+        << where << "plucker walk (" << layout_name << "), " << first;
+    std::vector<std::uint8_t> expected_occlusion(set.rays.size());
+    octree.occluded(set.rays, expected_occlusion);
+    const auto occlusion = occlusion_each(set.rays, octree.bounds(), [&](const Ray& ray) {
+        return gpu::trace_plucker<TriangleTestT, Layout, true>(view, tables, ray);
+    });
+    EXPECT_EQ(count_differences(expected_occlusion, occlusion), 0u)
+        << where << "plucker walk's occlusion (" << layout_name << ")";
 }
 
 // The four GPU traversals of one triangle test on the CPU, against the two CPU structures; the BVH with
@@ -186,6 +215,19 @@ void expect_ports_agree(const Geometry& geometry, TriangleTest test, std::span<c
         });
         EXPECT_EQ(count_differences(expected_bvh, speculative_postponing, first), 0u)
             << where << "speculative while-while (postponing), " << first;
+
+        std::vector<std::uint8_t> expected_occlusion(set.rays.size());
+        bvh.occluded(set.rays, expected_occlusion);
+        const auto while_while_occlusion = occlusion_each(set.rays, bvh.bounds(), [&](const Ray& ray) {
+            return gpu::trace_bvh<false, TriangleTestT, true>(bvh_view, ray, gpu::LoneLane{});
+        });
+        EXPECT_EQ(count_differences(expected_occlusion, while_while_occlusion), 0u)
+            << where << "while-while's occlusion";
+        const auto speculative_occlusion = occlusion_each(set.rays, bvh.bounds(), [&](const Ray& ray) {
+            return gpu::trace_bvh<true, TriangleTestT, true>(bvh_view, ray, gpu::OtherLanesSearching{});
+        });
+        EXPECT_EQ(count_differences(expected_occlusion, speculative_occlusion), 0u)
+            << where << "speculative while-while's occlusion (postponing)";
     }
 }
 
