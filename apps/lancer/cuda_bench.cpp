@@ -17,16 +17,18 @@ namespace lancer::cli {
 namespace {
 
 std::vector<std::string> cuda_structures(const std::vector<std::string>& requested) {
-    if (requested.size() == 1 && requested[0] == "all") return {"plucker", "bvh"};
+    if (requested.size() == 1 && requested[0] == "all") return {"plucker", "bvh", "bvh8"};
     for (const std::string& name : requested)
-        if (name != "plucker" && name != "bvh")
-            throw InputError(fmt::format("--device cuda benches --accel plucker and bvh, not '{}'", name));
+        if (name != "plucker" && name != "bvh" && name != "bvh8")
+            throw InputError(
+                fmt::format("--device cuda benches --accel plucker, bvh and bvh8, not '{}'", name));
     return requested;
 }
 
 std::vector<CudaKernel> kernels_of(const DeviceChoice& device, const std::string& accel) {
     if (!device.kernel.empty()) return {device.kernel_for(accel)};
     if (accel == "plucker") return {CudaKernel::Plucker};
+    if (accel == "bvh8") return {CudaKernel::CompressedWide};
     return {CudaKernel::WhileWhile, CudaKernel::SpeculativeWhileWhile, CudaKernel::Persistent};
 }
 

@@ -9,13 +9,14 @@ void DeviceChoice::add_options(CLI::App& command) {
         ->transform(one_of(std::vector<std::string>{"cpu", "cuda"}))
         ->capture_default_str();
     std::vector<std::string> kernels;
-    for (const CudaKernel each : {CudaKernel::Plucker, CudaKernel::WhileWhile,
-                                  CudaKernel::SpeculativeWhileWhile, CudaKernel::Persistent})
+    for (const CudaKernel each :
+         {CudaKernel::Plucker, CudaKernel::WhileWhile, CudaKernel::SpeculativeWhileWhile,
+          CudaKernel::Persistent, CudaKernel::CompressedWide})
         kernels.emplace_back(cuda_kernel_name(each));
     command
         .add_option("--cuda-kernel", kernel,
-                    "With --device cuda: plucker, while-while, speculative or persistent (default: plucker "
-                    "for --accel plucker, persistent for bvh)")
+                    "With --device cuda: plucker, while-while, speculative, persistent or cwbvh (default: "
+                    "plucker for --accel plucker, persistent for bvh, cwbvh for bvh8)")
         ->transform(one_of(kernels));
 }
 
@@ -29,7 +30,7 @@ CudaKernel DeviceChoice::kernel_for(std::string_view accel_name) const {
         const CudaKernel fallback = default_cuda_kernel(accel_name);
         if (kernel.empty()) return fallback;
         const CudaKernel chosen = parse_cuda_kernel(kernel);
-        if ((chosen == CudaKernel::Plucker) != (fallback == CudaKernel::Plucker)) {
+        if (cuda_kernel_structure(chosen) != cuda_kernel_structure(fallback)) {
             throw std::invalid_argument("--cuda-kernel " + kernel + " does not trace --accel " +
                                         std::string(accel_name));
         }

@@ -34,7 +34,7 @@ struct DeviceChoice {
                                                            TriangleTest triangle_test, const Accel& accel,
                                                            const Geometry& geometry);
 
-// `lancer bench --device cuda`: every kernel of each structure (plucker, bvh) on each mesh's views (the
+// `lancer bench --device cuda`: every kernel of each structure (plucker, bvh, bvh8) on each mesh's views (the
 // canonical view, and the diffuse and shadow views made from it), validated against the CPU structure,
 // timed by CUDA events (the kernel alone).
 struct CudaBenchMesh {
@@ -42,7 +42,7 @@ struct CudaBenchMesh {
     const Scene* scene;
 };
 struct CudaBenchOptions {
-    std::vector<std::string> accels;  // "all" expands to plucker, bvh
+    std::vector<std::string> accels;  // "all" expands to plucker, bvh, bvh8
     std::vector<BenchView> views;
     int size = 1024;
     int frames = 5;

@@ -21,14 +21,17 @@ enum class CudaKernel {
     WhileWhile,  // Aila & Laine 2009, while-while (a `bvh` structure)
     SpeculativeWhileWhile,  // Aila & Laine 2009, speculative while-while
     Persistent,             // speculative while-while in persistent threads fetching warp-sized batches
+    CompressedWide,  // Ylitie, Karras & Laine 2017: the compressed 8-wide BVH made from a `bvh8` structure
 };
 
-// "plucker", "while-while", "speculative", "persistent".
+// "plucker", "while-while", "speculative", "persistent", "cwbvh".
 [[nodiscard]] std::string_view cuda_kernel_name(CudaKernel kernel);
 // The kernel of a name above; throws std::invalid_argument naming the accepted ones.
 [[nodiscard]] CudaKernel parse_cuda_kernel(std::string_view name);
-// The kernel that traces structure `accel_name` by default: Plucker for plucker, Persistent for bvh; throws
-// std::invalid_argument for a structure no kernel traces.
+// The structure a kernel traces: "plucker", "bvh" or "bvh8".
+[[nodiscard]] std::string_view cuda_kernel_structure(CudaKernel kernel);
+// The kernel that traces structure `accel_name` by default: Plucker for plucker, Persistent for bvh,
+// CompressedWide for bvh8; throws std::invalid_argument for a structure no kernel traces.
 [[nodiscard]] CudaKernel default_cuda_kernel(std::string_view accel_name);
 
 class CudaError : public std::runtime_error {
@@ -53,10 +56,11 @@ struct CudaTrace {
 
 class CudaTracer {
   public:
-    // `accel` is a built `plucker` or `plucker_packet` (kernel Plucker), or a `bvh` or `bvh_packet` (the
-    // others) on `geometry`, with `test` its triangle test: the packet structures lend their single-ray
-    // structure's arrays. Uploads the arrays once. Throws CudaError (no device, a CUDA call failed) or
-    // std::invalid_argument (a structure or scene the kernels do not trace: another structure, spheres).
+    // `accel` is a built `plucker` or `plucker_packet` (kernel Plucker), a `bvh8` or `bvh8_packet`
+    // (CompressedWide, converted here), or a `bvh` or `bvh_packet` (the others) on `geometry`, with `test`
+    // its triangle test: the packet structures lend their single-ray structure's arrays. Uploads the arrays
+    // once. Throws CudaError (no device, a CUDA call failed) or std::invalid_argument (a structure or scene
+    // the kernels do not trace: another structure, spheres).
     CudaTracer(const Accel& accel, const Geometry& geometry, TriangleTest test, CudaKernel kernel);
     ~CudaTracer();
     CudaTracer(const CudaTracer&) = delete;

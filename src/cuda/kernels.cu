@@ -6,6 +6,7 @@
 
 #include "cuda/bvh_traversal.hpp"
 #include "cuda/cuda_check.hpp"
+#include "cuda/cwbvh_traversal.hpp"
 #include "cuda/kernels.hpp"
 #include "cuda/plucker_walk.hpp"
 
@@ -57,6 +58,8 @@ template <CudaKernel kKernel, class TriangleTestT, bool kAnyHit, class Layout, c
 __device__ Hit trace_one(const LaunchScene& scene, const Ray& ray, Steps& steps) {
     if constexpr (kKernel == CudaKernel::Plucker) {
         return trace_plucker<TriangleTestT, Layout, kAnyHit>(scene.plucker, c_tables, ray, steps);
+    } else if constexpr (kKernel == CudaKernel::CompressedWide) {
+        return trace_cwbvh<kAnyHit, TriangleTestT>(scene.cwbvh, ray, steps);
     } else if constexpr (kKernel == CudaKernel::WhileWhile) {
         return trace_bvh<false, TriangleTestT, kAnyHit>(scene.bvh, ray, WarpVote{}, steps);
     } else {
@@ -141,6 +144,10 @@ void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, s
     switch (kernel) {
         case CudaKernel::Plucker:
             launch_walk<TriangleTestT, kQuery>(blocks, scene, source, answers);
+            break;
+        case CudaKernel::CompressedWide:
+            trace_kernel<CudaKernel::CompressedWide, TriangleTestT, kQuery>
+                <<<blocks, kBlockSize>>>(scene, source, answers);
             break;
         case CudaKernel::WhileWhile:
             trace_kernel<CudaKernel::WhileWhile, TriangleTestT, kQuery>

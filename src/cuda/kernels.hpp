@@ -4,6 +4,7 @@
 
 #include <cstdint>
 
+#include "cuda/cwbvh_layout.hpp"
 #include "cuda/gpu_layout.hpp"
 #include "lancer/cuda.hpp"
 
@@ -11,6 +12,7 @@ namespace lancer::gpu {
 
 struct LaunchScene {
     BvhView bvh;
+    CwbvhView cwbvh;
     plucker::PluckerView plucker;
     bool watertight = false;
 };

@@ -6,9 +6,11 @@
 #include <utility>
 
 #include "accel/bvh/bvh.hpp"
+#include "accel/bvh/bvh_wide.hpp"
 #include "accel/plucker/plucker.hpp"
 #include "core/ray_conditioning.hpp"
 #include "cuda/cuda_check.hpp"
+#include "cuda/cwbvh_build.hpp"
 #include "cuda/flatten.hpp"
 #include "cuda/kernels.hpp"
 #include "lancer/camera.hpp"
@@ -146,6 +148,18 @@ CudaTracer::CudaTracer(const Accel& accel, const Geometry& /*geometry: accel's*/
         view.locate = impl_->locate.upload(layout.locate);
         impl_->scene.plucker = view;
         gpu::upload_plucker_tables(plucker::kTables);
+        return;
+    }
+    if (kernel == CudaKernel::CompressedWide) {
+        // A packet structure traces its single-ray structure's tree: that tree is the one to convert.
+        const Accel& tree = exported.single_ray != nullptr ? *exported.single_ray : accel;
+        const auto* bvh8 = dynamic_cast<const Bvh8Accel*>(&tree);
+        if (bvh8 == nullptr)
+            throw std::invalid_argument("cuda: the cwbvh kernel traces a `bvh8` or `bvh8_packet` structure");
+        const gpu::CompressedWideBvh compressed = gpu::compress_bvh8(*bvh8, bvh8->built_geometry());
+        impl_->scene.cwbvh = {impl_->nodes.upload(compressed.nodes),
+                              static_cast<std::uint32_t>(compressed.nodes.size()),
+                              impl_->triangles.upload(compressed.triangles)};
         return;
     }
     if (exported.bvh == nullptr)

@@ -10,24 +10,32 @@
 
 namespace lancer::gpu {
 
-// A leaf's `count` triangle records from `records` (TriangleRef or PluckerPrimitive: a triangle and its
-// global index), each tested within [tnear, the closest hit so far]; the closest wins, ties to the smaller
-// index (closer() of lancer/ray.hpp). kAnyHit (occlusion) stops at the first hit, which then need not be
-// the closest. Returns whether `best` holds a hit.
+// One triangle record (TriangleRef or PluckerPrimitive: a triangle and its global index) tested within
+// [tnear, the closest hit so far]; true when it becomes the closest, ties to the smaller index (closer() of
+// lancer/ray.hpp).
+template <class TriangleTestT, class Record>
+LANCER_HOST_DEVICE bool intersect_record(const Record* address,
+                                         const typename TriangleTestT::RayData& triangle_ray, const Ray& ray,
+                                         Hit& best) {
+    const Record record = read_only_record(address);
+    const float tfar = best.prim >= 0 ? best.t : ray.tfar;
+    TriangleHit candidate;
+    const auto prim = static_cast<std::int32_t>(record.prim);
+    if (!TriangleTestT::intersect(triangle_ray, record.triangle, ray.tnear, tfar, candidate) ||
+        !closer(candidate.t, prim, best))
+        return false;
+    best = {candidate.t, prim, candidate.u, candidate.v};
+    return true;
+}
+
+// A leaf's `count` triangle records from `records`, the closest wins. kAnyHit (occlusion) stops at the first
+// hit, which then need not be the closest. Returns whether `best` holds a hit.
 template <class TriangleTestT, bool kAnyHit = false, class Record>
 LANCER_HOST_DEVICE bool intersect_leaf(const Record* records, std::uint32_t count,
                                        const typename TriangleTestT::RayData& triangle_ray, const Ray& ray,
                                        Hit& best) {
     for (std::uint32_t r = 0; r < count; ++r) {
-        const Record record = read_only_record(records + r);
-        const float tfar = best.prim >= 0 ? best.t : ray.tfar;
-        TriangleHit candidate;
-        const auto prim = static_cast<std::int32_t>(record.prim);
-        if (TriangleTestT::intersect(triangle_ray, record.triangle, ray.tnear, tfar, candidate) &&
-            closer(candidate.t, prim, best)) {
-            best = {candidate.t, prim, candidate.u, candidate.v};
-            if constexpr (kAnyHit) return true;
-        }
+        if (intersect_record<TriangleTestT>(records + r, triangle_ray, ray, best) && kAnyHit) return true;
     }
     return best.prim >= 0;
 }

@@ -19,11 +19,8 @@ namespace lancer {
 namespace {
 
 constexpr CudaKernel kKernels[] = {CudaKernel::Plucker, CudaKernel::WhileWhile,
-                                   CudaKernel::SpeculativeWhileWhile, CudaKernel::Persistent};
-
-std::string_view structure_of(CudaKernel kernel) {
-    return kernel == CudaKernel::Plucker ? "plucker" : "bvh";
-}
+                                   CudaKernel::SpeculativeWhileWhile, CudaKernel::Persistent,
+                                   CudaKernel::CompressedWide};
 
 // Each kernel on its structure's default build; the walk also on the other three Plücker layouts (without
 // the 2:1 rule, with computed boxes).
@@ -31,13 +28,11 @@ struct Configuration {
     CudaKernel kernel;
     bool balanced = true, stored_boxes = true;
 };
-constexpr Configuration kConfigurations[] = {{CudaKernel::Plucker, true, true},
-                                             {CudaKernel::Plucker, true, false},
-                                             {CudaKernel::Plucker, false, true},
-                                             {CudaKernel::Plucker, false, false},
-                                             {CudaKernel::WhileWhile},
-                                             {CudaKernel::SpeculativeWhileWhile},
-                                             {CudaKernel::Persistent}};
+constexpr Configuration kConfigurations[] = {
+    {CudaKernel::Plucker, true, true},  {CudaKernel::Plucker, true, false},
+    {CudaKernel::Plucker, false, true}, {CudaKernel::Plucker, false, false},
+    {CudaKernel::WhileWhile},           {CudaKernel::SpeculativeWhileWhile},
+    {CudaKernel::Persistent},           {CudaKernel::CompressedWide}};
 
 std::size_t bit_identical(std::span<const Hit> expected, std::span<const Hit> actual) {
     std::size_t same = 0;
@@ -86,7 +81,7 @@ void expect_kernels_agree(const Geometry& geometry, std::span<const Ray> batch, 
     const testing::RaySet frame = testing::canonical_view_rays(geometry.bounds(), camera.width);
     for (const TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {
         for (const auto& [kernel, balanced, stored_boxes] : kConfigurations) {
-            const std::unique_ptr<Accel> accel = make_accel(structure_of(kernel));
+            const std::unique_ptr<Accel> accel = make_accel(cuda_kernel_structure(kernel));
             BuildOptions options = build_options(test);
             set_build_option(options, std::string("plucker.balanced=") + (balanced ? "true" : "false"));
             set_build_option(options,
@@ -214,6 +209,12 @@ TEST(CudaGpu, KernelNamesRoundTrip) {
     EXPECT_THROW((void)parse_cuda_kernel("warp-speed"), std::invalid_argument);
     EXPECT_EQ(default_cuda_kernel("plucker"), CudaKernel::Plucker);
     EXPECT_EQ(default_cuda_kernel("bvh"), CudaKernel::Persistent);
+    EXPECT_EQ(default_cuda_kernel("bvh8"), CudaKernel::CompressedWide);
+    // Each structure's default kernel traces that structure.
+    for (const CudaKernel kernel : kKernels) {
+        const std::string_view structure = cuda_kernel_structure(kernel);
+        EXPECT_EQ(cuda_kernel_structure(default_cuda_kernel(structure)), structure);
+    }
     EXPECT_THROW((void)default_cuda_kernel("kdtree"), std::invalid_argument);
 }
 
