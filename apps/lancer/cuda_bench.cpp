@@ -35,8 +35,7 @@ std::vector<CudaKernel> kernels_of(const DeviceChoice& device, const std::string
 // One kernel's row: the warm-up trace validated against the CPU's answers, then `frames` timed traces.
 struct CudaViewRun {
     Agreement agreement;
-    std::uint32_t second_pass_rays = 0;  // the warm-up trace's
-    std::vector<double> mrays;           // sorted
+    std::vector<double> mrays;  // sorted
 };
 
 CudaViewRun run_view(CudaTracer& tracer, const ViewRays& view, std::span<const Hit> expected,
@@ -50,7 +49,6 @@ CudaViewRun run_view(CudaTracer& tracer, const ViewRays& view, std::span<const H
     if (view.view != BenchView::Primary) tracer.upload_rays(view.rays);
     CudaViewRun run;
     const CudaTrace first = trace();
-    run.second_pass_rays = first.second_pass_rays;
     run.agreement = any_hit ? compare_occlusion(view.rays, expected, first.occluded)
                             : compare_hits(view.rays, expected, first.hits);
     for (int frame = 0; frame < frames; ++frame) {
@@ -92,23 +90,23 @@ void run_cuda_bench(const DeviceChoice& device, std::span<const CudaBenchMesh> m
                     fmt::print(
                         "lancer bench --device cuda: {}; {}x{} canonical view, {} frames after 1 warm-up\n",
                         tracer->device_name(), options.size, options.size, options.frames);
-                    fmt::print("{:<16} {:<7} {:>9} {:<8} {:<12} {:>10} {:>9} {:>9} {:>9} {:>6} {:>8}  {}\n",
-                               "mesh", "view", "triangles", "accel", "kernel", "build ms", "Mrays/s", "min",
-                               "max", "hits", "2nd pass", "agreement with the CPU");
+                    fmt::print("{:<16} {:<7} {:>9} {:<8} {:<12} {:>10} {:>9} {:>9} {:>9} {:>6}  {}\n", "mesh",
+                               "view", "triangles", "accel", "kernel", "build ms", "Mrays/s", "min", "max",
+                               "hits", "agreement with the CPU");
                     header_printed = true;
                 }
                 for (std::size_t v = 0; v < views.size(); ++v) {
                     const CudaViewRun run = run_view(*tracer, views[v], expected[v], camera, options.frames);
                     if (run.agreement.mismatches > 0) agreement_failed = true;
                     fmt::print(
-                        "{:<16} {:<7} {:>9} {:<8} {:<12} {:>10.1f} {:>9.1f} {:>9.1f} {:>9.1f} {:>5.1f}% "
-                        "{:>8}  {}\n",
+                        "{:<16} {:<7} {:>9} {:<8} {:<12} {:>10.1f} {:>9.1f} {:>9.1f} {:>9.1f} {:>5.1f}%  "
+                        "{}\n",
                         mesh.name, view_name(views[v].view), geometry.triangle_count(), name,
                         cuda_kernel_name(kernel), built.build_ms, run.mrays[run.mrays.size() / 2],
                         run.mrays.front(), run.mrays.back(),
                         100.0 * static_cast<double>(run.agreement.hits) /
                             static_cast<double>(views[v].rays.size()),
-                        run.second_pass_rays, run.agreement.summary());
+                        run.agreement.summary());
                     std::fflush(stdout);
                 }
             }

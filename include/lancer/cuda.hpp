@@ -48,10 +48,7 @@ struct CudaTrace {
     // Occlusion queries: one byte per ray, 1 when something lies in [tnear, tfar] (Accel::occluded's
     // answer); `hits` is then empty.
     std::vector<std::uint8_t> occluded;
-    double kernel_ms = 0.0;  // the kernels alone (CUDA events), transfers excluded
-    // The rays the first pass left undecided (a triangle near an edge, at a grazing angle, or with a tiny
-    // numerator), which the second pass traced with the whole triangle test (docs/cuda.md, "Two passes").
-    std::uint32_t second_pass_rays = 0;
+    double kernel_ms = 0.0;  // the kernel alone (CUDA events), transfers excluded
     // trace_frame(camera, true) only: per ray, the inner nodes and leaves (bvh) or the leaves (plucker)
     // visited, TraversalCounters::nodes_visited's meaning (the heatmap).
     std::vector<std::uint32_t> steps;

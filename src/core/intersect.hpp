@@ -103,17 +103,6 @@ struct MollerTrumbore {
 
     [[nodiscard]] LANCER_HOST_DEVICE static bool intersect(const RayData& ray, const Triangle& tri,
                                                            float tnear, float tfar, TriangleHit& out) {
-        bool undecided = false;
-        return intersect_or_defer<false>(ray, tri, tnear, tfar, out, undecided);
-    }
-
-    // The test. kDefer false: every triangle is decided, those near an edge or at a grazing angle in
-    // double. kDefer true: such a triangle is left undecided (`undecided` set, a miss returned), as
-    // Watertight::intersect_or_defer does.
-    template <bool kDefer>
-    [[nodiscard]] LANCER_HOST_DEVICE static bool intersect_or_defer(const RayData& ray, const Triangle& tri,
-                                                                    float tnear, float tfar, TriangleHit& out,
-                                                                    bool& undecided) {
         const Vec3f e1 = tri.v1 - tri.v0;
         const Vec3f e2 = tri.v2 - tri.v0;
         const Vec3f p = cross(ray.direction, e2);
@@ -149,13 +138,7 @@ struct MollerTrumbore {
         const float v = dot(ray.direction, q) * inv_det;
         if (!(v >= -slack_v && u + v <= 1.0f + (slack_u + slack_v))) return false;
         const bool certain = u >= slack_u && v >= slack_v && u + v <= 1.0f - (slack_u + slack_v);
-        if (grazing || !certain) {
-            if constexpr (kDefer) {
-                undecided = true;
-                return false;
-            }
-            return intersect_in_double(ray, tri, tnear, tfar, out);
-        }
+        if (grazing || !certain) return intersect_in_double(ray, tri, tnear, tfar, out);
         const float t = dot(e2, q) * inv_det;
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit
         out = {t, u, v};
@@ -249,18 +232,6 @@ struct Watertight {
 
     [[nodiscard]] LANCER_HOST_DEVICE static bool intersect(const RayData& ray, const Triangle& tri,
                                                            float tnear, float tfar, TriangleHit& out) {
-        bool undecided = false;
-        return intersect_or_defer<false>(ray, tri, tnear, tfar, out, undecided);
-    }
-
-    // The test. kDefer false: every triangle is decided, those the float edge functions leave uncertain
-    // exactly and those with a small numerator in double. kDefer true: such a triangle is left undecided
-    // (`undecided` set, a miss returned), for the caller to trace its ray again with the whole test: the GPU
-    // kernels' first pass, whose registers the rare paths would otherwise set (docs/cuda.md, "Two passes").
-    template <bool kDefer>
-    [[nodiscard]] LANCER_HOST_DEVICE static bool intersect_or_defer(const RayData& ray, const Triangle& tri,
-                                                                    float tnear, float tfar, TriangleHit& out,
-                                                                    bool& undecided) {
         const Sheared v = sheared(ray, tri);
         const float w0 = v.bx * v.cy - v.by * v.cx;
         const float w1 = v.cx * v.ay - v.cy * v.ax;
@@ -276,10 +247,6 @@ struct Watertight {
             ((certain0 && w0 > 0.0f) || (certain1 && w1 > 0.0f) || (certain2 && w2 > 0.0f)))
             return false;
         if (!(certain0 && certain1 && certain2)) {
-            if constexpr (kDefer) {
-                undecided = true;
-                return false;
-            }
             if (!(is_finite(tri.v0) && is_finite(tri.v1) && is_finite(tri.v2))) return false;
             // A certain edge function's sign is the exact one already.
             auto sign = [](float w) { return w > 0.0f ? 1 : -1; };
@@ -292,13 +259,7 @@ struct Watertight {
         const float det = w0 + w1 + w2;
         const float az = ray.shear_z * v.az, bz = ray.shear_z * v.bz, cz = ray.shear_z * v.cz;
         const float numerator = w0 * az + w1 * bz + w2 * cz;
-        if (magnitude(numerator) < kSmallNumerator) {
-            if constexpr (kDefer) {
-                undecided = true;
-                return false;
-            }
-            return intersect_in_double(ray, v, tnear, tfar, out);
-        }
+        if (magnitude(numerator) < kSmallNumerator) return intersect_in_double(ray, v, tnear, tfar, out);
         const float inv_det = 1.0f / det;
         const float t = numerator * inv_det;
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;  // an overflowed t is no hit

@@ -47,8 +47,7 @@ struct CountSteps {
 
 // kSpeculative false: while-while (the vote is not used). Returns the closest hit (ties to the smaller
 // primitive index, as every CPU structure), a miss for an invalid ray. kAnyHit (occlusion) returns at the
-// first hit in [tnear, tfar], as Aila & Laine's shadow rays do: not necessarily the closest. Under
-// WatertightFirstPass, kUndecided where a triangle was left undecided (settled()).
+// first hit in [tnear, tfar], as Aila & Laine's shadow rays do: not necessarily the closest.
 template <bool kSpeculative, class TriangleTestT, bool kAnyHit = false, class Vote, class Steps = NoSteps>
 LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote& vote, Steps&& steps = {}) {
     Hit best;
@@ -110,7 +109,7 @@ LANCER_HOST_DEVICE Hit trace_bvh(const BvhView& bvh, const Ray& ray, const Vote&
             }
         }
     }
-    return settled<kAnyHit>(triangle_ray, best);
+    return best;
 }
 
 }  // namespace lancer::gpu

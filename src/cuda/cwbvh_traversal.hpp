@@ -71,8 +71,7 @@ LANCER_HOST_DEVICE inline std::uint32_t octant_swizzle(const Vec3f& direction) {
 
 // kAnyHit false: the closest hit (ties to the smaller primitive index, as every CPU structure). kAnyHit true:
 // the first hit found within [tnear, tfar], not necessarily the closest. A miss for an invalid ray or an
-// empty scene; under WatertightFirstPass, kUndecided where a triangle was left undecided (settled()). Steps
-// counts nodes fetched and triangle groups tested.
+// empty scene. Steps counts nodes fetched and triangle groups tested.
 template <bool kAnyHit, class TriangleTestT, class Steps = NoSteps>
 LANCER_HOST_DEVICE Hit trace_cwbvh(const CwbvhView& bvh, const Ray& ray, Steps&& steps = {}) {
     Hit best;
@@ -127,7 +126,7 @@ LANCER_HOST_DEVICE Hit trace_cwbvh(const CwbvhView& bvh, const Ray& ray, Steps&&
             group = stack.pop();
         }
     }
-    return settled<kAnyHit>(triangle_ray, best);
+    return best;
 }
 
 }  // namespace lancer::gpu

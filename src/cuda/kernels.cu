@@ -4,8 +4,6 @@
 // rays run out, so that no warp waits on the slowest warp of its block.
 #include <cuda_runtime.h>
 
-#include <type_traits>
-
 #include "cuda/bvh_traversal.hpp"
 #include "cuda/cuda_check.hpp"
 #include "cuda/cwbvh_traversal.hpp"
@@ -42,11 +40,6 @@ struct CameraRays {
                static_cast<std::uint32_t>(x);
         return true;
     }
-    __device__ Ray at_slot(std::uint32_t slot) const {
-        const auto width = static_cast<std::uint32_t>(camera.width);
-        return camera_ray(camera, static_cast<float>(slot % width) + 0.5f,
-                          static_cast<float>(slot / width) + 0.5f);
-    }
 };
 
 struct BatchRays {
@@ -56,21 +49,6 @@ struct BatchRays {
         if (index >= count) return false;
         ray = read_only_record(rays + index);
         slot = index;
-        return true;
-    }
-    __device__ Ray at_slot(std::uint32_t slot) const { return read_only_record(rays + slot); }
-};
-
-// The second pass of a watertight launch: the rays the first pass left undecided, by their slots.
-template <class Source>
-struct UndecidedRays {
-    Source source;
-    const std::uint32_t* slots;
-    const std::uint32_t* count;
-    __device__ bool get(std::uint32_t index, Ray& ray, std::uint32_t& slot) const {
-        if (index >= *count) return false;
-        slot = slots[index];
-        ray = source.at_slot(slot);
         return true;
     }
 };
@@ -93,29 +71,19 @@ __device__ Hit trace_one(const LaunchScene& scene, const Ray& ray, Steps& steps)
 // one occlusion byte.
 enum class Query { ClosestHit, ClosestHitCounted, AnyHit };
 
-template <class TriangleTestT>
-constexpr bool kIsFirstPass = false;
-template <class Test>
-constexpr bool kIsFirstPass<FirstPass<Test>> = true;
-
-// The first pass's undecided rays are not stored: their slots are listed for the second pass.
 template <CudaKernel kKernel, class TriangleTestT, Query kQuery, class Layout = SeedLayout>
 __device__ void trace_and_store(const LaunchScene& scene, const Ray& ray, std::uint32_t slot,
                                 const LaunchAnswers& answers) {
-    constexpr bool kAnyHit = kQuery == Query::AnyHit;
-    std::conditional_t<kQuery == Query::ClosestHitCounted, CountSteps, NoSteps> steps;
-    const Hit hit = trace_one<kKernel, TriangleTestT, kAnyHit, Layout>(scene, ray, steps);
-    if constexpr (kIsFirstPass<TriangleTestT>) {
-        if (hit.prim == kUndecided) {
-            answers.undecided_slots[atomicAdd(answers.undecided_count, 1u)] = slot;
-            return;
-        }
-    }
-    if constexpr (kAnyHit) {
-        answers.occluded[slot] = hit.prim >= 0;
+    if constexpr (kQuery == Query::ClosestHitCounted) {
+        CountSteps counted;
+        answers.hits[slot] = trace_one<kKernel, TriangleTestT, false, Layout>(scene, ray, counted);
+        answers.steps[slot] = counted.steps;
+    } else if constexpr (kQuery == Query::AnyHit) {
+        NoSteps none;
+        answers.occluded[slot] = trace_one<kKernel, TriangleTestT, true, Layout>(scene, ray, none).prim >= 0;
     } else {
-        answers.hits[slot] = hit;
-        if constexpr (kQuery == Query::ClosestHitCounted) answers.steps[slot] = steps.steps;
+        NoSteps none;
+        answers.hits[slot] = trace_one<kKernel, TriangleTestT, false, Layout>(scene, ray, none);
     }
 }
 
@@ -208,26 +176,15 @@ void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, s
     check_cuda(cudaGetLastError(), "kernel launch");
 }
 
-// The query's kernels for the scene's triangle test, in two passes: the float test alone, then the whole
-// test on the few rays the first left undecided, whose count the second launch reads on the device, so that
-// the host does not wait between them. Only frames count steps (the heatmap), and only batches answer
-// any-hit queries (the shadow view, the renderer's shadow rays).
-template <class Test, Query kQuery, class Source>
-void launch_passes(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count,
-                   const LaunchAnswers& answers, std::uint32_t* next_ray) {
-    check_cuda(cudaMemset(answers.undecided_count, 0, sizeof(std::uint32_t)), "cudaMemset");
-    launch<FirstPass<Test>, kQuery>(kernel, scene, source, count, answers, next_ray);
-    const UndecidedRays<Source> undecided{source, answers.undecided_slots, answers.undecided_count};
-    launch<Test, kQuery>(kernel, scene, undecided, count, answers, next_ray);
-}
-
+// The query's kernels for the scene's triangle test. Only frames count steps (the heatmap), and only
+// batches answer any-hit queries (the shadow view, the renderer's shadow rays).
 template <Query kQuery, class Source>
 void launch_test(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count,
                  const LaunchAnswers& answers, std::uint32_t* next_ray) {
     if (scene.watertight)
-        launch_passes<Watertight, kQuery>(kernel, scene, source, count, answers, next_ray);
+        launch<Watertight, kQuery>(kernel, scene, source, count, answers, next_ray);
     else
-        launch_passes<MollerTrumbore, kQuery>(kernel, scene, source, count, answers, next_ray);
+        launch<MollerTrumbore, kQuery>(kernel, scene, source, count, answers, next_ray);
 }
 
 }  // namespace

@@ -35,10 +35,6 @@ struct LaunchAnswers {
     Hit* hits = nullptr;
     std::uint8_t* occluded = nullptr;
     std::uint32_t* steps = nullptr;
-    // A watertight launch's rays that its first pass left undecided (kernels.cu): room for one slot per
-    // ray, and their count, one device word.
-    std::uint32_t* undecided_slots = nullptr;
-    std::uint32_t* undecided_count = nullptr;
 };
 
 // Runs `kernel` over the rays and returns the kernel's milliseconds (CUDA events). `next_ray` is one device

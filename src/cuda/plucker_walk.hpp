@@ -21,8 +21,7 @@ struct WalkLayout {
 using SeedLayout = WalkLayout<true, true>;  // the default: 2:1 balanced, stored boxes
 
 // The closest hit of one ray (ties to the smaller primitive index), a miss for an invalid ray. kAnyHit
-// (occlusion) ends the walk at the first leaf with a hit in [tnear, tfar]. Under WatertightFirstPass,
-// kUndecided where a triangle was left undecided (settled()).
+// (occlusion) ends the walk at the first leaf with a hit in [tnear, tfar].
 template <class TriangleTestT, class Layout, bool kAnyHit = false, class Steps = NoSteps>
 LANCER_HOST_DEVICE Hit trace_plucker(const plucker::PluckerView& octree, const plucker::PluckerTables& tables,
                                      const Ray& ray, Steps&& steps = {}) {
@@ -40,7 +39,7 @@ LANCER_HOST_DEVICE Hit trace_plucker(const plucker::PluckerView& octree, const p
             return hit ? best.t : ray.tfar;
         },
         steps);
-    return settled<kAnyHit>(triangle_ray, best);
+    return best;
 }
 
 }  // namespace lancer::gpu

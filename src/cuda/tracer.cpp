@@ -78,7 +78,7 @@ struct CudaTracer::Impl {
     int scale_exponent = 0;
     gpu::LaunchScene scene;
     DeviceBuffer nodes, triangles, cells, primitives, boxes, texels, locate;  // the structure, uploaded once
-    DeviceBuffer rays, hits, occluded, steps, next_ray, undecided_slots, undecided_count;  // per call, grown
+    DeviceBuffer rays, hits, occluded, steps, next_ray;                       // per call, grown as needed
     // The uploaded batch: its size, and what maps its conditioned hits back (restore_hits): the rays as
     // the caller gave them, kept only when conditioning changed some.
     std::size_t uploaded_count = 0;
@@ -103,14 +103,7 @@ struct CudaTracer::Impl {
             answers.steps = steps.as<std::uint32_t>();
         }
         next_ray.reserve(sizeof(std::uint32_t));
-        undecided_slots.reserve(ray_count * sizeof(std::uint32_t));
-        undecided_count.reserve(sizeof(std::uint32_t));
-        answers.undecided_slots = undecided_slots.as<std::uint32_t>();
-        answers.undecided_count = undecided_count.as<std::uint32_t>();
         result.kernel_ms = gpu::launch_trace(kernel, scene, launch, answers, next_ray.as<std::uint32_t>());
-        gpu::check_cuda(cudaMemcpy(&result.second_pass_rays, answers.undecided_count, sizeof(std::uint32_t),
-                                   cudaMemcpyDeviceToHost),
-                        "cudaMemcpy (second pass)");
         if (any_hit) {
             result.occluded.resize(ray_count);
             gpu::check_cuda(

@@ -10,43 +10,6 @@
 
 namespace lancer::gpu {
 
-// A triangle test's first pass on the GPU (Test: MollerTrumbore or Watertight): the float test alone,
-// its rare double and exact paths left out, so that the traversal keeps the registers it needs without them
-// (docs/cuda.md, "Two passes"). A triangle it cannot decide marks the ray `undecided`; settled() then
-// makes the ray's answer kUndecided and the kernel traces that ray again with Test. Every other answer is
-// the one Test gives: the two differ only on the triangles deferred.
-template <class Test>
-struct FirstPassRayData : Test::RayData {
-    using Test::RayData::RayData;
-    mutable bool undecided = false;
-};
-template <class Test>
-struct FirstPass {
-    using RayData = FirstPassRayData<Test>;
-    [[nodiscard]] LANCER_HOST_DEVICE static bool intersect(const RayData& ray, const Triangle& tri,
-                                                           float tnear, float tfar, TriangleHit& out) {
-        return Test::template intersect_or_defer<true>(ray, tri, tnear, tfar, out, ray.undecided);
-    }
-};
-
-// The answer of a ray that met a triangle the first pass could not decide: a miss to every reader, which
-// the kernel replaces by the whole test's answer.
-inline constexpr std::int32_t kUndecided = -2;
-
-// A traversal's answer at its end: `best`, unless a deferred triangle could change it. An any-hit answer
-// that found a hit stands whatever was deferred; a closest hit, or a miss, may not.
-template <bool kAnyHit, class RayData>
-LANCER_HOST_DEVICE Hit settled(const RayData& /*a test that decides every triangle*/, const Hit& best) {
-    return best;
-}
-template <bool kAnyHit, class Test>
-LANCER_HOST_DEVICE Hit settled(const FirstPassRayData<Test>& ray, const Hit& best) {
-    if (!ray.undecided || (kAnyHit && best.prim >= 0)) return best;
-    Hit undecided;
-    undecided.prim = kUndecided;
-    return undecided;
-}
-
 // One triangle record (TriangleRef or PluckerPrimitive: a triangle and its global index) tested within
 // [tnear, the closest hit so far]; true when it becomes the closest, ties to the smaller index (closer() of
 // lancer/ray.hpp).
