@@ -50,7 +50,8 @@ struct CudaTrace {
     std::vector<std::uint8_t> occluded;
     double kernel_ms = 0.0;  // the kernel alone (CUDA events), transfers excluded
     // trace_frame(camera, true) only: per ray, the inner nodes and leaves (bvh) or the leaves (plucker)
-    // visited, TraversalCounters::nodes_visited's meaning (the heatmap).
+    // visited, TraversalCounters::nodes_visited's meaning, or the nodes and triangle groups (cwbvh): the
+    // heatmap.
     std::vector<std::uint32_t> steps;
 };
 

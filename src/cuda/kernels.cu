@@ -1,7 +1,8 @@
 // The kernels: thin wrappers that make each thread's ray (the canonical camera's, or one of a batch), call
-// the per-ray traversal of bvh_traversal.hpp or plucker_walk.hpp, and store the hit. Persistent threads
-// (Aila & Laine 2009, section 3.3) fetch warp-sized batches of ray indices from a global counter until the
-// rays run out, so that no warp waits on the slowest warp of its block.
+// the per-ray traversal of bvh_traversal.hpp, cwbvh_traversal.hpp or plucker_walk.hpp, and store the hit or
+// the occlusion byte. Persistent threads (Aila & Laine 2009, section 3.3) fetch warp-sized batches of ray
+// indices from a global counter until the rays run out, so that no warp waits on the slowest warp of its
+// block.
 #include <cuda_runtime.h>
 
 #include "cuda/bvh_traversal.hpp"
@@ -176,7 +177,8 @@ void launch(CudaKernel kernel, const LaunchScene& scene, const Source& source, s
     check_cuda(cudaGetLastError(), "kernel launch");
 }
 
-// The query's kernels for the scene's triangle test. Only frames count steps (the heatmap), and only
+// The query's kernels for the scene's triangle test. Steps are counted for the heatmap, whose frame is a
+// batch made on the host when the camera is far or the scene scaled (CudaTracer::trace_frame); only
 // batches answer any-hit queries (the shadow view, the renderer's shadow rays).
 template <Query kQuery, class Source>
 void launch_test(CudaKernel kernel, const LaunchScene& scene, const Source& source, std::uint32_t count,
@@ -204,6 +206,8 @@ float launch_trace(CudaKernel kernel, const LaunchScene& scene, const LaunchRays
     const CameraRays frame{rays.camera};
     if (rays.rays != nullptr && answers.occluded != nullptr)
         launch_test<Query::AnyHit>(kernel, scene, batch, rays.count, answers, next_ray);
+    else if (rays.rays != nullptr && answers.steps != nullptr)
+        launch_test<Query::ClosestHitCounted>(kernel, scene, batch, rays.count, answers, next_ray);
     else if (rays.rays != nullptr)
         launch_test<Query::ClosestHit>(kernel, scene, batch, rays.count, answers, next_ray);
     else if (answers.steps != nullptr)

@@ -29,8 +29,8 @@ void upload_plucker_tables(const plucker::PluckerTables& tables);
 
 // Where a launch writes, device pointers indexed by slot (a batch's ray index, or a frame's y * width + x):
 // the closest hits, with occluded null; or, for an any-hit query of a batch, one occlusion byte per ray (1:
-// something lies in [tnear, tfar]), with hits null. A frame with `steps` not null also writes each ray's
-// step count there (CountSteps).
+// something lies in [tnear, tfar]), with hits null. With `steps` not null a closest-hit launch also writes
+// each ray's step count there (CountSteps).
 struct LaunchAnswers {
     Hit* hits = nullptr;
     std::uint8_t* occluded = nullptr;

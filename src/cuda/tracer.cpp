@@ -86,7 +86,20 @@ struct CudaTracer::Impl {
     ConditionedRays conditioned;
     std::vector<Ray> original_rays;
 
-    // A frame (count_steps: with each ray's steps), or the uploaded batch's closest hits or occlusion.
+    // The uploaded batch's closest hits (count_steps: with each ray's steps) or occlusion, t mapped back to
+    // the caller's rays. Occlusion maps nothing back: conditioning keeps each ray's interval
+    // (scaled_interval).
+    CudaTrace trace_uploaded(bool any_hit, bool count_steps) {
+        if (!uploaded) throw std::logic_error("cuda: trace_uploaded before upload_rays");
+        gpu::LaunchRays launch;
+        launch.rays = rays.as<Ray>();
+        launch.count = static_cast<std::uint32_t>(uploaded_count);
+        CudaTrace result = run(launch, uploaded_count, any_hit, count_steps);
+        if (!any_hit && !original_rays.empty()) restore_hits(conditioned, original_rays, result.hits);
+        return result;
+    }
+
+    // A frame or a batch (count_steps: with each ray's steps), closest hits or occlusion.
     CudaTrace run(const gpu::LaunchRays& launch, std::size_t ray_count, bool any_hit, bool count_steps) {
         CudaTrace result;
         if (ray_count == 0) return result;  // a grid of no blocks is a launch error
@@ -178,10 +191,10 @@ CudaTrace CudaTracer::trace_frame(const Camera& camera, bool count_steps) {
         static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);
     // A camera far from the scene, or any camera of a scene the structure sees scaled: its rays are made here
     // and conditioned like the CPU's (Accel::intersect; src/core/ray_conditioning.hpp), so that both answer
-    // them alike. Camera directions are ordinary. The heatmap's steps come only from the in-kernel camera.
+    // them alike. Camera directions are ordinary.
     if (impl_->scale_exponent != 0 || FarOriginFrame(impl_->bounds).is_far(camera.eye)) {
         upload_rays(PinholeCamera(camera).pixel_centre_rays(0, 0, camera.width, camera.height));
-        return trace_uploaded(false);
+        return impl_->trace_uploaded(false, count_steps);
     }
     gpu::LaunchRays launch;
     launch.camera = PinholeCamera(camera).frame();
@@ -215,15 +228,7 @@ void CudaTracer::upload_rays(std::span<const Ray> rays) {
 }
 
 CudaTrace CudaTracer::trace_uploaded(bool any_hit) {
-    if (!impl_->uploaded) throw std::logic_error("cuda: trace_uploaded before upload_rays");
-    gpu::LaunchRays launch;
-    launch.rays = impl_->rays.as<Ray>();
-    launch.count = static_cast<std::uint32_t>(impl_->uploaded_count);
-    CudaTrace result = impl_->run(launch, impl_->uploaded_count, any_hit, false);
-    // Occlusion maps nothing back: conditioning keeps each ray's interval (scaled_interval).
-    if (!any_hit && !impl_->original_rays.empty())
-        restore_hits(impl_->conditioned, impl_->original_rays, result.hits);
-    return result;
+    return impl_->trace_uploaded(any_hit, false);
 }
 
 std::string CudaTracer::device_name() const {

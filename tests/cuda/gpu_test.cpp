@@ -10,6 +10,7 @@
 #include <string>
 
 #include "lancer/agreement.hpp"
+#include "lancer/camera.hpp"
 #include "lancer/cuda.hpp"
 #include "lancer/load_scene.hpp"
 #include "support/ray_sets.hpp"
@@ -144,14 +145,18 @@ TEST(CudaGpu, KernelsAgreeWithTheCpuOnScenesAtTheDomainsEdges) {
     }
 }
 
-// The heatmap's counts: the GPU walk enters the leaves the CPU walk enters, ray by ray.
+// The heatmap's counts: the GPU walk enters the leaves the CPU walk enters, ray by ray; from the canonical
+// camera, whose rays the kernel makes, and from a camera far from the scene, whose frame the tracer makes and
+// conditions on the host as a batch.
 TEST(CudaGpu, PluckerStepsAreTheCpuWalksLeaves) {
     std::string why;
     if (!cuda_available(&why)) GTEST_SKIP() << why;
     const std::vector<Triangle> triangles = testing::knot_triangles(300);
     const Geometry geometry{triangles, {}};
-    const Camera camera = canonical_view(geometry.bounds(), 128, 128);
-    const testing::RaySet frame = testing::canonical_view_rays(geometry.bounds(), 128);
+    const Camera canonical = canonical_view(geometry.bounds(), 128, 128);
+    Camera far = canonical;
+    far.eye = far.look_at + (canonical.eye - canonical.look_at) * 16.0f;
+    far.vertical_fov_degrees = canonical.vertical_fov_degrees / 16.0f;
     // Without the 2:1 rule the steps take in the inner cells the links descend, as on the CPU.
     for (const bool balanced : {true, false}) {
         BuildOptions options;
@@ -159,14 +164,23 @@ TEST(CudaGpu, PluckerStepsAreTheCpuWalksLeaves) {
         const std::unique_ptr<Accel> accel = make_accel("plucker");
         accel->build(geometry, options);
         CudaTracer tracer(*accel, geometry, TriangleTest::MollerTrumbore, CudaKernel::Plucker);
-        const CudaTrace traced = tracer.trace_frame(camera, true);
-        ASSERT_EQ(traced.steps.size(), frame.rays.size());
-        for (std::size_t i = 0; i < frame.rays.size(); ++i) {
-            Hit hit;
-            TraversalCounters counters;
-            accel->intersect({&frame.rays[i], 1}, {&hit, 1}, &counters);
-            ASSERT_EQ(traced.steps[i], counters.nodes_visited)
-                << (balanced ? "2:1" : "unconstrained") << ", ray " << i;
+        for (const bool far_camera : {false, true}) {
+            const Camera& camera = far_camera ? far : canonical;
+            const std::vector<Ray> frame =
+                PinholeCamera(camera).pixel_centre_rays(0, 0, camera.width, camera.height);
+            const CudaTrace traced = tracer.trace_frame(camera, true);
+            ASSERT_EQ(traced.steps.size(), frame.size());
+            std::size_t hits = 0;
+            for (std::size_t i = 0; i < frame.size(); ++i) {
+                Hit hit;
+                TraversalCounters counters;
+                accel->intersect({&frame[i], 1}, {&hit, 1}, &counters);
+                hits += hit.hit() ? 1 : 0;
+                ASSERT_EQ(traced.steps[i], counters.nodes_visited)
+                    << (balanced ? "2:1" : "unconstrained") << (far_camera ? ", far camera" : "") << ", ray "
+                    << i;
+            }
+            EXPECT_GT(hits, frame.size() / 10) << "the camera must see the knot";
         }
     }
 }
