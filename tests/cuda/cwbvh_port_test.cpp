@@ -8,13 +8,11 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
-#include <filesystem>
 #include <random>
 
 #include "accel/bvh/bvh_wide.hpp"
 #include "cuda/cwbvh_build.hpp"
 #include "cuda/cwbvh_traversal.hpp"
-#include "lancer/load_scene.hpp"
 #include "port_scenes.hpp"
 
 namespace lancer {
@@ -22,6 +20,7 @@ namespace {
 
 using gpu::CompressedWideBvh;
 using gpu::CwbvhNode;
+using testing::BunnyCanonicalView;
 using testing::TestScene;
 
 bool contains(const Box3f& outer, const Box3f& inner) {
@@ -308,19 +307,13 @@ TEST(Cwbvh, AgreesBitForBitWithLeavesOfUpTo64Triangles) {
     EXPECT_GT(agreement.largest_leaf, 32u);
 }
 
-TEST(Cwbvh, AgreesBitForBitOnTheBunnysCanonicalView) {
-    const std::filesystem::path file = std::filesystem::path(LANCER_SHARED_DIR) / "data/meshes/bunny.obj";
-    if (!std::filesystem::exists(file))
-        GTEST_SKIP() << file << " is absent (see README, 'The Stanford meshes')";
-    const Scene scene = load_scene(file);
-    const SceneGeometry geometry(scene);
-    const std::vector<testing::RaySet> sets = {testing::canonical_view_rays(geometry.view().bounds(), 512)};
+TEST_F(BunnyCanonicalView, CwbvhAgreesBitForBit) {
     Agreement agreement;
-    expect_cwbvh_agrees<MollerTrumbore>(geometry.view(), build_options(TriangleTest::MollerTrumbore), sets,
+    expect_cwbvh_agrees<MollerTrumbore>(geometry(), build_options(TriangleTest::MollerTrumbore), sets(),
                                         "bunny", agreement);
-    expect_cwbvh_agrees<Watertight>(geometry.view(), build_options(TriangleTest::Watertight), sets, "bunny",
+    expect_cwbvh_agrees<Watertight>(geometry(), build_options(TriangleTest::Watertight), sets(), "bunny",
                                     agreement);
-    EXPECT_GT(agreement.hits_seen, 2u * 512u * 512u / 10u);
+    EXPECT_GT(agreement.hits_seen, 2u * kSide * kSide / 10u);
 }
 
 // Boxes the scenes do not make: far from the origin, flat, tiny beside huge, at the coordinate limit, sharing

@@ -2,7 +2,11 @@
 // their ray sets, the rays conditioned as CudaTracer conditions them, and the bit-for-bit comparison.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <cstring>
+#include <filesystem>
+#include <memory>
 #include <random>
 #include <span>
 #include <string>
@@ -11,6 +15,7 @@
 #include "core/ray_conditioning.hpp"
 #include "lancer/generate.hpp"
 #include "support/ray_sets.hpp"
+#include "support/stanford_meshes.hpp"
 #include "support/test_scenes.hpp"
 
 namespace lancer::testing {
@@ -126,5 +131,26 @@ inline std::size_t count_differences(std::span<const std::uint8_t> expected,
         differences += expected[i] != actual[i] ? 1 : 0;
     return differences;
 }
+
+// The bunny's canonical view at 512 x 512, loaded before the test, which is skipped when the checkout lacks
+// the mesh: the ports' agreement on a real mesh.
+class BunnyCanonicalView : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        const std::filesystem::path file = stanford_mesh_path("bunny.obj");
+        if (!std::filesystem::exists(file))
+            GTEST_SKIP() << file << " is absent (see README, 'The Stanford meshes')";
+        bunny_ = std::make_unique<SceneGeometry>(load_scene(file));
+        sets_ = {canonical_view_rays(bunny_->view().bounds(), kSide)};
+    }
+    [[nodiscard]] Geometry geometry() const { return bunny_->view(); }
+    [[nodiscard]] std::span<const RaySet> sets() const { return sets_; }
+
+    static constexpr std::size_t kSide = 512;
+
+  private:
+    std::unique_ptr<SceneGeometry> bunny_;
+    std::vector<RaySet> sets_;
+};
 
 }  // namespace lancer::testing

@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
-#include <filesystem>
 
 #include "accel/bvh/bvh.hpp"
 #include "accel/plucker/plucker.hpp"
@@ -15,12 +14,12 @@
 #include "cuda/flatten.hpp"
 #include "cuda/plucker_walk.hpp"
 #include "lancer/camera.hpp"
-#include "lancer/load_scene.hpp"
 #include "port_scenes.hpp"
 
 namespace lancer {
 namespace {
 
+using testing::BunnyCanonicalView;
 using testing::count_differences;
 using testing::count_hits;
 using testing::make_triangle_scenes;
@@ -136,17 +135,10 @@ TEST(CudaPorts, AgreeBitForBitWithTheCpuStructuresOnTheTestScenes) {
     }
 }
 
-TEST(CudaPorts, AgreeBitForBitOnTheBunnysCanonicalView) {
-    const std::filesystem::path file = std::filesystem::path(LANCER_SHARED_DIR) / "data/meshes/bunny.obj";
-    if (!std::filesystem::exists(file))
-        GTEST_SKIP() << file << " is absent (see README, 'The Stanford meshes')";
-    const Scene scene = load_scene(file);
-    const SceneGeometry geometry(scene);
-    const std::vector<testing::RaySet> sets = {testing::canonical_view_rays(geometry.view().bounds(), 512)};
+TEST_F(BunnyCanonicalView, PortsAgreeBitForBit) {
     std::size_t hits_seen = 0;
-    expect_ports_agree<MollerTrumbore>(geometry.view(), TriangleTest::MollerTrumbore, sets, "bunny",
-                                       hits_seen);
-    EXPECT_GT(hits_seen, 512u * 512u / 10u);
+    expect_ports_agree<MollerTrumbore>(geometry(), TriangleTest::MollerTrumbore, sets(), "bunny", hits_seen);
+    EXPECT_GT(hits_seen, kSide * kSide / 10u);
 }
 
 // The heatmap's counts: the walk enters the leaves the CPU walk enters, one by one; the BVH traversals count
