@@ -13,7 +13,13 @@ CONFIGURE_FLAGS := $(if $(PYTHON),-DPython3_EXECUTABLE=$(PYTHON))
 deps:
 	@bash scripts/deps.sh
 
+# The presets use Ninja. A build folder that the Unix Makefiles generator configured (before them) loses its
+# cache first, since CMake refuses to change a folder's generator.
+forget_makefiles = @if grep -qs '^CMAKE_GENERATOR:INTERNAL=Unix Makefiles' $(1)/CMakeCache.txt; then \
+	rm -rf $(1)/CMakeCache.txt $(1)/CMakeFiles; fi
+
 configure: deps
+	$(call forget_makefiles,$(BUILD_DIR))
 	@cmake --preset $(PRESET) $(CONFIGURE_FLAGS) >/dev/null
 
 build: configure
@@ -30,6 +36,7 @@ test: build
 # The whole suite under AddressSanitizer + UBSan in build-sanitize/ (docs/robustness.md, "Sanitizers and
 # limits"): any report fails the test that caused it.
 build-sanitize: deps
+	$(call forget_makefiles,build-sanitize)
 	@cmake --preset sanitize >/dev/null
 	@cmake --build --preset sanitize -j $(JOBS)
 
