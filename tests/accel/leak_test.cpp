@@ -22,11 +22,14 @@ namespace lancer {
 namespace {
 
 // 10^6 rays per structure over all the meshes below; a sanitized build (2-5x slower, brute force included)
-// traces a fifth of them.
+// traces a fifth of them, and leaves out the Moller-Trumbore counts, which are information and assert
+// nothing.
 #ifdef LANCER_SANITIZED
 constexpr std::size_t kRaysPerStructure = 200'000;
+constexpr bool kCountMollerTrumbore = false;
 #else
 constexpr std::size_t kRaysPerStructure = 1'000'000;
+constexpr bool kCountMollerTrumbore = true;
 #endif
 
 // A closed mesh and a way to pick, for a vertex of it, a point strictly inside the mesh to shoot from.
@@ -159,6 +162,7 @@ TEST(Leaks, NoRayEscapesAClosedMeshInWatertightMode) {
             const float spacing = grid_spacing(meshes[m].mesh);
             Leaks leaks[2];
             for (TriangleTest test : {TriangleTest::Watertight, TriangleTest::MollerTrumbore}) {
+                if (test == TriangleTest::MollerTrumbore && !kCountMollerTrumbore) continue;
                 const std::unique_ptr<Accel> accel = make_accel(name);
                 accel->build(geometry, build_options(test));
                 leaks[test == TriangleTest::MollerTrumbore] = count_leaks(*accel, rays[m], spacing);
