@@ -1,7 +1,8 @@
 # The two commands of the README. Both install missing Debian packages first, then build Release in build/:
 # `make demo` only the command-line tool it runs, `make test` everything the suite tests.
-BUILD_DIR := build
 PRESET := release
+# The preset's binaryDir (CMakePresets.json): build/ for release, build-PRESET/ for the others.
+BUILD_DIR := $(if $(filter release,$(PRESET)),build,build-$(PRESET))
 JOBS ?= $(shell nproc)
 # The interpreter the Python module is built for: the first python3 on PATH that imports NumPy (a pyenv or
 # other python3 may come before Debian's, which scripts/deps.sh gives NumPy). Override with PYTHON=...
