@@ -7,7 +7,9 @@
 // Host-device: the GPU decides the same rays with the same source (docs/cuda.md).
 #pragma once
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
 
 #include "core/host_device.hpp"
 #include "core/isa_namespace.hpp"
@@ -63,25 +65,82 @@ class ExactSum {
     int count_ = 0;
 };
 
-// The sign of d . ((p - o) x (q - o)), exactly: the side of the line o + t d on which the edge p q passes
-// (the Plucker product of the line and the edge, up to its positive factors). First in double, whose result
-// decides where it exceeds its error bound: the differences are rounded once each (2^-53 of themselves), the
-// cross and dot products add five roundings, under 8 2^-53 of the sum of the terms' magnitudes in all, and
-// 2^-49 covers that and the bound's own rounding (a filtered predicate, as Shewchuk's orient3d). Within the
-// bound, expanded so that every term is a product of three inputs, d . (p x q) + d . (o x p) - d . (o x q),
-// and summed exactly.
-[[nodiscard]] LANCER_HOST_DEVICE inline int line_edge_side(const Vec3f& o, const Vec3f& d, const Vec3f& p,
-                                                           const Vec3f& q) {
-    const double ax = double(p.x) - o.x, ay = double(p.y) - o.y, az = double(p.z) - o.z;
-    const double bx = double(q.x) - o.x, by = double(q.y) - o.y, bz = double(q.z) - o.z;
-    const double x_term = double(d.x) * (ay * bz - az * by), y_term = double(d.y) * (az * bx - ax * bz),
-                 z_term = double(d.z) * (ax * by - ay * bx);
-    const double value = x_term + y_term + z_term;
-    const double bound = 0x1p-49 * (magnitude(double(d.x)) * (magnitude(ay * bz) + magnitude(az * by)) +
-                                    magnitude(double(d.y)) * (magnitude(az * bx) + magnitude(ax * bz)) +
-                                    magnitude(double(d.z)) * (magnitude(ax * by) + magnitude(ay * bx)));
-    if (value > bound) return 1;
-    if (value < -bound) return -1;
+// One float as sign significand 2^exponent, the significand an integer below 2^24 (0 for a zero).
+struct FloatParts {
+    std::int64_t significand;
+    int exponent;
+};
+[[nodiscard]] LANCER_HOST_DEVICE inline FloatParts float_parts(float x) {
+#if defined(__CUDA_ARCH__)
+    const auto bits = static_cast<std::uint32_t>(__float_as_uint(x));
+#else
+    const auto bits = std::bit_cast<std::uint32_t>(x);
+#endif
+    const int biased = static_cast<int>((bits >> 23) & 0xff);
+    const auto fraction = static_cast<std::int64_t>(bits & 0x7fffff);
+    const std::int64_t significand = biased == 0 ? fraction : fraction | (std::int64_t{1} << 23);
+    return {bits >> 31 ? -significand : significand, biased == 0 ? -149 : biased - 150};
+}
+
+// The sign of d . ((p - o) x (q - o)) in 128-bit integers, or kUndecided. The positions o, p, q are integers
+// times 2^(their least exponent), and d is one times 2^(its least): a positive factor that leaves the sign
+// alone. With S and S_d the spans of exponents among the nonzero positions and direction components, the
+// differences stay below 2^(25 + S), the cross product's components below 2^(51 + 2 S), and the sum of
+// three products below 2^(77 + 2 S + S_d): exact when 2 S + S_d <= 49 (and S_d <= 39, for d's integers to
+// fit in 64 bits). Inputs of one object and a ray near it meet that; inputs beyond it, or not finite, are
+// left to the exact sum below.
+inline constexpr int kUndecided = 2;
+[[nodiscard]] LANCER_HOST_DEVICE inline int line_edge_side_in_integers(const Vec3f& o, const Vec3f& d,
+                                                                       const Vec3f& p, const Vec3f& q) {
+    __extension__ typedef __int128 Int128;  // GCC's, Clang's and nvcc's; ISO C++ has no 128-bit integer
+    const FloatParts positions[9] = {float_parts(o.x), float_parts(o.y), float_parts(o.z),
+                                     float_parts(p.x), float_parts(p.y), float_parts(p.z),
+                                     float_parts(q.x), float_parts(q.y), float_parts(q.z)};
+    const FloatParts direction[3] = {float_parts(d.x), float_parts(d.y), float_parts(d.z)};
+    // The least and greatest exponents of the nonzero parts, {1000, -1000} if all are zero. Infinities and
+    // NaNs have the exponent 105, beyond any finite float's 104.
+    struct Span {
+        int least = 1000, greatest = -1000;
+    };
+    auto span = [](const FloatParts* parts, int count) {
+        Span s;
+        for (int i = 0; i < count; ++i) {
+            if (parts[i].significand == 0) continue;
+            s.least = parts[i].exponent < s.least ? parts[i].exponent : s.least;
+            s.greatest = parts[i].exponent > s.greatest ? parts[i].exponent : s.greatest;
+        }
+        return s;
+    };
+    const Span position_span = span(positions, 9), direction_span = span(direction, 3);
+    if (position_span.greatest < position_span.least || direction_span.greatest < direction_span.least)
+        return 0;  // every position or every direction component zero: so is the product
+    const int spread = position_span.greatest - position_span.least,
+              direction_spread = direction_span.greatest - direction_span.least;
+    if (position_span.greatest > 104 || direction_span.greatest > 104 || 2 * spread + direction_spread > 49 ||
+        direction_spread > 39)
+        return kUndecided;
+    const int least = position_span.least, least_direction = direction_span.least;
+    auto integer = [](const FloatParts& part, int lowest) {
+        return part.significand == 0 ? std::int64_t{0}
+                                     : part.significand * (std::int64_t{1} << (part.exponent - lowest));
+    };
+    std::int64_t a[3], b[3];
+    for (int i = 0; i < 3; ++i) {
+        const std::int64_t origin = integer(positions[i], least);
+        a[i] = integer(positions[3 + i], least) - origin;
+        b[i] = integer(positions[6 + i], least) - origin;
+    }
+    const Int128 value =
+        Int128(integer(direction[0], least_direction)) * (Int128(a[1]) * b[2] - Int128(a[2]) * b[1]) +
+        Int128(integer(direction[1], least_direction)) * (Int128(a[2]) * b[0] - Int128(a[0]) * b[2]) +
+        Int128(integer(direction[2], least_direction)) * (Int128(a[0]) * b[1] - Int128(a[1]) * b[0]);
+    return (value > 0) - (value < 0);
+}
+
+// The sign of d . ((p - o) x (q - o)) for any finite inputs, expanded so that every term is a product of
+// three inputs, d . (p x q) + d . (o x p) - d . (o x q), and summed exactly.
+[[nodiscard]] LANCER_HOST_DEVICE inline int line_edge_side_in_expansions(const Vec3f& o, const Vec3f& d,
+                                                                         const Vec3f& p, const Vec3f& q) {
     ExactSum<36> sum;
     // a . (b x c) = sum over the cyclic (i, j, k) of a_i (b_j c_k - b_k c_j).
     auto add_triple_product = [&sum](const Vec3f& a, const Vec3f& b, const Vec3f& c, float sign) {
@@ -95,6 +154,29 @@ class ExactSum {
     add_triple_product(d, o, p, 1.0f);
     add_triple_product(d, o, q, -1.0f);
     return sum.sign();
+}
+
+// The sign of d . ((p - o) x (q - o)), exactly: the side of the line o + t d on which the edge p q passes
+// (the Plucker product of the line and the edge, up to its positive factors). First in double, whose result
+// decides where it exceeds its error bound: the differences are rounded once each (2^-53 of themselves), the
+// cross and dot products add five roundings, under 8 2^-53 of the sum of the terms' magnitudes in all, and
+// 2^-49 covers that and the bound's own rounding (a filtered predicate, as Shewchuk's orient3d). Within the
+// bound, in 128-bit integers where the inputs' exponents allow, which costs a fraction of the exact sum
+// (docs/numerical-contract.md, "Triangle tests"), else by the exact sum.
+[[nodiscard]] LANCER_HOST_DEVICE inline int line_edge_side(const Vec3f& o, const Vec3f& d, const Vec3f& p,
+                                                           const Vec3f& q) {
+    const double ax = double(p.x) - o.x, ay = double(p.y) - o.y, az = double(p.z) - o.z;
+    const double bx = double(q.x) - o.x, by = double(q.y) - o.y, bz = double(q.z) - o.z;
+    const double x_term = double(d.x) * (ay * bz - az * by), y_term = double(d.y) * (az * bx - ax * bz),
+                 z_term = double(d.z) * (ax * by - ay * bx);
+    const double value = x_term + y_term + z_term;
+    const double bound = 0x1p-49 * (magnitude(double(d.x)) * (magnitude(ay * bz) + magnitude(az * by)) +
+                                    magnitude(double(d.y)) * (magnitude(az * bx) + magnitude(ax * bz)) +
+                                    magnitude(double(d.z)) * (magnitude(ax * by) + magnitude(ay * bx)));
+    if (value > bound) return 1;
+    if (value < -bound) return -1;
+    if (const int side = line_edge_side_in_integers(o, d, p, q); side != kUndecided) return side;
+    return line_edge_side_in_expansions(o, d, p, q);
 }
 
 }  // namespace LANCER_ISA_NAMESPACE

@@ -232,6 +232,49 @@ TEST(ExactSign, LineEdgeSideIsTheExactSignOnIntegerInputs) {
     EXPECT_GT(float_wrong, 1000u);
 }
 
+// The 128-bit integer stage of line_edge_side against the exact sum, on the same float inputs: integer-valued
+// rays and edges (a third of them meeting the line) scaled by powers of two from the subnormals to near the
+// largest float, the positions and the direction by different ones, and coordinates moved apart by up to
+// 2^30 so that some inputs spread beyond what the integers hold. Wherever the integers decide, both agree.
+TEST(ExactSign, IntegerStageAgreesWithTheExactSumWhereverItDecides) {
+    std::mt19937 rng(13);
+    std::uniform_int_distribution<int> scale(-170, 60), spread(0, 30), coin(0, 1), step(-3, 3);
+    std::size_t decided = 0, undecided = 0, zeros = 0;
+    for (int trial = 0; trial < 300000; ++trial) {
+        const int position_scale = scale(rng), direction_scale = scale(rng);
+        const int position_spread = spread(rng) * coin(rng), direction_spread = spread(rng) * coin(rng);
+        auto vec = [&] { return Vec3f(random_integer(rng), random_integer(rng), random_integer(rng)); };
+        const Vec3f o = vec(), p = vec();
+        Vec3f d = vec(), q = vec();
+        if (trial % 3 == 0)
+            q = p + static_cast<float>(step(rng)) * d + static_cast<float>(step(rng)) * (p - o);
+        auto scaled = [&](Vec3f v, int by, int spread_by) {
+            std::uniform_int_distribution<int> extra(0, spread_by);
+            return Vec3f(std::ldexp(v.x, by + extra(rng)), std::ldexp(v.y, by + extra(rng)),
+                         std::ldexp(v.z, by + extra(rng)));
+        };
+        const Vec3f so = scaled(o, position_scale, position_spread),
+                    sp = scaled(p, position_scale, position_spread),
+                    sq = scaled(q, position_scale, position_spread),
+                    sd = scaled(d, direction_scale, direction_spread);
+        if (!(is_finite(so) && is_finite(sp) && is_finite(sq) && is_finite(sd))) continue;
+        const int expected = line_edge_side_in_expansions(so, sd, sp, sq);
+        const int side = line_edge_side_in_integers(so, sd, sp, sq);
+        if (side == kUndecided) {
+            ++undecided;
+            continue;
+        }
+        ++decided;
+        zeros += expected == 0;
+        ASSERT_EQ(side, expected) << "trial " << trial;
+    }
+    std::printf("decided %zu (exact zeros %zu), undecided %zu\n", decided, zeros, undecided);
+    // Not a degenerate sample: both stages run, and many inputs meet the line exactly.
+    EXPECT_GT(decided, 50000u);
+    EXPECT_GT(zeros, 5000u);
+    EXPECT_GT(undecided, 50000u);
+}
+
 // Terms that cancel exactly, a b c + a b c' - a b (c + c'), beside a fourth far below their rounding: the
 // sum's sign is the fourth's. c and c' share an exponent and have 23-bit integer mantissas, so c + c' is a
 // float; double arithmetic rounds the three products apart and loses the fourth.
