@@ -70,12 +70,8 @@ struct FloatParts {
     std::int64_t significand;
     int exponent;
 };
-[[nodiscard]] LANCER_HOST_DEVICE inline FloatParts float_parts(float x) {
-#if defined(__CUDA_ARCH__)
-    const auto bits = static_cast<std::uint32_t>(__float_as_uint(x));
-#else
+[[nodiscard]] inline FloatParts float_parts(float x) {
     const auto bits = std::bit_cast<std::uint32_t>(x);
-#endif
     const int biased = static_cast<int>((bits >> 23) & 0xff);
     const auto fraction = static_cast<std::int64_t>(bits & 0x7fffff);
     const std::int64_t significand = biased == 0 ? fraction : fraction | (std::int64_t{1} << 23);
@@ -88,11 +84,12 @@ struct FloatParts {
 // differences stay below 2^(25 + S), the cross product's components below 2^(51 + 2 S), and the sum of
 // three products below 2^(77 + 2 S + S_d): exact when 2 S + S_d <= 49 (and S_d <= 39, for d's integers to
 // fit in 64 bits). Inputs of one object and a ray near it meet that; inputs beyond it, or not finite, are
-// left to the exact sum below.
+// left to the exact sum below. Host only: on the GPU it raised the watertight batch kernels' registers
+// (docs/cuda.md, "Registers").
 inline constexpr int kUndecided = 2;
-[[nodiscard]] LANCER_HOST_DEVICE inline int line_edge_side_in_integers(const Vec3f& o, const Vec3f& d,
-                                                                       const Vec3f& p, const Vec3f& q) {
-    __extension__ typedef __int128 Int128;  // GCC's, Clang's and nvcc's; ISO C++ has no 128-bit integer
+[[nodiscard]] inline int line_edge_side_in_integers(const Vec3f& o, const Vec3f& d, const Vec3f& p,
+                                                    const Vec3f& q) {
+    __extension__ typedef __int128 Int128;  // GCC's and Clang's; ISO C++ has no 128-bit integer
     const FloatParts positions[9] = {float_parts(o.x), float_parts(o.y), float_parts(o.z),
                                      float_parts(p.x), float_parts(p.y), float_parts(p.z),
                                      float_parts(q.x), float_parts(q.y), float_parts(q.z)};
@@ -161,8 +158,9 @@ inline constexpr int kUndecided = 2;
 // decides where it exceeds its error bound: the differences are rounded once each (2^-53 of themselves), the
 // cross and dot products add five roundings, under 8 2^-53 of the sum of the terms' magnitudes in all, and
 // 2^-49 covers that and the bound's own rounding (a filtered predicate, as Shewchuk's orient3d). Within the
-// bound, in 128-bit integers where the inputs' exponents allow, which costs a fraction of the exact sum
-// (docs/numerical-contract.md, "Triangle tests"), else by the exact sum.
+// bound, on the host in 128-bit integers where the inputs' exponents allow, which costs a fraction of the
+// exact sum (docs/numerical-contract.md, "Triangle tests"), else by the exact sum. Both are exact, so the
+// GPU, which takes the exact sum alone, decides every ray as the CPU does.
 [[nodiscard]] LANCER_HOST_DEVICE inline int line_edge_side(const Vec3f& o, const Vec3f& d, const Vec3f& p,
                                                            const Vec3f& q) {
     const double ax = double(p.x) - o.x, ay = double(p.y) - o.y, az = double(p.z) - o.z;
@@ -175,7 +173,9 @@ inline constexpr int kUndecided = 2;
                                     magnitude(double(d.z)) * (magnitude(ax * by) + magnitude(ay * bx)));
     if (value > bound) return 1;
     if (value < -bound) return -1;
+#if !defined(__CUDA_ARCH__)
     if (const int side = line_edge_side_in_integers(o, d, p, q); side != kUndecided) return side;
+#endif
     return line_edge_side_in_expansions(o, d, p, q);
 }
 

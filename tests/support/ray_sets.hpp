@@ -32,7 +32,7 @@ RaySet canonical_view_rays(const Box3f& bounds, int size = 1024);
 // Under AddressSanitizer + UBSan (LANCER_SANITIZED, docs/robustness.md) the Stanford tests trace every
 // kSanitizedStride-th ray of their sets, and the oracle, determinism, update, Plücker (leaf order and
 // variants) and Embree tests generate kSanitizedShare times fewer rays per generated set (the hostile set
-// stays whole), so that the
+// stays whole), and the oracle test holds that many times fewer coincident triangles, so that the
 // sanitized suite stays within CI's time; 1 otherwise.
 #ifdef LANCER_SANITIZED
 inline constexpr std::size_t kSanitizedStride = 16;
