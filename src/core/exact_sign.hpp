@@ -10,6 +10,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 
 #include "core/host_device.hpp"
 #include "core/isa_namespace.hpp"
@@ -78,7 +79,7 @@ struct FloatParts {
     return {bits >> 31 ? -significand : significand, biased == 0 ? -149 : biased - 150};
 }
 
-// The sign of d . ((p - o) x (q - o)) in 128-bit integers, or kUndecided. The positions o, p, q are integers
+// The sign of d . ((p - o) x (q - o)) in 128-bit integers, or nothing. The positions o, p, q are integers
 // times 2^(their least exponent), and d is one times 2^(its least): a positive factor that leaves the sign
 // alone. With S and S_d the spans of exponents among the nonzero positions and direction components, the
 // differences stay below 2^(25 + S), the cross product's components below 2^(51 + 2 S), and the sum of
@@ -86,9 +87,8 @@ struct FloatParts {
 // fit in 64 bits). Inputs of one object and a ray near it meet that; inputs beyond it, or not finite, are
 // left to the exact sum below. Host only: on the GPU it raised the watertight batch kernels' registers
 // (docs/cuda.md, "Registers").
-inline constexpr int kUndecided = 2;
-[[nodiscard]] inline int line_edge_side_in_integers(const Vec3f& o, const Vec3f& d, const Vec3f& p,
-                                                    const Vec3f& q) {
+[[nodiscard]] inline std::optional<int> line_edge_side_in_integers(const Vec3f& o, const Vec3f& d,
+                                                                   const Vec3f& p, const Vec3f& q) {
     __extension__ typedef __int128 Int128;  // GCC's and Clang's; ISO C++ has no 128-bit integer
     const FloatParts positions[9] = {float_parts(o.x), float_parts(o.y), float_parts(o.z),
                                      float_parts(p.x), float_parts(p.y), float_parts(p.z),
@@ -115,7 +115,7 @@ inline constexpr int kUndecided = 2;
               direction_spread = direction_span.greatest - direction_span.least;
     if (position_span.greatest > 104 || direction_span.greatest > 104 || 2 * spread + direction_spread > 49 ||
         direction_spread > 39)
-        return kUndecided;
+        return std::nullopt;
     const int least = position_span.least, least_direction = direction_span.least;
     auto integer = [](const FloatParts& part, int lowest) {
         return part.significand == 0 ? std::int64_t{0}
@@ -174,7 +174,7 @@ inline constexpr int kUndecided = 2;
     if (value > bound) return 1;
     if (value < -bound) return -1;
 #if !defined(__CUDA_ARCH__)
-    if (const int side = line_edge_side_in_integers(o, d, p, q); side != kUndecided) return side;
+    if (const std::optional<int> side = line_edge_side_in_integers(o, d, p, q)) return *side;
 #endif
     return line_edge_side_in_expansions(o, d, p, q);
 }

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <limits>
+#include <optional>
 
 #include <random>
 
@@ -259,14 +260,14 @@ TEST(ExactSign, IntegerStageAgreesWithTheExactSumWhereverItDecides) {
                     sd = scaled(d, direction_scale, direction_spread);
         if (!(is_finite(so) && is_finite(sp) && is_finite(sq) && is_finite(sd))) continue;
         const int expected = line_edge_side_in_expansions(so, sd, sp, sq);
-        const int side = line_edge_side_in_integers(so, sd, sp, sq);
-        if (side == kUndecided) {
+        const std::optional<int> side = line_edge_side_in_integers(so, sd, sp, sq);
+        if (!side) {
             ++undecided;
             continue;
         }
         ++decided;
         zeros += expected == 0;
-        ASSERT_EQ(side, expected) << "trial " << trial;
+        ASSERT_EQ(*side, expected) << "trial " << trial;
     }
     std::printf("decided %zu (exact zeros %zu), undecided %zu\n", decided, zeros, undecided);
     // Not a degenerate sample: both stages run, and many inputs meet the line exactly.
