@@ -72,7 +72,7 @@ class Job {
     Job();
     int rank_ = 0;
     int size_ = 1;
-    bool mpi_ = false;
+    [[maybe_unused]] bool mpi_ = false;  // read only where MPI is built in (LANCER_HAS_MPI)
 };
 
 }  // namespace lancer::cli

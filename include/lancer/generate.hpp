@@ -26,7 +26,9 @@ namespace lancer {
 // `count` placements of an object of box `bounds` (`lancer bench --instances`, `lancer render --instances`):
 // each a random rotation, a uniform scale in [0.5, 1.5] and a position in a cube whose side grows as the cube
 // root of `count`, so that the instances fill it about as densely whatever the count and rays cross many of
-// them. Fixed seed: the same placements on every run.
+// them. Fixed seed: the same placements on every run and under every compiler. Each placement draws, from
+// std::mt19937(2026) in this order, its rotation axis (z + 0.01, y, x, each uniform in [-1, 1]), its scale,
+// its angle (uniform in [0, 6.2831853]) and its position (x, y, z, each side times uniform in [-1, 1]).
 [[nodiscard]] std::vector<Transform> random_placements(const Box3f& bounds, int count);
 
 }  // namespace lancer

@@ -198,12 +198,13 @@ int CrossingGrid::listed_cells(const Vec3f* origins, const Vec3f& centre, float 
     // permuted (x0 x3 x6 x1 x4 x7 x2 x5 for x), which one permutation puts in order.
     const float* f = &origins[0].x;
     const __m256 a = _mm256_loadu_ps(f), b = _mm256_loadu_ps(f + 8), c = _mm256_loadu_ps(f + 16);
-    const auto coordinate = [&](int from_a, int from_b, __m256i order) {
-        return _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(c, a, from_a), b, from_b), order);
+    // The blend masks are template arguments: VBLENDPS takes its mask as an immediate.
+    const auto coordinate = [&]<int kFromA, int kFromB>(__m256i order) {
+        return _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(c, a, kFromA), b, kFromB), order);
     };
-    const __m256 x = coordinate(0x49, 0x92, _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
-    const __m256 y = coordinate(0x92, 0x24, _mm256_setr_epi32(1, 4, 7, 2, 5, 0, 3, 6));
-    const __m256 z = coordinate(0x24, 0x49, _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
+    const __m256 x = coordinate.operator()<0x49, 0x92>(_mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
+    const __m256 y = coordinate.operator()<0x92, 0x24>(_mm256_setr_epi32(1, 4, 7, 2, 5, 0, 3, 6));
+    const __m256 z = coordinate.operator()<0x24, 0x49>(_mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
     // Finite and near: |o - centre| <= limit on every axis (a NaN or an infinity fails it). An infinite limit
     // (an empty scene's frame) leaves only the finite check, as is_far and is_finite do.
     const __m256 sign = _mm256_set1_ps(-0.0f);

@@ -61,8 +61,9 @@ void* allocate_huge_pages(std::size_t bytes) {
     return memory;
 }
 
-void deallocate_huge_pages(void* memory, std::size_t bytes) noexcept {
-    ::operator delete (memory, round_up_to_huge_page(bytes), std::align_val_t{kHugePageBytes});
+void deallocate_huge_pages(void* memory, [[maybe_unused]] std::size_t bytes) noexcept {
+    // The unsized form: clang before 19 declares the sized one only under -fsized-deallocation.
+    ::operator delete (memory, std::align_val_t{kHugePageBytes});
 }
 
 }  // namespace lancer

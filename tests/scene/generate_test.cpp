@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
+#include <random>
 
 namespace lancer {
 namespace {
@@ -78,6 +80,38 @@ TEST(Generate, SubdivisionSplitsEachTriangleInFourAndKeepsTheShape) {
     const TriangleMesh finest = subdivided(finer);
     EXPECT_EQ(finest.triangle_count(), 16 * mesh.triangle_count());
     expect_closed(finest);
+}
+
+// The placements follow the draw order their header states, which no call's unspecified argument order may
+// change (clang and GCC evaluate arguments in opposite orders): the bench's instanced scene is the same
+// under every compiler. The recipe is replayed here from its statement in lancer/generate.hpp.
+TEST(Generate, RandomPlacementsDrawInTheStatedOrder) {
+    const Box3f bounds{{-1.0f, -2.0f, -3.0f}, {3.0f, 2.0f, 1.0f}};
+    constexpr int kCount = 27;
+    const std::vector<Transform> placements = random_placements(bounds, kCount);
+    ASSERT_EQ(placements.size(), static_cast<std::size_t>(kCount));
+    std::mt19937 rng(2026);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f), scale(0.5f, 1.5f), angle(0.0f, 6.2831853f);
+    const float side = 0.9f * max_component(bounds.extent()) * std::cbrt(static_cast<float>(kCount));
+    for (int i = 0; i < kCount; ++i) {
+        Vec3f axis, position;
+        axis.z = unit(rng) + 0.01f;
+        axis.y = unit(rng);
+        axis.x = unit(rng);
+        const float s = scale(rng);
+        const float turn = angle(rng);
+        position.x = side * unit(rng);
+        position.y = side * unit(rng);
+        position.z = side * unit(rng);
+        const Transform expected = Transform::translation(position) * Transform::rotation(axis, turn) *
+                                   Transform::scaling(Vec3f(s)) *
+                                   Transform::translation(-1.0f * bounds.center());
+        for (int row = 0; row < 3; ++row) {
+            for (int column = 0; column < 4; ++column)
+                EXPECT_EQ(placements[i].m[row][column], expected.m[row][column])
+                    << "placement " << i << ", row " << row << ", column " << column;
+        }
+    }
 }
 
 }  // namespace

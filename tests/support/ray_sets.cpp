@@ -15,7 +15,13 @@ namespace {
 Vec3f random_point(const Box3f& box, std::mt19937& rng) {
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     const Vec3f e = box.extent();
-    return box.lo + Vec3f(unit(rng) * e.x, unit(rng) * e.y, unit(rng) * e.z);
+    // One draw per statement, z first (the order GCC gave a constructor's arguments, which is unspecified):
+    // the same sets under every compiler.
+    Vec3f p;
+    p.z = unit(rng) * e.z;
+    p.y = unit(rng) * e.y;
+    p.x = unit(rng) * e.x;
+    return box.lo + p;
 }
 
 Vec3f random_direction(std::mt19937& rng) {
