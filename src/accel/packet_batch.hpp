@@ -3,7 +3,6 @@
 // structure's packets whose rays cannot go together.
 #pragma once
 
-#include <array>
 #include <cstddef>
 #include <span>
 
@@ -14,14 +13,17 @@ namespace lancer {
 // Calls trace(rays, hits) with the packet's rays as records and their hit slots, then copies the hits back.
 template <class Trace>
 void trace_packet_as_batch(const RayPacket& rays, HitPacket& hits, Trace&& trace) {
-    std::array<Ray, RayPacket::kMaxSize> batch;
-    std::array<Hit, RayPacket::kMaxSize> batch_hits;
+    // Plain arrays: a std::array of Hit or Ray has a constructor of its own (their members' initialisers),
+    // which a compiler may leave out of line under the name every translation unit shares, so that the
+    // AVX-512 kernel's copy could serve the AVX2 callers (tests/core/isa_symbols_test.sh; clang does).
+    Ray batch[RayPacket::kMaxSize];
+    Hit batch_hits[RayPacket::kMaxSize];
     const auto size = static_cast<std::size_t>(rays.size);
     for (int lane = 0; lane < rays.size; ++lane)
-        batch[static_cast<std::size_t>(lane)] = rays.ray(lane);
-    trace(std::span<const Ray>(batch.data(), size), std::span<Hit>(batch_hits.data(), size));
+        batch[lane] = rays.ray(lane);
+    trace(std::span<const Ray>(batch, size), std::span<Hit>(batch_hits, size));
     for (int lane = 0; lane < rays.size; ++lane)
-        hits.set(lane, batch_hits[static_cast<std::size_t>(lane)]);
+        hits.set(lane, batch_hits[lane]);
 }
 
 }  // namespace lancer

@@ -260,8 +260,8 @@ class RayStream {
     const Ray* ray_[kCapacity];
     std::array<std::optional<PreparedRay<TriangleTestT>>, kCapacity> prepared_;
     std::array<std::optional<BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes>>, kCapacity> block_rays_;
-    std::array<Hit, kCapacity> best_;
-    RayBits alive_ = 0;  // occlusion: the rays not yet occluded; closest hits: all of them
+    Hit best_[kCapacity];  // a plain array, as packet_batch.hpp's, for the same reason
+    RayBits alive_ = 0;    // occlusion: the rays not yet occluded; closest hits: all of them
 };
 
 // The batch's rays sorted into a stream per octant as they come, each stream traced when it is full and the
