@@ -260,8 +260,10 @@ class RayStream {
     const Ray* ray_[kCapacity];
     std::array<std::optional<PreparedRay<TriangleTestT>>, kCapacity> prepared_;
     std::array<std::optional<BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes>>, kCapacity> block_rays_;
-    Hit best_[kCapacity];  // a plain array, as packet_batch.hpp's, for the same reason
-    RayBits alive_ = 0;    // occlusion: the rays not yet occluded; closest hits: all of them
+    // A plain array: std::array<Hit, N>'s constructor may be left out of line under a name the AVX2 baseline
+    // shares (docs/isa.md, "Why the namespaces").
+    Hit best_[kCapacity];
+    RayBits alive_ = 0;  // occlusion: the rays not yet occluded; closest hits: all of them
 };
 
 // The batch's rays sorted into a stream per octant as they come, each stream traced when it is full and the
