@@ -10,6 +10,8 @@ packages=(
   libembree-dev libopenexr-dev
   libopenmpi-dev openmpi-bin
   clang-format
+  # The sanitized build (make test-sanitize) compiles with clang and links its sanitizer runtimes.
+  clang libclang-rt-dev
   # The Python module (docs/python.md) targets Debian's interpreter, /usr/bin/python3, where these live;
   # Open3D is the peer its tests and benchmark compare with.
   python3-dev pybind11-dev python3-numpy python3-pytest python3-setuptools python3-pip python3-open3d
