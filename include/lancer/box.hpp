@@ -26,6 +26,11 @@ struct Box3f {
     [[nodiscard]] bool contains(Vec3f p) const {
         return p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z;
     }
+    // Whether `inner` lies inside, faces included; an empty `inner` lies inside any box.
+    [[nodiscard]] bool contains(const Box3f& inner) const {
+        return lo.x <= inner.lo.x && lo.y <= inner.lo.y && lo.z <= inner.lo.z && inner.hi.x <= hi.x &&
+               inner.hi.y <= hi.y && inner.hi.z <= hi.z;
+    }
 };
 
 }  // namespace lancer

@@ -41,12 +41,6 @@ void check_reference_count(std::size_t count) {
            b.lo.z <= a.hi.z;
 }
 
-// Whether `inner` lies inside `outer`, faces included.
-[[nodiscard]] bool box_contains(const Box3f& outer, const Box3f& inner) {
-    return outer.lo.x <= inner.lo.x && outer.lo.y <= inner.lo.y && outer.lo.z <= inner.lo.z &&
-           inner.hi.x <= outer.hi.x && inner.hi.y <= outer.hi.y && inner.hi.z <= outer.hi.z;
-}
-
 }  // namespace
 
 std::array<std::vector<std::uint32_t>, 8> split_references(const Geometry& geometry, const Octree& octree,
@@ -72,9 +66,8 @@ std::array<std::vector<std::uint32_t>, 8> split_references(const Geometry& geome
             for (std::size_t child = 0; child < 8; ++child) {
                 // A primitive whose bounds lie inside the child's box overlaps it: the separating-axis test,
                 // whose margin exceeds its rounding, would accept it too, at ten times the cost.
-                if (box_contains(boxes[child], bounds) ||
-                    (boxes_overlap(bounds, loose[child]) &&
-                     primitive_overlaps_box(geometry, prim, boxes[child])))
+                if (boxes[child].contains(bounds) || (boxes_overlap(bounds, loose[child]) &&
+                                                      primitive_overlaps_box(geometry, prim, boxes[child])))
                     children[child].push_back(prim);
             }
         }

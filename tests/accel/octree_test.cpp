@@ -64,11 +64,6 @@ BuildOptions build_options_with(OctreeOptions octree, TriangleTest test = Triang
     return options;
 }
 
-bool box_contains(const Box3f& outer, const Box3f& inner) {
-    return outer.lo.x <= inner.lo.x && outer.lo.y <= inner.lo.y && outer.lo.z <= inner.lo.z &&
-           outer.hi.x >= inner.hi.x && outer.hi.y >= inner.hi.y && outer.hi.z >= inner.hi.z;
-}
-
 // ---------------------------------------------------------------------------------------------------------
 // Build invariants
 
@@ -79,7 +74,7 @@ TEST(OctreeBuild, ChildrenAreTheOctantsOfTheirParent) {
         const OctreeCell& root = octree.cells[0];
         EXPECT_EQ(root.level, 0);
         EXPECT_EQ(root.x + root.y + root.z, 0);
-        EXPECT_TRUE(box_contains(octree.cell_box(root), scene.geometry().bounds()));
+        EXPECT_TRUE(octree.cell_box(root).contains(scene.geometry().bounds()));
         const Vec3f extent = octree.cell_box(root).extent();
         EXPECT_EQ(extent.x, extent.y);  // a cube
         EXPECT_EQ(extent.y, extent.z);

@@ -38,7 +38,7 @@ std::vector<TestScene> make_scenes() {
     // A ray that meets them tests them all, and one through their shared vertices or edges takes the exact
     // predicate for each, so the test's time grows with their count: the sanitized build holds
     // kSanitizedShare times fewer, as it traces fewer rays (docs/log/ci.md has the timings).
-    constexpr std::size_t kCoincident = 3000 / testing::kSanitizedShare;
+    constexpr std::size_t kCoincident = 1000 / testing::kSanitizedShare;
     TestScene coincident{std::to_string(kCoincident) + " coincident triangles", {}, {}};
     coincident.triangles.assign(kCoincident, Triangle{{0, 0, 0}, {1, 0, 0.5f}, {0, 1, 1}});
     coincident.triangles.push_back({{-1, -1, 2}, {2, -1, 2}, {-1, 2, 2}});

@@ -15,18 +15,18 @@
 namespace lancer::testing {
 namespace {
 
-constexpr std::size_t kCount = 10'007;  // prime: the last block is shorter
+constexpr std::size_t kIndexCount = 10'007;  // prime: the last block is shorter
 
 TEST(ParallelFor, VisitsEveryIndexOnceInFixedBlocks) {
-    std::vector<std::atomic<int>> visits(kCount);
+    std::vector<std::atomic<int>> visits(kIndexCount);
     std::atomic<bool> blocks_fixed = true;
-    parallel_for(kCount, 64, 0, [&](std::size_t first, std::size_t last) {
-        if (first % 64 != 0 || last != std::min(kCount, first + 64)) blocks_fixed = false;
+    parallel_for(kIndexCount, 64, 0, [&](std::size_t first, std::size_t last) {
+        if (first % 64 != 0 || last != std::min(kIndexCount, first + 64)) blocks_fixed = false;
         for (std::size_t i = first; i < last; ++i)
             visits[i].fetch_add(1);
     });
     EXPECT_TRUE(blocks_fixed.load());
-    for (std::size_t i = 0; i < kCount; ++i)
+    for (std::size_t i = 0; i < kIndexCount; ++i)
         ASSERT_EQ(visits[i].load(), 1) << i;
     parallel_for(0, 8, 0, [](std::size_t, std::size_t) { FAIL() << "an empty range ran its body"; });
 }
@@ -64,10 +64,11 @@ TEST(ParallelFor, HonoursTheThreadCap) {
 TEST(ParallelFor, ClampsAThreadCountAboveTheMachineQuietly) {
     ::testing::internal::CaptureStderr();
     std::atomic<std::size_t> visited = 0;
-    parallel_for(kCount, 64, 100'000, [&](std::size_t first, std::size_t last) { visited += last - first; });
-    run_with_threads(100'000, [&] { parallel_for(kCount, 64, 0, [](std::size_t, std::size_t) {}); });
+    parallel_for(kIndexCount, 64, 100'000,
+                 [&](std::size_t first, std::size_t last) { visited += last - first; });
+    run_with_threads(100'000, [&] { parallel_for(kIndexCount, 64, 0, [](std::size_t, std::size_t) {}); });
     EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
-    EXPECT_EQ(visited.load(), kCount);
+    EXPECT_EQ(visited.load(), kIndexCount);
 }
 
 TEST(ParallelFor, RejectsAZeroBlock) {
@@ -78,8 +79,8 @@ TEST(ParallelFor, ABodysExceptionReachesTheCaller) {
     const auto throwing = [](std::size_t first, std::size_t last) {
         if (first <= 5000 && 5000 < last) throw std::out_of_range("index 5000");
     };
-    EXPECT_THROW(parallel_for(kCount, 16, 2, throwing), std::out_of_range);
-    EXPECT_THROW(run_with_threads(2, [&] { parallel_for(kCount, 16, 0, throwing); }), std::out_of_range);
+    EXPECT_THROW(parallel_for(kIndexCount, 16, 2, throwing), std::out_of_range);
+    EXPECT_THROW(run_with_threads(2, [&] { parallel_for(kIndexCount, 16, 0, throwing); }), std::out_of_range);
     try {
         run_with_threads(1, [] { throw std::runtime_error("from the work"); });
         ADD_FAILURE() << "run_with_threads swallowed its work's exception";

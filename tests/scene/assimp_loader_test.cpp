@@ -13,17 +13,15 @@ namespace lancer {
 namespace {
 
 using test::corpus;
+using test::kOrderVertices;
 
-// The six vertices of order.obj.
-const std::vector<Vec3f> kVertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 1}, {2, 0, 0}};
-
-void expect_triangle(const TriangleMesh& mesh, std::size_t index, std::uint32_t a, std::uint32_t b,
-                     std::uint32_t c) {
+void expect_triangle_vertices(const TriangleMesh& mesh, std::size_t index, std::uint32_t a, std::uint32_t b,
+                              std::uint32_t c) {
     ASSERT_LT(index, mesh.triangle_count());
     const Triangle triangle = mesh.triangle(index);
-    EXPECT_EQ(triangle.v0, kVertices[a]) << "triangle " << index;
-    EXPECT_EQ(triangle.v1, kVertices[b]) << "triangle " << index;
-    EXPECT_EQ(triangle.v2, kVertices[c]) << "triangle " << index;
+    EXPECT_EQ(triangle.v0, kOrderVertices[a]) << "triangle " << index;
+    EXPECT_EQ(triangle.v1, kOrderVertices[b]) << "triangle " << index;
+    EXPECT_EQ(triangle.v2, kOrderVertices[c]) << "triangle " << index;
 }
 
 TEST(AssimpLoader, ObjTrianglesComeInFileOrderWithoutLines) {
@@ -32,14 +30,14 @@ TEST(AssimpLoader, ObjTrianglesComeInFileOrderWithoutLines) {
     const TriangleMesh& mesh = scene.meshes[0];
     ASSERT_EQ(mesh.triangle_count(), 7u);
     // 1-based in the file.
-    expect_triangle(mesh, 0, 0, 1, 2);
-    expect_triangle(mesh, 1, 1, 3, 2);
-    expect_triangle(mesh, 2, 3, 4, 5);
-    expect_triangle(mesh, 3, 5, 0, 4);
-    expect_triangle(mesh, 4, 2, 4, 1);
+    expect_triangle_vertices(mesh, 0, 0, 1, 2);
+    expect_triangle_vertices(mesh, 1, 1, 3, 2);
+    expect_triangle_vertices(mesh, 2, 3, 4, 5);
+    expect_triangle_vertices(mesh, 3, 5, 0, 4);
+    expect_triangle_vertices(mesh, 4, 2, 4, 1);
     // The quad, fanned from its first corner.
-    expect_triangle(mesh, 5, 0, 1, 4);
-    expect_triangle(mesh, 6, 0, 4, 3);
+    expect_triangle_vertices(mesh, 5, 0, 1, 4);
+    expect_triangle_vertices(mesh, 6, 0, 4, 3);
     EXPECT_FALSE(scene.camera.has_value());
     EXPECT_GE(scene.materials.size(), 1u);
 }

@@ -17,12 +17,10 @@ namespace lancer {
 namespace {
 
 using test::corpus;
+using test::kOrderVertices;
 
-// The six vertices of order.ply and of the binary files below.
-const std::vector<Vec3f> kVertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 1}, {2, 0, 0}};
-
-void expect_triangle(const TriangleMesh& mesh, std::size_t index, std::uint32_t a, std::uint32_t b,
-                     std::uint32_t c) {
+void expect_triangle_indices(const TriangleMesh& mesh, std::size_t index, std::uint32_t a, std::uint32_t b,
+                             std::uint32_t c) {
     ASSERT_LT(index, mesh.triangle_count());
     EXPECT_EQ(mesh.indices[3 * index], a) << "triangle " << index;
     EXPECT_EQ(mesh.indices[3 * index + 1], b) << "triangle " << index;
@@ -34,21 +32,21 @@ TEST(PlyLoader, AsciiFacesAreFannedInFileOrder) {
     ASSERT_EQ(scene.meshes.size(), 1u);
     const TriangleMesh& mesh = scene.meshes[0];
     EXPECT_EQ(mesh.name, "order");
-    EXPECT_EQ(mesh.positions, kVertices);
+    EXPECT_EQ(mesh.positions, kOrderVertices);
     ASSERT_EQ(mesh.triangle_count(), 6u);
-    expect_triangle(mesh, 0, 0, 1, 2);
-    expect_triangle(mesh, 1, 1, 3, 2);
-    expect_triangle(mesh, 2, 3, 4, 5);  // the quad 3 4 5 0
-    expect_triangle(mesh, 3, 3, 5, 0);
-    expect_triangle(mesh, 4, 5, 0, 4);
-    expect_triangle(mesh, 5, 2, 4, 1);
+    expect_triangle_indices(mesh, 0, 0, 1, 2);
+    expect_triangle_indices(mesh, 1, 1, 3, 2);
+    expect_triangle_indices(mesh, 2, 3, 4, 5);  // the quad 3 4 5 0
+    expect_triangle_indices(mesh, 3, 3, 5, 0);
+    expect_triangle_indices(mesh, 4, 5, 0, 4);
+    expect_triangle_indices(mesh, 5, 2, 4, 1);
     EXPECT_TRUE(mesh.normals.empty());
     EXPECT_EQ(scene.materials.size(), 1u);
     EXPECT_FALSE(scene.camera.has_value());
 }
 
-// A binary PLY of kVertices, with a double-precision vertex colour property and an int8 face property the
-// reader must step over, and the faces (i, i+1, i+2) mod 6 for i = 5 down to 0.
+// A binary PLY of kOrderVertices, with a double-precision vertex colour property and an int8 face property
+// the reader must step over, and the faces (i, i+1, i+2) mod 6 for i = 5 down to 0.
 class BinaryPly {
   public:
     explicit BinaryPly(bool big_endian) : big_endian_(big_endian) {
@@ -56,7 +54,7 @@ class BinaryPly {
                  " 1.0\ncomment made by a test\nelement vertex 6\nproperty float x\nproperty float y\n"
                  "property float z\nproperty double quality\nelement face 6\n"
                  "property list uchar int vertex_indices\nproperty char flags\nend_header\n";
-        for (const Vec3f& p : kVertices)
+        for (const Vec3f& p : kOrderVertices)
             append(p.x), append(p.y), append(p.z), append(0.5);
         for (int i = 5; i >= 0; --i) {
             append(static_cast<std::uint8_t>(3));
@@ -92,11 +90,11 @@ TEST(PlyLoader, BinaryBodiesOfBothByteOrdersGiveTheSameMesh) {
         const Scene scene = load_scene(dir.write(big_endian ? "big.ply" : "little.ply", ply.bytes()));
         ASSERT_EQ(scene.meshes.size(), 1u);
         const TriangleMesh& mesh = scene.meshes[0];
-        EXPECT_EQ(mesh.positions, kVertices);
+        EXPECT_EQ(mesh.positions, kOrderVertices);
         ASSERT_EQ(mesh.triangle_count(), 6u);
         for (std::uint32_t t = 0; t < 6; ++t) {
             const std::uint32_t i = 5 - t;
-            expect_triangle(mesh, t, i, (i + 1) % 6, (i + 2) % 6);
+            expect_triangle_indices(mesh, t, i, (i + 1) % 6, (i + 2) % 6);
         }
     }
 }
@@ -118,7 +116,7 @@ TEST(PlyLoader, ReadsNormalsAndSkipsOtherElements) {
     ASSERT_EQ(mesh.normals.size(), 3u);
     for (const Vec3f& normal : mesh.normals)
         EXPECT_EQ(normal, Vec3f(0.0f, 0.0f, 1.0f));
-    expect_triangle(mesh, 0, 0, 1, 2);
+    expect_triangle_indices(mesh, 0, 0, 1, 2);
 }
 
 TEST(PlyLoader, PlyContentUnderAnotherNameIsStillReadHere) {

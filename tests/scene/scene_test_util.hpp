@@ -8,6 +8,7 @@
 #include <fstream>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "lancer/load_scene.hpp"
 
@@ -18,6 +19,10 @@ namespace fs = std::filesystem;
 inline fs::path corpus(std::string_view name) {
     return fs::path(LANCER_SOURCE_DIR) / "tests/scene/data" / name;
 }
+
+// The six vertices of the corpus's order.obj and order.ply, and of ply_loader_test.cpp's binary PLY files.
+inline const std::vector<Vec3f> kOrderVertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0},
+                                                  {0, 0, 1}, {1, 1, 1}, {2, 0, 0}};
 
 // shared/data, or an empty path when this checkout has no shared data (tests then skip).
 inline fs::path shared_data() {

@@ -39,11 +39,6 @@ BuildOptions with_spatial_splits(int max_leaf_size = 4) {
     return with_builder(BvhBuilder::BinnedSah, max_leaf_size, true);
 }
 
-bool contains(const Box3f& outer, const Box3f& inner) {
-    return outer.lo.x <= inner.lo.x && outer.lo.y <= inner.lo.y && outer.lo.z <= inner.lo.z &&
-           outer.hi.x >= inner.hi.x && outer.hi.y >= inner.hi.y && outer.hi.z >= inner.hi.z;
-}
-
 // Points of a primitive: a triangle's vertices, the middles of its edges and its centroid; a sphere's poles.
 std::vector<Vec3f> points_of(const Geometry& geometry, std::uint32_t prim) {
     if (prim < geometry.triangles.size()) {
@@ -84,14 +79,14 @@ void expect_valid_hierarchy(const BvhAccel& bvh, const Geometry& geometry, int m
                 const std::uint32_t prim = bvh.prim_indices()[k];
                 leaves_of[prim].push_back(static_cast<std::uint32_t>(i));
                 if (!spatial_splits) {
-                    ASSERT_TRUE(contains(node.bounds(), primitive_bounds(geometry, prim))) << "leaf " << i;
+                    ASSERT_TRUE(node.bounds().contains(primitive_bounds(geometry, prim))) << "leaf " << i;
                 }
             }
         } else {
             ASSERT_LT(node.offset, nodes.size());
             ASSERT_GT(node.offset, i + 1);
-            ASSERT_TRUE(contains(node.bounds(), nodes[i + 1].bounds()));
-            ASSERT_TRUE(contains(node.bounds(), nodes[node.offset].bounds()));
+            ASSERT_TRUE(node.bounds().contains(nodes[i + 1].bounds()));
+            ASSERT_TRUE(node.bounds().contains(nodes[node.offset].bounds()));
         }
     }
     for (std::uint32_t prim = 0; prim < geometry.size(); ++prim) {

@@ -25,11 +25,6 @@ namespace {
 
 using testing::knot_triangles;
 
-bool contains(const Box3f& outer, const Box3f& inner) {
-    return outer.lo.x <= inner.lo.x && outer.lo.y <= inner.lo.y && outer.lo.z <= inner.lo.z &&
-           outer.hi.x >= inner.hi.x && outer.hi.y >= inner.hi.y && outer.hi.z >= inner.hi.z;
-}
-
 bool is_inverted(const Box3f& box) {
     return box.lo.x == kInfinity && box.lo.y == kInfinity && box.lo.z == kInfinity &&
            box.hi.x == -kInfinity && box.hi.y == -kInfinity && box.hi.z == -kInfinity;
@@ -57,7 +52,7 @@ void expect_valid_leaf(const WideBvhAccel<W>& bvh, const Geometry& geometry, std
         }
         ASSERT_LT(prim, geometry.size());
         ++seen[prim];
-        ASSERT_TRUE(contains(box, primitive_bounds(geometry, prim)));
+        ASSERT_TRUE(box.contains(primitive_bounds(geometry, prim)));
         if (prim < geometry.triangles.size()) {
             const Triangle copy = block.triangle(lane), &tri = geometry.triangles[prim];
             ASSERT_TRUE(copy.v0 == tri.v0 && copy.v1 == tri.v1 && copy.v2 == tri.v2) << "primitive " << prim;
@@ -94,7 +89,7 @@ void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geo
                 const WideBvhNode<W>& child = nodes[node.child[slot]];
                 for (int child_slot = 0; child_slot < W; ++child_slot) {
                     if (child.is_empty(child_slot)) continue;
-                    ASSERT_TRUE(contains(box, child.child_bounds(child_slot)));
+                    ASSERT_TRUE(box.contains(child.child_bounds(child_slot)));
                 }
             }
         }

@@ -9,6 +9,7 @@
 #include <limits>
 #include <memory>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -103,11 +104,38 @@ struct Verdict {
     }
 };
 
+// The nearest exact hit of a ray in the flattened scene that every structure must find: well inside a
+// triangle, not grazing, well inside [tnear, tfar]; t is infinite when there is none.
+struct ExactNearest {
+    double t = std::numeric_limits<double>::infinity();
+    double bound = 0.0;  // t_bound at that hit
+};
+
+std::vector<ExactNearest> exact_nearest_hits(const FlatScene& flat, std::span<const Ray> rays) {
+    std::vector<ExactNearest> nearest(rays.size());
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        const Ray& ray = rays[i];
+        if (!is_valid(ray)) continue;
+        const Vec3d o(ray.origin), d(ray.direction);
+        for (const FlatScene::Placed& placed : flat.triangles) {
+            PlaneHit exact;
+            if (!plane_hit(o, d, placed.v0, placed.v1, placed.v2, exact)) continue;
+            // A hit beyond the float range is none (docs/numerical-contract.md, "Ray conditioning").
+            if (exact.cosine < 1e-3 || exact.t > std::numeric_limits<float>::max()) continue;
+            const double bound = t_bound(flat, placed, ray, exact.t, exact.cosine);
+            if (exact.edge_distance() < barycentric_bound(placed, bound * length(d))) continue;
+            if (exact.t < double(ray.tnear) + bound || exact.t > double(ray.tfar) - bound) continue;
+            if (exact.t < nearest[i].t) nearest[i] = {exact.t, bound};
+        }
+    }
+    return nearest;
+}
+
 // Every answer of `scene` held to the flattened scene: a reported hit lies on its triangle (barycentrics
 // within kEdgeMargin) at the exact t within the bound, and no exact hit well inside a triangle lies nearer
-// than it by more than the bound (nor is missed).
+// than it by more than the bound (`nearest`, of exact_nearest_hits), nor is missed.
 Verdict check_against_flat(const InstancedScene& scene, const Fixture& fixture, const FlatScene& flat,
-                           std::span<const Ray> rays) {
+                           std::span<const Ray> rays, std::span<const ExactNearest> nearest) {
     std::vector<InstanceHit> hits(rays.size());
     scene.intersect(rays, hits);
     std::vector<std::uint8_t> occluded(rays.size());
@@ -156,25 +184,13 @@ Verdict check_against_flat(const InstancedScene& scene, const Fixture& fixture, 
             if (std::fabs(hit.u - exact.u) > bary || std::fabs(hit.v - exact.v) > bary)
                 verdict.fail(i, "barycentrics off the exact ones");
         }
-        // The nearest exact hit well inside a triangle, not grazing, well inside [tnear, tfar].
-        double nearest = std::numeric_limits<double>::infinity(), nearest_bound = 0.0;
-        for (const FlatScene::Placed& placed : flat.triangles) {
-            PlaneHit exact;
-            if (!plane_hit(o, d, placed.v0, placed.v1, placed.v2, exact)) continue;
-            // A hit beyond the float range is none (docs/numerical-contract.md, "Ray conditioning").
-            if (exact.cosine < 1e-3 || exact.t > std::numeric_limits<float>::max()) continue;
-            const double bound = t_bound(flat, placed, ray, exact.t, exact.cosine);
-            if (exact.edge_distance() < barycentric_bound(placed, bound * length(d))) continue;
-            if (exact.t < double(ray.tnear) + bound || exact.t > double(ray.tfar) - bound) continue;
-            if (exact.t < nearest) nearest = exact.t, nearest_bound = bound;
-        }
-        if (nearest == std::numeric_limits<double>::infinity()) continue;
+        if (nearest[i].t == std::numeric_limits<double>::infinity()) continue;
         ++verdict.checked_misses;
         if (!hit.hit()) {
-            verdict.fail(i, "missed an exact hit at t = " + std::to_string(nearest));
-        } else if (hit.t > nearest + nearest_bound) {
+            verdict.fail(i, "missed an exact hit at t = " + std::to_string(nearest[i].t));
+        } else if (hit.t > nearest[i].t + nearest[i].bound) {
             verdict.fail(i, "hit at t = " + std::to_string(hit.t) + " behind an exact hit at " +
-                                std::to_string(nearest));
+                                std::to_string(nearest[i].t));
         }
     }
     return verdict;
@@ -185,17 +201,40 @@ class InstancedOracle : public ::testing::TestWithParam<Case> {};
 // Every object structure, both triangle tests: random rays, axis-parallel and zero-component rays, clipped
 // intervals, NaN and other invalid rays, rays from inside instances and grazing rays, all against the scene
 // flattened in double.
-TEST_P(InstancedOracle, EveryHitWithinTheBoundOfTheFlattenedScene) {
-    const Fixture fixture = random_fixture(5, 24);
-    const FlatScene flat = flatten(fixture);
-    const InstancedScene scene = make_scene(fixture, GetParam().accel, GetParam().test);
-    const Box3f bounds = scene.bounds();
+// The fixture, its flattened scene, the ray sets over the scene's bounds and their exact nearest hits: the
+// same for every case, so made once (the cases run in one process: ONE_PROCESS in
+// tests/accel/CMakeLists.txt).
+struct OracleRays {
+    Fixture fixture = random_fixture(5, 24);
+    FlatScene flat = flatten(fixture);
+    Box3f bounds = make_scene(fixture, "bvh", TriangleTest::Watertight).bounds();
     std::vector<RaySet> sets = {testing::random_rays(bounds, 1500, 1),
                                 testing::axis_parallel_rays(bounds, 600, 2),
                                 testing::clipped_rays(bounds, 600, 3), testing::hostile_rays(bounds),
                                 inside_and_grazing_rays(fixture, flat, 600, 4)};
-    for (const RaySet& set : sets) {
-        const Verdict verdict = check_against_flat(scene, fixture, flat, set.rays);
+    std::vector<std::vector<ExactNearest>> nearest;  // by set
+
+    OracleRays() {
+        for (const RaySet& set : sets)
+            nearest.push_back(exact_nearest_hits(flat, set.rays));
+    }
+};
+
+const OracleRays& oracle_rays() {
+    static const OracleRays rays;
+    return rays;
+}
+
+TEST_P(InstancedOracle, EveryHitWithinTheBoundOfTheFlattenedScene) {
+    const OracleRays& oracle = oracle_rays();
+    const InstancedScene scene = make_scene(oracle.fixture, GetParam().accel, GetParam().test);
+    // The instances' boxes, hence the rays, do not depend on the object's structure.
+    ASSERT_EQ(scene.bounds().lo, oracle.bounds.lo);
+    ASSERT_EQ(scene.bounds().hi, oracle.bounds.hi);
+    for (std::size_t k = 0; k < oracle.sets.size(); ++k) {
+        const RaySet& set = oracle.sets[k];
+        const Verdict verdict =
+            check_against_flat(scene, oracle.fixture, oracle.flat, set.rays, oracle.nearest[k]);
         std::printf("%s %s: %zu rays, %zu hits, %zu exact hits checked\n",
                     std::string(GetParam().accel).c_str(), set.name.c_str(), verdict.rays, verdict.hits,
                     verdict.checked_misses);
