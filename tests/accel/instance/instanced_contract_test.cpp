@@ -198,9 +198,6 @@ Verdict check_against_flat(const InstancedScene& scene, const Fixture& fixture, 
 
 class InstancedOracle : public ::testing::TestWithParam<Case> {};
 
-// Every object structure, both triangle tests: random rays, axis-parallel and zero-component rays, clipped
-// intervals, NaN and other invalid rays, rays from inside instances and grazing rays, all against the scene
-// flattened in double.
 // The fixture, its flattened scene, the ray sets over the scene's bounds and their exact nearest hits: the
 // same for every case, so made once (the cases run in one process: ONE_PROCESS in
 // tests/accel/CMakeLists.txt).
@@ -225,6 +222,9 @@ const OracleRays& oracle_rays() {
     return rays;
 }
 
+// Every object structure, both triangle tests: random rays, axis-parallel and zero-component rays, clipped
+// intervals, NaN and other invalid rays, rays from inside instances and grazing rays, all against the scene
+// flattened in double.
 TEST_P(InstancedOracle, EveryHitWithinTheBoundOfTheFlattenedScene) {
     const OracleRays& oracle = oracle_rays();
     const InstancedScene scene = make_scene(oracle.fixture, GetParam().accel, GetParam().test);
