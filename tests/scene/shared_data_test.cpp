@@ -389,9 +389,7 @@ TEST_F(SharedSpd, EverySceneLoadsWithTheReadmeCountsAndView) {
         const Box3f bounds = scene.bounds();
         const float tolerance = 1e-5f * length(facts.hi - facts.lo);
         if (facts.has_cones) {
-            EXPECT_TRUE(bounds.lo.x >= facts.lo.x - tolerance && bounds.lo.y >= facts.lo.y - tolerance &&
-                        bounds.lo.z >= facts.lo.z - tolerance && bounds.hi.x <= facts.hi.x + tolerance &&
-                        bounds.hi.y <= facts.hi.y + tolerance && bounds.hi.z <= facts.hi.z + tolerance);
+            EXPECT_TRUE((Box3f{facts.lo, facts.hi}.grown(tolerance).contains(bounds)));
         } else {
             expect_near(bounds.lo, facts.lo, tolerance, "lo");
             expect_near(bounds.hi, facts.hi, tolerance, "hi");
