@@ -10,6 +10,7 @@
 #include <iterator>
 #include <limits>
 
+#include "lancer/ray.hpp"
 #include "lancer/vec.hpp"
 
 namespace lancer::fuzz {
@@ -55,6 +56,16 @@ inline float next_float(FuzzedDataProvider& input) {
 inline Vec3f next_vec(FuzzedDataProvider& input) {
     const float x = next_float(input), y = next_float(input);
     return {x, y, next_float(input)};
+}
+
+// A ray of such floats: origin, direction, tnear, then tfar = +inf or one more float.
+inline Ray next_ray(FuzzedDataProvider& input) {
+    Ray ray;
+    ray.origin = next_vec(input);
+    ray.direction = next_vec(input);
+    ray.tnear = next_float(input);
+    ray.tfar = input.ConsumeBool() ? kInfinity : next_float(input);
+    return ray;
 }
 
 }  // namespace lancer::fuzz

@@ -104,6 +104,30 @@ def rays_seed(triangles, rays) -> bytes:
     return bytes(reversed(consumed))
 
 
+def instances_seed() -> bytes:
+    """instances_fuzz's input: a unit quad (two triangles sharing an edge) placed three times (turned about
+    z, side by side, the third a copy of the second: a tie), the first moved up after the first trace, a
+    camera tile aimed at the first quad's centre, shadow rays towards a light above, and three raw rays
+    along the quads' edges and through a vertex. Every value a multiple of 1/16 in [-5, 5) (one tag byte),
+    the bytes in consumption order, reversed (FuzzedDataProvider takes integers from the end)."""
+    def tags(*values) -> list:
+        return [round(v * 16) + 80 for v in values]
+    placed = lambda axis, angle, scale, offset: [0] + tags(*axis, angle, *scale, *offset)  # structured
+    consumed = [0, 1]                                                    # one object of two triangles
+    consumed += tags(0, 0, 0, 1, 0, 0, 1, 1, 0)
+    consumed += [0] + tags(0, 0, 0, 1, 1, 0, 0, 1, 0)                    # its own first vertex
+    consumed += [2]                                                      # three instances
+    consumed += placed((0, 0, 1), 0.5, (1, 1, 1), (-2, 0, 0))
+    consumed += [1] + placed((0, 0, 1), 0, (1, 1, 1), (1, 0, 0))
+    consumed += [0]                                                      # a copy of the second
+    consumed += [1] + placed((0, 0, 1), 0.5, (1, 1, 1), (-2, 1, 0))      # the first moved
+    consumed += tags(-1.5, 0.5, 4, -1.5, 0.5, 0, 0.0625) + [1, 1]        # the camera tile
+    consumed += tags(0, 4, 3, -3, 0.25, -0.5, 0.25, 0, 0.125)           # the shadow tile
+    for origin, direction in (((0.5, 0.5, 1), (0, 0, -1)), ((1, 1, 1), (0, 0, -1)), ((-3, 0, 0), (1, 0, 0))):
+        consumed += tags(*origin, *direction, 0) + [1]
+    return bytes(reversed(consumed))
+
+
 MESH_RAYS_SCENES = 5  # the fixed scenes of mesh_rays_fuzz.cpp, in its order
 
 
@@ -169,6 +193,7 @@ def main() -> None:
              ([-1, 0.5, 0], [1, 0, 0], 0, None),      # in the plane of the quad
              ([0.5, 0.5, 1], [0, 0, -1], 2, 1)]       # tnear > tfar
     write(out / "rays_fuzz", "quad", rays_seed(quad, aimed))
+    write(out / "instances_fuzz", "quads", instances_seed())
     for scene in range(MESH_RAYS_SCENES):
         for triangle in range(0, 1280, 97):
             write(out / "mesh_rays_fuzz", "scene%d_%d" % (scene, triangle), mesh_rays_seed(scene, triangle))

@@ -53,12 +53,7 @@ FuzzScene next_scene(FuzzedDataProvider& input) {
             scene.spheres.push_back(sphere);
     }
     while (scene.rays.size() < 32 && input.remaining_bytes() > 0) {
-        Ray ray;
-        ray.origin = next_vec(input);
-        ray.direction = next_vec(input);
-        ray.tnear = next_float(input);
-        ray.tfar = input.ConsumeBool() ? kInfinity : next_float(input);
-        scene.rays.push_back(ray);
+        scene.rays.push_back(next_ray(input));
     }
     return scene;
 }

@@ -12,7 +12,7 @@ usage() {
     exit 2
 }
 
-ALL_HARNESSES=(off_fuzz dsc_fuzz nff_fuzz ply_fuzz obj_fuzz plo_fuzz rays_fuzz mesh_rays_fuzz)
+ALL_HARNESSES=(off_fuzz dsc_fuzz nff_fuzz ply_fuzz obj_fuzz plo_fuzz rays_fuzz mesh_rays_fuzz instances_fuzz)
 [[ $# -ge 1 && $1 =~ ^[0-9]+$ && $1 -gt 0 ]] || usage
 seconds=$1
 shift

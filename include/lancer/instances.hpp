@@ -55,7 +55,8 @@ class InstancedScene {
     InstancedScene& operator=(InstancedScene&&) noexcept;
 
     // An object from a built structure (any Accel; a packet structure is traced through the single-ray
-    // structure it holds, one ray per instance visit). The caller keeps the geometry it was built on alive
+    // structure it holds, one ray per instance visit, or through its own calls for a scene outside the
+    // ordinary size range, which it holds scaled). The caller keeps the geometry it was built on alive
     // and unchanged, as for the structure itself. Returns the object's id, 0, 1, 2, ... Throws
     // std::invalid_argument for a null or unbuilt (empty) structure.
     std::uint32_t add_object(std::shared_ptr<const Accel> structure);

@@ -276,8 +276,11 @@ std::uint32_t InstancedScene::add_object(std::shared_ptr<const Accel> structure)
                                     "' is unbuilt or has nothing that can be hit");
     }
     ObjectRecord object;
+    // A packet structure is traced through the single-ray structure it holds, which holds the geometry at the
+    // packet structure's scale (Accel::built_geometry) and sees it at scale 1: for a scene outside the
+    // ordinary size range, the packet structure itself, which scales the rays, is the one traced.
     const Accel* single_ray = structure->exported_layout().single_ray;
-    object.traced = single_ray != nullptr ? single_ray : structure.get();
+    object.traced = single_ray != nullptr && structure->scale_exponent() == 0 ? single_ray : structure.get();
     object.walk = object.traced->single_ray_walk();
     object.primitives = structure->stats().primitives;
     const Box3f& object_bounds = object.traced->bounds();
