@@ -59,7 +59,7 @@ inline Vec3f next_vec(FuzzedDataProvider& input) {
 }
 
 // A ray of such floats: origin, direction, tnear, then tfar = +inf or one more float.
-inline Ray next_ray(FuzzedDataProvider& input) {
+inline Ray next_any_ray(FuzzedDataProvider& input) {
     Ray ray;
     ray.origin = next_vec(input);
     ray.direction = next_vec(input);

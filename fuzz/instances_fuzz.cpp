@@ -114,7 +114,7 @@ FuzzInstances next_input(FuzzedDataProvider& input) {
     scene.shadow_from = next_vec(input);
     scene.shadow_step = next_vec(input);
     while (scene.raw_rays.size() < 24 && input.remaining_bytes() > 0) {
-        scene.raw_rays.push_back(next_ray(input));
+        scene.raw_rays.push_back(next_any_ray(input));
     }
     return scene;
 }

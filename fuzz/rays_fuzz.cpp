@@ -53,7 +53,7 @@ FuzzScene next_scene(FuzzedDataProvider& input) {
             scene.spheres.push_back(sphere);
     }
     while (scene.rays.size() < 32 && input.remaining_bytes() > 0) {
-        scene.rays.push_back(next_ray(input));
+        scene.rays.push_back(next_any_ray(input));
     }
     return scene;
 }

@@ -240,8 +240,11 @@ class Accel {
     void accept_geometry(const Geometry& geometry);
     // The box of built_geometry's primitives that can be hit: the one a structure derives its own sizes from.
     [[nodiscard]] const Box3f& built_bounds() const { return built_bounds_; }
-    // update() of a structure this one is made of (a packet structure's single-ray one), on geometry that
-    // update() has checked.
+    // build() of a structure this one is made of (a packet structure's single-ray one) on this one's built
+    // geometry, which it sees at scale 1 as it sees the rays this one scales: a scale of its own, derived
+    // from that geometry's box, would differ from 1 where the scaling left a sphere too small to hit.
+    void build_held(Accel& held, const Geometry& geometry, const BuildOptions& options) const;
+    // update() of such a held structure, on geometry that update() has checked.
     UpdateReport update_held(Accel& held, const Geometry& geometry) const;
     // The layout of a structure this one is made of, which it traces as it is.
     [[nodiscard]] static ExportedLayout layout_of(const Accel& held) { return held.exported_layout(); }

@@ -109,6 +109,15 @@ UpdateReport Accel::update_within(const Geometry& geometry, const Box3f& bounds)
     return report;
 }
 
+void Accel::build_held(Accel& held, const Geometry& geometry, const BuildOptions& options) const {
+    held.bounds_ = built_bounds_;
+    held.triangle_count_ = geometry.triangles.size();
+    held.sphere_count_ = geometry.spheres.size();
+    held.scale_exponent_ = 0;
+    held.make_built_geometry(geometry);
+    held.build_structure(held.built_geometry_, options);
+}
+
 UpdateReport Accel::update_held(Accel& held, const Geometry& geometry) const {
     // The held structure was built on this one's built geometry, at scale 1.
     held.bounds_ = built_bounds_, held.built_bounds_ = built_bounds_;

@@ -17,7 +17,7 @@ class PacketAccel : public Accel {
 
   protected:
     void build_structure(const Geometry& geometry, const BuildOptions& options) override {
-        single_ray_.build(geometry, options);
+        build_held(single_ray_, geometry, options);
         geometry_ = geometry;
         triangle_test_ = options.triangle_test;
     }

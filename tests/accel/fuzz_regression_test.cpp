@@ -280,6 +280,22 @@ TEST(FuzzRegression, NegativeTnearFindsTheHitBehindTheOrigin) {
     }
 }
 
+// Finding 32 (docs/robustness.md): a scene 1.2e14 wide is held at scale 2^-47, where a sphere of radius
+// FLT_MIN shrinks to nothing, is never hit and leaves the scaled box. A packet structure built its
+// single-ray structure through build(), which derived a scale of its own (2^44) from that smaller box: its
+// kernels walked a copy at another scale than the rays, and bvh8_packet and plucker_packet missed the
+// triangle behind the ray's origin. Every structure finds it at t = -5/3.
+TEST(FuzzRegression, PacketStructuresHoldTheirSceneAtTheRaysScale) {
+    const TestScene scene{"a sphere that scaling shrinks to nothing",
+                          {{{0, 0, 1}, {1, -5, -5}, {-5, -5, -5}}},
+                          {{{-0x1.adacap+46f, 1, 0x1p-126f}, 0x1p-126f}}};
+    const std::vector<Ray> rays = {{{0x1p-126f, 0x1p-126f, 0x1p-126f}, {0, 0.5f, 0}, -0x1.3cp+2f, 1}};
+    for (const std::vector<Hit>& expected : expect_every_structure_agrees(scene, rays)) {
+        EXPECT_EQ(expected[0].prim, 0);
+        EXPECT_FLOAT_EQ(expected[0].t, -5.0f / 3.0f);
+    }
+}
+
 // Finding 20's point: the vertex at t = -1 is found, not missed (the check above would pass on misses).
 TEST(FuzzRegression, OriginAtFloatMaxFindsTheVertexOnItsLine) {
     const std::vector<FuzzCase> cases = fuzz_cases();
