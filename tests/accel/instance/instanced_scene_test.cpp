@@ -320,11 +320,13 @@ TEST(InstancedScene, EveryStructureServesAsAnObject) {
 // first here). Each structure's instances answer as brute force's, a huge object's and a tiny one's.
 TEST(InstancedScene, ObjectsOutsideTheOrdinarySizeRangeAnswerAsBruteForce) {
     struct Case {
+        const char* name;
         std::vector<Vec3f> positions;
         Transform placement;
         std::vector<Ray> rays;
     };
     std::vector<Case> cases(2);
+    cases[0].name = "a triangle reaching 1.5e10";
     cases[0].positions = {{0.0f, 0.0f, 0.0f},           {1.0f, 0.0f, 0.0f},        {1.0f, 1.0f, 0.0f},
                           {0.0f, 0x1.c0c0ap+33f, 0.0f}, {1.0f, 0.0f, -0x1.38p+2f}, {-0x1.4p+2f, 0.0f, 0.0f}};
     const float rotation[3][4] = {{0x1.c9f338p-5f, 0x1.fe7afcp-1f, -0x1.b1a3p-5f, -0x1.4p+2f},
@@ -334,6 +336,7 @@ TEST(InstancedScene, ObjectsOutsideTheOrdinarySizeRangeAnswerAsBruteForce) {
     cases[0].rays = {{{-0x1.ap+3f, -0x1p+1f, 1.0f}, {0x1.ap+3f, 0x1.8p+1f, -0x1p-1f}, 0.0f, 0x1.fff2e4p-1f}};
     // A quad 2^-24 wide, placed 2^20 times larger, and rays through it on a grid.
     const float side = 0x1p-24f;
+    cases[1].name = "a quad 2^-24 wide";
     cases[1].positions = {{0.0f, 0.0f, 0.0f}, {side, 0.0f, 0.0f}, {side, side, 0.0f},
                           {0.0f, 0.0f, 0.0f}, {side, side, 0.0f}, {0.0f, side, 0.0f}};
     cases[1].placement = Transform::translation({1.0f, 0.0f, 0.0f}) * Transform::scaling(Vec3f(0x1p20f));
@@ -359,7 +362,7 @@ TEST(InstancedScene, ObjectsOutsideTheOrdinarySizeRangeAnswerAsBruteForce) {
             const InstancedScene reference = make("brute");
             std::vector<InstanceHit> expected(c.rays.size());
             reference.intersect(c.rays, expected);
-            EXPECT_EQ(std::ranges::count_if(expected, &InstanceHit::hit), std::ssize(c.rays));
+            EXPECT_EQ(std::ranges::count_if(expected, &InstanceHit::hit), std::ssize(c.rays)) << c.name;
             for (const std::string_view name : accel_names()) {
                 if (name == "brute" || name.starts_with("embree")) continue;
                 const InstancedScene scene = make(name);
@@ -368,8 +371,8 @@ TEST(InstancedScene, ObjectsOutsideTheOrdinarySizeRangeAnswerAsBruteForce) {
                 std::vector<std::uint8_t> occluded(c.rays.size());
                 scene.occluded(c.rays, occluded);
                 EXPECT_EQ(disagreements(expected, hits, occluded), 0u)
-                    << name << ", " << (test == TriangleTest::Watertight ? "watertight" : "moller") << ", "
-                    << c.positions.size() / 3 << " triangles";
+                    << c.name << ", " << name << ", "
+                    << (test == TriangleTest::Watertight ? "watertight" : "moller");
             }
         }
     }
