@@ -213,36 +213,38 @@ Answers trace_and_check(const Built& built, std::span<const Ray> rays, const std
     scene.intersect(rays, batch.hits);
     scene.occluded(rays, batch.occluded);
     for (std::size_t i = 0; i < rays.size(); ++i) {
-        const std::string ray = who + ", ray " + std::to_string(i) + ": ";
+        // The message is made only for a finding: an input checks over a thousand answers.
+        const auto fail = [&](std::string_view what) {
+            finding(who + ", ray " + std::to_string(i) + ": " + std::string(what));
+        };
         InstanceHit alone;
         std::uint8_t occluded_alone = 2;
         scene.intersect(rays.subspan(i, 1), {&alone, 1});
         scene.occluded(rays.subspan(i, 1), {&occluded_alone, 1});
-        if (!same_hit(alone, batch.hits[i])) finding(ray + "its closest hit in a batch is not its hit alone");
-        if (occluded_alone != batch.occluded[i])
-            finding(ray + "its occlusion in a batch is not its own alone");
+        if (!same_hit(alone, batch.hits[i])) fail("its closest hit in a batch is not its hit alone");
+        if (occluded_alone != batch.occluded[i]) fail("its occlusion in a batch is not its own alone");
         const InstanceHit& hit = batch.hits[i];
-        if (batch.occluded[i] > 1) finding(ray + "occlusion is neither 0 nor 1");
+        if (batch.occluded[i] > 1) fail("occlusion is neither 0 nor 1");
         if (!is_valid(rays[i])) {
-            if (hit.hit() || batch.occluded[i] != 0) finding(ray + "an invalid ray found something");
+            if (hit.hit() || batch.occluded[i] != 0) fail("an invalid ray found something");
             continue;
         }
-        if ((batch.occluded[i] != 0) != hit.hit()) finding(ray + "occluded is not 'has a closest hit'");
+        if ((batch.occluded[i] != 0) != hit.hit()) fail("occluded is not 'has a closest hit'");
         if (!hit.hit()) {
             if (hit.t != kInfinity || hit.prim != -1 || hit.instance != -1 || hit.object != -1)
-                finding(ray + "a miss is not (t = +inf, prim = instance = object = -1)");
+                fail("a miss is not (t = +inf, prim = instance = object = -1)");
             continue;
         }
         if (hit.instance < 0 || static_cast<std::size_t>(hit.instance) >= accepted.size() ||
             !accepted[static_cast<std::size_t>(hit.instance)])
-            finding(ray + "a hit names instance " + std::to_string(hit.instance) + ", not a live one");
+            fail("a hit names instance " + std::to_string(hit.instance) + ", not a live one");
         if (static_cast<std::uint32_t>(hit.object) !=
             scene.object_of(static_cast<std::uint32_t>(hit.instance)))
-            finding(ray + "a hit names another object than its instance's");
+            fail("a hit names another object than its instance's");
         if (static_cast<std::size_t>(hit.prim) >= built.triangle_counts[static_cast<std::size_t>(hit.object)])
-            finding(ray + "a hit names a primitive its object does not hold");
+            fail("a hit names a primitive its object does not hold");
         if (!std::isfinite(hit.t) || hit.t < rays[i].tnear || hit.t > rays[i].tfar)
-            finding(ray + "a hit's t lies outside [tnear, tfar]");
+            fail("a hit's t lies outside [tnear, tfar]");
     }
     return batch;
 }

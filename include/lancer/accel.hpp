@@ -164,7 +164,8 @@ struct ExportedLayout {
     const BvhAccel* bvh = nullptr;
     const plucker::PluckerLayout* plucker = nullptr;
     // A packet structure's single-ray structure, whose arrays its packets trace as they are (bvh8_packet's
-    // bvh8): what GeometryQueries walks for the packet structure.
+    // bvh8): what GeometryQueries walks for the packet structure. It holds the packet structure's built
+    // geometry at scale 1, so rays reach it conditioned at the packet structure's scale_exponent().
     const Accel* single_ray = nullptr;
 };
 

@@ -1,6 +1,6 @@
-// The instance tests' shared fixture (instanced_contract_test.cpp, instanced_scene_test.cpp): objects placed
-// by random transforms, the same scene flattened in double precision, the InstancedScene built over it, and
-// rays that start inside instances or graze their triangles.
+// The instance tests' shared fixture (instanced_contract_test.cpp, instanced_scene_test.cpp,
+// object_structures_test.cpp): objects placed by random transforms, the same scene flattened in double
+// precision, the InstancedScene built over it, and rays that start inside instances or graze their triangles.
 #pragma once
 
 #include <gtest/gtest.h>
