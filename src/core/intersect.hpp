@@ -309,38 +309,41 @@ struct Watertight {
         return true;
     }
 
-    // A ray within the slack of an edge, from the exact signs of its three edge functions: they decide, t
-    // is where the line meets the triangle's plane and u, v are edge functions in double clamped to those
-    // signs, all rounded to float once.
+    // A ray within the slack of an edge, from the exact signs of its three edge functions: they decide; the
+    // edge functions are recomputed in double from vertices sheared in double and clamped to those signs,
+    // and they weigh the vertices' depths into t, all rounded to float once. That t is a convex combination
+    // of the depths, on the triangle however the weights round; the plane's t, n . (v0 - o) / n . d,
+    // divides two cancellations on a grazing line and can land anywhere on it (docs/numerical-contract.md).
     LANCER_HOST_DEVICE static bool intersect_exactly(const RayData& ray, const Triangle& tri, int side0,
                                                      int side1, int side2, float tnear, float tfar,
                                                      TriangleHit& out) {
         if ((side0 < 0 || side1 < 0 || side2 < 0) && (side0 > 0 || side1 > 0 || side2 > 0)) return false;
         // Three zeros: the line lies in the triangle's plane, or the triangle is degenerate.
         if (side0 == 0 && side1 == 0 && side2 == 0) return false;
-        const Vec3d origin(ray.origin), direction(ray.direction), v0(tri.v0);
-        const Vec3d normal = cross(Vec3d(tri.v1) - v0, Vec3d(tri.v2) - v0);
-        // A line that crosses the triangle is not parallel to it; a denominator that rounds to zero (a
-        // grazing angle below about 2^-53) gives an infinite or NaN t, rejected below.
-        const auto t = static_cast<float>(dot(normal, v0 - origin) / dot(normal, direction));
-        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
-        auto sheared_in_double = [&](const Vec3f& vertex) {
-            const Vec3d relative = Vec3d(vertex) - origin;
-            const std::array<double, 3> r = {relative.x, relative.y, relative.z};
-            const std::array<float, 3> d = as_array(ray.direction);
-            return std::array<double, 2>{r[ray.kx] - double(d[ray.kx]) / d[ray.kz] * r[ray.kz],
-                                         r[ray.ky] - double(d[ray.ky]) / d[ray.kz] * r[ray.kz]};
+        const std::array<float, 3> d = as_array(ray.direction);
+        const double shear_x = double(d[ray.kx]) / d[ray.kz], shear_y = double(d[ray.ky]) / d[ray.kz];
+        // (x, y) sheared into ray space and the depth z / d[kz], the vertex at origin + depth * direction
+        // when it lies on the line.
+        struct RaySpace {
+            double x, y, depth;
         };
-        const std::array<double, 2> a = sheared_in_double(tri.v0), b = sheared_in_double(tri.v1),
-                                    c = sheared_in_double(tri.v2);
+        auto to_ray_space = [&](const Vec3f& vertex) {
+            const Vec3d relative = Vec3d(vertex) - Vec3d(ray.origin);
+            const std::array<double, 3> r = {relative.x, relative.y, relative.z};
+            return RaySpace{r[ray.kx] - shear_x * r[ray.kz], r[ray.ky] - shear_y * r[ray.kz],
+                            r[ray.kz] / d[ray.kz]};
+        };
+        const RaySpace a = to_ray_space(tri.v0), b = to_ray_space(tri.v1), c = to_ray_space(tri.v2);
         // An edge function whose double sign differs from the exact one is rounding noise around zero.
         auto clamped = [](double w, int side) {
             return (w > 0.0 && side > 0) || (w < 0.0 && side < 0) ? w : 0.0;
         };
-        double e0 = clamped(b[0] * c[1] - b[1] * c[0], side0), e1 = clamped(c[0] * a[1] - c[1] * a[0], side1),
-               e2 = clamped(a[0] * b[1] - a[1] * b[0], side2);
+        double e0 = clamped(b.x * c.y - b.y * c.x, side0), e1 = clamped(c.x * a.y - c.y * a.x, side1),
+               e2 = clamped(a.x * b.y - a.y * b.x, side2);
         if (e0 + e1 + e2 == 0.0) e0 = side0, e1 = side1, e2 = side2;  // each a corner's share, at worst
         const double det = e0 + e1 + e2;
+        const auto t = static_cast<float>((e0 * a.depth + e1 * b.depth + e2 * c.depth) / det);
+        if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
         out = {t, static_cast<float>(e1 / det), static_cast<float>(e2 / det)};
         return true;
     }
