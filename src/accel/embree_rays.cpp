@@ -31,6 +31,11 @@ namespace {
 // Embree asserts that coordinates stay below FLT_LARGE (1.8e18): an origin beyond 2^60 (a far ray that ray
 // conditioning could not move near the scene) is outside Embree's domain and answered as a miss.
 constexpr float kEmbreeLargest = 0x1p60f;
+// Embree replaces a zero direction component's reciprocal by 1e18 (rcp_safe) and takes any other's as it is.
+// A component below 2^-59 thus gives a reciprocal beyond Embree's own bound, whose products with coordinates
+// overflow its slab and frustum tests: its 8- and 16-ray calls and its streams then skipped boxes the ray
+// crosses and, under the COHERENT flag, aborted on an empty child (docs/robustness.md, finding 34).
+constexpr float kEmbreeSmallestComponent = 0x1p-59f;
 // Embree runs with denormals read as zero (below), so a denormal tnear or tfar is 0 to it: a hit may come
 // back behind the caller's tnear, or for an empty interval. Such rays go through to_embree, whose interval
 // test and t clamp do not rest on float comparisons. Told from the bits, since the tests below run in that
@@ -39,6 +44,13 @@ constexpr std::uint32_t kMagnitudeBits = 0x7fffffffu, kSmallestNormalBits = 0x00
 bool zero_or_normal(float x) {
     const std::uint32_t magnitude = std::bit_cast<std::uint32_t>(x) & kMagnitudeBits;
     return magnitude == 0 || magnitude >= kSmallestNormalBits;
+}
+
+// A direction component Embree takes as it is: 0 or at least kEmbreeSmallestComponent. Without a branch
+// (both comparisons evaluated), so that fill_from_packet's loop still vectorizes.
+bool usable_component(float component) {
+    return static_cast<bool>(static_cast<int>(component == 0.0f) |
+                             static_cast<int>(std::fabs(component) >= kEmbreeSmallestComponent));
 }
 
 // The floats' order as integers, +0 and -0 alike (NaN excluded).
@@ -55,23 +67,27 @@ float in_interval(float t, float tnear, float tfar) {
 }
 
 // A ray as Embree is given it: lancer's t = Embree's t * scale + t_offset, kept in the caller's
-// [tnear, tfar], which the rounded shift back could leave by an ulp (fuzz/rays_fuzz.cpp).
+// [tnear, tfar], which the rounded shift back could leave by an ulp (fuzz/rays_fuzz.cpp). `scale` is a power
+// of two, the scene's and the direction's scales together, in double, whose range holds both.
 struct EmbreeRay {
     Ray ray;
-    float scale = 1.0f;
+    double scale = 1.0;
     float t_offset = 0.0f;
     float tnear = 0.0f, tfar = kInfinity;  // the caller's interval
 
     [[nodiscard]] float lancer_t(float embree_t) const {
-        return in_interval(embree_t * scale + t_offset, tnear, tfar);
+        return in_interval(static_cast<float>(embree_t * scale) + t_offset, tnear, tfar);
     }
 };
 
 // The ray in Embree's domain and scale, or none: invalid rays (is_valid) and origins beyond kEmbreeLargest
-// miss. Embree also asserts tnear >= 0 (Debian's build keeps its assertions; found by fuzz/rays_fuzz.cpp,
-// docs/robustness.md): a ray whose interval starts behind its origin starts where it enters the scene's box
-// (grown by the geometric tolerance) instead, so that the origin Embree sees lies near the scene even when
-// tnear is far behind (a far ray moved near the scene by Accel::intersect comes with tnear < 0).
+// miss. A direction with a non-zero component below kEmbreeSmallestComponent is scaled into [1/2, 1) by a
+// power of two and such components are set to zero: the line turns by less than 2^-58 rad. Embree also
+// asserts tnear
+// >= 0 (Debian's build keeps its assertions; found by fuzz/rays_fuzz.cpp, docs/robustness.md): a ray whose
+// interval starts behind its origin starts where it enters the scene's box (grown by the geometric tolerance)
+// instead, so that the origin Embree sees lies near the scene even when tnear is far behind (a far ray moved
+// near the scene by Accel::intersect comes with tnear < 0).
 std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float scene_scale) {
     // is_valid's tnear <= tfar, in the floats' integer order: under denormals-are-zero, a denormal interval
     // that is empty (tnear > tfar) compares as [0, 0].
@@ -91,8 +107,27 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float
     query.ray.origin *= scene_scale;
     if (!is_finite(query.ray.origin) || max_component(abs(query.ray.origin)) > kEmbreeLargest)
         return std::nullopt;
-    query.scale = 1.0f / scene_scale;
-    query.ray.tnear *= scene_scale, query.ray.tfar *= scene_scale;
+    // A direction with a component Embree cannot take is scaled into [1/2, 1) by a power of two, where such
+    // components are set to zero; any other is left as it is, which keeps Embree's products of small
+    // features and directions out of its flushed denormals.
+    float direction_scale = 1.0f;
+    if (!(usable_component(ray.direction.x) && usable_component(ray.direction.y) &&
+          usable_component(ray.direction.z))) {
+        int exponent = 0;
+        static_cast<void>(std::frexp(max_component(abs(ray.direction)), &exponent));
+        direction_scale = std::ldexp(1.0f, -exponent);
+        auto scaled_component = [&](float component) {
+            const float scaled = component * direction_scale;
+            return std::fabs(scaled) < kEmbreeSmallestComponent ? 0.0f : scaled;
+        };
+        query.ray.direction = {scaled_component(ray.direction.x), scaled_component(ray.direction.y),
+                               scaled_component(ray.direction.z)};
+    }
+    // Exact but where t' overflows: a tnear or tfar beyond every point of float coordinates, where infinity
+    // answers the same.
+    query.scale = double(direction_scale) / double(scene_scale);
+    query.ray.tnear = query.ray.tnear * scene_scale / direction_scale;
+    query.ray.tfar = query.ray.tfar * scene_scale / direction_scale;
     return query;
 }
 
@@ -121,12 +156,13 @@ void fill_lane(const Ray& ray, RTCRayHitNt<N>& out, int lane) {
     out.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
 }
 
-// Whether Embree takes the ray as it is: a valid ray with tnear and tfar 0 or normal and an origin within
-// Embree's domain, in a scene that is not scaled. Every camera and secondary ray of an ordinary scene is such
-// a ray, and skips to_embree's work. Its t needs only as_is_t.
+// Whether Embree takes the ray as it is: a valid ray with tnear and tfar 0 or normal, an origin within
+// Embree's domain and usable direction components, in a scene that is not scaled. Every camera and secondary
+// ray of an ordinary scene is such a ray, and skips to_embree's work. Its t needs only as_is_t.
 bool taken_as_is(const Ray& ray) {
     return ray.tnear >= 0.0f && zero_or_normal(ray.tnear) && zero_or_normal(ray.tfar) && is_valid(ray) &&
-           max_component(abs(ray.origin)) <= kEmbreeLargest;
+           max_component(abs(ray.origin)) <= kEmbreeLargest && usable_component(ray.direction.x) &&
+           usable_component(ray.direction.y) && usable_component(ray.direction.z);
 }
 
 // The t of a ray taken as it is, back in its interval, where a hit lies (docs/numerical-contract.md, "Hits"):
@@ -159,6 +195,7 @@ bool fill_eight_as_is(const Ray* rays, RTCRayNt<N>& out, int first_lane) {
     // column: origin x, y, z, direction x, y, z, tnear, tfar across the eight rays.
     const __m256 sign = _mm256_set1_ps(-0.0f), zero = _mm256_setzero_ps();
     const __m256 largest = _mm256_set1_ps(kEmbreeLargest), infinity = _mm256_set1_ps(kInfinity);
+    const __m256 smallest_component = _mm256_set1_ps(kEmbreeSmallestComponent);
     __m256 taken = _mm256_cmp_ps(column[6], zero, _CMP_GE_OQ);  // 0 <= tnear
     taken = _mm256_and_ps(taken, _mm256_and_ps(zero_or_normal(column[6]), zero_or_normal(column[7])));
     taken = _mm256_and_ps(taken, _mm256_cmp_ps(column[6], infinity, _CMP_LT_OQ));   // tnear finite
@@ -169,6 +206,10 @@ bool fill_eight_as_is(const Ray* rays, RTCRayNt<N>& out, int first_lane) {
             _mm256_and_ps(taken, _mm256_cmp_ps(_mm256_andnot_ps(sign, column[axis]), largest, _CMP_LE_OQ));
         taken = _mm256_and_ps(taken,
                               _mm256_cmp_ps(_mm256_andnot_ps(sign, column[axis + 3]), infinity, _CMP_LT_OQ));
+        const __m256 zero_component = _mm256_cmp_ps(column[axis + 3], zero, _CMP_EQ_OQ);
+        taken = _mm256_and_ps(
+            taken, _mm256_or_ps(zero_component, _mm256_cmp_ps(_mm256_andnot_ps(sign, column[axis + 3]),
+                                                              smallest_component, _CMP_GE_OQ)));
         nonzero = _mm256_or_ps(nonzero, _mm256_cmp_ps(column[axis + 3], zero, _CMP_NEQ_OQ));
     }
     taken = _mm256_and_ps(taken, nonzero);
@@ -215,7 +256,8 @@ bool fill_from_packet(const RayPacket& rays, int first, RTCRayHitNt<N>& out, int
                                  bit(std::fabs(tnear) < kInfinity) & bit(tfar == tfar) & bit(tnear <= tfar);
         const int as_is = bit(tnear >= 0.0f) & bit(zero_or_normal(tnear)) & bit(zero_or_normal(tfar)) &
                           bit(std::fabs(ox) <= kEmbreeLargest) & bit(std::fabs(oy) <= kEmbreeLargest) &
-                          bit(std::fabs(oz) <= kEmbreeLargest);
+                          bit(std::fabs(oz) <= kEmbreeLargest) & bit(usable_component(dx)) &
+                          bit(usable_component(dy)) & bit(usable_component(dz));
         all_taken &= (1 - is_valid_ray) | as_is;
         valid[lane] = -is_valid_ray;
         out.ray.org_x[lane] = ox, out.ray.org_y[lane] = oy, out.ray.org_z[lane] = oz;

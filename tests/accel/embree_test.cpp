@@ -4,8 +4,10 @@
 
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "lancer/accel.hpp"
 #include "lancer/generate.hpp"
@@ -172,6 +174,52 @@ TEST(Embree, PacketsAnswerLikeSingleRays) {
                     ASSERT_NEAR(single[i].t, (*answers)[i].t, 1e-5f * (single[i].t + scale))
                         << name << " ray " << i;
                 }
+            }
+        }
+    }
+}
+
+// Finding 34 (docs/robustness.md): Embree takes a zero direction component's reciprocal as 1e18 and any
+// other's as it is, so a component below 2^-59 overflowed its slab and frustum tests. Its 8- and 16-ray calls
+// and its streams then missed occluders (and, under the COHERENT flag, aborted on an empty child). Such rays
+// come from ray conditioning (a direction of 2^123 scaled into [1/2, 1) keeps its other components at 2^-121)
+// or straight from the caller. Every call now answers brute force's occlusion, and hits as it does within
+// Embree's rounding (the first ray starts on a vertex, whose triangles tie).
+TEST(Embree, DirectionsWithTinyComponentsAnswerInEveryCall) {
+    if (!has_embree()) GTEST_SKIP() << "built without Embree";
+    TestScene scene;
+    make_icosphere(2).append_triangles(scene.triangles);
+    const std::vector<Ray> rays = {
+        {{0x1.2cf232p-1f, 0x1.605a9p-1f, -0x1.b3888p-2f},
+         {-0x1.3cp+2f, -0x1.fff118p+122f, -0x1.4p+2f},
+         -0x1.34p+2f,
+         1},
+        {{0x1.0d2cap-1f, 0, -0x1.b3888p-1f}, {-0x1.34p+2f, -0x1.34p+2f, -0x1.4p+2f}, -0x1.ep-1f, 1},
+        {{-0x1.37ec46p-3f, 0x1.ea2768p-1f, 0x1.f8b3bp-3f},
+         {-0x1.18p+114f, -0x1.34p+2f, -0x1.3cp+2f},
+         -0x1.4p+2f,
+         kInfinity},
+        {{0.5f, 0.25f, 0.125f}, {-0x1p-70f, -1, -0x1p-62f}, -2, 2},
+        {{-0.25f, 0.5f, 0.125f}, {-1, -0x1p-100f, -0x1p-60f}, -2, 2},
+    };
+    const std::vector<Hit> expected = trace("brute", scene.geometry(), {}, rays);
+    const std::unique_ptr<Accel> brute = make_accel("brute");
+    brute->build(scene.geometry(), {});
+    std::vector<std::uint8_t> expected_occluded(rays.size());
+    brute->occluded(rays, expected_occluded);
+    ASSERT_EQ(expected_occluded, (std::vector<std::uint8_t>{1, 1, 0, 1, 1}));
+    for (const char* name : {"embree", "embree8", "embree16", "embree_stream"}) {
+        const std::unique_ptr<Accel> accel = make_accel(name);
+        accel->build(scene.geometry(), {});
+        std::vector<std::uint8_t> occluded(rays.size());
+        accel->occluded(rays, occluded);
+        EXPECT_EQ(occluded, expected_occluded) << name;
+        std::vector<Hit> hits(rays.size());
+        accel->intersect(rays, hits);
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            ASSERT_EQ(hits[i].hit(), expected[i].hit()) << name << " ray " << i;
+            if (expected[i].hit()) {
+                EXPECT_NEAR(hits[i].t, expected[i].t, 1e-5f) << name << " ray " << i;
             }
         }
     }
