@@ -309,11 +309,44 @@ struct Watertight {
         return true;
     }
 
-    // A ray within the slack of an edge, from the exact signs of its three edge functions: they decide; the
-    // edge functions are recomputed in double from vertices sheared in double and clamped to those signs,
-    // and they weigh the vertices' depths into t, all rounded to float once. That t is a convex combination
-    // of the depths, on the triangle however the weights round; the plane's t, n . (v0 - o) / n . d,
-    // divides two cancellations on a grazing line and can land anywhere on it (docs/numerical-contract.md).
+    // The hit where the exact signs put it on a vertex (two zero signs) or an edge (one): (t, u, v) in
+    // double. At a vertex, t is its depth (`depth`: the vertices'); on an edge p + s e, where the line meets
+    // the edge's line: o + t d = p + s e gives t = ((p - o) x e) . (d x e) / |d x e|^2 and
+    // s = ((p - o) x d) . (d x e) / |d x e|^2, which the two lines' angle conditions however near the line
+    // runs to the triangle's plane.
+    struct ExactHit {
+        double t, u, v;
+    };
+    LANCER_HOST_DEVICE static ExactHit on_vertex_or_edge(const RayData& ray, const Triangle& tri, int side0,
+                                                         int side1, int side2,
+                                                         const std::array<double, 3>& depth) {
+        const int zeros =
+            static_cast<int>(side0 == 0) + static_cast<int>(side1 == 0) + static_cast<int>(side2 == 0);
+        if (zeros == 2) {
+            if (side0 != 0) return {depth[0], 0.0, 0.0};
+            return side1 != 0 ? ExactHit{depth[1], 1.0, 0.0} : ExactHit{depth[2], 0.0, 1.0};
+        }
+        // Side k is the edge opposite vertex k, from vertex k + 1 to vertex k + 2.
+        const Vec3f& from = side0 == 0 ? tri.v1 : (side1 == 0 ? tri.v2 : tri.v0);
+        const Vec3f& to = side0 == 0 ? tri.v2 : (side1 == 0 ? tri.v0 : tri.v1);
+        const Vec3d edge = Vec3d(to) - Vec3d(from), direction(ray.direction);
+        const Vec3d to_edge = Vec3d(from) - Vec3d(ray.origin);
+        const Vec3d across = cross(direction, edge);
+        const double length2 = dot(across, across);
+        const double t = dot(cross(to_edge, edge), across) / length2;
+        const double along = dot(cross(to_edge, direction), across) / length2;
+        const double s = along > 1.0 ? 1.0 : (along > 0.0 ? along : 0.0);  // on the edge, as the signs say
+        if (side0 == 0) return {t, 1.0 - s, s};
+        return side1 == 0 ? ExactHit{t, 0.0, 1.0 - s} : ExactHit{t, s, 0.0};
+    }
+
+    // A ray within the slack of an edge, from the exact signs of its three edge functions: they decide, and
+    // they place the hit. On a vertex or an edge it is on_vertex_or_edge's; inside, the edge functions,
+    // recomputed in double from vertices sheared in double and clamped to those signs, weigh the vertices'
+    // depths into t, a convex combination on the triangle however the weights round. The plane's t divides
+    // two cancellations on a grazing line and can land anywhere on it; it serves only where every weight
+    // vanishes in double, and a denominator that rounds to zero then gives no hit
+    // (docs/numerical-contract.md, "Triangle tests"). t, u and v are rounded to float once.
     LANCER_HOST_DEVICE static bool intersect_exactly(const RayData& ray, const Triangle& tri, int side0,
                                                      int side1, int side2, float tnear, float tfar,
                                                      TriangleHit& out) {
@@ -338,13 +371,24 @@ struct Watertight {
         auto clamped = [](double w, int side) {
             return (w > 0.0 && side > 0) || (w < 0.0 && side < 0) ? w : 0.0;
         };
-        double e0 = clamped(b.x * c.y - b.y * c.x, side0), e1 = clamped(c.x * a.y - c.y * a.x, side1),
-               e2 = clamped(a.x * b.y - a.y * b.x, side2);
-        if (e0 + e1 + e2 == 0.0) e0 = side0, e1 = side1, e2 = side2;  // each a corner's share, at worst
-        const double det = e0 + e1 + e2;
-        const auto t = static_cast<float>((e0 * a.depth + e1 * b.depth + e2 * c.depth) / det);
+        const double e0 = clamped(b.x * c.y - b.y * c.x, side0), e1 = clamped(c.x * a.y - c.y * a.x, side1),
+                     e2 = clamped(a.x * b.y - a.y * b.x, side2);
+        ExactHit hit;
+        if (side0 == 0 || side1 == 0 || side2 == 0) {
+            hit = on_vertex_or_edge(ray, tri, side0, side1, side2, {a.depth, b.depth, c.depth});
+        } else if (e0 + e1 + e2 != 0.0) {
+            const double det = e0 + e1 + e2;
+            hit = {(e0 * a.depth + e1 * b.depth + e2 * c.depth) / det, e1 / det, e2 / det};
+        } else {
+            // Every weight vanished in double: the plane's t, and each corner its share.
+            const Vec3d v0(tri.v0);
+            const Vec3d normal = cross(Vec3d(tri.v1) - v0, Vec3d(tri.v2) - v0);
+            hit = {dot(normal, v0 - Vec3d(ray.origin)) / dot(normal, Vec3d(ray.direction)), 1.0 / 3.0,
+                   1.0 / 3.0};
+        }
+        const auto t = static_cast<float>(hit.t);
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
-        out = {t, static_cast<float>(e1 / det), static_cast<float>(e2 / det)};
+        out = {t, static_cast<float>(hit.u), static_cast<float>(hit.v)};
         return true;
     }
 };

@@ -324,6 +324,31 @@ TEST(FuzzRegression, AGrazingLineFromAVertexMeetsItAtZero) {
     }
 }
 
+// Finding 36 (docs/robustness.md): a line in the plane y = z, which holds edge 0-1 of triangle 0 while its
+// third vertex lies 2^-78 off it, so that the line meets the triangle's plane only on that edge, at t =
+// -1.41424 (u = 0.84466, exact arithmetic). Both edge functions of the other edges vanished in double, and
+// the exact path, weighing the depths by them, took each corner's share: the edge's midpoint, t = 9.5, a hit
+// inside [-0.1875, inf] that brute force reported and the grid did not. The hit on an edge is now where the
+// line meets the edge's line: from tnear = -0.1875 every structure misses, from -5 the watertight ones hit
+// there.
+TEST(FuzzRegression, ALineMeetingAnEdgeIsHitThereNotAtItsMiddle) {
+    const float tiny = 0x1.4484cp-100f;
+    const TestScene scene{"a line in the plane of an edge",
+                          {{{-0x1.3cp+2f, 0.5f, 0.5f}, {1, 0, 0}, {0x1.f8p+1f, -0x1.5b5b5ap-78f, tiny}},
+                           {Vec3f(tiny), {tiny, -0x1p-149f, tiny}, Vec3f(tiny)}},
+                          {{Vec3f(tiny), tiny}, {{tiny, -0x1.ff315ap-96f, tiny}, tiny}}};
+    const Vec3f point(-0x1.8p-3f);
+    const std::vector<Ray> rays = {{point, point, -0x1.8p-3f, kInfinity}, {point, point, -5, kInfinity}};
+    const std::vector<std::vector<Hit>> expected = expect_every_structure_agrees(scene, rays);
+    for (const std::vector<Hit>& hits : expected)
+        EXPECT_FALSE(hits[0].hit()) << "t = " << hits[0].t;
+    const Hit& watertight = expected[1][1];
+    EXPECT_EQ(watertight.prim, 0);
+    EXPECT_NEAR(watertight.t, -1.4142395f, 1e-6f);
+    EXPECT_NEAR(watertight.u, 0.84466f, 1e-5f);
+    EXPECT_EQ(watertight.v, 0.0f);
+}
+
 // Finding 20's point: the vertex at t = -1 is found, not missed (the check above would pass on misses).
 TEST(FuzzRegression, OriginAtFloatMaxFindsTheVertexOnItsLine) {
     const std::vector<FuzzCase> cases = fuzz_cases();
