@@ -309,23 +309,15 @@ struct Watertight {
         return true;
     }
 
-    // The hit where the exact signs put it on a vertex (two zero signs) or an edge (one): (t, u, v) in
-    // double. At a vertex, t is its depth (`depth`: the vertices'); on an edge p + s e, where the line meets
-    // the edge's line: o + t d = p + s e gives t = ((p - o) x e) . (d x e) / |d x e|^2 and
+    // The hit where the exact signs put it on an edge (one zero sign), (t, u, v) in double: where the line
+    // meets the edge's line p + s e. o + t d = p + s e gives t = ((p - o) x e) . (d x e) / |d x e|^2 and
     // s = ((p - o) x d) . (d x e) / |d x e|^2, which the two lines' angle conditions however near the line
     // runs to the triangle's plane.
     struct ExactHit {
         double t, u, v;
     };
-    LANCER_HOST_DEVICE static ExactHit on_vertex_or_edge(const RayData& ray, const Triangle& tri, int side0,
-                                                         int side1, int side2,
-                                                         const std::array<double, 3>& depth) {
-        const int zeros =
-            static_cast<int>(side0 == 0) + static_cast<int>(side1 == 0) + static_cast<int>(side2 == 0);
-        if (zeros == 2) {
-            if (side0 != 0) return {depth[0], 0.0, 0.0};
-            return side1 != 0 ? ExactHit{depth[1], 1.0, 0.0} : ExactHit{depth[2], 0.0, 1.0};
-        }
+    LANCER_HOST_DEVICE static ExactHit on_edge(const RayData& ray, const Triangle& tri, int side0,
+                                               int side1) {
         // Side k is the edge opposite vertex k, from vertex k + 1 to vertex k + 2.
         const Vec3f& from = side0 == 0 ? tri.v1 : (side1 == 0 ? tri.v2 : tri.v0);
         const Vec3f& to = side0 == 0 ? tri.v2 : (side1 == 0 ? tri.v0 : tri.v1);
@@ -340,23 +332,13 @@ struct Watertight {
         return side1 == 0 ? ExactHit{t, 0.0, 1.0 - s} : ExactHit{t, s, 0.0};
     }
 
-    // A ray within the slack of an edge, from the exact signs of its three edge functions: they decide, and
-    // they place the hit. On a vertex or an edge it is on_vertex_or_edge's; inside, the edge functions,
-    // recomputed in double from vertices sheared in double and clamped to those signs, weigh the vertices'
-    // depths into t, a convex combination on the triangle however the weights round. The plane's t divides
-    // two cancellations on a grazing line and can land anywhere on it; it serves only where every weight
-    // vanishes in double, and a denominator that rounds to zero then gives no hit
-    // (docs/numerical-contract.md, "Triangle tests"). t, u and v are rounded to float once.
-    LANCER_HOST_DEVICE static bool intersect_exactly(const RayData& ray, const Triangle& tri, int side0,
-                                                     int side1, int side2, float tnear, float tfar,
-                                                     TriangleHit& out) {
-        if ((side0 < 0 || side1 < 0 || side2 < 0) && (side0 > 0 || side1 > 0 || side2 > 0)) return false;
-        // Three zeros: the line lies in the triangle's plane, or the triangle is degenerate.
-        if (side0 == 0 && side1 == 0 && side2 == 0) return false;
+    // The hit on a vertex (two zero signs: its depth) or inside (none), (t, u, v) in double, from the
+    // vertices sheared into ray space: (x, y), and the depth z / d[kz], the vertex at origin + depth *
+    // direction when it lies on the line.
+    LANCER_HOST_DEVICE static ExactHit on_vertex_or_inside(const RayData& ray, const Triangle& tri, int side0,
+                                                           int side1, int side2) {
         const std::array<float, 3> d = as_array(ray.direction);
         const double shear_x = double(d[ray.kx]) / d[ray.kz], shear_y = double(d[ray.ky]) / d[ray.kz];
-        // (x, y) sheared into ray space and the depth z / d[kz], the vertex at origin + depth * direction
-        // when it lies on the line.
         struct RaySpace {
             double x, y, depth;
         };
@@ -366,6 +348,9 @@ struct Watertight {
             return RaySpace{r[ray.kx] - shear_x * r[ray.kz], r[ray.ky] - shear_y * r[ray.kz],
                             r[ray.kz] / d[ray.kz]};
         };
+        if (side1 == 0 && side2 == 0) return {to_ray_space(tri.v0).depth, 0.0, 0.0};
+        if (side0 == 0 && side2 == 0) return {to_ray_space(tri.v1).depth, 1.0, 0.0};
+        if (side0 == 0 && side1 == 0) return {to_ray_space(tri.v2).depth, 0.0, 1.0};
         const RaySpace a = to_ray_space(tri.v0), b = to_ray_space(tri.v1), c = to_ray_space(tri.v2);
         // An edge function whose double sign differs from the exact one is rounding noise around zero.
         auto clamped = [](double w, int side) {
@@ -373,19 +358,32 @@ struct Watertight {
         };
         const double e0 = clamped(b.x * c.y - b.y * c.x, side0), e1 = clamped(c.x * a.y - c.y * a.x, side1),
                      e2 = clamped(a.x * b.y - a.y * b.x, side2);
-        ExactHit hit;
-        if (side0 == 0 || side1 == 0 || side2 == 0) {
-            hit = on_vertex_or_edge(ray, tri, side0, side1, side2, {a.depth, b.depth, c.depth});
-        } else if (e0 + e1 + e2 != 0.0) {
-            const double det = e0 + e1 + e2;
-            hit = {(e0 * a.depth + e1 * b.depth + e2 * c.depth) / det, e1 / det, e2 / det};
-        } else {
-            // Every weight vanished in double: the plane's t, and each corner its share.
-            const Vec3d v0(tri.v0);
-            const Vec3d normal = cross(Vec3d(tri.v1) - v0, Vec3d(tri.v2) - v0);
-            hit = {dot(normal, v0 - Vec3d(ray.origin)) / dot(normal, Vec3d(ray.direction)), 1.0 / 3.0,
-                   1.0 / 3.0};
-        }
+        const double det = e0 + e1 + e2;
+        if (det != 0.0) return {(e0 * a.depth + e1 * b.depth + e2 * c.depth) / det, e1 / det, e2 / det};
+        // Every weight vanished in double: the plane's t, and each corner its share.
+        const Vec3d v0(tri.v0);
+        const Vec3d normal = cross(Vec3d(tri.v1) - v0, Vec3d(tri.v2) - v0);
+        return {dot(normal, v0 - Vec3d(ray.origin)) / dot(normal, Vec3d(ray.direction)), 1.0 / 3.0,
+                1.0 / 3.0};
+    }
+
+    // A ray within the slack of an edge, from the exact signs of its three edge functions: they decide, and
+    // they place the hit. On an edge it is on_edge's; on a vertex, t is the vertex's depth; inside, the edge
+    // functions, recomputed in double from vertices sheared in double and clamped to those signs, weigh the
+    // vertices' depths into t, a convex combination on the triangle however the weights round. The plane's t
+    // divides two cancellations on a grazing line and can land anywhere on it; it serves only where every
+    // weight vanishes in double, and a denominator that rounds to zero then gives no hit
+    // (docs/numerical-contract.md, "Triangle tests"). t, u and v are rounded to float once.
+    LANCER_HOST_DEVICE static bool intersect_exactly(const RayData& ray, const Triangle& tri, int side0,
+                                                     int side1, int side2, float tnear, float tfar,
+                                                     TriangleHit& out) {
+        if ((side0 < 0 || side1 < 0 || side2 < 0) && (side0 > 0 || side1 > 0 || side2 > 0)) return false;
+        // Three zeros: the line lies in the triangle's plane, or the triangle is degenerate.
+        if (side0 == 0 && side1 == 0 && side2 == 0) return false;
+        const int zeros =
+            static_cast<int>(side0 == 0) + static_cast<int>(side1 == 0) + static_cast<int>(side2 == 0);
+        const ExactHit hit =
+            zeros == 1 ? on_edge(ray, tri, side0, side1) : on_vertex_or_inside(ray, tri, side0, side1, side2);
         const auto t = static_cast<float>(hit.t);
         if (!(t >= tnear && t <= tfar && t < kInfinity)) return false;
         out = {t, static_cast<float>(hit.u), static_cast<float>(hit.v)};
