@@ -53,6 +53,10 @@ bool usable_component(float component) {
                              static_cast<int>(std::fabs(component) >= kEmbreeSmallestComponent));
 }
 
+bool usable_direction(const Vec3f& direction) {
+    return usable_component(direction.x) && usable_component(direction.y) && usable_component(direction.z);
+}
+
 // The floats' order as integers, +0 and -0 alike (NaN excluded).
 std::int32_t order_key(float x) {
     const auto bits = std::bit_cast<std::int32_t>(x);
@@ -83,11 +87,10 @@ struct EmbreeRay {
 // The ray in Embree's domain and scale, or none: invalid rays (is_valid) and origins beyond kEmbreeLargest
 // miss. A direction with a non-zero component below kEmbreeSmallestComponent is scaled into [1/2, 1) by a
 // power of two and such components are set to zero: the line turns by less than 2^-58 rad. Embree also
-// asserts tnear
-// >= 0 (Debian's build keeps its assertions; found by fuzz/rays_fuzz.cpp, docs/robustness.md): a ray whose
-// interval starts behind its origin starts where it enters the scene's box (grown by the geometric tolerance)
-// instead, so that the origin Embree sees lies near the scene even when tnear is far behind (a far ray moved
-// near the scene by Accel::intersect comes with tnear < 0).
+// asserts tnear >= 0 (Debian's build keeps its assertions; found by fuzz/rays_fuzz.cpp, docs/robustness.md):
+// a ray whose interval starts behind its origin starts where it enters the scene's box (grown by the
+// geometric tolerance) instead, so that the origin Embree sees lies near the scene even when tnear is far
+// behind (a far ray moved near the scene by Accel::intersect comes with tnear < 0).
 std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float scene_scale) {
     // is_valid's tnear <= tfar, in the floats' integer order: under denormals-are-zero, a denormal interval
     // that is empty (tnear > tfar) compares as [0, 0].
@@ -111,8 +114,7 @@ std::optional<EmbreeRay> to_embree(const Ray& ray, const Box3f& scene_box, float
     // components are set to zero; any other is left as it is, which keeps Embree's products of small
     // features and directions out of its flushed denormals.
     float direction_scale = 1.0f;
-    if (!(usable_component(ray.direction.x) && usable_component(ray.direction.y) &&
-          usable_component(ray.direction.z))) {
+    if (!usable_direction(ray.direction)) {
         int exponent = 0;
         static_cast<void>(std::frexp(max_component(abs(ray.direction)), &exponent));
         direction_scale = std::ldexp(1.0f, -exponent);
@@ -161,8 +163,7 @@ void fill_lane(const Ray& ray, RTCRayHitNt<N>& out, int lane) {
 // ray of an ordinary scene is such a ray, and skips to_embree's work. Its t needs only as_is_t.
 bool taken_as_is(const Ray& ray) {
     return ray.tnear >= 0.0f && zero_or_normal(ray.tnear) && zero_or_normal(ray.tfar) && is_valid(ray) &&
-           max_component(abs(ray.origin)) <= kEmbreeLargest && usable_component(ray.direction.x) &&
-           usable_component(ray.direction.y) && usable_component(ray.direction.z);
+           max_component(abs(ray.origin)) <= kEmbreeLargest && usable_direction(ray.direction);
 }
 
 // The t of a ray taken as it is, back in its interval, where a hit lies (docs/numerical-contract.md, "Hits"):
@@ -204,12 +205,11 @@ bool fill_eight_as_is(const Ray* rays, RTCRayNt<N>& out, int first_lane) {
     for (int axis = 0; axis < 3; ++axis) {
         taken =
             _mm256_and_ps(taken, _mm256_cmp_ps(_mm256_andnot_ps(sign, column[axis]), largest, _CMP_LE_OQ));
-        taken = _mm256_and_ps(taken,
-                              _mm256_cmp_ps(_mm256_andnot_ps(sign, column[axis + 3]), infinity, _CMP_LT_OQ));
-        const __m256 zero_component = _mm256_cmp_ps(column[axis + 3], zero, _CMP_EQ_OQ);
-        taken = _mm256_and_ps(
-            taken, _mm256_or_ps(zero_component, _mm256_cmp_ps(_mm256_andnot_ps(sign, column[axis + 3]),
-                                                              smallest_component, _CMP_GE_OQ)));
+        const __m256 component = _mm256_andnot_ps(sign, column[axis + 3]);  // |d|
+        taken = _mm256_and_ps(taken, _mm256_cmp_ps(component, infinity, _CMP_LT_OQ));
+        // usable_component: 0 or at least kEmbreeSmallestComponent
+        taken = _mm256_and_ps(taken, _mm256_or_ps(_mm256_cmp_ps(component, zero, _CMP_EQ_OQ),
+                                                  _mm256_cmp_ps(component, smallest_component, _CMP_GE_OQ)));
         nonzero = _mm256_or_ps(nonzero, _mm256_cmp_ps(column[axis + 3], zero, _CMP_NEQ_OQ));
     }
     taken = _mm256_and_ps(taken, nonzero);
