@@ -1,7 +1,8 @@
 // Thin wrappers over SSE, AVX2 and AVX-512 float vectors, so that the wide BVH's box test and the triangle
 // tests read like their scalar kernels (Embree's vfloat<N> and vbool<N>, without its machinery), chosen at
 // compile time (docs/isa.md). Every operation is the scalar code's IEEE fp32 operation (division by divps,
-// never the rcpps estimate; no fused multiply-add), so both paths give the same bits
+// never the rcpps estimate; a fused multiply-add only where the scalar code fuses explicitly,
+// difference_of_products of core/host_device.hpp), so both paths give the same bits
 // (docs/accel/bvh_wide.md). A comparison returns a Mask (all-ones lanes for SSE and AVX2, a k-register for
 // AVX-512), ordered and quiet as in C++ (a NaN compares false); mask_and / mask_or combine masks, bits()
 // gives bit i for lane i.
@@ -11,6 +12,7 @@
 #include <immintrin.h>
 #endif
 
+#include "core/host_device.hpp"
 #include "core/isa_namespace.hpp"
 
 // An inline namespace per instruction set (core/isa_namespace.hpp): every template on these types, the
@@ -61,6 +63,21 @@ struct Sse4 {
         return _mm_range_ps(a, b, 0b1011);
 #else
         return max(abs(a), abs(b));
+#endif
+    }
+    // a b - c d as difference_of_products (core/host_device.hpp) computes it.
+    // An SSE 4.1 machine without FMA (a native build below the AVX2 baseline) fuses lane by lane.
+    static Float difference_of_products(Float a, Float b, Float c, Float d) {
+#if defined(__FMA__)
+        const Float cd = mul(c, d);
+        return add(_mm_fmsub_ps(a, b, cd), _mm_fnmadd_ps(c, d, cd));
+#else
+        alignas(16) float lanes[4][4];
+        _mm_store_ps(lanes[0], a), _mm_store_ps(lanes[1], b);
+        _mm_store_ps(lanes[2], c), _mm_store_ps(lanes[3], d);
+        for (int i = 0; i < 4; ++i)
+            lanes[0][i] = lancer::difference_of_products(lanes[0][i], lanes[1][i], lanes[2][i], lanes[3][i]);
+        return _mm_load_ps(lanes[0]);
 #endif
     }
 };
@@ -178,6 +195,11 @@ struct Avx2 {
         return max(abs(a), abs(b));
 #endif
     }
+    // a b - c d as difference_of_products (core/host_device.hpp) computes it; AVX2 machines have FMA.
+    static Float difference_of_products(Float a, Float b, Float c, Float d) {
+        const Float cd = mul(c, d);
+        return add(_mm256_fmsub_ps(a, b, cd), _mm256_fnmadd_ps(c, d, cd));
+    }
 };
 #endif
 
@@ -202,6 +224,11 @@ struct Avx512 {
     static Float abs(Float a) { return _mm512_abs_ps(a); }
     // max(|a|, |b|), as Sse4's.
     static Float max_magnitude(Float a, Float b) { return _mm512_range_ps(a, b, 0b1011); }
+    // a b - c d as difference_of_products (core/host_device.hpp) computes it.
+    static Float difference_of_products(Float a, Float b, Float c, Float d) {
+        const Float cd = mul(c, d);
+        return add(_mm512_fmsub_ps(a, b, cd), _mm512_fnmadd_ps(c, d, cd));
+    }
     static Mask less(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_LT_OQ); }
     static Mask less_equal(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_LE_OQ); }
     static Mask greater(Float a, Float b) { return _mm512_cmp_ps_mask(a, b, _CMP_GT_OQ); }

@@ -171,9 +171,7 @@ struct MollerTrumbore {
 
 // Woop, Benthin & Wald, "Watertight Ray/Triangle Intersection", JCGT 2013. The vertices are moved into a
 // ray space where the ray is the +z axis through the origin; the 2D edge functions of a shared edge are then
-// evaluated from the same two transformed vertices by both triangles, so their signs agree exactly and no
-// ray passes between them. This relies on -ffp-contract=off (set for the whole project): a fused
-// multiply-add would round the two products of an edge function differently in the two triangles.
+// evaluated from the same two transformed vertices by both triangles.
 //
 // The transformed vertices are rounded, though, and an edge function exact for them can have the wrong sign
 // for the exact line: a ray grazing a triangle whose projection is thinner than that rounding was missed
@@ -187,6 +185,13 @@ struct MollerTrumbore {
 // with det as small as FLT_MIN, could then be wrong by up to 2^-24 (docs/numerical-contract.md, "Triangle
 // tests"). Above 2^-100 some product exceeds 2^-102, whose own float rounding dwarfs the 2^-150 that
 // underflow may cost the others.
+//
+// Each edge function is a difference of products computed by Kahan's algorithm (difference_of_products,
+// core/host_device.hpp), within 2 2^-24 of its own magnitude. With two rounded products, as the paper
+// writes it, an edge function errs by up to 2^-24 N^2 however small it is, and t = T / det, which weighs
+// the vertices' depths by the edge functions, moved by that times the depths' spread over det: on a long
+// thin triangle crossed at a grazing angle the hit left the triangle's box (fuzz finding 35). Relative
+// errors of 2 2^-24 in the weights keep t within 2 2^-24 of the spread from the moved triangle's.
 struct Watertight {
     // The axes {kx, ky, kz} of a ray whose direction is dominant along kz: kx and ky the next two in cyclic
     // order, swapped when the dominant component is negative, to keep the winding. The packet kernels
@@ -221,10 +226,10 @@ struct Watertight {
     // 16 2^-24 N (N + Z), N the largest |x| or |y| of the three sheared vertices and Z their largest |z|:
     // each sheared x or y is within 2 2^-24 N + 4 2^-24 Z of its exact value (the translation, the shear
     // factor d[kx] / d[kz] of magnitude at most 1, its product and the difference rounded once each), which
-    // the two products carry into 8 2^-24 N^2 + 16 2^-24 N Z, and their roundings add 4 2^-24 N^2. kEdgeSlack
-    // is twice that bound's constant, which also covers the bound's own rounding (docs/numerical-contract.md,
-    // "Triangle tests"). A power of two, so the scaling is exact, and the vector kernels compute the same
-    // bound.
+    // the two products carry into 8 2^-24 N^2 + 16 2^-24 N Z, and Kahan's difference adds 2 2^-24 |w|, at
+    // most 4 2^-24 N^2. kEdgeSlack is twice that bound's constant, which also covers the bound's own
+    // rounding (docs/numerical-contract.md, "Triangle tests"). A power of two, so the scaling is exact, and
+    // the vector kernels compute the same bound.
     static constexpr float kEdgeSlack = 0x1p-19f;
     // Below this |T| the float products of T may have underflowed (see above); the vector kernels hand such
     // lanes to this scalar kernel.
@@ -233,9 +238,9 @@ struct Watertight {
     [[nodiscard]] LANCER_HOST_DEVICE static bool intersect(const RayData& ray, const Triangle& tri,
                                                            float tnear, float tfar, TriangleHit& out) {
         const Sheared v = sheared(ray, tri);
-        const float w0 = v.bx * v.cy - v.by * v.cx;
-        const float w1 = v.cx * v.ay - v.cy * v.ax;
-        const float w2 = v.ax * v.by - v.ay * v.bx;
+        const float w0 = difference_of_products(v.bx, v.cy, v.by, v.cx);
+        const float w1 = difference_of_products(v.cx, v.ay, v.cy, v.ax);
+        const float w2 = difference_of_products(v.ax, v.by, v.ay, v.bx);
         // Products that overflowed (vertices far beyond the contract's 2^60 domain) make an edge function
         // NaN: a miss, as in the vector kernels, where a NaN lane's t is NaN.
         if (is_nan(w0) || is_nan(w1) || is_nan(w2)) return false;

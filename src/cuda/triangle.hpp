@@ -1,7 +1,7 @@
 // A leaf's triangles on the GPU, tested by the triangle tests of core/intersect.hpp, which are host-device:
-// with unfused products (g++ -ffp-contract=off, nvcc --fmad=false) and IEEE division (nvcc's default
-// -prec-div=true) they return the CPU's t, u and v bit for bit. Spheres are not ported: the GPU path traces
-// triangle meshes (docs/cuda.md).
+// with no product fused but where they say so (g++ -ffp-contract=off, nvcc --fmad=false) and IEEE division
+// (nvcc's default -prec-div=true) they return the CPU's t, u and v bit for bit. Spheres are not ported: the
+// GPU path traces triangle meshes (docs/cuda.md).
 #pragma once
 
 #include "core/intersect.hpp"

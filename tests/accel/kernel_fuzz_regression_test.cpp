@@ -11,6 +11,7 @@
 
 #include "fuzz_regression.hpp"
 #include "lancer/accel.hpp"
+#include "lancer/generate.hpp"
 #include "support/test_scenes.hpp"
 
 namespace lancer {
@@ -187,6 +188,39 @@ TEST(FuzzRegression, ALineMeetingAnEdgeIsHitThereNotAtItsMiddle) {
     EXPECT_NEAR(watertight.t, -1.4142395f, 1e-6f);
     EXPECT_NEAR(watertight.u, 0.84466f, 1e-5f);
     EXPECT_EQ(watertight.v, 0.0f);
+}
+
+// Finding 35 (docs/robustness.md): the icosphere stretched by 2^12 along x, and a ray that crosses triangle
+// 588 (556 units long, 0.2 wide) at 2 degrees. The float watertight test, its three edge functions certain,
+// weighed the vertices' depths with their products' rounding, up to 2^-24 N^2 (N near 460): t = -0.0034 for
+// the exact +0.0085, a point 0.1 outside the triangle's box. Brute force answered it before the right hit,
+// triangle 169 at t = -2.0102e-8 (exact arithmetic), and a `bvh` with one triangle a leaf culled it. The
+// edge functions are now Kahan's differences of products, within 2 2^-24 of their own magnitude: every
+// structure answers triangle 169, and from tnear = 1e-6, past it, triangle 588 near its exact t.
+TEST(FuzzRegression, ALongThinTriangleCrossedAtAGrazingAngleIsHitWhereTheLineMeetsIt) {
+    TriangleMesh mesh = make_icosphere(3);
+    for (Vec3f& position : mesh.positions)
+        position.x *= 0x1p12f;
+    const TestScene scene{"stretched icosphere", mesh.triangles(), {}};
+    const Vec3f origin(0x1.79e41cp+9f, 0x1.6d9858p-1f, -0x1.58365ep-1f), direction(-5, -5, -0x1.3cp+2f);
+    const std::vector<Ray> rays = {{origin, direction, -0x1.3cp+2f, 0x1.fffffep+127f},
+                                   {origin, direction, 1e-6f, 0x1.fffffep+127f}};
+    const std::vector<std::vector<Hit>> expected = expect_every_structure_agrees(scene, rays);
+    const std::vector<Hit>& watertight = expected[1];
+    EXPECT_EQ(watertight[0].prim, 169);
+    EXPECT_NEAR(watertight[0].t, -2.0102477e-8f, 1e-10f);
+    EXPECT_EQ(watertight[1].prim, 588);
+    // 4.1e-6 off (3.6e-5 along the ray): the sheared vertices' rounding, 2^-24 of their distance near 460,
+    // seen at 2 degrees. Without the fix, t was 0.012 off.
+    EXPECT_NEAR(watertight[1].t, 0.0084838557f, 1e-5f);
+    // The harness's deep options: one triangle a leaf, whose box is the triangle's own.
+    BuildOptions deep = build_options(TriangleTest::Watertight);
+    set_build_option(deep, "bvh.max_leaf_size=1");
+    for (const std::string_view name : {"bvh", "bvh8", "bvh8_packet"}) {
+        const std::unique_ptr<Accel> accel = make_accel(name);
+        accel->build(scene.geometry(), deep);
+        EXPECT_EQ(compare_hits(rays, watertight, trace(*accel, rays)).mismatches, 0u) << name;
+    }
 }
 
 }  // namespace

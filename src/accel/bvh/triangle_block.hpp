@@ -4,7 +4,8 @@
 // Packets", RT 2008, section 4). docs/accel/bvh_wide.md has the design note.
 //
 // Bit-identical to the scalar kernels of core/intersect.hpp: every lane performs the same fp32 operations in
-// the same order (no fused multiply-add: -ffp-contract=off), with the same ill-conditioned band and the same
+// the same order (none contracted into a fused multiply-add, -ffp-contract=off; the watertight edge functions
+// fuse explicitly in both, difference_of_products), with the same ill-conditioned band and the same
 // acceptance tests; lanes whose watertight edge functions fall within their error bound
 // (Watertight::kEdgeSlack), or whose numerator falls below Watertight::kSmallNumerator, are handed to the
 // scalar test, which decides them exactly or in double. The
@@ -253,9 +254,9 @@ struct WatertightLanes {
     [[nodiscard]] LaneHits<Ops> test(const Vec3v<Ops>& v0, const Vec3v<Ops>& v1, const Vec3v<Ops>& v2,
                                      Float tnear, Float tfar, unsigned wanted = ~0u) const {
         const Vec3v<Ops> a = sheared(v0), b = sheared(v1), c = sheared(v2);
-        const Float w0 = Ops::sub(Ops::mul(b.x, c.y), Ops::mul(b.y, c.x));
-        const Float w1 = Ops::sub(Ops::mul(c.x, a.y), Ops::mul(c.y, a.x));
-        const Float w2 = Ops::sub(Ops::mul(a.x, b.y), Ops::mul(a.y, b.x));
+        const Float w0 = Ops::difference_of_products(b.x, c.y, b.y, c.x);
+        const Float w1 = Ops::difference_of_products(c.x, a.y, c.y, a.x);
+        const Float w2 = Ops::difference_of_products(a.x, b.y, a.y, b.x);
         // Edge functions within Watertight::kEdgeSlack's bound, zero and denormal ones among them, and small
         // numerators are the scalar kernel's, which decides their signs exactly (core/intersect.hpp). The
         // bound as Watertight::edge_slack computes it; a NaN lane's (padding) compares false.
