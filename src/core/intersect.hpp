@@ -190,8 +190,8 @@ struct MollerTrumbore {
 // core/host_device.hpp), within 2 2^-24 of its own magnitude. With two rounded products, as the paper
 // writes it, an edge function errs by up to 2^-24 N^2 however small it is, and t = T / det, which weighs
 // the vertices' depths by the edge functions, moved by that times the depths' spread over det: on a long
-// thin triangle crossed at a grazing angle the hit left the triangle's box (fuzz finding 35). Relative
-// errors of 2 2^-24 in the weights keep t within 2 2^-24 of the spread from the moved triangle's.
+// thin triangle crossed at a grazing angle the hit left the triangle's box (docs/robustness.md, finding 35).
+// Relative errors of 2 2^-24 in the weights keep t within 2 2^-24 of the spread from the moved triangle's.
 struct Watertight {
     // The axes {kx, ky, kz} of a ray whose direction is dominant along kz: kx and ky the next two in cyclic
     // order, swapped when the dominant component is negative, to keep the winding. The packet kernels
@@ -316,8 +316,8 @@ struct Watertight {
 
     // The hit where the exact signs put it on an edge (one zero sign), (t, u, v) in double: where the line
     // meets the edge's line p + s e. o + t d = p + s e gives t = ((p - o) x e) . (d x e) / |d x e|^2 and
-    // s = ((p - o) x d) . (d x e) / |d x e|^2, which the two lines' angle conditions however near the line
-    // runs to the triangle's plane.
+    // s = ((p - o) x d) . (d x e) / |d x e|^2, conditioned by the angle between the two lines however near
+    // the line runs to the triangle's plane.
     struct ExactHit {
         double t, u, v;
     };
