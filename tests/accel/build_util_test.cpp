@@ -142,8 +142,8 @@ TEST(BuildUtil, TriangleTestsReportNoHitBeyondTheGeometricTolerance) {
 // 2^-20 rad to 1, aimed inside the triangles and near their edges; one triangle in three is a needle along an
 // axis, 2^-12 to 2^-18 of its length wide, whose box is thin enough for such an error to leave it.
 // Moller-Trumbore's float t errs along the line by up to about 2^-14 |T| outside its grazing band, a hundred
-// tolerances, but only where the hit lies farther inside than that from every edge (its near-edge filter), so
-// the point stays on the triangle (docs/numerical-contract.md, "Triangle tests").
+// tolerances, but the float test decides only hits farther from every edge than its own error bounds, which
+// scale with 1 / |det| as the t error does (docs/numerical-contract.md, "Triangle tests").
 TEST(BuildUtil, TriangleTestsReportHitPointsWithinTheGrownBox) {
     const Box3f scene{Vec3f(-1.0f), Vec3f(1.0f)};
     const float tolerance = geometric_tolerance(scene);
