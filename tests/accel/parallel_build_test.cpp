@@ -205,20 +205,25 @@ TEST(ParallelBuildArrays, KdTreeNodesAndReferences) {
     EXPECT_EQ(one.references, many.references);
 }
 
-// The collapse numbers the leaves' triangle blocks in one pass and writes them in parallel.
+// The collapse numbers the leaves' triangle blocks in one pass and writes them in parallel: leaves of one
+// block, and the default's merged leaves of several.
 TEST(ParallelBuildArrays, Bvh8NodesAndTriangleBlocks) {
     const TestScene scene = mixed_scene();
     const Geometry geometry = scene.geometry();
-    const auto one = built_with_threads(std::make_unique<Bvh8Accel>(), geometry, {}, 1);
-    const auto many = built_with_threads(std::make_unique<Bvh8Accel>(), geometry, {}, kManyThreads);
-    std::size_t leaves = 0;
-    for (const WideBvhNode<8>& node : one->nodes()) {
-        for (int slot = 0; slot < 8; ++slot)
-            leaves += node.prim_count[slot] != 0 ? 1 : 0;
+    for (const int wide_leaf_size : {1, BvhOptions{}.wide_leaf_size}) {
+        BuildOptions options;
+        options.group<BvhOptions>().wide_leaf_size = wide_leaf_size;
+        const auto one = built_with_threads(std::make_unique<Bvh8Accel>(), geometry, options, 1);
+        const auto many = built_with_threads(std::make_unique<Bvh8Accel>(), geometry, options, kManyThreads);
+        std::size_t leaves = 0;
+        for (const WideBvhNode<8>& node : one->nodes()) {
+            for (int slot = 0; slot < 8; ++slot)
+                leaves += node.prim_count[slot] != 0 ? 1 : 0;
+        }
+        ASSERT_GT(leaves, 1024u) << wide_leaf_size;  // the leaves of several tasks (at most 1,024 each)
+        expect_same_bytes(one->nodes(), many->nodes());
+        expect_same_bytes(one->blocks(), many->blocks());
     }
-    ASSERT_GT(leaves, 4096u);  // the leaves of several tasks (at most 1,024 each)
-    expect_same_bytes(one->nodes(), many->nodes());
-    expect_same_bytes(one->blocks(), many->blocks());
 }
 
 TEST(ParallelBuildArrays, PluckerLayoutArrays) {

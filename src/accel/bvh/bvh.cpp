@@ -4,6 +4,7 @@
 
 #include "accel/bvh/build.hpp"
 #include "accel/bvh/refit.hpp"
+#include "accel/bvh/small_subtree.hpp"
 #include "accel/primitive_intersect.hpp"
 
 namespace lancer {
@@ -143,6 +144,10 @@ std::vector<BuildOptionRow> BvhAccel::option_rows() {
             {{"binned", BvhBuilder::BinnedSah}, {"sweep", BvhBuilder::SweepSah}}),
         number_option("max_leaf_size", "primitives a leaf may hold (also bvh4, bvh8)",
                       &BvhOptions::max_leaf_size, 1, 64),
+        number_option("wide_leaf_size",
+                      "primitives a binary subtree may hold to become one leaf of bvh4 or bvh8 (at least a "
+                      "block's lanes)",
+                      &BvhOptions::wide_leaf_size, 1, static_cast<int>(kExactSplitBelow)),
         number_option("bins", "bins of the binned builder", &BvhOptions::bins, 2, 256),
         flag_option("spatial_splits", "spatial splits in the binned builder (the SBVH)",
                     &BvhOptions::spatial_splits),

@@ -17,9 +17,10 @@ namespace {
 
 // The primitives under a binary node: the range [first, first + count) of prim_indices (depth first layout)
 // and whether the collapse keeps the whole subtree as one leaf: a binary leaf, or a subtree of at most
-// kBlockLanes primitives, which one triangle block tests at the cost of one of its leaves. Such a subtree
-// never holds a primitive twice: spatial splits, which put one primitive in several leaves, cut only nodes
-// of more than 32 references (docs/accel/bvh.md, "Spatial splits"; WideBvh.LeavesHoldEachPrimitiveOnce).
+// `merge_limit` primitives (bvh.wide_leaf_size), whose blocks a ray tests side by side instead of walking
+// its nodes one load after another. Such a subtree never holds a primitive twice: spatial splits, which put
+// one primitive in several leaves, cut only nodes of more than kExactSplitBelow references
+// (docs/accel/bvh.md, "Spatial splits"; WideBvh.LeavesHoldEachPrimitiveOnce).
 struct SubtreeRange {
     std::uint32_t first = 0, count = 0;
     bool as_leaf = false;
@@ -56,9 +57,9 @@ struct LeafBlocks {
 
 // Collapses the binary subtree under `binary_root` (an inner node, or the root leaf of a tiny scene) into
 // wide nodes appended depth first to `wide`, and returns the index of the first; each node's children by
-// collapse_children (Dammertz et al. 2008). Subtrees of at most one block of primitives count as leaves
-// (SubtreeRange); a
-// leaf's blocks are numbered from `blocks_used` on, in this depth-first order, and listed in `leaves`.
+// collapse_children (Dammertz et al. 2008). Subtrees of at most bvh.wide_leaf_size primitives count as
+// leaves (SubtreeRange); a leaf's blocks are numbered from `blocks_used` on, in this depth-first order, and
+// listed in `leaves`.
 template <int W>
 std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
                        HugePageVector<WideBvhNode<W>>& wide, HugePageVector<LeafBlocks>& leaves,
@@ -96,11 +97,15 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
 template <int W>
 void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& options) {
     // Subtrees of at most one block become leaves whole (SubtreeRange): the binary build leaves them unsplit.
-    BvhBuildResult binary = build_bvh(geometry, options.group<BvhOptions>(), kBlockLanes);
+    // Larger ones, up to bvh.wide_leaf_size, are built as binary subtrees and merged here into one leaf.
+    const BvhOptions& bvh_options = options.group<BvhOptions>();
+    BvhBuildResult binary = build_bvh(geometry, bvh_options, kBlockLanes);
     nodes_.clear();
     blocks_.clear();
     if (!binary.nodes.empty()) {
-        const HugePageVector<SubtreeRange> ranges = subtree_ranges(binary.nodes, kBlockLanes);
+        const auto merge_limit =
+            static_cast<std::uint32_t>(std::max(kBlockLanes, bvh_options.wide_leaf_size));
+        const HugePageVector<SubtreeRange> ranges = subtree_ranges(binary.nodes, merge_limit);
         // Each wide node but a tiny scene's root is rooted at a binary node that is no leaf of the wide
         // tree, and each wide leaf at one that is: storage for that many is never moved.
         const auto roots = static_cast<std::size_t>(std::count_if(

@@ -62,8 +62,10 @@ void expect_valid_leaf(const WideBvhAccel<W>& bvh, const Geometry& geometry, std
     }
 }
 
+// `max_leaf_size` and `wide_leaf_size`: the options the tree was built with (BvhOptions).
 template <int W>
-void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geometry, int max_leaf_size) {
+void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geometry, int max_leaf_size,
+                                 int wide_leaf_size) {
     const HugePageVector<WideBvhNode<W>>& nodes = bvh.nodes();
     std::vector<int> seen(geometry.size(), 0);
     for (std::size_t i = 0; i < nodes.size(); ++i) {
@@ -79,9 +81,10 @@ void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geo
             ASSERT_EQ(used, slot) << "node " << i << ": a used slot after an empty one";
             ++used;
             if (node.prim_count[slot] > 0) {
-                // A binary leaf, or a merged subtree of at most one block.
+                // A binary leaf, or a merged subtree of at most wide_leaf_size primitives (or one block).
                 ASSERT_LE(node.prim_count[slot],
-                          static_cast<std::uint32_t>(std::max(max_leaf_size, WideBvhAccel<W>::kBlockLanes)));
+                          static_cast<std::uint32_t>(
+                              std::max({max_leaf_size, wide_leaf_size, WideBvhAccel<W>::kBlockLanes})));
                 expect_valid_leaf(bvh, geometry, node.child[slot], node.prim_count[slot], box, seen);
             } else {
                 ASSERT_GT(node.child[slot], i);
@@ -106,16 +109,23 @@ void expect_valid_wide_hierarchy(const WideBvhAccel<W>& bvh, const Geometry& geo
 
 template <int W>
 void check_structure(const Geometry& geometry) {
+    constexpr int kDefaultWideLeafSize = BvhOptions{}.wide_leaf_size;
     for (int leaf : {1, 4, 16}) {
-        BuildOptions options;
-        options.group<BvhOptions>().max_leaf_size = leaf;
-        WideBvhAccel<W> wide;
-        wide.build(geometry, options);
-        expect_valid_wide_hierarchy(wide, geometry, leaf);
-        // Binary leaves of one primitive: the subtrees of up to one block were merged into leaves.
-        if (leaf == 1) {
-            EXPECT_EQ(wide.stats().count("max_refs_per_leaf"),
-                      static_cast<std::size_t>(WideBvhAccel<W>::kBlockLanes));
+        for (int wide_leaf : {1, W, kDefaultWideLeafSize}) {
+            BuildOptions options;
+            options.group<BvhOptions>().max_leaf_size = leaf;
+            options.group<BvhOptions>().wide_leaf_size = wide_leaf;
+            WideBvhAccel<W> wide;
+            wide.build(geometry, options);
+            expect_valid_wide_hierarchy(wide, geometry, leaf, wide_leaf);
+            if (leaf != 1) continue;
+            // Binary leaves of one primitive: the subtrees of up to one block (wide_leaf_size 1 and W), or
+            // of more than one block (the default), were merged into leaves.
+            const std::size_t largest = wide.stats().count("max_refs_per_leaf");
+            if (wide_leaf <= W)
+                EXPECT_EQ(largest, static_cast<std::size_t>(W)) << "wide_leaf_size " << wide_leaf;
+            else
+                EXPECT_GT(largest, static_cast<std::size_t>(W)) << "wide_leaf_size " << wide_leaf;
         }
     }
 }
@@ -225,11 +235,22 @@ TEST(WideBvh, FewerNodesAndShallowerThanTheBinaryTree) {
     bvh4.build(geometry, {});
     Bvh8Accel bvh8;
     bvh8.build(geometry, {});
+    BuildOptions one_block;
+    one_block.group<BvhOptions>().wide_leaf_size = 1;
+    Bvh4Accel bvh4_one_block;
+    bvh4_one_block.build(geometry, one_block);
+    Bvh8Accel bvh8_one_block;
+    bvh8_one_block.build(geometry, one_block);
     const AccelStats b = binary.stats(), s4 = bvh4.stats(), s8 = bvh8.stats();
-    // The binary leaves, fewer where subtrees of one block (4 or 8 primitives) were merged; collapsed inner
-    // levels.
-    EXPECT_LT(s4.count("leaves"), b.count("leaves"));
-    EXPECT_LT(s8.count("leaves"), s4.count("leaves"));
+    const AccelStats s4_one = bvh4_one_block.stats(), s8_one = bvh8_one_block.stats();
+    // The binary leaves, fewer where subtrees of one block (4 or 8 primitives) were merged, fewer again where
+    // subtrees of up to bvh.wide_leaf_size were, the same ones in both widths; collapsed inner levels.
+    EXPECT_LT(s4_one.count("leaves"), b.count("leaves"));
+    EXPECT_LT(s8_one.count("leaves"), s4_one.count("leaves"));
+    EXPECT_LT(s8.count("leaves"), s8_one.count("leaves"));
+    EXPECT_EQ(s4.count("leaves"), s8.count("leaves"));
+    EXPECT_LT(s8.value("mean_depth"), s8_one.value("mean_depth"));
+    EXPECT_LT(s4.value("mean_depth"), s4_one.value("mean_depth"));
     EXPECT_LT(s4.count("nodes"), b.count("nodes"));
     EXPECT_LT(s8.count("nodes"), s4.count("nodes"));
     EXPECT_LT(s4.value("max_depth"), b.value("max_depth"));
@@ -376,8 +397,11 @@ TEST(WideBvh, LargeArraysStartOnHugePages) {
     Scene scene;
     scene.meshes.push_back(make_icosphere(7));  // 327,680 triangles
     const SceneGeometry geometry(scene);
+    // Leaves of one block, so that the nodes too outgrow a huge page (merged leaves take a quarter of them).
+    BuildOptions options;
+    options.group<BvhOptions>().wide_leaf_size = 1;
     Bvh8Accel bvh8;
-    bvh8.build(geometry.view(), BuildOptions{});
+    bvh8.build(geometry.view(), options);
     const auto expect_on_a_huge_page = [](const auto& array, const char* name) {
         using Element = std::remove_cvref_t<decltype(array[0])>;
         ASSERT_TRUE(HugePageAllocator<Element>::in_huge_pages(array.size())) << name;
