@@ -26,9 +26,10 @@ struct BvhOptions {
     int max_leaf_size = 4;
     // bvh4 and bvh8: a binary subtree of at most this many primitives becomes one leaf of the wide tree,
     // its primitives in consecutive triangle blocks (at least one block's worth is always merged). Larger
-    // leaves mean fewer levels of dependent node loads for more triangle tests in lanes; 32 measured
-    // fastest of 8 to 48 (docs/accel/bvh_wide.md, "Merged leaves"). At most kExactSplitBelow, so that no
-    // merged subtree was cut by a spatial split and a leaf holds each primitive once.
+    // leaves mean fewer levels of dependent node loads for more triangle tests in lanes; of 8 to 48, 32
+    // measured best over the views (docs/accel/bvh_wide.md, "Merged leaves of several blocks"). At most
+    // kExactSplitBelow, so that no merged subtree was cut by a spatial split and a leaf holds each
+    // primitive once.
     int wide_leaf_size = 32;
     int bins = 32;
     // Spatial splits (Stich, Friedrich & Dietrich 2009, the SBVH) in the binned builder: a node may also
