@@ -8,6 +8,7 @@
 #include "accel/bvh/bvh_wide_walk.hpp"
 #include "accel/bvh/collapse.hpp"
 #include "accel/bvh/refit.hpp"
+#include "accel/bvh/small_subtree.hpp"
 #include "accel/primitive_intersect.hpp"
 #include "core/parallel.hpp"
 #include "lancer/huge_pages.hpp"
@@ -103,8 +104,12 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
     nodes_.clear();
     blocks_.clear();
     if (!binary.nodes.empty()) {
-        const auto merge_limit =
-            static_cast<std::uint32_t>(std::max(kBlockLanes, bvh_options.wide_leaf_size));
+        // Clamped as the binary leaf size is (build_common.hpp): options set in code skip the registry's
+        // range, and a leaf past kExactSplitBelow could hold a spatial split's duplicates and overflow the
+        // packet kernel's per-leaf arrays.
+        static_assert(kBlockLanes <= static_cast<int>(kExactSplitBelow));
+        const auto merge_limit = static_cast<std::uint32_t>(
+            std::clamp(bvh_options.wide_leaf_size, kBlockLanes, static_cast<int>(kExactSplitBelow)));
         const HugePageVector<SubtreeRange> ranges = subtree_ranges(binary.nodes, merge_limit);
         // Each wide node but a tiny scene's root is rooted at a binary node that is no leaf of the wide
         // tree, and each wide leaf at one that is: storage for that many is never moved.

@@ -14,6 +14,7 @@
 
 #include "accel/brute.hpp"
 #include "accel/build_util.hpp"
+#include "accel/bvh/small_subtree.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/generate.hpp"
 #include "lancer/huge_pages.hpp"
@@ -226,6 +227,25 @@ TEST(WideBvh, TinyScenesHaveOneRootNode) {
     EXPECT_EQ(empty.stats().count("leaves"), 0u);
 }
 
+// A wide leaf size set in code, past the registry's range, builds the tree of the largest allowed one: no
+// leaf beyond kExactSplitBelow primitives (bvh_wide.cpp says why).
+TEST(WideBvh, WideLeafSizeIsClampedToTheExactSplitBound) {
+    const std::vector<Triangle> triangles = knot_triangles(2000);
+    const Geometry geometry{triangles, {}};
+    const auto build = [&](int wide_leaf_size) {
+        BuildOptions options;
+        options.group<BvhOptions>().max_leaf_size = 1;
+        options.group<BvhOptions>().wide_leaf_size = wide_leaf_size;
+        Bvh8Accel bvh8;
+        bvh8.build(geometry, options);
+        return bvh8.stats();
+    };
+    const AccelStats too_large = build(1000), largest = build(static_cast<int>(kExactSplitBelow));
+    EXPECT_LE(too_large.count("max_refs_per_leaf"), kExactSplitBelow);
+    EXPECT_EQ(too_large.count("leaves"), largest.count("leaves"));
+    EXPECT_EQ(too_large.count("nodes"), largest.count("nodes"));
+}
+
 TEST(WideBvh, FewerNodesAndShallowerThanTheBinaryTree) {
     const std::vector<Triangle> triangles = knot_triangles(2000);
     const Geometry geometry{triangles, {}};
@@ -251,12 +271,10 @@ TEST(WideBvh, FewerNodesAndShallowerThanTheBinaryTree) {
     EXPECT_EQ(s4.count("leaves"), s8.count("leaves"));
     EXPECT_LT(s8.value("mean_depth"), s8_one.value("mean_depth"));
     EXPECT_LT(s4.value("mean_depth"), s4_one.value("mean_depth"));
-    EXPECT_LT(s4.count("nodes"), b.count("nodes"));
-    EXPECT_LT(s8.count("nodes"), s4.count("nodes"));
-    EXPECT_LT(s4.value("max_depth"), b.value("max_depth"));
-    EXPECT_LT(s8.value("max_depth"), s4.value("max_depth"));
-    EXPECT_LT(s4.value("mean_depth"), b.value("mean_depth"));
-    EXPECT_LT(s8.value("mean_depth"), s4.value("mean_depth"));
+    for (const char* figure : {"nodes", "max_depth", "mean_depth"}) {
+        EXPECT_LT(s4.value(figure), b.value(figure)) << figure;
+        EXPECT_LT(s8.value(figure), s4.value(figure)) << figure;
+    }
     EXPECT_GT(s8.value("sah_cost"), 0.0);
 }
 
