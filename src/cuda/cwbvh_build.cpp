@@ -53,8 +53,9 @@ std::vector<SourceChild> children_of_wide_node(const WideBvhAccel<8>& bvh8, std:
             child.wide_node = node.child[slot];
             child.inner = true;
         } else {
+            const LeafSpan span = leaf_span<8>(node.child[slot], node.prim_count[slot]);
             for (std::uint32_t i = 0; i < node.prim_count[slot]; ++i)
-                child.prims.push_back(bvh8.blocks()[node.child[slot] + i / 8].prim[i % 8]);
+                child.prims.push_back(bvh8.blocks()[span.first + i / 8].prim[i % 8]);
         }
         children.push_back(std::move(child));
     }

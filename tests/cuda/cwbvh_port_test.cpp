@@ -157,8 +157,9 @@ class StructureCheck {
                             pending.push_back({n.child[at_slot], s});
                     continue;
                 }
+                const std::uint32_t first_block = leaf_span<8>(n.child[at_slot], n.prim_count[at_slot]).first;
                 for (std::uint32_t i = 0; i < n.prim_count[at_slot]; ++i)
-                    child.prims.push_back(bvh8_.blocks()[n.child[at_slot] + i / 8].prim[i % 8]);
+                    child.prims.push_back(bvh8_.blocks()[first_block + i / 8].prim[i % 8]);
             }
             std::sort(child.prims.begin(), child.prims.end());
             children.push_back(std::move(child));

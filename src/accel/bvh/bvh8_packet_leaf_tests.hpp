@@ -100,13 +100,13 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
     PacketLeafTests(const Bvh8Accel& bvh, const Geometry& geometry)
         : blocks_(bvh.blocks()), geometry_(geometry), tolerance_(geometric_tolerance(bvh.bounds())) {}
 
-    // The triangles of a leaf against its rays, a group of rays at a time; true when some ray found a
-    // (closer) hit.
+    // The triangles of a leaf (the node's `child` and `prim_count`) against its rays, a group of rays at a
+    // time; true when some ray found a (closer) hit. Its triangles' own boxes cull them for each group, so a
+    // header's block boxes (has_leaf_boxes) are skipped.
     template <bool kAnyHit, class Answer>
-    bool test_leaf(std::uint32_t first_block, std::uint32_t prim_count, LaneMask rays,
-                   std::span<Answer> answers) {
+    bool test_leaf(std::uint32_t child, std::uint32_t prim_count, LaneMask rays, std::span<Answer> answers) {
         bool found = false;
-        const std::uint32_t end = first_block + block_count(prim_count, kWidth);
+        const auto [first_block, end] = leaf_span<kWidth>(child, prim_count);
         // Per block, once: its triangles' boxes, and its spheres, which every group tests without a cull.
         std::array<TriangleBoxes, kMaxLeafBlocks> boxes;
         std::array<unsigned, kMaxLeafBlocks> spheres;

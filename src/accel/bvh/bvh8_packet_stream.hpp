@@ -151,7 +151,7 @@ class RayStream {
         RayBits rays = alive_;
         while (true) {
             if (current.prim_count > 0) {
-                test_leaf<kCount>(current, rays & alive_, counts);
+                test_leaf<kCount>(current, side, rays & alive_, counts);
                 if (kAnyHit && alive_ == 0) return;
             } else {
                 if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
@@ -197,13 +197,8 @@ class RayStream {
     // child's entry corner lies (the walk's order).
     [[nodiscard]] unsigned test_children(const Node& node, const std::array<int, 3>& side, RayBits rays,
                                          float* along) {
-        const float* lo_hi = &node.bounds[0][0][0];
         Ops::Float near_bound[3], far_bound[3];
-        for (int axis = 0; axis < 3; ++axis) {
-            const int s = side[static_cast<std::size_t>(axis)];
-            near_bound[axis] = Ops::load(lo_hi + (s * 3 + axis) * kWidth);
-            far_bound[axis] = Ops::load(lo_hi + ((1 - s) * 3 + axis) * kWidth);
-        }
+        load_bounds(&node.bounds[0][0][0], side, near_bound, far_bound);
         Ops::Float distance = Ops::broadcast(0.0f);
         for (int axis = 0; axis < 3; ++axis) {
             distance = side[static_cast<std::size_t>(axis)] != 0 ? Ops::sub(distance, near_bound[axis])
@@ -214,39 +209,70 @@ class RayStream {
         for (RayBits rest = rays; rest != 0; rest &= rest - 1) {
             const int k = std::countr_zero(rest);
             Ops::Float t0 = Ops::broadcast(tnear_[k]), t1 = Ops::broadcast(tlimit_[k]);
-            for (int axis = 0; axis < 3; ++axis)
-                clip_slab<Ops, true>(near_bound[axis], far_bound[axis], Ops::broadcast(origin_[axis][k]),
-                                     Ops::broadcast(inv_direction_[axis][k]), t0, t1);
+            clip_ray(k, near_bound, far_bound, t0, t1);
             hit_rays.add(k, t0, t1);
         }
         return hit_rays.store(child_rays_.data());
     }
 
-    // A leaf's triangle blocks against each of `rays`, with bvh8's own block tests.
+    // A leaf's triangle blocks against each of `rays`, with bvh8's own block tests: where the leaf has a
+    // header (has_leaf_boxes), each ray tests the blocks whose boxes it crosses, by test_children's
+    // arithmetic.
     template <bool kCount>
-    void test_leaf(ChildRef leaf, RayBits rays, TraversalCounters& counts) {
-        const std::uint32_t end = leaf.child + block_count(leaf.prim_count, Bvh8Accel::kBlockLanes);
+    void test_leaf(ChildRef leaf, const std::array<int, 3>& side, RayBits rays, TraversalCounters& counts) {
+        const LeafSpan span = leaf_span<kWidth>(leaf.child, leaf.prim_count);
+        const unsigned every_block = (1u << (span.end - span.first)) - 1u;
+        const bool has_boxes = span.first != leaf.child;
+        Ops::Float near_bound[3], far_bound[3];
+        if (has_boxes) load_bounds(leaf_boxes(blocks_[leaf.child]), side, near_bound, far_bound);
         for (RayBits rest = rays; rest != 0; rest &= rest - 1) {
             const int k = std::countr_zero(rest);
-            if constexpr (kCount) ++counts.nodes_visited, counts.prims_tested += leaf.prim_count;
+            unsigned crossed = every_block;
+            if (has_boxes) {
+                Ops::Float t0 = Ops::broadcast(tnear_[k]), t1 = Ops::broadcast(tlimit_[k]);
+                clip_ray(k, near_bound, far_bound, t0, t1);
+                crossed = Ops::bits(Ops::less_equal(t0, t1));
+            }
+            if constexpr (kCount) ++counts.nodes_visited;
+            if (crossed == 0) continue;
             // Made at the ray's first leaf: most rays that reach one reach several.
             auto& block_ray = block_rays_[static_cast<std::size_t>(k)];
             if (!block_ray) {
                 prepared_[static_cast<std::size_t>(k)].emplace(*ray_[k]);
                 block_ray.emplace(*prepared_[static_cast<std::size_t>(k)], geometry_);
             }
-            for (std::uint32_t b = leaf.child; b < end; ++b) {
+            for (; crossed != 0; crossed &= crossed - 1) {
+                const auto index = static_cast<std::uint32_t>(std::countr_zero(crossed));
+                if constexpr (kCount) counts.prims_tested += block_primitives<kWidth>(leaf.prim_count, index);
                 if constexpr (kAnyHit) {
-                    if (occludes_block(geometry_, blocks_[b], *block_ray)) {
+                    if (occludes_block(geometry_, blocks_[span.first + index], *block_ray)) {
                         alive_ &= ~(RayBits{1} << k);
                         break;
                     }
                 } else {
-                    intersect_block(geometry_, blocks_[b], *block_ray, best_[k]);
+                    intersect_block(geometry_, blocks_[span.first + index], *block_ray, best_[k]);
                 }
             }
             if (!kAnyHit && best_[k].hit()) tlimit_[k] = best_[k].t;
         }
+    }
+
+    // The planes of 8 boxes in a node's bounds layout that the stream's rays enter and leave by.
+    static void load_bounds(const float* lo_hi, const std::array<int, 3>& side, Ops::Float (&near_bound)[3],
+                            Ops::Float (&far_bound)[3]) {
+        for (int axis = 0; axis < 3; ++axis) {
+            const int s = side[static_cast<std::size_t>(axis)];
+            near_bound[axis] = Ops::load(lo_hi + (s * 3 + axis) * kWidth);
+            far_bound[axis] = Ops::load(lo_hi + ((1 - s) * 3 + axis) * kWidth);
+        }
+    }
+
+    // Ray k's interval [t0, t1] clipped by the 8 boxes' slabs: bvh8's box test (intersect_children).
+    void clip_ray(int k, const Ops::Float (&near_bound)[3], const Ops::Float (&far_bound)[3], Ops::Float& t0,
+                  Ops::Float& t1) const {
+        for (int axis = 0; axis < 3; ++axis)
+            clip_slab<Ops, true>(near_bound[axis], far_bound[axis], Ops::broadcast(origin_[axis][k]),
+                                 Ops::broadcast(inv_direction_[axis][k]), t0, t1);
     }
 
     const HugePageVector<Node>& nodes_;

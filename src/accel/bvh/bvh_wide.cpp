@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <limits>
 
+#include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
 #include "accel/bvh/bvh_wide_walk.hpp"
 #include "accel/bvh/collapse.hpp"
@@ -50,8 +52,9 @@ struct CollapseInput {
     const HugePageVector<SubtreeRange>& ranges;
 };
 
-// A leaf of the wide tree: the primitives prim_indices[first, first + count), whose triangle blocks start at
-// block `first_block`. The collapse only numbers the blocks; they are written afterwards, in parallel.
+// A leaf of the wide tree: the primitives prim_indices[first, first + count), whose blocks (its header's
+// first, if it has one) start at block `first_block`. The collapse only numbers the blocks; they are written
+// afterwards, in parallel.
 struct LeafBlocks {
     std::uint32_t first_block = 0, first = 0, count = 0;
 };
@@ -83,7 +86,7 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
             wide[index].child[slot] = blocks_used;
             wide[index].prim_count[slot] = range.count;
             leaves.push_back({blocks_used, range.first, range.count});
-            blocks_used += block_count(range.count, WideBvhAccel<W>::kBlockLanes);
+            blocks_used += leaf_block_slots<W>(range.count);
         } else {
             // Indexed, not referenced: the recursion appends to `wide`.
             const std::uint32_t child_index = collapse<W>(input, children[slot], wide, leaves, blocks_used);
@@ -94,6 +97,28 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
 }
 
 }  // namespace
+
+void write_leaf_boxes(const Geometry& geometry, const TriangleBlock<8>* blocks, std::uint32_t count,
+                      float margin, TriangleBlock<8>& header) {
+    constexpr int kLanes = 8;
+    static_assert(block_count(BvhAccel::kMaxLeafSize, kLanes) <= kLanes,
+                  "a header has a lane for each block");
+    for (int lane = 0; lane < kLanes; ++lane) {
+        Box3f box;  // empty: inverted, never hit
+        if (static_cast<std::uint32_t>(lane) < count) {
+            for (const std::uint32_t prim : blocks[lane].prim) {
+                if (prim != TriangleBlock<kLanes>::kNoPrimitive) box.extend(primitive_bounds(geometry, prim));
+            }
+            box = box.grown(margin);
+        }
+        for (int axis = 0; axis < 3; ++axis) {
+            header.vertex[WideBvhNode<8>::kLo][axis][lane] = box.lo[axis];
+            header.vertex[WideBvhNode<8>::kHi][axis][lane] = box.hi[axis];
+            header.vertex[2][axis][lane] = std::numeric_limits<float>::quiet_NaN();
+        }
+        header.prim[lane] = TriangleBlock<kLanes>::kNoPrimitive;
+    }
+}
 
 template <int W>
 void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& options) {
@@ -122,12 +147,21 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
         collapse<W>({binary.nodes, ranges}, 0, nodes_, leaves, blocks_used);
         blocks_.reserve(blocks_used);
         blocks_.resize(blocks_used);
-        // The leaves' blocks, disjoint and numbered already: the same bytes whatever the thread count.
+        // The leaves' blocks, disjoint and numbered already: the same bytes whatever the thread count. The
+        // headers' margin is the refit's, so that a refit to this geometry writes the same bytes.
+        const float margin = refit_margin(geometry, this->built_bounds());
         parallel::for_each_chunk(0, leaves.size(), 1024, [&](std::size_t from, std::size_t to) {
             for (std::size_t i = from; i < to; ++i) {
                 const LeafBlocks& leaf = leaves[i];
+                const LeafSpan span = leaf_span<W>(leaf.first_block, leaf.count);
                 write_leaf_blocks(geometry, std::span(binary.prim_indices).subspan(leaf.first, leaf.count),
-                                  blocks_.data() + leaf.first_block);
+                                  blocks_.data() + span.first);
+                if constexpr (kLeafBoxes<W>) {
+                    if (span.first != leaf.first_block) {
+                        write_leaf_boxes(geometry, blocks_.data() + span.first, span.end - span.first, margin,
+                                         blocks_[leaf.first_block]);
+                    }
+                }
             }
         });
     }
@@ -165,9 +199,8 @@ AccelStats WideBvhAccel<W>::stats() const {
     AccelStats stats;
     stats.build_ms = build_ms_;
     stats.primitives = geometry_.size();
-    stats.memory_by_array = {{"nodes", nodes_.size() * sizeof(WideBvhNode<W>)},
-                             {"blocks", blocks_.size() * sizeof(Block)}};
     TreeShape shape;
+    std::size_t headers = 0;
     // Depths and counts in one walk; leaves live in their parents' slots, at the parent's depth + 1.
     double depth_sum = 0.0;
     std::vector<std::pair<std::uint32_t, int>> pending;
@@ -183,6 +216,7 @@ AccelStats WideBvhAccel<W>::stats() const {
                 continue;
             }
             ++shape.leaves;
+            headers += has_leaf_boxes(W, node.prim_count[slot]) ? 1 : 0;
             shape.references += node.prim_count[slot];
             depth_sum += depth + 1;
             shape.max_depth = std::max(shape.max_depth, depth + 1);
@@ -190,6 +224,9 @@ AccelStats WideBvhAccel<W>::stats() const {
         }
     }
     shape.nodes = nodes_.size() + shape.leaves;
+    stats.memory_by_array = {{"nodes", nodes_.size() * sizeof(WideBvhNode<W>)},
+                             {"blocks", (blocks_.size() - headers) * sizeof(Block)}};
+    if constexpr (kLeafBoxes<W>) stats.memory_by_array.push_back({"leaf boxes", headers * sizeof(Block)});
     stats.figures = bvh_figures(shape, depth_sum, wide_bvh_sah_cost<W>(nodes_), sah_ratio_);
     return stats;
 }

@@ -205,8 +205,8 @@ NearestPoint wide_nearest(const WideBvhAccel<W>& bvh, const Vec3f& point, neares
                 node = &nodes[entry.child];
                 break;
             }
-            const std::uint32_t last = entry.child + block_count(entry.prim_count, W);
-            for (std::uint32_t b = entry.child; b < last; ++b)
+            const LeafSpan span = leaf_span<W>(entry.child, entry.prim_count);
+            for (std::uint32_t b = span.first; b < span.end; ++b)
                 search.block(blocks[b]);
         }
     }

@@ -184,12 +184,18 @@ struct WideRefit {
     // balance any core count lancer runs on; deeper, a subtree is too small to be worth a task.
     static constexpr int kParallelLevels = 2;
 
-    // A leaf child's blocks, rewritten from the geometry; returns their primitives' box, grown.
-    Box3f leaf(std::uint32_t first_block, std::uint32_t prim_count) const {
+    // A leaf child's blocks, rewritten from the geometry, and its header's block boxes (has_leaf_boxes);
+    // returns their primitives' box, grown.
+    Box3f leaf(std::uint32_t child, std::uint32_t prim_count) const {
         Box3f box;
-        const std::uint32_t end = first_block + block_count(prim_count, W);
-        for (std::uint32_t b = first_block; b < end; ++b)
+        const LeafSpan span = leaf_span<W>(child, prim_count);
+        for (std::uint32_t b = span.first; b < span.end; ++b)
             box.extend(rewrite_block(geometry, blocks[b]));
+        if constexpr (kLeafBoxes<W>) {
+            if (span.first != child)
+                write_leaf_boxes(geometry, &blocks[span.first], span.end - span.first, margin.x,
+                                 blocks[child]);
+        }
         return grown(box, margin);
     }
 
@@ -198,8 +204,8 @@ struct WideRefit {
         // The triangles of every leaf child asked for at once, before any is read: they lie anywhere in the
         // array, and fetching them one at a time left the refit waiting on memory.
         for (int slot = 0; slot < W; ++slot) {
-            const std::uint32_t end = wide.child[slot] + block_count(wide.prim_count[slot], W);
-            for (std::uint32_t b = wide.child[slot]; wide.prim_count[slot] > 0 && b < end; ++b) {
+            const LeafSpan span = leaf_span<W>(wide.child[slot], wide.prim_count[slot]);
+            for (std::uint32_t b = span.first; wide.prim_count[slot] > 0 && b < span.end; ++b) {
                 for (int lane = 0; lane < W; ++lane)
                     prefetch_primitive(geometry, blocks[b].prim[lane]);
             }

@@ -31,17 +31,47 @@ bool is_inverted(const Box3f& box) {
            box.hi.x == -kInfinity && box.hi.y == -kInfinity && box.hi.z == -kInfinity;
 }
 
+// A leaf's header (has_leaf_boxes): lane b holds a box, within the leaf's, around every primitive of the
+// leaf's block b; the lanes past its blocks are inverted and it holds no primitive.
+void expect_valid_leaf_boxes(const Bvh8Accel& bvh, const Geometry& geometry, std::uint32_t child,
+                             std::uint32_t prim_count, const Box3f& leaf_box) {
+    const LeafSpan span = leaf_span<8>(child, prim_count);
+    ASSERT_EQ(span.first, child + 1);
+    const Bvh8Accel::Block& header = bvh.blocks()[child];
+    for (int lane = 0; lane < 8; ++lane) {
+        ASSERT_EQ(header.prim[lane], Bvh8Accel::Block::kNoPrimitive);
+        const Box3f box{{header.vertex[0][0][lane], header.vertex[0][1][lane], header.vertex[0][2][lane]},
+                        {header.vertex[1][0][lane], header.vertex[1][1][lane], header.vertex[1][2][lane]}};
+        const std::uint32_t b = span.first + static_cast<std::uint32_t>(lane);
+        if (b >= span.end) {
+            ASSERT_TRUE(is_inverted(box)) << "header lane " << lane;
+            continue;
+        }
+        ASSERT_TRUE(leaf_box.contains(box)) << "header lane " << lane;
+        for (const std::uint32_t prim : bvh.blocks()[b].prim) {
+            if (prim == Bvh8Accel::Block::kNoPrimitive) continue;
+            ASSERT_TRUE(box.contains(primitive_bounds(geometry, prim))) << "primitive " << prim;
+        }
+    }
+}
+
 // Every primitive in exactly one leaf slot whose box contains it, in that leaf's blocks with its vertices
-// copied bit for bit (NaN for spheres and padding lanes, which come last); inner slots contain their node's
-// children; empty slots are inverted, hold nothing and come after the used ones; every node but a tiny
-// scene's root has at least two children.
+// copied bit for bit (NaN for spheres and padding lanes, which come last), after its header where it has one;
+// inner slots contain their node's children; empty slots are inverted, hold nothing and come after the used
+// ones; every node but a tiny scene's root has at least two children.
 template <int W>
-void expect_valid_leaf(const WideBvhAccel<W>& bvh, const Geometry& geometry, std::uint32_t first_block,
+void expect_valid_leaf(const WideBvhAccel<W>& bvh, const Geometry& geometry, std::uint32_t child,
                        std::uint32_t prim_count, const Box3f& box, std::vector<int>& seen) {
     using Block = typename WideBvhAccel<W>::Block;
     constexpr int kLanes = WideBvhAccel<W>::kBlockLanes;
     const std::uint32_t blocks = block_count(prim_count, kLanes);
+    const std::uint32_t first_block = leaf_span<W>(child, prim_count).first;
     ASSERT_LE(first_block + blocks, bvh.blocks().size());
+    if constexpr (W == 8) {
+        if (has_leaf_boxes(W, prim_count)) expect_valid_leaf_boxes(bvh, geometry, child, prim_count, box);
+    } else {
+        ASSERT_EQ(first_block, child) << "bvh4's leaves have no header";
+    }
     for (std::uint32_t k = 0; k < blocks * kLanes; ++k) {
         const Block& block = bvh.blocks()[first_block + k / kLanes];
         const int lane = static_cast<int>(k % kLanes);
@@ -189,8 +219,9 @@ void expect_leaves_hold_each_primitive_once(const Geometry& geometry, int max_le
         for (int slot = 0; slot < W; ++slot) {
             if (node.is_empty(slot) || node.prim_count[slot] == 0) continue;
             std::vector<std::uint32_t> prims;
+            const std::uint32_t first_block = leaf_span<W>(node.child[slot], node.prim_count[slot]).first;
             for (std::uint32_t k = 0; k < node.prim_count[slot]; ++k) {
-                const auto& block = bvh.blocks()[node.child[slot] + k / WideBvhAccel<W>::kBlockLanes];
+                const auto& block = bvh.blocks()[first_block + k / WideBvhAccel<W>::kBlockLanes];
                 prims.push_back(block.prim[k % WideBvhAccel<W>::kBlockLanes]);
             }
             std::sort(prims.begin(), prims.end());
@@ -406,6 +437,37 @@ TEST(WideBvh, CountersSeeFewerNodesThanTheBinaryTree) {
     EXPECT_EQ(wide_hit.prim, binary_hit.prim);
     EXPECT_EQ(wide_hit.t, binary_hit.t);
     EXPECT_LT(wide_counters.nodes_visited, binary_counters.nodes_visited);
+}
+
+// A merged leaf's header lets a ray test only the blocks whose boxes it crosses: 32 small triangles in a row
+// along x make one leaf of 4 blocks (the SAH orders them along the row), and a ray down through one of them
+// tests that block alone, by the closest-hit walk and the any-hit walk; without the header it tested all 32.
+TEST(WideBvh, MergedLeavesTestOnlyTheBlocksARayCrosses) {
+    std::vector<Triangle> triangles;
+    for (int i = 0; i < 32; ++i) {
+        const auto x = static_cast<float>(i);
+        triangles.push_back({{x, 0.0f, 0.0f}, {x + 0.5f, 0.0f, 0.0f}, {x, 0.5f, 0.0f}});
+    }
+    Bvh8Accel bvh;
+    bvh.build({triangles, {}}, {});
+    ASSERT_EQ(bvh.nodes().size(), 1u);
+    ASSERT_EQ(bvh.nodes()[0].prim_count[0], 32u);
+    ASSERT_EQ(bvh.blocks().size(), 5u) << "a header and 4 blocks";
+    expect_valid_leaf_boxes(bvh, {triangles, {}}, bvh.nodes()[0].child[0], 32,
+                            bvh.nodes()[0].child_bounds(0));
+    for (const int target : {3, 17, 30}) {
+        const Ray down{{static_cast<float>(target) + 0.1f, 0.1f, 1.0f}, {0.0f, 0.0f, -1.0f}, 0.0f, kInfinity};
+        Hit hit;
+        std::uint8_t occluded = 0;
+        TraversalCounters closest, any;
+        bvh.intersect({&down, 1}, {&hit, 1}, &closest);
+        bvh.occluded({&down, 1}, {&occluded, 1}, &any);
+        ASSERT_TRUE(hit.hit());
+        EXPECT_EQ(hit.prim, static_cast<std::uint32_t>(target));
+        EXPECT_EQ(occluded, 1);
+        EXPECT_EQ(closest.prims_tested, 8u) << "target " << target;
+        EXPECT_EQ(any.prims_tested, 8u) << "target " << target;
+    }
 }
 
 // The arrays a structure keeps, and the scene's flattened triangles, start on a huge page once they are
