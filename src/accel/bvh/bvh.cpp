@@ -148,6 +148,12 @@ std::vector<BuildOptionRow> BvhAccel::option_rows() {
                       "primitives a binary subtree may hold to become one leaf of bvh4 or bvh8 (at least a "
                       "block's lanes)",
                       &BvhOptions::wide_leaf_size, 1, static_cast<int>(kExactSplitBelow)),
+        choice_option<BvhOptions, LeafBoxes>(
+            "leaf_boxes",
+            "bvh8's leaves of several blocks start with their blocks' boxes, which bvh8_packet's ray streams "
+            "test first: auto (up to 131072 primitives), on or off",
+            &BvhOptions::leaf_boxes,
+            {{"auto", LeafBoxes::Auto}, {"on", LeafBoxes::On}, {"off", LeafBoxes::Off}}),
         number_option("bins", "bins of the binned builder", &BvhOptions::bins, 2, 256),
         flag_option("spatial_splits", "spatial splits in the binned builder (the SBVH)",
                     &BvhOptions::spatial_splits),

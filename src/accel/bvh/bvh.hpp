@@ -19,6 +19,10 @@ enum class BvhBuilder {
     BinnedSah,  // Wald 2007: binned SAH, parallel over oneTBB when available
 };
 
+// bvh.leaf_boxes: headers of block boxes in bvh8's leaves of several blocks (BvhOptions::leaf_boxes).
+enum class LeafBoxes { Auto, On, Off };
+inline constexpr std::size_t kLeafBoxesUpTo = std::size_t{1} << 17;
+
 // The options of the BVH family (`bvh`, `bvh4`, `bvh8` and their packet structures).
 struct BvhOptions {
     static constexpr std::string_view kGroup = "bvh";
@@ -31,6 +35,13 @@ struct BvhOptions {
     // kExactSplitBelow, so that no merged subtree was cut by a spatial split and a leaf holds each
     // primitive once.
     int wide_leaf_size = 32;
+    // bvh8: whether leaves of more than one block start with a header of their blocks' boxes, which
+    // bvh8_packet's ray streams test before the triangles (bvh_wide.hpp, kLeafHeaderBit). Auto: for
+    // geometries of at most kLeafBoxesUpTo primitives. The header saves triangle tests and costs a fetch;
+    // below about 2^17 primitives the leaves stay in the caches and the tests set the time (the bunny's
+    // diffuse and shadow views 8-15% faster), above it the fetches do (the dragon's 3-7% slower)
+    // (docs/accel/bvh_wide.md, "Block boxes in merged leaves").
+    LeafBoxes leaf_boxes = LeafBoxes::Auto;
     int bins = 32;
     // Spatial splits (Stich, Friedrich & Dietrich 2009, the SBVH) in the binned builder: a node may also
     // be split by a plane that cuts references in two, a primitive then appearing in several leaves, within

@@ -221,13 +221,12 @@ class RayStream {
     template <bool kCount>
     void test_leaf(ChildRef leaf, const std::array<int, 3>& side, RayBits rays, TraversalCounters& counts) {
         const LeafSpan span = leaf_span<kWidth>(leaf.child, leaf.prim_count);
-        const unsigned every_block = (1u << (span.end - span.first)) - 1u;
-        const bool has_boxes = span.first != leaf.child;
+        const bool has_boxes = has_leaf_boxes(leaf.child);
         Ops::Float near_bound[3], far_bound[3];
-        if (has_boxes) load_bounds(leaf_boxes(blocks_[leaf.child]), side, near_bound, far_bound);
+        if (has_boxes) load_bounds(leaf_boxes(blocks_[leaf_start(leaf.child)]), side, near_bound, far_bound);
         for (RayBits rest = rays; rest != 0; rest &= rest - 1) {
             const int k = std::countr_zero(rest);
-            unsigned crossed = every_block;
+            unsigned crossed = ~0u;
             if (has_boxes) {
                 Ops::Float t0 = Ops::broadcast(tnear_[k]), t1 = Ops::broadcast(tlimit_[k]);
                 clip_ray(k, near_bound, far_bound, t0, t1);
@@ -241,8 +240,10 @@ class RayStream {
                 prepared_[static_cast<std::size_t>(k)].emplace(*ray_[k]);
                 block_ray.emplace(*prepared_[static_cast<std::size_t>(k)], geometry_);
             }
-            for (; crossed != 0; crossed &= crossed - 1) {
-                const auto index = static_cast<std::uint32_t>(std::countr_zero(crossed));
+            // Block by block, each skipped by a branch on its bit: the blocks' addresses do not wait for the
+            // header's test, so the core can fetch them while it runs.
+            for (std::uint32_t index = 0; index < span.end - span.first; ++index) {
+                if (((crossed >> index) & 1u) == 0) continue;
                 if constexpr (kCount) counts.prims_tested += block_primitives<kWidth>(leaf.prim_count, index);
                 if constexpr (kAnyHit) {
                     if (occludes_block(geometry_, blocks_[span.first + index], *block_ray)) {

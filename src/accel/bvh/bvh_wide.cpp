@@ -50,13 +50,14 @@ HugePageVector<SubtreeRange> subtree_ranges(const HugePageVector<BvhNode>& binar
 struct CollapseInput {
     const HugePageVector<BvhNode>& binary;
     const HugePageVector<SubtreeRange>& ranges;
+    bool leaf_boxes;  // leaves of more than one block get a header (bvh.leaf_boxes)
 };
 
 // A leaf of the wide tree: the primitives prim_indices[first, first + count), whose blocks (its header's
 // first, if it has one) start at block `first_block`. The collapse only numbers the blocks; they are written
 // afterwards, in parallel.
 struct LeafBlocks {
-    std::uint32_t first_block = 0, first = 0, count = 0;
+    std::uint32_t child = 0, first = 0, count = 0;
 };
 
 // Collapses the binary subtree under `binary_root` (an inner node, or the root leaf of a tiny scene) into
@@ -83,10 +84,13 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
         }
         const SubtreeRange& range = input.ranges[children[slot]];
         if (range.as_leaf) {
-            wide[index].child[slot] = blocks_used;
+            const std::uint32_t blocks = block_count(range.count, WideBvhAccel<W>::kBlockLanes);
+            const bool header = input.leaf_boxes && blocks > 1;
+            const std::uint32_t leaf_child = blocks_used | (header ? kLeafHeaderBit : 0u);
+            wide[index].child[slot] = leaf_child;
             wide[index].prim_count[slot] = range.count;
-            leaves.push_back({blocks_used, range.first, range.count});
-            blocks_used += leaf_block_slots<W>(range.count);
+            leaves.push_back({leaf_child, range.first, range.count});
+            blocks_used += blocks + (header ? 1 : 0);
         } else {
             // Indexed, not referenced: the recursion appends to `wide`.
             const std::uint32_t child_index = collapse<W>(input, children[slot], wide, leaves, blocks_used);
@@ -144,7 +148,11 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
         HugePageVector<LeafBlocks> leaves;
         leaves.reserve(ranges.size() - roots);
         std::uint32_t blocks_used = 0;
-        collapse<W>({binary.nodes, ranges}, 0, nodes_, leaves, blocks_used);
+        const bool leaf_boxes =
+            kLeafBoxes<W> &&
+            (bvh_options.leaf_boxes == LeafBoxes::On ||
+             (bvh_options.leaf_boxes == LeafBoxes::Auto && geometry.size() <= kLeafBoxesUpTo));
+        collapse<W>({binary.nodes, ranges, leaf_boxes}, 0, nodes_, leaves, blocks_used);
         blocks_.reserve(blocks_used);
         blocks_.resize(blocks_used);
         // The leaves' blocks, disjoint and numbered already: the same bytes whatever the thread count. The
@@ -153,13 +161,13 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
         parallel::for_each_chunk(0, leaves.size(), 1024, [&](std::size_t from, std::size_t to) {
             for (std::size_t i = from; i < to; ++i) {
                 const LeafBlocks& leaf = leaves[i];
-                const LeafSpan span = leaf_span<W>(leaf.first_block, leaf.count);
+                const LeafSpan span = leaf_span<W>(leaf.child, leaf.count);
                 write_leaf_blocks(geometry, std::span(binary.prim_indices).subspan(leaf.first, leaf.count),
                                   blocks_.data() + span.first);
                 if constexpr (kLeafBoxes<W>) {
-                    if (span.first != leaf.first_block) {
+                    if (has_leaf_boxes(leaf.child)) {
                         write_leaf_boxes(geometry, blocks_.data() + span.first, span.end - span.first, margin,
-                                         blocks_[leaf.first_block]);
+                                         blocks_[leaf_start(leaf.child)]);
                     }
                 }
             }
@@ -216,7 +224,7 @@ AccelStats WideBvhAccel<W>::stats() const {
                 continue;
             }
             ++shape.leaves;
-            headers += has_leaf_boxes(W, node.prim_count[slot]) ? 1 : 0;
+            headers += has_leaf_boxes(node.child[slot]) ? 1 : 0;
             shape.references += node.prim_count[slot];
             depth_sum += depth + 1;
             shape.max_depth = std::max(shape.max_depth, depth + 1);

@@ -27,7 +27,8 @@ struct alignas(32) WideBvhNode {
     static constexpr int kLo = 0, kHi = 1;
     // 24 W bytes: [lo | hi][axis][child].
     float bounds[2][3][W];
-    // 4 W bytes: an inner child's node index; a leaf child's first triangle block.
+    // 4 W bytes: an inner child's node index; a leaf child's first triangle block, or its header's with
+    // kLeafHeaderBit set (below).
     std::uint32_t child[W] = {};
     // 4 W bytes: the primitives of a leaf child (in block_count(prim_count, kBlockLanes) blocks); 0 for an
     // inner child or an empty slot.
@@ -48,19 +49,21 @@ struct alignas(32) WideBvhNode {
 static_assert(sizeof(WideBvhNode<4>) == 128 && alignof(WideBvhNode<4>) == 32);
 static_assert(sizeof(WideBvhNode<8>) == 256 && alignof(WideBvhNode<8>) == 32);
 
-// bvh8's leaves of more than one block (the merged leaves of bvh.wide_leaf_size) start with a header: one
-// more block, in front of the leaf's triangle blocks, that holds the box of each of them, grown by the
-// scene's geometric tolerance as the nodes' boxes are, in the layout of a node's bounds ([lo |
-// hi][axis][block] in its vertex[0] and vertex[1]; unused lanes inverted, prim[] all kNoPrimitive). A ray
-// tests the boxes of every block of the leaf with one node test and the triangles of the blocks it crosses
-// only; the header's address is the leaf's own, so it is fetched with the blocks, not before them
-// (docs/accel/bvh_wide.md, "Block boxes in merged leaves"). bvh4's blocks of 4 have no room for 8 boxes: its
-// leaves have no header.
+// bvh8's leaves of more than one block (the merged leaves of bvh.wide_leaf_size) may start with a header
+// (bvh.leaf_boxes): one more block, in front of the leaf's triangle blocks, that holds the box of each of
+// them, grown by the scene's geometric tolerance as the nodes' boxes are, in the layout of a node's bounds
+// ([lo | hi][axis][block] in its vertex[0] and vertex[1]; unused lanes inverted, prim[] all kNoPrimitive).
+// bvh8_packet's ray streams test the boxes of every block of the leaf for each ray with one node test, and
+// then the triangles of the blocks the ray crosses only (docs/accel/bvh_wide.md, "Block boxes in merged
+// leaves"). The leaf's slot marks a header by kLeafHeaderBit in its child index, so that the blocks'
+// addresses are known without a load. bvh4's blocks of 4 have no room for 8 boxes: its leaves have no
+// header.
 template <int W>
 inline constexpr bool kLeafBoxes = W == 8;
+inline constexpr std::uint32_t kLeafHeaderBit = std::uint32_t{1} << 31;
 
-[[nodiscard]] constexpr bool has_leaf_boxes(int width, std::uint32_t prim_count) {
-    return width == 8 && prim_count > static_cast<std::uint32_t>(width);
+[[nodiscard]] constexpr bool has_leaf_boxes(std::uint32_t child) {
+    return (child & kLeafHeaderBit) != 0;
 }
 
 // A leaf child's triangle blocks in the block array, [first, end): from its first block (the node's child
@@ -70,20 +73,18 @@ struct LeafSpan {
 };
 template <int W>
 [[nodiscard]] constexpr LeafSpan leaf_span(std::uint32_t child, std::uint32_t prim_count) {
-    const std::uint32_t first = child + (has_leaf_boxes(W, prim_count) ? 1 : 0);
+    const std::uint32_t first = (child & ~kLeafHeaderBit) + (has_leaf_boxes(child) ? 1 : 0);
     return {first, first + block_count(prim_count, W)};
 }
-// The blocks a leaf takes in the array, its header included.
-template <int W>
-[[nodiscard]] constexpr std::uint32_t leaf_block_slots(std::uint32_t prim_count) {
-    return block_count(prim_count, W) + (has_leaf_boxes(W, prim_count) ? 1 : 0);
+// The leaf's header, or its first block where it has none.
+[[nodiscard]] constexpr std::uint32_t leaf_start(std::uint32_t child) {
+    return child & ~kLeafHeaderBit;
 }
 // The primitives of the leaf's block `index` (from 0), for the counters.
 template <int W>
 [[nodiscard]] constexpr std::uint32_t block_primitives(std::uint32_t prim_count, std::uint32_t index) {
     return std::min<std::uint32_t>(W, prim_count - index * W);
 }
-
 // Writes `header`: the boxes of the leaf's blocks [blocks, blocks + count), count <= 8, from their
 // primitives' boxes, grown by `margin`. The build and the refit both write it, so a refit to the built
 // geometry restores its bytes.
@@ -115,24 +116,23 @@ struct WideRay {
     }
 };
 
-// The slab test of intersect_box on W boxes in a node's bounds layout (`lo_hi`: [lo | hi][axis][W]), one box
-// at a time: bit i of the result is set when box i is hit within [tnear, tfar], with entry[i] its entry
-// distance. The NaN rule of intersect_box (a ray in a face plane, 0 * inf, has that slab unbounded) holds per
-// plane: a NaN plane distance leaves the interval as it is, because max(nan, t) and min(nan, t) are written
-// to return t. Where one plane distance of an axis is NaN the other is +-inf on the side that does not clip,
-// so this equals dropping the slab.
+// The slab test of intersect_box on every child of `node`, one child at a time: bit i of the result is set
+// when child i is hit within [tnear, tfar], with entry[i] its entry distance. The NaN rule of intersect_box
+// (a ray in a face plane, 0 * inf, has that slab unbounded) holds per plane: a NaN plane distance leaves the
+// interval as it is, because max(nan, t) and min(nan, t) are written to return t. Where one plane distance
+// of an axis is NaN the other is +-inf on the side that does not clip, so this equals dropping the slab.
 template <int W>
-[[nodiscard]] inline unsigned intersect_boxes_scalar(const float* lo_hi, const WideRay& ray, float tnear,
-                                                     float tfar, float (&entry)[W]) {
+[[nodiscard]] inline unsigned intersect_children_scalar(const WideBvhNode<W>& node, const WideRay& ray,
+                                                        float tnear, float tfar, float (&entry)[W]) {
     unsigned mask = 0;
     for (int slot = 0; slot < W; ++slot) {
         float t0 = tnear, t1 = tfar;
         for (int axis = 0; axis < 3; ++axis) {
             const int side = ray.entry_side[axis];
             const float near_plane =
-                (lo_hi[(side * 3 + axis) * W + slot] - ray.origin[axis]) * ray.inv_direction[axis];
-            const float far_plane = widened_slab_exit(
-                (lo_hi[((1 - side) * 3 + axis) * W + slot] - ray.origin[axis]) * ray.inv_direction[axis]);
+                (node.bounds[side][axis][slot] - ray.origin[axis]) * ray.inv_direction[axis];
+            const float far_plane = widened_slab_exit((node.bounds[1 - side][axis][slot] - ray.origin[axis]) *
+                                                      ray.inv_direction[axis]);
             t0 = near_plane > t0 ? near_plane : t0;  // maxps operand order: NaN keeps t0
             t1 = far_plane < t1 ? far_plane : t1;    // minps operand order: NaN keeps t1
         }
@@ -140,13 +140,6 @@ template <int W>
         if (t0 <= t1) mask |= 1u << slot;
     }
     return mask;
-}
-
-// The same on the children of `node`.
-template <int W>
-[[nodiscard]] inline unsigned intersect_children_scalar(const WideBvhNode<W>& node, const WideRay& ray,
-                                                        float tnear, float tfar, float (&entry)[W]) {
-    return intersect_boxes_scalar<W>(&node.bounds[0][0][0], ray, tnear, tfar, entry);
 }
 
 // One slab of the box test on Ops::kWidth lanes: [t0, t1] clipped by the distances to the planes at
@@ -197,30 +190,26 @@ template <class Ops, bool kForward>
 }  // namespace wide_detail
 #endif
 
-// The wide box test the traversal uses, on W boxes in a node's bounds layout: SSE for 4 and AVX2 for 8 where
-// the compiler targets them (the AVX2 baseline, docs/isa.md), intersect_boxes_scalar otherwise. Same hits and
-// entry distances either way (kForward, for tnear >= 0 only: clip_slab).
-template <int W, bool kForward = false>
-[[nodiscard, gnu::always_inline]] inline unsigned intersect_boxes(const float* lo_hi, const WideRay& ray,
-                                                                  float tnear, float tfar,
-                                                                  float (&entry)[W]) {
-#if defined(__SSE4_1__)
-    if constexpr (W == 4)
-        return wide_detail::intersect_children_simd<simd::Sse4, kForward>(lo_hi, ray, tnear, tfar, entry);
-#endif
-#if defined(__AVX2__)
-    if constexpr (W == 8)
-        return wide_detail::intersect_children_simd<simd::Avx2, kForward>(lo_hi, ray, tnear, tfar, entry);
-#endif
-    return intersect_boxes_scalar<W>(lo_hi, ray, tnear, tfar, entry);
-}
-
-// The test on a node's W children.
+// The wide box test the traversal uses: SSE for 4 children and AVX2 for 8 where the compiler targets them
+// (the AVX2 baseline, docs/isa.md), intersect_children_scalar otherwise. Same hits and entry distances either
+// way (kForward, for tnear >= 0 only: clip_slab).
 template <int W, bool kForward = false>
 [[nodiscard, gnu::always_inline]] inline unsigned intersect_children(const WideBvhNode<W>& node,
                                                                      const WideRay& ray, float tnear,
                                                                      float tfar, float (&entry)[W]) {
-    return intersect_boxes<W, kForward>(&node.bounds[0][0][0], ray, tnear, tfar, entry);
+#if defined(__SSE4_1__)
+    if constexpr (W == 4) {
+        return wide_detail::intersect_children_simd<simd::Sse4, kForward>(&node.bounds[0][0][0], ray, tnear,
+                                                                          tfar, entry);
+    }
+#endif
+#if defined(__AVX2__)
+    if constexpr (W == 8) {
+        return wide_detail::intersect_children_simd<simd::Avx2, kForward>(&node.bounds[0][0][0], ray, tnear,
+                                                                          tfar, entry);
+    }
+#endif
+    return intersect_children_scalar(node, ray, tnear, tfar, entry);
 }
 
 // The children in `mask` ordered by their entry distance, nearest first, into order[0, count); returns

@@ -43,8 +43,10 @@ template <int W>
             __builtin_prefetch(bytes + at);
         return;
     }
-    const auto* bytes = reinterpret_cast<const char*>(&blocks[child]);
-    const std::size_t size = sizeof(typename WideBvhAccel<W>::Block) * leaf_block_slots<W>(prim_count);
+    const std::uint32_t start = leaf_start(child);
+    const auto* bytes = reinterpret_cast<const char*>(&blocks[start]);
+    const std::size_t size =
+        sizeof(typename WideBvhAccel<W>::Block) * (leaf_span<W>(child, prim_count).end - start);
     for (std::size_t at = 0; at < size; at += kLine)
         __builtin_prefetch(bytes + at);
 }
@@ -76,25 +78,16 @@ bool traverse_from(const HugePageVector<WideBvhNode<W>>& nodes,
     while (true) {
         if constexpr (kCount) ++counters.nodes_visited;
         if (current.prim_count > 0) {
-            // LEAF: one SIMD test per block of kBlockLanes primitives, of the blocks whose boxes the ray
-            // crosses where the leaf has a header (has_leaf_boxes).
+            // LEAF: one SIMD test per block of kBlockLanes primitives. A header's block boxes
+            // (has_leaf_boxes) are left to the ray streams: here the test would hold back the blocks' loads
+            // until the header's own (docs/accel/bvh_wide.md, "Block boxes in merged leaves").
             const LeafSpan span = leaf_span<W>(current.child, current.prim_count);
-            unsigned crossed = (1u << (span.end - span.first)) - 1u;
-            alignas(32) float block_entry[8];
-            if constexpr (kLeafBoxes<W>) {
-                if (span.first != current.child) {
-                    const float t_limit = best.hit() ? best.t : ray.tfar;
-                    crossed = intersect_boxes<8, kForward>(leaf_boxes(blocks[current.child]), wide_ray,
-                                                           ray.tnear, t_limit, block_entry);
-                }
-            }
-            for (; crossed != 0; crossed &= crossed - 1) {
-                const auto index = static_cast<std::uint32_t>(std::countr_zero(crossed));
-                if constexpr (kCount) counters.prims_tested += block_primitives<W>(current.prim_count, index);
+            if constexpr (kCount) counters.prims_tested += current.prim_count;
+            for (std::uint32_t b = span.first; b < span.end; ++b) {
                 if constexpr (kAnyHit) {
-                    if (occludes_block(geometry, blocks[span.first + index], block_ray)) return true;
+                    if (occludes_block(geometry, blocks[b], block_ray)) return true;
                 } else {
-                    intersect_block(geometry, blocks[span.first + index], block_ray, best);
+                    intersect_block(geometry, blocks[b], block_ray, best);
                 }
             }
         } else {

@@ -192,9 +192,10 @@ struct WideRefit {
         for (std::uint32_t b = span.first; b < span.end; ++b)
             box.extend(rewrite_block(geometry, blocks[b]));
         if constexpr (kLeafBoxes<W>) {
-            if (span.first != child)
+            if (has_leaf_boxes(child)) {
                 write_leaf_boxes(geometry, &blocks[span.first], span.end - span.first, margin.x,
-                                 blocks[child]);
+                                 blocks[leaf_start(child)]);
+            }
         }
         return grown(box, margin);
     }

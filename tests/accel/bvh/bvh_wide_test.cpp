@@ -36,8 +36,8 @@ bool is_inverted(const Box3f& box) {
 void expect_valid_leaf_boxes(const Bvh8Accel& bvh, const Geometry& geometry, std::uint32_t child,
                              std::uint32_t prim_count, const Box3f& leaf_box) {
     const LeafSpan span = leaf_span<8>(child, prim_count);
-    ASSERT_EQ(span.first, child + 1);
-    const Bvh8Accel::Block& header = bvh.blocks()[child];
+    ASSERT_EQ(span.first, leaf_start(child) + 1);
+    const Bvh8Accel::Block& header = bvh.blocks()[leaf_start(child)];
     for (int lane = 0; lane < 8; ++lane) {
         ASSERT_EQ(header.prim[lane], Bvh8Accel::Block::kNoPrimitive);
         const Box3f box{{header.vertex[0][0][lane], header.vertex[0][1][lane], header.vertex[0][2][lane]},
@@ -68,9 +68,12 @@ void expect_valid_leaf(const WideBvhAccel<W>& bvh, const Geometry& geometry, std
     const std::uint32_t first_block = leaf_span<W>(child, prim_count).first;
     ASSERT_LE(first_block + blocks, bvh.blocks().size());
     if constexpr (W == 8) {
-        if (has_leaf_boxes(W, prim_count)) expect_valid_leaf_boxes(bvh, geometry, child, prim_count, box);
+        if (has_leaf_boxes(child)) {
+            ASSERT_GT(blocks, 1u) << "a header in front of one block";
+            expect_valid_leaf_boxes(bvh, geometry, child, prim_count, box);
+        }
     } else {
-        ASSERT_EQ(first_block, child) << "bvh4's leaves have no header";
+        ASSERT_FALSE(has_leaf_boxes(child)) << "bvh4's leaves have no header";
     }
     for (std::uint32_t k = 0; k < blocks * kLanes; ++k) {
         const Block& block = bvh.blocks()[first_block + k / kLanes];
@@ -147,8 +150,18 @@ void check_structure(const Geometry& geometry) {
             options.group<BvhOptions>().max_leaf_size = leaf;
             options.group<BvhOptions>().wide_leaf_size = wide_leaf;
             WideBvhAccel<W> wide;
-            wide.build(geometry, options);
-            expect_valid_wide_hierarchy(wide, geometry, leaf, wide_leaf);
+            for (const LeafBoxes boxes : {LeafBoxes::Off, LeafBoxes::On}) {
+                options.group<BvhOptions>().leaf_boxes = boxes;
+                wide.build(geometry, options);
+                expect_valid_wide_hierarchy(wide, geometry, leaf, wide_leaf);
+                // Headers where asked for and where some leaf holds more than one block: in bvh8 only.
+                const auto arrays = wide.stats().memory_by_array;
+                const bool headers = std::any_of(arrays.begin(), arrays.end(), [](const auto& array) {
+                    return array.first == "leaf boxes" && array.second > 0;
+                });
+                EXPECT_EQ(headers, W == 8 && boxes == LeafBoxes::On && wide_leaf > W)
+                    << "max_leaf_size " << leaf << ", wide_leaf_size " << wide_leaf;
+            }
             if (leaf != 1) continue;
             // Binary leaves of one primitive: the subtrees of up to one block (wide_leaf_size 1 and W), or
             // of more than one block (the default), were merged into leaves.
@@ -437,37 +450,6 @@ TEST(WideBvh, CountersSeeFewerNodesThanTheBinaryTree) {
     EXPECT_EQ(wide_hit.prim, binary_hit.prim);
     EXPECT_EQ(wide_hit.t, binary_hit.t);
     EXPECT_LT(wide_counters.nodes_visited, binary_counters.nodes_visited);
-}
-
-// A merged leaf's header lets a ray test only the blocks whose boxes it crosses: 32 small triangles in a row
-// along x make one leaf of 4 blocks (the SAH orders them along the row), and a ray down through one of them
-// tests that block alone, by the closest-hit walk and the any-hit walk; without the header it tested all 32.
-TEST(WideBvh, MergedLeavesTestOnlyTheBlocksARayCrosses) {
-    std::vector<Triangle> triangles;
-    for (int i = 0; i < 32; ++i) {
-        const auto x = static_cast<float>(i);
-        triangles.push_back({{x, 0.0f, 0.0f}, {x + 0.5f, 0.0f, 0.0f}, {x, 0.5f, 0.0f}});
-    }
-    Bvh8Accel bvh;
-    bvh.build({triangles, {}}, {});
-    ASSERT_EQ(bvh.nodes().size(), 1u);
-    ASSERT_EQ(bvh.nodes()[0].prim_count[0], 32u);
-    ASSERT_EQ(bvh.blocks().size(), 5u) << "a header and 4 blocks";
-    expect_valid_leaf_boxes(bvh, {triangles, {}}, bvh.nodes()[0].child[0], 32,
-                            bvh.nodes()[0].child_bounds(0));
-    for (const int target : {3, 17, 30}) {
-        const Ray down{{static_cast<float>(target) + 0.1f, 0.1f, 1.0f}, {0.0f, 0.0f, -1.0f}, 0.0f, kInfinity};
-        Hit hit;
-        std::uint8_t occluded = 0;
-        TraversalCounters closest, any;
-        bvh.intersect({&down, 1}, {&hit, 1}, &closest);
-        bvh.occluded({&down, 1}, {&occluded, 1}, &any);
-        ASSERT_TRUE(hit.hit());
-        EXPECT_EQ(hit.prim, static_cast<std::uint32_t>(target));
-        EXPECT_EQ(occluded, 1);
-        EXPECT_EQ(closest.prims_tested, 8u) << "target " << target;
-        EXPECT_EQ(any.prims_tested, 8u) << "target " << target;
-    }
 }
 
 // The arrays a structure keeps, and the scene's flattened triangles, start on a huge page once they are
