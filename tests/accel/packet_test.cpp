@@ -402,7 +402,8 @@ TEST_P(PacketTest, CountersSeeEveryRayOfEveryPacket) {
 // A merged leaf's header (bvh.leaf_boxes) lets each ray of a stream test only the blocks whose boxes it
 // crosses: 32 small triangles in a row along x make one leaf of 4 blocks (the SAH orders them along the
 // row), and two rays of opposite octants (so that each takes a stream) through one triangle each test one
-// block each, for closest hits and for occlusion; without the header they tested up to all 32 triangles.
+// block each, for closest hits and for occlusion; without the header they tested up to all 32 triangles. Auto
+// gives so small a geometry the header.
 TEST(Bvh8Packet, StreamsTestOnlyTheBlocksARayCrosses) {
     std::vector<Triangle> triangles;
     for (int i = 0; i < 32; ++i) {
@@ -411,7 +412,7 @@ TEST(Bvh8Packet, StreamsTestOnlyTheBlocksARayCrosses) {
     }
     const std::vector<Ray> rays = {{{3.1f, 0.1f, 1.0f}, {0.0f, 0.0f, -1.0f}, 0.0f, kInfinity},
                                    {{29.1f, 0.1f, -1.0f}, {0.0f, 0.0f, 1.0f}, 0.0f, kInfinity}};
-    for (const LeafBoxes boxes : {LeafBoxes::On, LeafBoxes::Off}) {
+    for (const LeafBoxes boxes : {LeafBoxes::Auto, LeafBoxes::On, LeafBoxes::Off}) {
         BuildOptions options;
         options.group<BvhOptions>().leaf_boxes = boxes;
         Bvh8PacketAccel packet;
@@ -425,8 +426,9 @@ TEST(Bvh8Packet, StreamsTestOnlyTheBlocksARayCrosses) {
         EXPECT_EQ(hits[1].prim, 29u);
         EXPECT_EQ(occluded, std::vector<std::uint8_t>({1, 1}));
         // Without the header, occlusion stops at the block that holds the hit: ray 0's first, ray 1's last.
-        EXPECT_EQ(closest.prims_tested, boxes == LeafBoxes::On ? 2u * 8 : 2u * 32);
-        EXPECT_EQ(any.prims_tested, boxes == LeafBoxes::On ? 2u * 8 : 8u + 32);
+        const bool headers = boxes != LeafBoxes::Off;
+        EXPECT_EQ(closest.prims_tested, headers ? 2u * 8 : 2u * 32);
+        EXPECT_EQ(any.prims_tested, headers ? 2u * 8 : 8u + 32);
     }
 }
 

@@ -10,6 +10,7 @@
 #include <numbers>
 
 #include "accel/brute.hpp"
+#include "accel/build_util.hpp"
 #include "accel/bvh/bvh_wide.hpp"
 #include "lancer/agreement.hpp"
 #include "lancer/animate.hpp"
@@ -246,6 +247,31 @@ std::vector<unsigned char> bytes_of(const std::vector<T, Allocator>& array) {
     return {first, first + array.size() * sizeof(T)};
 }
 
+// How many headers of block boxes bvh8 has (bvh.leaf_boxes), each checked to hold every primitive of its
+// blocks in `geometry`.
+std::size_t checked_leaf_boxes(const Bvh8Accel& bvh8, const Geometry& geometry) {
+    std::size_t headers = 0;
+    for (const WideBvhNode<8>& node : bvh8.nodes()) {
+        for (int slot = 0; slot < 8; ++slot) {
+            if (node.prim_count[slot] == 0 || !has_leaf_boxes(node.child[slot])) continue;
+            ++headers;
+            const Bvh8Accel::Block& header = bvh8.blocks()[leaf_start(node.child[slot])];
+            const LeafSpan span = leaf_span<8>(node.child[slot], node.prim_count[slot]);
+            for (std::uint32_t b = span.first; b < span.end; ++b) {
+                const auto lane = static_cast<int>(b - span.first);
+                const Box3f box{
+                    {header.vertex[0][0][lane], header.vertex[0][1][lane], header.vertex[0][2][lane]},
+                    {header.vertex[1][0][lane], header.vertex[1][1][lane], header.vertex[1][2][lane]}};
+                for (const std::uint32_t prim : bvh8.blocks()[b].prim) {
+                    if (prim == Bvh8Accel::Block::kNoPrimitive) continue;
+                    EXPECT_TRUE(box.contains(primitive_bounds(geometry, prim))) << "primitive " << prim;
+                }
+            }
+        }
+    }
+    return headers;
+}
+
 TEST(Update, RefitToTheBuiltPositionsGivesTheBuiltTreeByteForByte) {
     const Scene rest = moving_scene();
     const Scene moved = posed(rest, deformed_meshes(rest, strong_wave(rest), 1));
@@ -260,14 +286,22 @@ TEST(Update, RefitToTheBuiltPositionsGivesTheBuiltTreeByteForByte) {
     bvh.update(rest_geometry.view());
     EXPECT_EQ(bytes_of(bvh.nodes()), nodes);
 
-    Bvh8Accel bvh8;
-    bvh8.build(rest_geometry.view(), never);
-    const std::vector<unsigned char> wide_nodes = bytes_of(bvh8.nodes()), blocks = bytes_of(bvh8.blocks());
-    EXPECT_EQ(bvh8.update(moved_geometry.view()).method, UpdateMethod::Refit);
-    EXPECT_NE(bytes_of(bvh8.blocks()), blocks) << "the refit left the moved triangles as they were";
-    bvh8.update(rest_geometry.view());
-    EXPECT_EQ(bytes_of(bvh8.nodes()), wide_nodes);
-    EXPECT_EQ(bytes_of(bvh8.blocks()), blocks);
+    // With and without the headers of block boxes (bvh.leaf_boxes), which the refit rewrites too.
+    for (const LeafBoxes boxes : {LeafBoxes::Off, LeafBoxes::On}) {
+        BuildOptions options = never;
+        options.group<BvhOptions>().leaf_boxes = boxes;
+        Bvh8Accel bvh8;
+        bvh8.build(rest_geometry.view(), options);
+        const std::vector<unsigned char> wide_nodes = bytes_of(bvh8.nodes()),
+                                         blocks = bytes_of(bvh8.blocks());
+        EXPECT_EQ(bvh8.update(moved_geometry.view()).method, UpdateMethod::Refit);
+        EXPECT_NE(bytes_of(bvh8.blocks()), blocks) << "the refit left the moved triangles as they were";
+        const std::size_t headers = checked_leaf_boxes(bvh8, moved_geometry.view());
+        EXPECT_EQ(headers > 0, boxes == LeafBoxes::On);
+        bvh8.update(rest_geometry.view());
+        EXPECT_EQ(bytes_of(bvh8.nodes()), wide_nodes);
+        EXPECT_EQ(bytes_of(bvh8.blocks()), blocks);
+    }
 }
 
 TEST(Update, BadInputLeavesTheWorldAsItWas) {

@@ -151,7 +151,7 @@ std::vector<BuildOptionRow> BvhAccel::option_rows() {
         choice_option<BvhOptions, LeafBoxes>(
             "leaf_boxes",
             "bvh8's leaves of several blocks start with their blocks' boxes, which bvh8_packet's ray streams "
-            "test first: auto (up to 131072 primitives), on or off",
+            "test first: auto (bvh8_packet's tree up to 131072 primitives), on or off",
             &BvhOptions::leaf_boxes,
             {{"auto", LeafBoxes::Auto}, {"on", LeafBoxes::On}, {"off", LeafBoxes::Off}}),
         number_option("bins", "bins of the binned builder", &BvhOptions::bins, 2, 256),

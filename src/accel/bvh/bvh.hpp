@@ -37,10 +37,10 @@ struct BvhOptions {
     int wide_leaf_size = 32;
     // bvh8: whether leaves of more than one block start with a header of their blocks' boxes, which
     // bvh8_packet's ray streams test before the triangles (bvh_wide.hpp, kLeafHeaderBit). Auto: for
-    // geometries of at most kLeafBoxesUpTo primitives. The header saves triangle tests and costs a fetch;
-    // below about 2^17 primitives the leaves stay in the caches and the tests set the time (the bunny's
-    // diffuse and shadow views 8-15% faster), above it the fetches do (the dragon's 3-7% slower)
-    // (docs/accel/bvh_wide.md, "Block boxes in merged leaves").
+    // bvh8_packet's tree of at most kLeafBoxesUpTo primitives, never for bvh8's own, whose walk steps over
+    // them. The header saves triangle tests and costs a fetch; below about 2^17 primitives the leaves stay in
+    // the caches and the tests set the time (the bunny's diffuse and shadow views 8-15% faster), above it
+    // the fetches do (the dragon's 3-7% slower) (docs/accel/bvh_wide.md, "Block boxes in merged leaves").
     LeafBoxes leaf_boxes = LeafBoxes::Auto;
     int bins = 32;
     // Spatial splits (Stich, Friedrich & Dietrich 2009, the SBVH) in the binned builder: a node may also

@@ -41,7 +41,12 @@ float mean_leaf_diagonal(const Bvh8Accel& bvh) {
 
 void Bvh8PacketAccel::build_structure(const Geometry& geometry, const BuildOptions& options) {
     kernels_ = kernels_for(options.isa);
-    PacketAccel::build_structure(geometry, options);
+    // The ray streams' block boxes (bvh.leaf_boxes) pay while the leaves stay in the caches.
+    BuildOptions tree_options = options;
+    LeafBoxes& leaf_boxes = tree_options.group<BvhOptions>().leaf_boxes;
+    if (leaf_boxes == LeafBoxes::Auto)
+        leaf_boxes = geometry.size() <= kLeafBoxesUpTo ? LeafBoxes::On : LeafBoxes::Off;
+    PacketAccel::build_structure(geometry, tree_options);
     leaf_diagonal_ = mean_leaf_diagonal(single_ray_);
 }
 

@@ -258,9 +258,10 @@ class RayStream {
         }
     }
 
-    // The planes of 8 boxes in a node's bounds layout that the stream's rays enter and leave by.
-    static void load_bounds(const float* lo_hi, const std::array<int, 3>& side, Ops::Float (&near_bound)[3],
-                            Ops::Float (&far_bound)[3]) {
+    // The planes of 8 boxes in a node's bounds layout that the stream's rays enter and leave by. Always
+    // inlined: out of line, its planes came back through memory at every node.
+    [[gnu::always_inline]] static void load_bounds(const float* lo_hi, const std::array<int, 3>& side,
+                                                   Ops::Float (&near_bound)[3], Ops::Float (&far_bound)[3]) {
         for (int axis = 0; axis < 3; ++axis) {
             const int s = side[static_cast<std::size_t>(axis)];
             near_bound[axis] = Ops::load(lo_hi + (s * 3 + axis) * kWidth);
@@ -269,8 +270,9 @@ class RayStream {
     }
 
     // Ray k's interval [t0, t1] clipped by the 8 boxes' slabs: bvh8's box test (intersect_children).
-    void clip_ray(int k, const Ops::Float (&near_bound)[3], const Ops::Float (&far_bound)[3], Ops::Float& t0,
-                  Ops::Float& t1) const {
+    [[gnu::always_inline]] void clip_ray(int k, const Ops::Float (&near_bound)[3],
+                                         const Ops::Float (&far_bound)[3], Ops::Float& t0,
+                                         Ops::Float& t1) const {
         for (int axis = 0; axis < 3; ++axis)
             clip_slab<Ops, true>(near_bound[axis], far_bound[axis], Ops::broadcast(origin_[axis][k]),
                                  Ops::broadcast(inv_direction_[axis][k]), t0, t1);

@@ -148,10 +148,9 @@ void WideBvhAccel<W>::build_from(const Geometry& geometry, const BuildOptions& o
         HugePageVector<LeafBlocks> leaves;
         leaves.reserve(ranges.size() - roots);
         std::uint32_t blocks_used = 0;
-        const bool leaf_boxes =
-            kLeafBoxes<W> &&
-            (bvh_options.leaf_boxes == LeafBoxes::On ||
-             (bvh_options.leaf_boxes == LeafBoxes::Auto && geometry.size() <= kLeafBoxesUpTo));
+        // Auto is off here: bvh8's own walk steps over the headers; bvh8_packet asks for them
+        // (bvh8_packet.cpp).
+        const bool leaf_boxes = kLeafBoxes<W> && bvh_options.leaf_boxes == LeafBoxes::On;
         collapse<W>({binary.nodes, ranges, leaf_boxes}, 0, nodes_, leaves, blocks_used);
         blocks_.reserve(blocks_used);
         blocks_.resize(blocks_used);
