@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <limits>
+#include <stdexcept>
 
 #include "accel/build_util.hpp"
 #include "accel/bvh/build.hpp"
@@ -53,9 +54,9 @@ struct CollapseInput {
     bool leaf_boxes;  // leaves of more than one block get a header (bvh.leaf_boxes)
 };
 
-// A leaf of the wide tree: the primitives prim_indices[first, first + count), whose blocks (its header's
-// first, if it has one) start at block `first_block`. The collapse only numbers the blocks; they are written
-// afterwards, in parallel.
+// A leaf of the wide tree: the primitives prim_indices[first, first + count), in the blocks its slot's child
+// index `child` gives (leaf_span; its header first, if it has one). The collapse only numbers the blocks;
+// they are written afterwards, in parallel.
 struct LeafBlocks {
     std::uint32_t child = 0, first = 0, count = 0;
 };
@@ -86,6 +87,9 @@ std::uint32_t collapse(const CollapseInput& input, std::uint32_t binary_root,
         if (range.as_leaf) {
             const std::uint32_t blocks = block_count(range.count, WideBvhAccel<W>::kBlockLanes);
             const bool header = input.leaf_boxes && blocks > 1;
+            // The top bit marks a header (kLeafHeaderBit): 2^31 blocks, 687 GB, are past any machine here.
+            if (blocks_used >= kLeafHeaderBit - blocks - 1)
+                throw std::length_error("bvh4/bvh8: more than 2^31 triangle blocks");
             const std::uint32_t leaf_child = blocks_used | (header ? kLeafHeaderBit : 0u);
             wide[index].child[slot] = leaf_child;
             wide[index].prim_count[slot] = range.count;
