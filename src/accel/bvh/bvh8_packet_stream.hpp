@@ -116,8 +116,11 @@ class RayStream {
             for (int axis = 0; axis < 3; ++axis)
                 origin_[axis][k] = slab.origin[axis], inv_direction_[axis][k] = slab.inv_direction[axis];
             tnear_[k] = ray.tnear, tlimit_[k] = ray.tfar;
-            ray_[k] = &ray;
-            block_rays_[k].reset();
+            // Made for every ray at once: nearly every ray of a stream reaches a leaf (its origin lies on a
+            // surface, or it would not be a secondary ray), and a branch at its first leaf was mispredicted.
+            prepared_[static_cast<std::size_t>(k)].emplace(ray);
+            block_rays_[static_cast<std::size_t>(k)].emplace(*prepared_[static_cast<std::size_t>(k)],
+                                                             geometry_);
             if constexpr (!kAnyHit) best_[k] = Hit{};
         }
         alive_ = count == kCapacity ? ~RayBits{0} : (RayBits{1} << count) - 1;
@@ -201,8 +204,11 @@ class RayStream {
         load_bounds(&node.bounds[0][0][0], side, near_bound, far_bound);
         Ops::Float distance = Ops::broadcast(0.0f);
         for (int axis = 0; axis < 3; ++axis) {
-            distance = side[static_cast<std::size_t>(axis)] != 0 ? Ops::sub(distance, near_bound[axis])
-                                                                 : Ops::add(distance, near_bound[axis]);
+            // The plane added, or subtracted (added with its sign bit flipped, the same float) where the
+            // octant enters by the high side: a branch on the side here was mispredicted.
+            const auto flip =
+                std::bit_cast<float>(static_cast<std::uint32_t>(side[static_cast<std::size_t>(axis)]) << 31);
+            distance = Ops::add(distance, Ops::bit_xor(near_bound[axis], Ops::broadcast(flip)));
         }
         Ops::store(along, distance);
         ChildRays hit_rays;
@@ -234,12 +240,7 @@ class RayStream {
             }
             if constexpr (kCount) ++counts.nodes_visited;
             if (crossed == 0) continue;
-            // Made at the ray's first leaf: most rays that reach one reach several.
-            auto& block_ray = block_rays_[static_cast<std::size_t>(k)];
-            if (!block_ray) {
-                prepared_[static_cast<std::size_t>(k)].emplace(*ray_[k]);
-                block_ray.emplace(*prepared_[static_cast<std::size_t>(k)], geometry_);
-            }
+            const auto& block_ray = block_rays_[static_cast<std::size_t>(k)];
             const std::uint32_t blocks = span.end - span.first;
             if constexpr (kAnyHit) {
                 // Block by block, each skipped by a branch on its bit: the blocks' addresses do not wait for
@@ -296,7 +297,6 @@ class RayStream {
     alignas(32) float tnear_[kCapacity];
     alignas(32) float tlimit_[kCapacity];  // tfar, or the closest hit so far
     alignas(64) std::array<RayBits, kWidth> child_rays_;
-    const Ray* ray_[kCapacity];
     std::array<std::optional<PreparedRay<TriangleTestT>>, kCapacity> prepared_;
     std::array<std::optional<BlockRay<TriangleTestT, Bvh8Accel::kBlockLanes>>, kCapacity> block_rays_;
     // A plain array: std::array<Hit, N>'s constructor may be left out of line under a name the AVX2 baseline
