@@ -116,8 +116,8 @@ class RayStream {
             for (int axis = 0; axis < 3; ++axis)
                 origin_[axis][k] = slab.origin[axis], inv_direction_[axis][k] = slab.inv_direction[axis];
             tnear_[k] = ray.tnear, tlimit_[k] = ray.tfar;
-            // Made for every ray at once: nearly every ray of a stream reaches a leaf (its origin lies on a
-            // surface, or it would not be a secondary ray), and a branch at its first leaf was mispredicted.
+            // Made for every ray when the stream starts: a secondary ray starts on a surface, so nearly
+            // every one reaches a leaf, and a branch at each ray's first leaf was mispredicted.
             prepared_[static_cast<std::size_t>(k)].emplace(ray);
             block_rays_[static_cast<std::size_t>(k)].emplace(*prepared_[static_cast<std::size_t>(k)],
                                                              geometry_);
@@ -170,8 +170,8 @@ class RayStream {
                     };
                     // Nearest first along the octant's diagonal, a stand-in for each ray's own entry order
                     // that the whole stream shares; the others pushed farthest first.
-                    std::array<int, kWidth> order;
-                    const int hit_count = order_by_entry<kWidth>(hit_children, along, order);
+                    std::array<int, 2 * kWidth> order;
+                    const int hit_count = order_by_rank(hit_children, along, order);
                     for (int k = hit_count - 1; k > 0; --k)
                         push(order[static_cast<std::size_t>(k)]);
                     const int first = order[0];
@@ -219,6 +219,26 @@ class RayStream {
             hit_rays.add(k, t0, t1);
         }
         return hit_rays.store(child_rays_.data());
+    }
+
+    // The hit children nearest first along the diagonal, equal distances in slot order (order_by_entry's
+    // order), into order[0, count), count returned: each child's place is the number of hit children before
+    // it, counted in lanes, so no branch depends on the distances (order_by_entry's insertion sort was
+    // mispredicted, docs/accel/stream.md). A missed child's place is past the eighth; a NaN distance counts
+    // as -inf, so the places of the hit children stay distinct.
+    [[nodiscard]] static int order_by_rank(unsigned hit_children, const float* along,
+                                           std::array<int, 2 * kWidth>& order) {
+        const Ops::Float distance = Ops::max(Ops::load(along), Ops::broadcast(-kInfinity));
+        alignas(32) float key[kWidth];
+        Ops::store(key, distance);
+        for (int slot = 0; slot < kWidth; ++slot) {
+            const Ops::Float mine = Ops::broadcast(key[slot]);
+            const unsigned before = Ops::bits(Ops::less(distance, mine)) |
+                                    (Ops::bits(Ops::equal(distance, mine)) & ((1u << slot) - 1u));
+            const unsigned missed = ((hit_children >> slot) & 1u) ^ 1u;
+            order[static_cast<std::size_t>(std::popcount(before & hit_children)) + missed * kWidth] = slot;
+        }
+        return std::popcount(hit_children);
     }
 
     // A leaf's triangle blocks against each of `rays`, with bvh8's own block tests: where the leaf has a
