@@ -259,33 +259,24 @@ class RayStream {
                 crossed = Ops::bits(Ops::less_equal(t0, t1));
             }
             if constexpr (kCount) ++counts.nodes_visited;
-            if (crossed == 0) continue;
             const auto& block_ray = block_rays_[static_cast<std::size_t>(k)];
+            // Only the crossed blocks, by their bits: a ray crosses an unpredictable few of them, and a
+            // branch on each block's bit was the streams' most mispredicted (docs/accel/stream.md, "The
+            // crossed blocks by their bits").
             const std::uint32_t blocks = span.end - span.first;
-            if constexpr (kAnyHit) {
-                // Block by block, each skipped by a branch on its bit: the blocks' addresses do not wait for
-                // the header's test, so the core can fetch them while it runs.
-                for (std::uint32_t index = 0; index < blocks; ++index) {
-                    if (((crossed >> index) & 1u) == 0) continue;
-                    if constexpr (kCount)
-                        counts.prims_tested += block_primitives<kWidth>(leaf.prim_count, index);
+            for (unsigned left = crossed & ((1u << blocks) - 1u); left != 0; left &= left - 1) {
+                const auto index = static_cast<std::uint32_t>(std::countr_zero(left));
+                if constexpr (kCount) counts.prims_tested += block_primitives<kWidth>(leaf.prim_count, index);
+                if constexpr (kAnyHit) {
                     if (occludes_block(geometry_, blocks_[span.first + index], *block_ray)) {
                         alive_ &= ~(RayBits{1} << k);
                         break;
                     }
-                }
-            } else {
-                // Only the crossed blocks, by their bits: a ray that leaves in any direction crosses an
-                // unpredictable few of them, and a branch per block was mispredicted about a third of the
-                // time (docs/accel/stream.md, "The crossed blocks by their bits").
-                for (unsigned left = crossed & ((1u << blocks) - 1u); left != 0; left &= left - 1) {
-                    const auto index = static_cast<std::uint32_t>(std::countr_zero(left));
-                    if constexpr (kCount)
-                        counts.prims_tested += block_primitives<kWidth>(leaf.prim_count, index);
+                } else {
                     intersect_block(geometry_, blocks_[span.first + index], *block_ray, best_[k]);
                 }
-                if (best_[k].hit()) tlimit_[k] = best_[k].t;
             }
+            if (!kAnyHit && best_[k].hit()) tlimit_[k] = best_[k].t;
         }
     }
 
