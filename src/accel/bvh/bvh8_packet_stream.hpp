@@ -150,6 +150,10 @@ class RayStream {
         std::array<int, 3> side{};
         for (int axis = 0; axis < 3; ++axis)
             side[static_cast<std::size_t>(axis)] = (octant >> axis) & 1;
+        // -0.0f on the axes the octant enters by the high side, whose planes the diagonal order subtracts.
+        Ops::Float diagonal_sign[3];
+        for (int axis = 0; axis < 3; ++axis)
+            diagonal_sign[axis] = Ops::broadcast(std::bit_cast<float>(((octant >> axis) & 1u) << 31));
         ChildRef current{0, 0};
         RayBits rays = alive_;
         while (true) {
@@ -160,7 +164,7 @@ class RayStream {
                 if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
                 const Node& node = nodes_[current.child];
                 alignas(32) float along[kWidth];
-                const unsigned hit_children = test_children(node, side, rays, along);
+                const unsigned hit_children = test_children(node, side, diagonal_sign, rays, along);
                 if (hit_children != 0) {
                     const auto push = [&](int slot) {
                         const ChildRef child{node.child[slot], node.prim_count[slot]};
@@ -198,17 +202,15 @@ class RayStream {
     // chosen once for the octant, each ray clipped at its tlimit): child_rays_[slot] gets the rays that hit
     // the child; returns the children hit by any. along[slot]: how far along the octant's diagonal the
     // child's entry corner lies (the walk's order).
-    [[nodiscard]] unsigned test_children(const Node& node, const std::array<int, 3>& side, RayBits rays,
-                                         float* along) {
+    [[nodiscard]] unsigned test_children(const Node& node, const std::array<int, 3>& side,
+                                         const Ops::Float (&diagonal_sign)[3], RayBits rays, float* along) {
         Ops::Float near_bound[3], far_bound[3];
         load_bounds(&node.bounds[0][0][0], side, near_bound, far_bound);
         Ops::Float distance = Ops::broadcast(0.0f);
         for (int axis = 0; axis < 3; ++axis) {
             // The plane added, or subtracted (added with its sign bit flipped, the same float) where the
             // octant enters by the high side: a branch on the side here was mispredicted.
-            const auto flip =
-                std::bit_cast<float>(static_cast<std::uint32_t>(side[static_cast<std::size_t>(axis)]) << 31);
-            distance = Ops::add(distance, Ops::bit_xor(near_bound[axis], Ops::broadcast(flip)));
+            distance = Ops::add(distance, Ops::bit_xor(near_bound[axis], diagonal_sign[axis]));
         }
         Ops::store(along, distance);
         ChildRays hit_rays;
