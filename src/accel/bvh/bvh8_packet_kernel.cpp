@@ -47,8 +47,8 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
     using Packet::max_tlimit;
 
   public:
-    Bvh8PacketTraversal(const Bvh8Accel& bvh, const Geometry& geometry)
-        : PacketLeafTests<Ops, TriangleTestT>(bvh, geometry), nodes_(bvh.nodes()) {}
+    Bvh8PacketTraversal(const Bvh8Accel& bvh, const Geometry& geometry, RaySource source)
+        : PacketLeafTests<Ops, TriangleTestT>(bvh, geometry, source), nodes_(bvh.nodes()) {}
 
     // Front to back: the children that survive the cull are ordered by their entry bound and pushed, the
     // nearest on top; a popped child is tested against its rays, and skipped when it is entered beyond
@@ -175,7 +175,7 @@ void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std:
     constexpr auto kPacketRays = static_cast<std::size_t>(kPacketSize);
     dispatch_policies(target.test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
-        Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry);
+        Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry, RaySource::batch);
         RayStreams<TriangleTestT, kAnyHit> streams(bvh, geometry);
         for (std::size_t first = 0; first < rays.size(); first += kPacketRays) {
             const std::size_t count = std::min(kPacketRays, rays.size() - first);
@@ -208,7 +208,7 @@ void trace_soa_packet(const Bvh8PacketTarget& target, const RayPacket& rays, Hit
                       TraversalCounters* counters) {
     dispatch_policies(target.test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
-        Bvh8PacketTraversal<Ops, TriangleTestT> tracer(target.bvh, target.geometry);
+        Bvh8PacketTraversal<Ops, TriangleTestT> tracer(target.bvh, target.geometry, RaySource::camera);
         if (tracer.load(rays)) {
             tracer.template trace<false, kCount>(std::span<Hit>(), counts);
             tracer.store_hits(hits);

@@ -87,6 +87,11 @@ struct BlockRays<simd::Avx512> {
 // The most blocks a leaf holds, for the per-leaf arrays of the tests.
 constexpr std::uint32_t kMaxLeafBlocks = block_count(BvhAccel::kMaxLeafSize, kWidth);
 
+// Where a packet's rays come from. A camera's rays meet most triangles from afar, where many lanes of the
+// watertight test are uncertain; rays from a surface (a batch's shadow and bounce rays) meet them near
+// their origins, where few are (WatertightLanes::uncertain_often).
+enum class RaySource { camera, batch };
+
 // The leaf tests on a loaded packet; the traversal (bvh8_packet_kernel.cpp) calls test_leaf.
 template <class Ops, class TriangleTestT>
 class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
@@ -97,8 +102,11 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
     using Packet::load_best, Packet::prepare_group, Packet::store_best;
     using typename Packet::Float, typename Packet::GroupBest, typename Packet::Vec3v;
 
-    PacketLeafTests(const Bvh8Accel& bvh, const Geometry& geometry)
-        : blocks_(bvh.blocks()), geometry_(geometry), tolerance_(geometric_tolerance(bvh.bounds())) {}
+    PacketLeafTests(const Bvh8Accel& bvh, const Geometry& geometry, RaySource source)
+        : blocks_(bvh.blocks()),
+          geometry_(geometry),
+          tolerance_(geometric_tolerance(bvh.bounds())),
+          uncertain_often_(source == RaySource::camera) {}
 
     // The triangles of a leaf (the node's `child` and `prim_count`) against its rays, a group of rays at a
     // time; true when some ray found a (closer) hit. Its triangles' own boxes cull them for each group, so a
@@ -334,10 +342,13 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
     // The lane kernel of the packet's triangle test on the group starting at ray `first`.
     [[nodiscard]] auto make_kernel(int first) const {
         if constexpr (kWatertight) {
-            return block_detail::WatertightLanes<Ops>{
-                Ops::load(&packet_.permuted_origin[0][first]), Ops::load(&packet_.permuted_origin[1][first]),
-                Ops::load(&packet_.permuted_origin[2][first]), Ops::load(&packet_.shear[0][first]),
-                Ops::load(&packet_.shear[1][first]),           Ops::load(&packet_.shear[2][first])};
+            return block_detail::WatertightLanes<Ops>{Ops::load(&packet_.permuted_origin[0][first]),
+                                                      Ops::load(&packet_.permuted_origin[1][first]),
+                                                      Ops::load(&packet_.permuted_origin[2][first]),
+                                                      Ops::load(&packet_.shear[0][first]),
+                                                      Ops::load(&packet_.shear[1][first]),
+                                                      Ops::load(&packet_.shear[2][first]),
+                                                      uncertain_often_};
         } else {
             return block_detail::MollerTrumboreLanes<Ops>(load_vec<Ops>(packet_.origin, first),
                                                           load_vec<Ops>(packet_.direction, first),
@@ -421,7 +432,8 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
     const Geometry& geometry_;
 
   private:
-    float tolerance_;  // the scene's geometric tolerance, by which the triangle boxes are grown
+    float tolerance_;       // the scene's geometric tolerance, by which the triangle boxes are grown
+    bool uncertain_often_;  // camera packets: WatertightLanes::uncertain_often
 };
 
 }  // namespace

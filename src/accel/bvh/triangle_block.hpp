@@ -240,6 +240,10 @@ struct WatertightLanes {
     using Float = typename Ops::Float;
     Float origin_x, origin_y, origin_z;  // the origin's kx, ky, kz components
     Float shear_x, shear_y, shear_z;
+    // Set where the lanes are rays that meet small triangles from afar, a camera packet's on a fine mesh:
+    // there many lanes are uncertain, and a branch on whether any is was mispredicted (docs/accel/packets.md,
+    // "Uncertain lanes without a branch").
+    bool uncertain_often = false;
 
     // A vertex relative to the origin: (x, y) sheared into ray space, z the unsheared a[kz].
     [[nodiscard]] Vec3v<Ops> sheared(const Vec3v<Ops>& vertex) const {
@@ -272,7 +276,7 @@ struct WatertightLanes {
         // kernel decides before any exact sign: it stays here. Small triangles seen from afar make many
         // uncertain lanes, most of them such misses (docs/accel/bvh_wide.md, "Uncertain lanes that are
         // misses").
-        if (uncertain != 0) uncertain &= ~certain_misses(w0, w1, w2, slack);
+        if (uncertain_often || uncertain != 0) uncertain &= ~certain_misses(w0, w1, w2, slack);
         // Edge functions of both signs: a miss. Where all three are certain (the lanes not handed to the
         // scalar kernel), that is a sign bit that differs between them, read from w0 ^ w1 | w0 ^ w2 (three
         // operations where the compares took eleven). Three certain edge functions of one sign, the only
@@ -302,18 +306,13 @@ struct WatertightLanes {
 
   private:
     // The lanes where two edge functions are certain (beyond `slack`) and of opposite signs: misses by
-    // Watertight::intersect's first test.
+    // Watertight::intersect's first test. Some edge function is beyond +slack exactly when the largest is,
+    // and beyond -slack when the least is (with a finite slack the edge functions are not NaN; an infinite
+    // or NaN slack makes no lane certain either way).
     [[nodiscard]] static unsigned certain_misses(Float w0, Float w1, Float w2, Float slack) {
-        const Float zero = Ops::broadcast(0.0f);
-        const auto certain0 = Ops::greater(Ops::abs(w0), slack), certain1 = Ops::greater(Ops::abs(w1), slack),
-                   certain2 = Ops::greater(Ops::abs(w2), slack);
-        const auto positive = Ops::mask_or(Ops::mask_or(Ops::mask_and(certain0, Ops::greater(w0, zero)),
-                                                        Ops::mask_and(certain1, Ops::greater(w1, zero))),
-                                           Ops::mask_and(certain2, Ops::greater(w2, zero)));
-        const auto negative = Ops::mask_or(Ops::mask_or(Ops::mask_and(certain0, Ops::less(w0, zero)),
-                                                        Ops::mask_and(certain1, Ops::less(w1, zero))),
-                                           Ops::mask_and(certain2, Ops::less(w2, zero)));
-        return Ops::bits(Ops::mask_and(positive, negative));
+        const Float highest = Ops::max(Ops::max(w0, w1), w2), lowest = Ops::min(Ops::min(w0, w1), w2);
+        return Ops::bits(Ops::mask_and(Ops::greater(highest, slack),
+                                       Ops::less(lowest, Ops::bit_xor(slack, Ops::broadcast(-0.0f)))));
     }
 };
 
