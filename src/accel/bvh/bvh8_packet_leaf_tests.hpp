@@ -89,7 +89,7 @@ constexpr std::uint32_t kMaxLeafBlocks = block_count(BvhAccel::kMaxLeafSize, kWi
 
 // Where a packet's rays come from. A camera's rays meet most triangles from afar, where many lanes of the
 // watertight test are uncertain; rays from a surface (a batch's shadow and bounce rays) meet them near
-// their origins, where few are (WatertightLanes::uncertain_often).
+// their origins, where few are (WatertightLanes::test's kUncertainOften).
 enum class RaySource { camera, batch };
 
 // The leaf tests on a loaded packet; the traversal (bvh8_packet_kernel.cpp) calls test_leaf.
@@ -152,8 +152,12 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
             }
             if (prefer_ray_tests(first_block, end, candidates, spheres, active))
                 found |= test_rays<kAnyHit>(first_block, end, candidates, edges, group, active, answers);
+            else if (uncertain_often_)
+                found |=
+                    test_group<kAnyHit, true>(first_block, end, candidates, edges, group, active, answers);
             else
-                found |= test_group<kAnyHit>(first_block, end, candidates, edges, group, active, answers);
+                found |=
+                    test_group<kAnyHit, false>(first_block, end, candidates, edges, group, active, answers);
         }
         return found;
     }
@@ -289,8 +293,8 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
     }
 
     // The blocks [first_block, end) against the `active` rays of one group, each triangle broadcast to the
-    // group's lanes.
-    template <bool kAnyHit, class Answer>
+    // group's lanes. kUncertainOften: WatertightLanes::test's.
+    template <bool kAnyHit, bool kUncertainOften, class Answer>
     bool test_group(std::uint32_t first_block, std::uint32_t end,
                     const std::array<unsigned, kMaxLeafBlocks>& candidates,
                     const std::array<BlockEdges, kMaxLeafBlocks>& edges, int group, unsigned active,
@@ -316,10 +320,10 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
                             code_lanes_[static_cast<std::size_t>(group)][static_cast<std::size_t>(code)];
                         if (lanes == 0) continue;
                         const std::array<int, 3> axes = permutation_axes(code);
-                        found |= take<kAnyHit>(
-                            kernel.test(vertex(block, 0, lane, axes), vertex(block, 1, lane, axes),
-                                        vertex(block, 2, lane, axes), tnear, best.t, lanes),
-                            prim, first, lanes, active, best, answers);
+                        found |= take<kAnyHit>(kernel.template test<kUncertainOften>(
+                                                   vertex(block, 0, lane, axes), vertex(block, 1, lane, axes),
+                                                   vertex(block, 2, lane, axes), tnear, best.t, lanes),
+                                               prim, first, lanes, active, best, answers);
                     }
                 } else {
                     const BlockEdges& block_edges = edges[b - first_block];
@@ -342,13 +346,10 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
     // The lane kernel of the packet's triangle test on the group starting at ray `first`.
     [[nodiscard]] auto make_kernel(int first) const {
         if constexpr (kWatertight) {
-            return block_detail::WatertightLanes<Ops>{Ops::load(&packet_.permuted_origin[0][first]),
-                                                      Ops::load(&packet_.permuted_origin[1][first]),
-                                                      Ops::load(&packet_.permuted_origin[2][first]),
-                                                      Ops::load(&packet_.shear[0][first]),
-                                                      Ops::load(&packet_.shear[1][first]),
-                                                      Ops::load(&packet_.shear[2][first]),
-                                                      uncertain_often_};
+            return block_detail::WatertightLanes<Ops>{
+                Ops::load(&packet_.permuted_origin[0][first]), Ops::load(&packet_.permuted_origin[1][first]),
+                Ops::load(&packet_.permuted_origin[2][first]), Ops::load(&packet_.shear[0][first]),
+                Ops::load(&packet_.shear[1][first]),           Ops::load(&packet_.shear[2][first])};
         } else {
             return block_detail::MollerTrumboreLanes<Ops>(load_vec<Ops>(packet_.origin, first),
                                                           load_vec<Ops>(packet_.direction, first),
@@ -433,7 +434,7 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
 
   private:
     float tolerance_;       // the scene's geometric tolerance, by which the triangle boxes are grown
-    bool uncertain_often_;  // camera packets: WatertightLanes::uncertain_often
+    bool uncertain_often_;  // camera packets: test_group's kUncertainOften
 };
 
 }  // namespace

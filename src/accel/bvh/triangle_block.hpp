@@ -240,10 +240,6 @@ struct WatertightLanes {
     using Float = typename Ops::Float;
     Float origin_x, origin_y, origin_z;  // the origin's kx, ky, kz components
     Float shear_x, shear_y, shear_z;
-    // Set where the lanes are rays that meet small triangles from afar, a camera packet's on a fine mesh:
-    // there many lanes are uncertain, and a branch on whether any is was mispredicted (docs/accel/packets.md,
-    // "Uncertain lanes without a branch").
-    bool uncertain_often = false;
 
     // A vertex relative to the origin: (x, y) sheared into ray space, z the unsheared a[kz].
     [[nodiscard]] Vec3v<Ops> sheared(const Vec3v<Ops>& vertex) const {
@@ -254,7 +250,10 @@ struct WatertightLanes {
 
     // `wanted`: the lanes the caller reads; the test stops before the division once none of them can hit.
     // A packet's group mostly misses; the same exit after Moller-Trumbore's u test lost in both the packet
-    // and bvh8's block test (docs/accel/packets.md).
+    // and bvh8's block test (docs/accel/packets.md). kUncertainOften: the lanes are rays that meet small
+    // triangles from afar, a camera packet's on a fine mesh, where many lanes are uncertain and a branch on
+    // whether any is was mispredicted (docs/accel/packets.md, "Uncertain lanes without a branch").
+    template <bool kUncertainOften = false>
     [[nodiscard]] LaneHits<Ops> test(const Vec3v<Ops>& v0, const Vec3v<Ops>& v1, const Vec3v<Ops>& v2,
                                      Float tnear, Float tfar, unsigned wanted = ~0u) const {
         const Vec3v<Ops> a = sheared(v0), b = sheared(v1), c = sheared(v2);
@@ -276,7 +275,7 @@ struct WatertightLanes {
         // kernel decides before any exact sign: it stays here. Small triangles seen from afar make many
         // uncertain lanes, most of them such misses (docs/accel/bvh_wide.md, "Uncertain lanes that are
         // misses").
-        if (uncertain_often || uncertain != 0) uncertain &= ~certain_misses(w0, w1, w2, slack);
+        if (kUncertainOften || uncertain != 0) uncertain &= ~certain_misses(w0, w1, w2, slack);
         // Edge functions of both signs: a miss. Where all three are certain (the lanes not handed to the
         // scalar kernel), that is a sign bit that differs between them, read from w0 ^ w1 | w0 ^ w2 (three
         // operations where the compares took eleven). Three certain edge functions of one sign, the only
