@@ -263,7 +263,7 @@ class RayStream {
             if constexpr (kCount) ++counts.nodes_visited;
             const auto& block_ray = block_rays_[static_cast<std::size_t>(k)];
             // Only the crossed blocks, by their bits: a ray crosses an unpredictable few of them, and a
-            // branch on each block's bit was the streams' most mispredicted (docs/accel/stream.md, "The
+            // branch on each block's bit was the streams' most mispredicted (docs/log/stream.md, "The
             // crossed blocks by their bits").
             const std::uint32_t blocks = span.end - span.first;
             for (unsigned left = crossed & ((1u << blocks) - 1u); left != 0; left &= left - 1) {
