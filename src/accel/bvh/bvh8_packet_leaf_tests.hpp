@@ -106,7 +106,7 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
         : blocks_(bvh.blocks()),
           geometry_(geometry),
           tolerance_(geometric_tolerance(bvh.bounds())),
-          uncertain_often_(source == RaySource::camera) {}
+          uncertain_often_(kWatertight && source == RaySource::camera) {}
 
     // The triangles of a leaf (the node's `child` and `prim_count`) against its rays, a group of rays at a
     // time; true when some ray found a (closer) hit. Its triangles' own boxes cull them for each group, so a
@@ -434,7 +434,7 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
 
   private:
     float tolerance_;       // the scene's geometric tolerance, by which the triangle boxes are grown
-    bool uncertain_often_;  // camera packets: test_group's kUncertainOften
+    bool uncertain_often_;  // camera packets, watertight test: test_group's kUncertainOften
 };
 
 }  // namespace
