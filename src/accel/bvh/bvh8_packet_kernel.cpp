@@ -52,8 +52,9 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
 
     // Front to back: the children that survive the cull are ordered by their entry bound and pushed, the
     // nearest on top; a popped child is tested against its rays, and skipped when it is entered beyond
-    // every ray's closest hit. kAnyHit: a ray leaves the packet at its first hit. `answers` starts as
-    // misses; on return answers[i] is ray i's closest hit (Hit) or occlusion (uint8).
+    // every ray's closest hit. kAnyHit: a ray leaves the packet at its first hit, and the children go in
+    // slot order. `answers` starts as misses; on return answers[i] is ray i's closest hit (Hit) or
+    // occlusion (uint8).
     template <bool kAnyHit, bool kCount, class Answer>
     void trace(std::span<Answer> answers, TraversalCounters& counts) {
         alive_ = valid_;
@@ -64,12 +65,21 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
         const Node* node = &nodes_[0];
         LaneMask rays = alive_;
         while (true) {
-            // INNER: cull the children, push the survivors farthest first.
+            // INNER: cull the children and push the survivors, the first to visit on top.
             if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
             alignas(32) float entry[kWidth];
             std::array<int, kWidth> order;
-            const int count =
-                order_by_entry<kWidth>(cull_children(*node, interval_, tlimit_max_, entry), entry, order);
+            const unsigned hit_children = cull_children(*node, interval_, tlimit_max_, entry);
+            // Any hit ends a ray, so for occlusion the order only decides where the first is found: slot
+            // order, without the sort's branches, as bvh8's any-hit walk (docs/accel/packets.md, "Occlusion
+            // packets in slot order").
+            int count = 0;
+            if constexpr (kAnyHit) {
+                for (unsigned rest = hit_children; rest != 0; rest &= rest - 1)
+                    order[static_cast<std::size_t>(count++)] = std::countr_zero(rest);
+            } else {
+                count = order_by_entry<kWidth>(hit_children, entry, order);
+            }
             for (int k = count - 1; k >= 0; --k)
                 stack[stack_size++] = {node, order[k], entry[order[k]], rays};
             // Every pushed child's lines are requested now, the nearest first: on a tree larger than the
