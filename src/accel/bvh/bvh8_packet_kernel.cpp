@@ -82,9 +82,9 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
             }
             for (int k = count - 1; k >= 0; --k)
                 stack[stack_size++] = {node, order[k], entry[order[k]], rays};
-            // Every pushed child's lines are requested now, the nearest first: on a tree larger than the
-            // caches the pops' misses then overlap instead of following one another (docs/accel/packets.md,
-            // "Large meshes: prefetching the pushed children").
+            // Every pushed child's lines are requested now, the first to visit first: on a tree larger than
+            // the caches the pops' misses then overlap instead of following one another
+            // (docs/accel/packets.md, "Large meshes: prefetching the pushed children").
             for (int k = 0; k < count; ++k) {
                 const int slot = order[k];
                 wide_walk::prefetch_child<kWidth>(nodes_, blocks_, node->child[slot], node->prim_count[slot]);
