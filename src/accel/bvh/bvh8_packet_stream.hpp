@@ -5,9 +5,10 @@
 // that hit each child are kept as a bit mask beside it, and a child is visited once for all of them. This is
 // the stream traversal Embree's rtcOccluded1M runs on the octant-sorted streams it cuts a call into (Embree
 // 3's BVHNIntersectorStream), its fastest call on shadow rays: a node is fetched once per stream, and a
-// ray's box test needs neither a sort of the children nor a stack of its own. The children go nearest first
-// along the octant's diagonal, one order for the stream. For occlusion a ray leaves its stream at its first
-// hit; for closest hits each ray's boxes are clipped at its closest hit so far. Each ray's box tests are
+// ray's box test needs neither a sort of the children nor a stack of its own. For closest hits the children
+// go nearest first along the octant's diagonal, one order for the stream, and each ray's boxes are clipped
+// at its closest hit so far; for occlusion they go in slot order, and a ray leaves its stream at its first
+// hit. Each ray's box tests are
 // clip_slab's, as in bvh8's walk, against a limit never below its final hit, and its leaves are tested with
 // bvh8's triangle blocks, so every ray gets bvh8's answer bit for bit. Included by the packet kernel's source
 // alone (bvh8_packet_kernel.cpp).
@@ -172,10 +173,18 @@ class RayStream {
                         // Fetched while the stream walks the child's siblings (docs/accel/stream.md).
                         wide_walk::prefetch_child<kWidth>(nodes_, blocks_, child.child, child.prim_count);
                     };
-                    // Nearest first along the octant's diagonal, a stand-in for each ray's own entry order
-                    // that the whole stream shares; the others pushed farthest first.
+                    // Closest hits: nearest first along the octant's diagonal, a stand-in for each ray's
+                    // own entry order that the whole stream shares; the others pushed farthest first.
+                    // Occlusion: slot order, as bvh8's any-hit walk and the occlusion packets, since any hit
+                    // ends a ray (docs/log/stream.md, "Occlusion streams in slot order").
                     std::array<int, 2 * kWidth> order;
-                    const int hit_count = order_by_rank(hit_children, along, order);
+                    int hit_count = 0;
+                    if constexpr (kAnyHit) {
+                        for (unsigned rest = hit_children; rest != 0; rest &= rest - 1)
+                            order[static_cast<std::size_t>(hit_count++)] = std::countr_zero(rest);
+                    } else {
+                        hit_count = order_by_rank(hit_children, along, order);
+                    }
                     for (int k = hit_count - 1; k > 0; --k)
                         push(order[static_cast<std::size_t>(k)]);
                     const int first = order[0];
@@ -200,19 +209,21 @@ class RayStream {
 
     // Every ray of `rays` against the node's 8 boxes (intersect_children's arithmetic, the entry planes
     // chosen once for the octant, each ray clipped at its tlimit): child_rays_[slot] gets the rays that hit
-    // the child; returns the children hit by any. along[slot]: how far along the octant's diagonal the
-    // child's entry corner lies (the walk's order).
+    // the child; returns the children hit by any. along[slot], for closest hits: how far along the octant's
+    // diagonal the child's entry corner lies (the walk's order).
     [[nodiscard]] unsigned test_children(const Node& node, const std::array<int, 3>& side,
                                          const Ops::Float (&diagonal_sign)[3], RayBits rays, float* along) {
         Ops::Float near_bound[3], far_bound[3];
         load_bounds(&node.bounds[0][0][0], side, near_bound, far_bound);
-        Ops::Float distance = Ops::broadcast(0.0f);
-        for (int axis = 0; axis < 3; ++axis) {
-            // The plane added, or subtracted (added with its sign bit flipped, the same float) where the
-            // octant enters by the high side: a branch on the side here was mispredicted.
-            distance = Ops::add(distance, Ops::bit_xor(near_bound[axis], diagonal_sign[axis]));
+        if constexpr (!kAnyHit) {
+            Ops::Float distance = Ops::broadcast(0.0f);
+            for (int axis = 0; axis < 3; ++axis) {
+                // The plane added, or subtracted (added with its sign bit flipped, the same float) where the
+                // octant enters by the high side: a branch on the side here was mispredicted.
+                distance = Ops::add(distance, Ops::bit_xor(near_bound[axis], diagonal_sign[axis]));
+            }
+            Ops::store(along, distance);
         }
-        Ops::store(along, distance);
         ChildRays hit_rays;
         for (RayBits rest = rays; rest != 0; rest &= rest - 1) {
             const int k = std::countr_zero(rest);
