@@ -73,13 +73,8 @@ class Bvh8PacketTraversal : public PacketLeafTests<Ops, TriangleTestT> {
             // Any hit ends a ray, so for occlusion the order only decides where the first is found: slot
             // order, without the sort's branches, as bvh8's any-hit walk (docs/accel/packets.md, "Occlusion
             // packets in slot order").
-            int count = 0;
-            if constexpr (kAnyHit) {
-                for (unsigned rest = hit_children; rest != 0; rest &= rest - 1)
-                    order[static_cast<std::size_t>(count++)] = std::countr_zero(rest);
-            } else {
-                count = order_by_entry<kWidth>(hit_children, entry, order);
-            }
+            const int count = kAnyHit ? order_by_slot(hit_children, order)
+                                      : order_by_entry<kWidth>(hit_children, entry, order);
             for (int k = count - 1; k >= 0; --k)
                 stack[stack_size++] = {node, order[k], entry[order[k]], rays};
             // Every pushed child's lines are requested now, the first to visit first: on a tree larger than

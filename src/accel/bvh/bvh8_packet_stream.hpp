@@ -8,10 +8,9 @@
 // ray's box test needs neither a sort of the children nor a stack of its own. For closest hits the children
 // go nearest first along the octant's diagonal, one order for the stream, and each ray's boxes are clipped
 // at its closest hit so far; for occlusion they go in slot order, and a ray leaves its stream at its first
-// hit. Each ray's box tests are
-// clip_slab's, as in bvh8's walk, against a limit never below its final hit, and its leaves are tested with
-// bvh8's triangle blocks, so every ray gets bvh8's answer bit for bit. Included by the packet kernel's source
-// alone (bvh8_packet_kernel.cpp).
+// hit. Each ray's box tests are clip_slab's, as in bvh8's walk, against a limit never below its final hit,
+// and its leaves are tested with bvh8's triangle blocks, so every ray gets bvh8's answer bit for bit.
+// Included by the packet kernel's source alone (bvh8_packet_kernel.cpp).
 #pragma once
 
 #include <immintrin.h>
@@ -178,13 +177,8 @@ class RayStream {
                     // Occlusion: slot order, as bvh8's any-hit walk and the occlusion packets, since any hit
                     // ends a ray (docs/log/stream.md, "Occlusion streams in slot order").
                     std::array<int, 2 * kWidth> order;
-                    int hit_count = 0;
-                    if constexpr (kAnyHit) {
-                        for (unsigned rest = hit_children; rest != 0; rest &= rest - 1)
-                            order[static_cast<std::size_t>(hit_count++)] = std::countr_zero(rest);
-                    } else {
-                        hit_count = order_by_rank(hit_children, along, order);
-                    }
+                    const int hit_count = kAnyHit ? order_by_slot(hit_children, order)
+                                                  : order_by_rank(hit_children, along, order);
                     for (int k = hit_count - 1; k > 0; --k)
                         push(order[static_cast<std::size_t>(k)]);
                     const int first = order[0];

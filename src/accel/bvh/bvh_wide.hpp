@@ -228,6 +228,17 @@ template <int W>
     return count;
 }
 
+// The children of `mask` in slot order into order[0, count), count returned: occlusion's order in
+// bvh8_packet's packets and streams, where any hit ends a ray and the order only decides where the first is
+// found.
+template <std::size_t N>
+[[nodiscard]] inline int order_by_slot(unsigned mask, std::array<int, N>& order) {
+    int count = 0;
+    for (; mask != 0; mask &= mask - 1)
+        order[static_cast<std::size_t>(count++)] = std::countr_zero(mask);
+    return count;
+}
+
 // The hit children of a node in the walk's order: each child but the nearest pushed, farthest first, and
 // the nearest's slot returned (equal entries in slot order, as order_by_entry). `mask` is not empty.
 // push(slot, counted) writes the child at the stack's top and grows the stack only when `counted`. One or
