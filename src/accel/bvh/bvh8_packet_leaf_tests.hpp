@@ -63,6 +63,8 @@ struct BlockRays<simd::Avx2> {
     [[nodiscard]] __m256 spread(__m256 group) const { return _mm256_permutevar8x32_ps(group, index); }
     // A block row, 8 floats, in each half.
     [[nodiscard]] static __m256 repeat(const float* row) { return _mm256_load_ps(row); }
+    // The first ray's row, `first`, in the first half and the second's in the second.
+    [[nodiscard]] static __m256 pair(const float* first, const float*) { return _mm256_load_ps(first); }
 };
 
 #if defined(__AVX512F__) && defined(__AVX512DQ__)
@@ -80,6 +82,9 @@ struct BlockRays<simd::Avx512> {
     }
     [[nodiscard]] static __m512 repeat(const float* row) {
         return _mm512_maskz_broadcast_f32x8(0xffff, _mm256_load_ps(row));
+    }
+    [[nodiscard]] static __m512 pair(const float* first, const float* second) {
+        return _mm512_insertf32x8(_mm512_castps256_ps512(_mm256_load_ps(first)), _mm256_load_ps(second), 1);
     }
 };
 #endif
@@ -183,15 +188,14 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
     // Whether the `active` rays of `group` should test the leaf's blocks a ray at a time (test_rays) rather
     // than its candidate triangles a triangle at a time (test_group). Where triangles are small beside the
     // packet's footprint few rays of a group reach a leaf (the dragon: 3.2 of 16, against 3.8 candidates
-    // of 8), and most lanes of a broadcast triangle idle. A ray test costs about twice a triangle test
-    // (docs/accel/packets.md, "Few rays at a leaf"). Moller-Trumbore only: the watertight kernel stops
-    // before its division when no lane survives its edge signs, so idle lanes cost it less, and it lost
-    // ground on the bunny and the armadillo with ray tests. Spheres take the broadcast path.
+    // of 8), and most lanes of a broadcast triangle idle. A ray test costs about twice a triangle test with
+    // Moller-Trumbore and three times with the watertight test, which loads each ray's vertex rows in its
+    // own axis permutation: the weights that measured best (docs/accel/packets.md, "Few rays at a leaf";
+    // "Watertight ray tests"). Spheres take the broadcast path.
     [[nodiscard]] bool prefer_ray_tests(std::uint32_t first_block, std::uint32_t end,
                                         const std::array<unsigned, kMaxLeafBlocks>& candidates,
                                         const std::array<unsigned, kMaxLeafBlocks>& spheres,
                                         unsigned active) const {
-        if constexpr (kWatertight) return false;
         constexpr int kRays = BlockRays<Ops>::kRays;
         int triangle_tests = 0, blocks = 0;
         for (std::uint32_t b = first_block; b < end; ++b) {
@@ -200,12 +204,14 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
             blocks += candidates[b - first_block] != 0;
         }
         const int ray_tests = (std::popcount(active) + kRays - 1) / kRays * blocks;
-        return 2 * ray_tests < triangle_tests;
+        constexpr int kRayTestCost = kWatertight ? 3 : 2;
+        return kRayTestCost * ray_tests < triangle_tests;
     }
 
-    // Moller-Trumbore on the blocks [first_block, end) against the `active` rays of one group,
-    // BlockRays<Ops>::kRays rays per test, each against a block's candidate triangles: the lane kernel of
-    // test_group on the same operands, so the same hits. The closest hits are merged in the packet's arrays.
+    // The blocks [first_block, end) against the `active` rays of one group, BlockRays<Ops>::kRays rays per
+    // test, each against a block's candidate triangles: the lane kernel of test_group on the same operands,
+    // so the same hits. The closest hits are merged in the packet's arrays. The watertight test reads each
+    // half's vertices in its own ray's axis permutation.
     template <bool kAnyHit, class Answer>
     bool test_rays(std::uint32_t first_block, std::uint32_t end,
                    const std::array<unsigned, kMaxLeafBlocks>& candidates,
@@ -225,31 +231,78 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
             std::array<int, 2> ray;
             ray[0] = std::countr_zero(left), left &= left - 1;
             ray[1] = Rays::kRays == 2 && left != 0 ? std::countr_zero(left) : ray[0];
-            const bool second = ray[1] != ray[0];
-            if (second) left &= left - 1;
+            if (ray[1] != ray[0]) left &= left - 1;
             const Rays rays(ray);
-            const block_detail::MollerTrumboreLanes<Ops> kernel(
-                {spread(rays, packet_.origin[0]), spread(rays, packet_.origin[1]),
-                 spread(rays, packet_.origin[2])},
-                {spread(rays, packet_.direction[0]), spread(rays, packet_.direction[1]),
-                 spread(rays, packet_.direction[2])},
-                spread(rays, packet_.direction_scale));
             const Float tnear = spread(rays, packet_.tnear);
-            for (std::uint32_t b = first_block; b < end; ++b) {
-                // A ray an occlusion ended drops out.
-                const unsigned alive = static_cast<unsigned>(alive_ >> first);
-                const unsigned block_lanes = candidates[b - first_block];
-                const unsigned lanes = ((alive >> ray[0]) & 1u ? block_lanes : 0u) |
-                                       (second && ((alive >> ray[1]) & 1u) ? block_lanes << kWidth : 0u);
-                if (lanes == 0) continue;
-                const Block& block = blocks_[b];
-                const BlockEdges& block_edges = edges[b - first_block];
-                const auto result =
-                    kernel.test({repeat(block.vertex[0]), repeat(block_edges.e1), repeat(block_edges.e2),
-                                 Rays::repeat(block_edges.e1_scale), Rays::repeat(block_edges.e2_scale)},
-                                tnear, spread(rays, packet_.tlimit));
-                found |= take_block<kAnyHit>(result, block, first, ray, lanes, answers);
+            if constexpr (kWatertight) {
+                const std::array<int, 3> first_axes = lane_axes(group, ray[0]),
+                                         second_axes = lane_axes(group, ray[1]);
+                const block_detail::WatertightLanes<Ops> kernel{
+                    spread(rays, packet_.permuted_origin[0]), spread(rays, packet_.permuted_origin[1]),
+                    spread(rays, packet_.permuted_origin[2]), spread(rays, packet_.shear[0]),
+                    spread(rays, packet_.shear[1]),           spread(rays, packet_.shear[2])};
+                found |= test_ray_blocks<kAnyHit>(
+                    first_block, end, candidates, first, ray, answers,
+                    [&](const Block& block, std::uint32_t) {
+                        auto vertex = [&](int v) {
+                            auto row = [&](int k) {
+                                return Rays::pair(block.vertex[v][first_axes[static_cast<std::size_t>(k)]],
+                                                  block.vertex[v][second_axes[static_cast<std::size_t>(k)]]);
+                            };
+                            return Vec3v{row(0), row(1), row(2)};
+                        };
+                        return kernel.test(vertex(0), vertex(1), vertex(2), tnear,
+                                           spread(rays, packet_.tlimit));
+                    });
+            } else {
+                const block_detail::MollerTrumboreLanes<Ops> kernel(
+                    {spread(rays, packet_.origin[0]), spread(rays, packet_.origin[1]),
+                     spread(rays, packet_.origin[2])},
+                    {spread(rays, packet_.direction[0]), spread(rays, packet_.direction[1]),
+                     spread(rays, packet_.direction[2])},
+                    spread(rays, packet_.direction_scale));
+                found |= test_ray_blocks<kAnyHit>(
+                    first_block, end, candidates, first, ray, answers,
+                    [&](const Block& block, std::uint32_t b) {
+                        const BlockEdges& block_edges = edges[b - first_block];
+                        return kernel.test(
+                            {repeat(block.vertex[0]), repeat(block_edges.e1), repeat(block_edges.e2),
+                             Rays::repeat(block_edges.e1_scale), Rays::repeat(block_edges.e2_scale)},
+                            tnear, spread(rays, packet_.tlimit));
+                    });
             }
+        }
+        return found;
+    }
+
+    // The axis permutation of lane `lane` of `group` (a code of codes_, Watertight::permutation).
+    [[nodiscard]] std::array<int, 3> lane_axes(int group, int lane) const {
+        const auto g = static_cast<std::size_t>(group);
+        int code = 0;
+        for (unsigned codes = codes_[g]; codes != 0; codes &= codes - 1) {
+            code = std::countr_zero(codes);
+            if ((code_lanes_[g][static_cast<std::size_t>(code)] >> lane) & 1u) break;
+        }
+        return permutation_axes(code);
+    }
+
+    // test_rays' loop over the blocks for the rays `ray` (one, when both are the same) of the group at
+    // `first`: test(block, b) is the lane kernel's answer for block b, lane l holding ray[l / 8] against
+    // triangle l % 8; a ray an occlusion ended drops out.
+    template <bool kAnyHit, class Answer, class Test>
+    bool test_ray_blocks(std::uint32_t first_block, std::uint32_t end,
+                         const std::array<unsigned, kMaxLeafBlocks>& candidates, int first,
+                         const std::array<int, 2>& ray, std::span<Answer> answers, const Test& test) {
+        const bool second = ray[1] != ray[0];
+        bool found = false;
+        for (std::uint32_t b = first_block; b < end; ++b) {
+            const unsigned alive = static_cast<unsigned>(alive_ >> first);
+            const unsigned block_lanes = candidates[b - first_block];
+            const unsigned lanes = ((alive >> ray[0]) & 1u ? block_lanes : 0u) |
+                                   (second && ((alive >> ray[1]) & 1u) ? block_lanes << kWidth : 0u);
+            if (lanes == 0) continue;
+            const Block& block = blocks_[b];
+            found |= take_block<kAnyHit>(test(block, b), block, first, ray, lanes, answers);
         }
         return found;
     }
@@ -322,7 +375,7 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
                         const std::array<int, 3> axes = permutation_axes(code);
                         found |= take<kAnyHit>(kernel.template test<kUncertainOften>(
                                                    vertex(block, 0, lane, axes), vertex(block, 1, lane, axes),
-                                                   vertex(block, 2, lane, axes), tnear, best.t, lanes),
+                                                   vertex(block, 2, lane, axes), tnear, best.t),
                                                prim, first, lanes, active, best, answers);
                     }
                 } else {

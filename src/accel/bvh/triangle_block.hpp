@@ -248,14 +248,15 @@ struct WatertightLanes {
                 Ops::sub(Ops::sub(vertex.y, origin_y), Ops::mul(shear_y, z)), z};
     }
 
-    // `wanted`: the lanes the caller reads; the test stops before the division once none of them can hit.
-    // A packet's group mostly misses; the same exit after Moller-Trumbore's u test lost in both the packet
-    // and bvh8's block test (docs/accel/packets.md). kUncertainOften: the lanes are rays that meet small
-    // triangles from afar, a camera packet's on a fine mesh, where many lanes are uncertain and a branch on
-    // whether any is was mispredicted (docs/accel/packets.md, "Uncertain lanes without a branch").
+    // The test runs to its end on every lane: whether a group's lanes all miss is data the predictor cannot
+    // learn, and an exit before the division on it cost the packets more than the division it saved
+    // (docs/accel/packets.md, "The watertight kernel without an early exit"). kUncertainOften: the lanes
+    // are rays that meet small triangles from afar, a camera packet's on a fine mesh, where many lanes are
+    // uncertain and a branch on whether any is was mispredicted (docs/accel/packets.md, "Uncertain lanes
+    // without a branch").
     template <bool kUncertainOften = false>
     [[nodiscard]] LaneHits<Ops> test(const Vec3v<Ops>& v0, const Vec3v<Ops>& v1, const Vec3v<Ops>& v2,
-                                     Float tnear, Float tfar, unsigned wanted = ~0u) const {
+                                     Float tnear, Float tfar) const {
         const Vec3v<Ops> a = sheared(v0), b = sheared(v1), c = sheared(v2);
         const Float w0 = Ops::difference_of_products(b.x, c.y, b.y, c.x);
         const Float w1 = Ops::difference_of_products(c.x, a.y, c.y, a.x);
@@ -281,10 +282,6 @@ struct WatertightLanes {
         // operations where the compares took eleven). Three certain edge functions of one sign, the only
         // lanes left: det is not zero.
         const unsigned rejected = Ops::sign_bits(Ops::bit_or(Ops::bit_xor(w0, w1), Ops::bit_xor(w0, w2)));
-        if (((~rejected | uncertain) & wanted) == 0) {
-            const Float zero = Ops::broadcast(0.0f);
-            return {zero, zero, zero, 0, 0};
-        }
         const Float det = Ops::add(Ops::add(w0, w1), w2);
         const Float az = Ops::mul(shear_z, a.z), bz = Ops::mul(shear_z, b.z), cz = Ops::mul(shear_z, c.z);
         const Float inv_det = Ops::div(Ops::broadcast(1.0f), det);
