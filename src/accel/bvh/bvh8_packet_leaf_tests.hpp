@@ -188,6 +188,16 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
                 Ops::broadcast(block.vertex[v][axes[2]][lane])};
     }
 
+    // Vertex v of a block's 8 triangles for test_rays: the first ray's half in its axis permutation, the
+    // second's in its own (BlockRays::pair).
+    [[nodiscard]] static Vec3v paired_vertex(const Block& block, int v, const std::array<int, 3>& first_axes,
+                                             const std::array<int, 3>& second_axes) {
+        using Rays = BlockRays<Ops>;
+        return {Rays::pair(block.vertex[v][first_axes[0]], block.vertex[v][second_axes[0]]),
+                Rays::pair(block.vertex[v][first_axes[1]], block.vertex[v][second_axes[1]]),
+                Rays::pair(block.vertex[v][first_axes[2]], block.vertex[v][second_axes[2]])};
+    }
+
     // Whether the `active` rays of `group` should test the leaf's blocks a ray at a time (test_rays) rather
     // than its candidate triangles a triangle at a time (test_group). Where triangles are small beside the
     // packet's footprint few rays of a group reach a leaf (the dragon: 3.2 of 16, against 3.8 candidates
@@ -244,19 +254,14 @@ class PacketLeafTests : public LoadedPacket<Ops, TriangleTestT> {
                     spread(rays, packet_.permuted_origin[0]), spread(rays, packet_.permuted_origin[1]),
                     spread(rays, packet_.permuted_origin[2]), spread(rays, packet_.shear[0]),
                     spread(rays, packet_.shear[1]),           spread(rays, packet_.shear[2])};
-                found |= test_ray_blocks<kAnyHit>(
-                    first_block, end, candidates, first, ray, answers,
-                    [&](const Block& block, std::uint32_t) {
-                        auto vertex = [&](int v) {
-                            auto row = [&](int k) {
-                                return Rays::pair(block.vertex[v][first_axes[static_cast<std::size_t>(k)]],
-                                                  block.vertex[v][second_axes[static_cast<std::size_t>(k)]]);
-                            };
-                            return Vec3v{row(0), row(1), row(2)};
-                        };
-                        return kernel.test(vertex(0), vertex(1), vertex(2), tnear,
-                                           spread(rays, packet_.tlimit));
-                    });
+                found |= test_ray_blocks<kAnyHit>(first_block, end, candidates, first, ray, answers,
+                                                  [&](const Block& block, std::uint32_t) {
+                                                      return kernel.test(
+                                                          paired_vertex(block, 0, first_axes, second_axes),
+                                                          paired_vertex(block, 1, first_axes, second_axes),
+                                                          paired_vertex(block, 2, first_axes, second_axes),
+                                                          tnear, spread(rays, packet_.tlimit));
+                                                  });
             } else {
                 const block_detail::MollerTrumboreLanes<Ops> kernel(
                     {spread(rays, packet_.origin[0]), spread(rays, packet_.origin[1]),
