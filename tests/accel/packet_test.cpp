@@ -29,19 +29,25 @@ using testing::TestScene;
 
 // `isa`: the instruction set of bvh8_packet's kernels (Auto: the widest available).
 // `spatial_splits`: both structures built with bvh.spatial_splits.
+// `interleaved_streams`: bvh8_packet's ray streams walk several at once (bvh.interleaved_streams=on), which
+// its default leaves to trees of millions of primitives.
 struct Pair {
     std::string_view packet, single;
     SimdIsa isa = SimdIsa::Auto;
     bool spatial_splits = false;
+    bool interleaved_streams = false;
 
     [[nodiscard]] std::string label() const {
         std::string label(packet);
         if (isa != SimdIsa::Auto) label.append("_").append(isa_name(isa));
         if (spatial_splits) label.append("_spatial_splits");
+        if (interleaved_streams) label.append("_interleaved_streams");
         return label;
     }
     [[nodiscard]] BuildOptions options(TriangleTest test) const {
-        return testing::Configuration{packet, spatial_splits, isa}.options(test);
+        BuildOptions options = testing::Configuration{packet, spatial_splits, isa}.options(test);
+        if (interleaved_streams) options.group<BvhOptions>().interleaved_streams = InterleavedStreams::On;
+        return options;
     }
     [[nodiscard]] std::unique_ptr<Accel> make_packet() const { return make_accel(packet); }
 };
@@ -51,9 +57,13 @@ std::vector<Pair> pairs() {
                              {"bvh8_packet", "bvh8"},
                              {"plucker_packet", "plucker"},
                              {"bvh_packet", "bvh", SimdIsa::Auto, true},
-                             {"bvh8_packet", "bvh8", SimdIsa::Auto, true}};
+                             {"bvh8_packet", "bvh8", SimdIsa::Auto, true},
+                             {"bvh8_packet", "bvh8", SimdIsa::Auto, false, true}};
     // The AVX2 kernels where the widest are AVX-512: both paths are tested.
-    if (isa_available(SimdIsa::Avx512)) all.push_back({"bvh8_packet", "bvh8", SimdIsa::Avx2});
+    if (isa_available(SimdIsa::Avx512)) {
+        all.push_back({"bvh8_packet", "bvh8", SimdIsa::Avx2});
+        all.push_back({"bvh8_packet", "bvh8", SimdIsa::Avx2, false, true});
+    }
     return all;
 }
 
@@ -325,8 +335,8 @@ TEST_P(PacketTest, ShadowRayStreamsAroundTheirCapacity) {
     });
 }
 
-// A million incoherent rays through bvh8_packet with each instruction set's kernels and both triangle tests:
-// bvh8's answers bit for bit.
+// A million incoherent rays through bvh8_packet with each instruction set's kernels, both triangle tests and
+// its streams one at a time and interleaved: bvh8's answers bit for bit.
 TEST(Bvh8Packet, AMillionIncoherentRaysGiveBvh8sAnswers) {
     const TestScene& scene = scenes()[0];
     const std::vector<Ray> rays =
@@ -335,11 +345,16 @@ TEST(Bvh8Packet, AMillionIncoherentRaysGiveBvh8sAnswers) {
         Bvh8Accel single;
         single.build(scene.geometry(), build_options(test));
         for (SimdIsa isa : available_isas()) {
-            BuildOptions options = build_options(test);
-            options.isa = isa;
-            Bvh8PacketAccel packet;
-            packet.build(scene.geometry(), options);
-            EXPECT_EQ(bitwise_differences(packet, single, rays), 0u) << isa_name(isa);
+            for (InterleavedStreams interleaved : {InterleavedStreams::Off, InterleavedStreams::On}) {
+                BuildOptions options = build_options(test);
+                options.isa = isa;
+                options.group<BvhOptions>().interleaved_streams = interleaved;
+                Bvh8PacketAccel packet;
+                packet.build(scene.geometry(), options);
+                EXPECT_EQ(bitwise_differences(packet, single, rays), 0u)
+                    << isa_name(isa)
+                    << (interleaved == InterleavedStreams::On ? ", interleaved streams" : "");
+            }
         }
     }
 }

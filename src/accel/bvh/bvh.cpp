@@ -154,6 +154,14 @@ std::vector<BuildOptionRow> BvhAccel::option_rows() {
             "test first: auto (bvh8_packet's tree up to 131072 primitives), on or off",
             &BvhOptions::leaf_boxes,
             {{"auto", LeafBoxes::Auto}, {"on", LeafBoxes::On}, {"off", LeafBoxes::Off}}),
+        choice_option<BvhOptions, InterleavedStreams>(
+            "interleaved_streams",
+            "bvh8_packet's ray streams walk several at once, a node of each in turn: auto (trees of 2097152 "
+            "primitives or more), on or off",
+            &BvhOptions::interleaved_streams,
+            {{"auto", InterleavedStreams::Auto},
+             {"on", InterleavedStreams::On},
+             {"off", InterleavedStreams::Off}}),
         number_option("bins", "bins of the binned builder", &BvhOptions::bins, 2, 256),
         flag_option("spatial_splits", "spatial splits in the binned builder (the SBVH)",
                     &BvhOptions::spatial_splits),

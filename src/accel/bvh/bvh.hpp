@@ -22,6 +22,9 @@ enum class BvhBuilder {
 // bvh.leaf_boxes: headers of block boxes in bvh8's leaves of several blocks (BvhOptions::leaf_boxes).
 enum class LeafBoxes { Auto, On, Off };
 inline constexpr std::size_t kLeafBoxesUpTo = std::size_t{1} << 17;
+// bvh.interleaved_streams: several of bvh8_packet's ray streams walking at once (BvhOptions).
+enum class InterleavedStreams { Auto, On, Off };
+inline constexpr std::size_t kInterleavedStreamsFrom = std::size_t{1} << 21;
 
 // The options of the BVH family (`bvh`, `bvh4`, `bvh8` and their packet structures).
 struct BvhOptions {
@@ -42,6 +45,12 @@ struct BvhOptions {
     // the caches and the tests set the time (the bunny's diffuse and shadow views 8-15% faster), above it
     // the fetches do (the dragon's 3-7% slower) (docs/accel/bvh_wide.md, "Block boxes in merged leaves").
     LeafBoxes leaf_boxes = LeafBoxes::Auto;
+    // bvh8_packet: whether several ray streams walk at once, a node of each in turn, so that one stream's
+    // misses overlap the others' tests. Auto: for trees of at least kInterleavedStreamsFrom primitives. On
+    // a tree larger than the caches the streams wait on their loads (the diffuse view 7% faster at 3.5 M
+    // triangles, 18% at 14 M); on one that fits, the turns only add work (the dragon's 10% and the bunny's
+    // 13% slower) (docs/accel/stream.md, "Streams in flight").
+    InterleavedStreams interleaved_streams = InterleavedStreams::Auto;
     int bins = 32;
     // Spatial splits (Stich, Friedrich & Dietrich 2009, the SBVH) in the binned builder: a node may also
     // be split by a plane that cuts references in two, a primitive then appearing in several leaves, within

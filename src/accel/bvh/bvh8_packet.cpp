@@ -48,6 +48,11 @@ void Bvh8PacketAccel::build_structure(const Geometry& geometry, const BuildOptio
         leaf_boxes = geometry.size() <= kLeafBoxesUpTo ? LeafBoxes::On : LeafBoxes::Off;
     PacketAccel::build_structure(geometry, tree_options);
     leaf_diagonal_ = mean_leaf_diagonal(single_ray_);
+    const InterleavedStreams interleaved = options.group<BvhOptions>().interleaved_streams;
+    streams_in_flight_ = interleaved == InterleavedStreams::On || (interleaved == InterleavedStreams::Auto &&
+                                                                   geometry.size() >= kInterleavedStreamsFrom)
+                             ? kStreamsInFlight
+                             : 1;
 }
 
 UpdateReport Bvh8PacketAccel::update_structure(const Geometry& geometry) {
@@ -57,7 +62,7 @@ UpdateReport Bvh8PacketAccel::update_structure(const Geometry& geometry) {
 }
 
 Bvh8PacketTarget Bvh8PacketAccel::target() const {
-    return {single_ray_, geometry_, triangle_test_, leaf_diagonal_};
+    return {single_ray_, geometry_, triangle_test_, leaf_diagonal_, streams_in_flight_};
 }
 
 int Bvh8PacketAccel::lane_count() const {

@@ -43,6 +43,7 @@ class Bvh8PacketAccel final : public PacketAccel<Bvh8Accel> {
 
     const Bvh8PacketKernels* kernels_ = nullptr;
     float leaf_diagonal_ = 0.0f;  // mean_leaf_diagonal: the scale of Bvh8PacketTarget::coherent_width
+    int streams_in_flight_ = 1;   // Bvh8PacketTarget::streams_in_flight
 };
 
 }  // namespace lancer

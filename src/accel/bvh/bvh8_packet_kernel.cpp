@@ -181,7 +181,7 @@ void trace_batch(const Bvh8PacketTarget& target, std::span<const Ray> rays, std:
     dispatch_policies(target.test, counters != nullptr, [&]<class TriangleTestT, bool kCount>() {
         TraversalCounters counts;
         Bvh8PacketTraversal<Ops, TriangleTestT> tracer(bvh, geometry, RaySource::batch);
-        RayStreams<TriangleTestT, kAnyHit> streams(bvh, geometry);
+        RayStreams<TriangleTestT, kAnyHit> streams(bvh, geometry, target.streams_in_flight);
         for (std::size_t first = 0; first < rays.size(); first += kPacketRays) {
             const std::size_t count = std::min(kPacketRays, rays.size() - first);
             const std::span<const Ray> packet_rays = rays.subspan(first, count);

@@ -16,13 +16,19 @@ namespace lancer {
 inline constexpr int kBvh8PacketSize = 64;
 static_assert(kBvh8PacketSize == RayPacket::kMaxSize, "a RayPacket is traced as one packet");
 
-// What a batch call needs besides its rays: the tree, the geometry and triangle test it was built with, and
-// the scale of a coherent packet's width: the mean diagonal of the tree's leaf boxes (docs/accel/stream.md).
+// The ray streams that walk at once, a node of each in turn, on a tree larger than the caches (of 2, 4, 8,
+// 12 and 16, 8 measured best: docs/accel/stream.md, "Streams in flight").
+inline constexpr int kStreamsInFlight = 8;
+
+// What a batch call needs besides its rays: the tree, the geometry and triangle test it was built with, the
+// scale of a coherent packet's width (the mean diagonal of the tree's leaf boxes) and the ray streams that
+// walk at once: 1, or kStreamsInFlight (bvh.interleaved_streams) (docs/accel/stream.md).
 struct Bvh8PacketTarget {
     const Bvh8Accel& bvh;
     const Geometry& geometry;
     TriangleTest test;
     float coherent_width;
+    int streams_in_flight;
 };
 
 struct Bvh8PacketKernels {

@@ -15,6 +15,7 @@
 
 #include <immintrin.h>
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cmath>
@@ -110,7 +111,67 @@ class RayStream {
     template <bool kCount>
     void trace(std::span<const Ray> rays, const std::uint32_t* index, int count, unsigned octant,
                std::span<Answer> answers, TraversalCounters& counts) {
+        load(rays, index, count);
+        if (!nodes_.empty()) {
+            Stack stack;
+            WalkState walk;
+            begin(octant, walk);
+            while (walk_step<kCount, false>(walk, stack, counts)) {
+            }
+        }
+        finish(answers);
+    }
+
+    // trace() in three parts, so that several streams can take turns a node at a time (RayStreams): start
+    // loads the rays, step visits one node or leaf and requests the lines of the next (false once the walk
+    // is over), finish writes the answers.
+    void start(std::span<const Ray> rays, const std::uint32_t* index, int count, unsigned octant) {
+        load(rays, index, count);
+        begin(octant, walk_);
+        done_ = nodes_.empty();
+    }
+
+    template <bool kCount>
+    bool step(TraversalCounters& counts) {
+        if (done_) return false;
+        done_ = !walk_step<kCount, true>(walk_, stack_, counts);
+        return !done_;
+    }
+
+    void finish(std::span<Answer> answers) const {
+        for (int k = 0; k < count_; ++k) {
+            if constexpr (kAnyHit) {
+                answers[index_[k]] = ((alive_ >> k) & 1u) == 0 ? 1 : 0;
+            } else {
+                answers[index_[k]] = best_[k];
+            }
+        }
+    }
+
+  private:
+    using RayBits = ChildRays::Bits;
+    using Ops = simd::Avx2;
+    using ChildRef = wide_walk::ChildRef;
+    struct Entry {
+        ChildRef ref;
+        RayBits rays;
+    };
+    using Stack = std::array<Entry, wide_walk::kStackSize<kWidth>>;
+    // Where the walk stands, beside its stack: locals of trace(), or members (walk_, stack_) between the
+    // steps of a stream in flight. Apart from the stack, so that trace()'s stay in registers.
+    struct WalkState {
+        int stack_size = 0;
+        ChildRef current{0, 0};
+        RayBits rays = 0;
+        std::array<int, 3> side{};
+        // -0.0f on the axes the octant enters by the high side, whose planes the diagonal order subtracts.
+        Ops::Float diagonal_sign[3];
+    };
+
+    void load(std::span<const Ray> rays, const std::uint32_t* index, int count) {
+        count_ = count;
         for (int k = 0; k < count; ++k) {
+            index_[k] = index[k];
             const Ray& ray = rays[index[k]];
             const SlabRay slab(ray);
             for (int axis = 0; axis < 3; ++axis)
@@ -124,80 +185,67 @@ class RayStream {
             if constexpr (!kAnyHit) best_[k] = Hit{};
         }
         alive_ = count == kCapacity ? ~RayBits{0} : (RayBits{1} << count) - 1;
-        if (!nodes_.empty()) walk<kCount>(octant, counts);
-        for (int k = 0; k < count; ++k) {
-            if constexpr (kAnyHit) {
-                answers[index[k]] = ((alive_ >> k) & 1u) == 0 ? 1 : 0;
-            } else {
-                answers[index[k]] = best_[k];
-            }
-        }
     }
 
-  private:
-    using RayBits = ChildRays::Bits;
-    using Ops = simd::Avx2;
-    using ChildRef = wide_walk::ChildRef;
-    struct Entry {
-        ChildRef ref;
-        RayBits rays;
-    };
+    void begin(unsigned octant, WalkState& walk) const {
+        for (int axis = 0; axis < 3; ++axis) {
+            walk.side[static_cast<std::size_t>(axis)] = (octant >> axis) & 1;
+            walk.diagonal_sign[axis] = Ops::broadcast(std::bit_cast<float>(((octant >> axis) & 1u) << 31));
+        }
+        walk.stack_size = 0;
+        walk.current = {0, 0};
+        walk.rays = alive_;
+    }
 
-    template <bool kCount>
-    void walk(unsigned octant, TraversalCounters& counts) {
-        std::array<Entry, wide_walk::kStackSize<kWidth>> stack;
-        int stack_size = 0;
-        std::array<int, 3> side{};
-        for (int axis = 0; axis < 3; ++axis)
-            side[static_cast<std::size_t>(axis)] = (octant >> axis) & 1;
-        // -0.0f on the axes the octant enters by the high side, whose planes the diagonal order subtracts.
-        Ops::Float diagonal_sign[3];
-        for (int axis = 0; axis < 3; ++axis)
-            diagonal_sign[axis] = Ops::broadcast(std::bit_cast<float>(((octant >> axis) & 1u) << 31));
-        ChildRef current{0, 0};
-        RayBits rays = alive_;
+    // One node or leaf of the stream's walk, then the move to the next child; false once no child is left.
+    // kRequestNext: the next child's lines are requested, for a stream in flight, which visits it after the
+    // other streams' turns.
+    template <bool kCount, bool kRequestNext>
+    [[gnu::always_inline]] bool walk_step(WalkState& walk, Stack& stack, TraversalCounters& counts) {
+        if (walk.current.prim_count > 0) {
+            test_leaf<kCount>(walk.current, walk.side, walk.rays & alive_, counts);
+            if (kAnyHit && alive_ == 0) return false;
+        } else {
+            if constexpr (kCount)
+                counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(walk.rays));
+            const Node& node = nodes_[walk.current.child];
+            alignas(32) float along[kWidth];
+            const unsigned hit_children =
+                test_children(node, walk.side, walk.diagonal_sign, walk.rays, along);
+            if (hit_children != 0) {
+                const auto push = [&](int slot) {
+                    const ChildRef child{node.child[slot], node.prim_count[slot]};
+                    stack[static_cast<std::size_t>(walk.stack_size++)] = {child, child_rays_[slot]};
+                    // Fetched while the stream walks the child's siblings (docs/accel/stream.md).
+                    wide_walk::prefetch_child<kWidth>(nodes_, blocks_, child.child, child.prim_count);
+                };
+                // Closest hits: nearest first along the octant's diagonal, a stand-in for each ray's own
+                // entry order that the whole stream shares; the others pushed farthest first. Occlusion:
+                // slot order, as bvh8's any-hit walk and the occlusion packets, since any hit ends a ray
+                // (docs/log/stream.md, "Occlusion streams in slot order").
+                std::array<int, 2 * kWidth> order;
+                const int hit_count =
+                    kAnyHit ? order_by_slot(hit_children, order) : order_by_rank(hit_children, along, order);
+                for (int k = hit_count - 1; k > 0; --k)
+                    push(order[static_cast<std::size_t>(k)]);
+                const int first = order[0];
+                walk.current = {node.child[first], node.prim_count[first]};
+                walk.rays = child_rays_[first];
+                if constexpr (kRequestNext)
+                    wide_walk::prefetch_child<kWidth>(nodes_, blocks_, walk.current.child,
+                                                      walk.current.prim_count);
+                return true;
+            }
+        }
+        // POP the next child that some ray still in the stream reached. (A ray whose closest hit has come
+        // nearer than the child is dropped there by its box tests, or its block tests find nothing closer.)
         while (true) {
-            if (current.prim_count > 0) {
-                test_leaf<kCount>(current, side, rays & alive_, counts);
-                if (kAnyHit && alive_ == 0) return;
-            } else {
-                if constexpr (kCount) counts.nodes_visited += static_cast<std::uint64_t>(std::popcount(rays));
-                const Node& node = nodes_[current.child];
-                alignas(32) float along[kWidth];
-                const unsigned hit_children = test_children(node, side, diagonal_sign, rays, along);
-                if (hit_children != 0) {
-                    const auto push = [&](int slot) {
-                        const ChildRef child{node.child[slot], node.prim_count[slot]};
-                        stack[static_cast<std::size_t>(stack_size++)] = {child, child_rays_[slot]};
-                        // Fetched while the stream walks the child's siblings (docs/accel/stream.md).
-                        wide_walk::prefetch_child<kWidth>(nodes_, blocks_, child.child, child.prim_count);
-                    };
-                    // Closest hits: nearest first along the octant's diagonal, a stand-in for each ray's
-                    // own entry order that the whole stream shares; the others pushed farthest first.
-                    // Occlusion: slot order, as bvh8's any-hit walk and the occlusion packets, since any hit
-                    // ends a ray (docs/log/stream.md, "Occlusion streams in slot order").
-                    std::array<int, 2 * kWidth> order;
-                    const int hit_count = kAnyHit ? order_by_slot(hit_children, order)
-                                                  : order_by_rank(hit_children, along, order);
-                    for (int k = hit_count - 1; k > 0; --k)
-                        push(order[static_cast<std::size_t>(k)]);
-                    const int first = order[0];
-                    current = {node.child[first], node.prim_count[first]};
-                    rays = child_rays_[first];
-                    continue;
-                }
-            }
-            // POP the next child that some ray still in the stream reached. (A ray whose closest hit has come
-            // nearer than the child is dropped there by its box tests, or its block tests find nothing
-            // closer.)
-            while (true) {
-                if (stack_size == 0) return;
-                const Entry& popped = stack[static_cast<std::size_t>(--stack_size)];
-                rays = popped.rays & alive_;
-                if (rays == 0) continue;
-                current = popped.ref;
-                break;
-            }
+            if (walk.stack_size == 0) return false;
+            const Entry& popped = stack[static_cast<std::size_t>(--walk.stack_size)];
+            walk.rays = popped.rays & alive_;
+            if (walk.rays == 0) continue;
+            walk.current = popped.ref;
+            return true;
         }
     }
 
@@ -205,8 +253,9 @@ class RayStream {
     // chosen once for the octant, each ray clipped at its tlimit): child_rays_[slot] gets the rays that hit
     // the child; returns the children hit by any. along[slot], for closest hits: how far along the octant's
     // diagonal the child's entry corner lies (the walk's order).
-    [[nodiscard]] unsigned test_children(const Node& node, const std::array<int, 3>& side,
-                                         const Ops::Float (&diagonal_sign)[3], RayBits rays, float* along) {
+    [[nodiscard, gnu::always_inline]] unsigned test_children(const Node& node, const std::array<int, 3>& side,
+                                                             const Ops::Float (&diagonal_sign)[3],
+                                                             RayBits rays, float* along) {
         Ops::Float near_bound[3], far_bound[3];
         load_bounds(&node.bounds[0][0][0], side, near_bound, far_bound);
         if constexpr (!kAnyHit) {
@@ -233,8 +282,8 @@ class RayStream {
     // it, counted in lanes, so no branch depends on the distances (order_by_entry's insertion sort was
     // mispredicted, docs/accel/stream.md). A missed child's place is past the eighth; a NaN distance counts
     // as -inf, so the places of the hit children stay distinct.
-    [[nodiscard]] static int order_by_rank(unsigned hit_children, const float* along,
-                                           std::array<int, 2 * kWidth>& order) {
+    [[nodiscard, gnu::always_inline]] static int order_by_rank(unsigned hit_children, const float* along,
+                                                               std::array<int, 2 * kWidth>& order) {
         const Ops::Float distance = Ops::max(Ops::load(along), Ops::broadcast(-kInfinity));
         alignas(32) float key[kWidth];
         Ops::store(key, distance);
@@ -252,7 +301,8 @@ class RayStream {
     // header (has_leaf_boxes), each ray tests the blocks whose boxes it crosses, by test_children's
     // arithmetic.
     template <bool kCount>
-    void test_leaf(ChildRef leaf, const std::array<int, 3>& side, RayBits rays, TraversalCounters& counts) {
+    [[gnu::always_inline]] void test_leaf(ChildRef leaf, const std::array<int, 3>& side, RayBits rays,
+                                          TraversalCounters& counts) {
         const LeafSpan span = leaf_span<kWidth>(leaf.child, leaf.prim_count);
         const bool has_boxes = has_leaf_boxes(leaf.child);
         Ops::Float near_bound[3], far_bound[3];
@@ -320,19 +370,30 @@ class RayStream {
     // A plain array: std::array<Hit, N>'s constructor may be left out of line under a name the AVX2 baseline
     // shares (docs/isa.md, "Why the namespaces").
     Hit best_[kCapacity];
-    RayBits alive_ = 0;  // occlusion: the rays not yet occluded; closest hits: all of them
+    RayBits alive_ = 0;               // occlusion: the rays not yet occluded; closest hits: all of them
+    std::uint32_t index_[kCapacity];  // where each ray's answer goes
+    int count_ = 0;
+    WalkState walk_;  // a stream in flight's walk between its steps, and its stack
+    Stack stack_;
+    bool done_ = true;
 };
 
 // The batch's rays sorted into a stream per octant as they come, each stream traced when it is full and the
 // others at the end, as Embree's stream call sorts its rays. Invalid rays miss; a ray that starts behind its
-// origin (tnear < 0), which the stream's box test does not take, walks alone with bvh8's walk.
+// origin (tnear < 0), which the stream's box test does not take, walks alone with bvh8's walk. With
+// `in_flight` above 1 (a tree larger than the caches: bvh.interleaved_streams), up to that many full streams
+// walk at once, a node of each in turn, so that the misses of one stream's next node overlap the others'
+// work (docs/accel/stream.md, "Streams in flight").
 template <class TriangleTestT, bool kAnyHit>
 class RayStreams {
   public:
     using Answer = typename RayStream<TriangleTestT, kAnyHit>::Answer;
 
-    RayStreams(const Bvh8Accel& bvh, const Geometry& geometry)
-        : bvh_(bvh), geometry_(geometry), stream_(bvh, geometry) {}
+    RayStreams(const Bvh8Accel& bvh, const Geometry& geometry, int in_flight)
+        : bvh_(bvh),
+          geometry_(geometry),
+          in_flight_(std::clamp(in_flight, 1, kStreamsInFlight)),
+          first_(bvh, geometry) {}
 
     // Answers rays[i] in answers[i], now or by a later add or finish.
     template <bool kCount>
@@ -367,22 +428,61 @@ class RayStreams {
         for (unsigned octant = 0; octant < 8; ++octant) {
             if (count_[octant] != 0) trace<kCount>(octant, rays, answers, counts);
         }
+        while (running_ > 0)
+            end_one<kCount>(answers, counts);
     }
 
   private:
     static constexpr int kCapacity = RayStream<TriangleTestT, kAnyHit>::kCapacity;
 
+    // A stream that is full is traced at once, or, with streams in flight, started in a free slot (after
+    // the running ones have stepped until one ended, when none is free).
     template <bool kCount>
     void trace(unsigned octant, std::span<const Ray> rays, std::span<Answer> answers,
                TraversalCounters& counts) {
-        stream_.template trace<kCount>(rays, waiting_[octant].data(), count_[octant], octant, answers,
-                                       counts);
+        if (in_flight_ == 1) {
+            first_.template trace<kCount>(rays, waiting_[octant].data(), count_[octant], octant, answers,
+                                          counts);
+            count_[octant] = 0;
+            return;
+        }
+        if (running_ == in_flight_) end_one<kCount>(answers, counts);
+        std::size_t slot = 0;
+        while (busy_[slot])
+            ++slot;
+        if (slot > 0 && !others_[slot - 1]) others_[slot - 1].emplace(bvh_, geometry_);
+        stream(slot).start(rays, waiting_[octant].data(), count_[octant], octant);
+        busy_[slot] = true;
+        ++running_;
         count_[octant] = 0;
+    }
+
+    // Steps the running streams in turn, a node or leaf each, until one ends, and writes its answers.
+    template <bool kCount>
+    void end_one(std::span<Answer> answers, TraversalCounters& counts) {
+        while (true) {
+            const auto slot = static_cast<std::size_t>(turn_);
+            turn_ = turn_ + 1 == in_flight_ ? 0 : turn_ + 1;
+            if (!busy_[slot] || stream(slot).template step<kCount>(counts)) continue;
+            stream(slot).finish(answers);
+            busy_[slot] = false;
+            --running_;
+            return;
+        }
+    }
+
+    [[nodiscard]] RayStream<TriangleTestT, kAnyHit>& stream(std::size_t slot) {
+        return slot == 0 ? first_ : *others_[slot - 1];
     }
 
     const Bvh8Accel& bvh_;
     const Geometry& geometry_;
-    RayStream<TriangleTestT, kAnyHit> stream_;
+    const int in_flight_;
+    RayStream<TriangleTestT, kAnyHit> first_;
+    // The other streams in flight, made at their first use.
+    std::array<std::optional<RayStream<TriangleTestT, kAnyHit>>, kStreamsInFlight - 1> others_;
+    std::array<bool, kStreamsInFlight> busy_{};
+    int running_ = 0, turn_ = 0;
     std::array<std::array<std::uint32_t, kCapacity>, 8> waiting_;  // the rays of each octant's next stream
     std::array<int, 8> count_{};
 };

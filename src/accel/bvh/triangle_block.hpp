@@ -506,10 +506,13 @@ inline void each_block_hit(const Geometry& geometry, const TriangleBlock<K>& blo
     }
 }
 
-// occludes on every lane of a block: any hit in [tnear, tfar].
+// occludes on every lane of a block: any hit in [tnear, tfar]. Always inlined: GCC's inlining budget left it
+// an out-of-line call in the ray streams' walk once that walk was cut into steps (docs/log/stream.md,
+// "Streams in flight").
 template <class TriangleTestT, int K>
-[[nodiscard]] inline bool occludes_block(const Geometry& geometry, const TriangleBlock<K>& block,
-                                         const BlockRay<TriangleTestT, K>& ray) {
+[[nodiscard, gnu::always_inline]] inline bool occludes_block(const Geometry& geometry,
+                                                             const TriangleBlock<K>& block,
+                                                             const BlockRay<TriangleTestT, K>& ray) {
     BlockHits<K> hits;
     ray.kernel.test(block, ray.prepared.ray.tnear, ray.prepared.ray.tfar, hits);
     if (hits.hit_lanes != 0) return true;
