@@ -336,7 +336,8 @@ struct MollerTrumboreBlock {
     }
 
     template <int K>
-    void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
+    [[gnu::always_inline]] void test(const TriangleBlock<K>& block, float tnear, float tfar,
+                                     BlockHits<K>& out) const {
         store_hits(lanes.test(load_vertex<Ops>(block, 0), load_vertex<Ops>(block, 1),
                               load_vertex<Ops>(block, 2), Ops::broadcast(tnear), Ops::broadcast(tfar)),
                    out);
@@ -375,8 +376,11 @@ struct WatertightBlock {
                 Ops::load(block.vertex[v][kz])};
     }
 
+    // Always inlined, as MollerTrumboreBlock's: the walks that call it once a block (bvh8's, the ray
+    // streams') are where it runs, and GCC's budget left it out of line in the ray streams' walk.
     template <int K>
-    void test(const TriangleBlock<K>& block, float tnear, float tfar, BlockHits<K>& out) const {
+    [[gnu::always_inline]] void test(const TriangleBlock<K>& block, float tnear, float tfar,
+                                     BlockHits<K>& out) const {
         store_hits(lanes.test(permuted(block, 0), permuted(block, 1), permuted(block, 2),
                               Ops::broadcast(tnear), Ops::broadcast(tfar)),
                    out);
@@ -506,13 +510,10 @@ inline void each_block_hit(const Geometry& geometry, const TriangleBlock<K>& blo
     }
 }
 
-// occludes on every lane of a block: any hit in [tnear, tfar]. Always inlined: GCC's inlining budget left it
-// an out-of-line call in the ray streams' walk once that walk was cut into steps (docs/log/stream.md,
-// "Streams in flight").
+// occludes on every lane of a block: any hit in [tnear, tfar].
 template <class TriangleTestT, int K>
-[[nodiscard, gnu::always_inline]] inline bool occludes_block(const Geometry& geometry,
-                                                             const TriangleBlock<K>& block,
-                                                             const BlockRay<TriangleTestT, K>& ray) {
+[[nodiscard]] inline bool occludes_block(const Geometry& geometry, const TriangleBlock<K>& block,
+                                         const BlockRay<TriangleTestT, K>& ray) {
     BlockHits<K> hits;
     ray.kernel.test(block, ray.prepared.ray.tnear, ray.prepared.ray.tfar, hits);
     if (hits.hit_lanes != 0) return true;
